@@ -1,0 +1,30 @@
+"""Named exceptions shared by every layer.
+
+Each carries a message meant for the user: it names the input at fault and what
+would fix it. The CLI turns them into a non-zero exit with that message.
+"""
+from __future__ import annotations
+
+
+class OmniWarpError(Exception):
+    """Base class of every error OmniWarp raises on purpose."""
+
+
+class InputError(OmniWarpError, ValueError):
+    """Bad user input: an unknown name, a bad number, a missing file."""
+
+
+class PresetError(InputError):
+    """An unknown preset, or a preset module that does not follow the contract."""
+
+
+class GeometryError(OmniWarpError):
+    """Geometry that cannot be processed (e.g. nothing finite left to draw)."""
+
+
+class BackendError(OmniWarpError):
+    """A GPU backend failed to start, compile a shader or read back."""
+
+
+class ReferenceCaptureError(OmniWarpError):
+    """The Cycles reference could not be rendered, read or loaded from cache."""

@@ -1,0 +1,73 @@
+"""The error figure against the Cycles reference (DESIGN.md section 5)."""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from .scene import LightSpec
+
+UNSHADOWED_EPS = 1e-6
+
+
+def reference_visibility(shadowed: np.ndarray, unshadowed: np.ndarray, eps: float = UNSHADOWED_EPS) -> np.ndarray:
+    """Cycles visibility: shadowed / unshadowed >= 0.5 where unshadowed > eps."""
+    sh = np.asarray(shadowed, dtype=np.float64)
+    un = np.asarray(unshadowed, dtype=np.float64)
+    ratio = np.divide(sh, un, out=np.zeros_like(sh), where=un > eps)
+    return (un > eps) & (ratio >= 0.5)
+
+
+def evaluable_mask(position: np.ndarray, normal: np.ndarray, hit: np.ndarray, unshadowed: np.ndarray,
+                   light: LightSpec, eps: float = UNSHADOWED_EPS) -> np.ndarray:
+    """Pixels that count: hit geometry, face the light, lie in the emission domain and get light."""
+    pos = np.asarray(position, dtype=np.float64)
+    to_light = light.position - pos
+    facing = np.einsum("...i,...i->...", np.asarray(normal, dtype=np.float64), to_light) > 0.0
+    mask = np.asarray(hit, dtype=bool) & facing & (np.asarray(unshadowed) > eps)
+    mask &= np.all(np.isfinite(pos), axis=-1)
+    if light.emission == "hemi":
+        mask &= (-to_light) @ light.axis > 0.0
+    return mask
+
+
+@dataclass
+class ErrorFigure:
+    error_pct: float
+    false_shadow_pct: float
+    false_lit_pct: float
+    evaluated_pixels: int
+
+
+def error_figure(estimate_lit: np.ndarray, reference_lit: np.ndarray, evaluable: np.ndarray) -> ErrorFigure:
+    """Mismatch share of evaluated pixels, split into false shadow and false lit."""
+    est = np.asarray(estimate_lit, dtype=bool)
+    ref = np.asarray(reference_lit, dtype=bool)
+    ev = np.asarray(evaluable, dtype=bool)
+    n = int(np.count_nonzero(ev))
+    if n == 0:
+        return ErrorFigure(0.0, 0.0, 0.0, 0)
+    false_shadow = int(np.count_nonzero(ev & ref & ~est))
+    false_lit = int(np.count_nonzero(ev & ~ref & est))
+    return ErrorFigure(100.0 * (false_shadow + false_lit) / n, 100.0 * false_shadow / n, 100.0 * false_lit / n, n)
+
+
+def mismatch_image(grey_source: np.ndarray, estimate_lit: np.ndarray, reference_lit: np.ndarray,
+                   evaluable: np.ndarray) -> np.ndarray:
+    """RGB uint8 image: the reference rendering in grey, mismatches painted red.
+
+    False shadow is pure red, false lit a lighter red, so both read as errors
+    (as in the thesis figures) yet stay distinguishable.
+    """
+    src = np.asarray(grey_source, dtype=np.float64)
+    finite = src[np.isfinite(src) & (src > 0)]
+    top = float(np.percentile(finite, 99)) if finite.size else 1.0
+    grey = np.clip(src / max(top, 1e-12), 0.0, 1.0) ** (1 / 2.2)
+    grey = 0.15 + 0.7 * grey
+    img = np.repeat((grey * 255).astype(np.uint8)[..., None], 3, axis=-1)
+    ev = np.asarray(evaluable, dtype=bool)
+    est = np.asarray(estimate_lit, dtype=bool)
+    ref = np.asarray(reference_lit, dtype=bool)
+    img[ev & ref & ~est] = (230, 20, 20)
+    img[ev & ~ref & est] = (255, 120, 120)
+    return img

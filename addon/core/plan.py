@@ -1,0 +1,131 @@
+"""Planning: which layers a frame needs.
+
+For a point light the occluder of a visible receiver lies on the segment from the
+light to that receiver, inside the same layer (King and Newhall; thesis 3.3.1).
+So a layer is needed exactly when its frustum meets the truncated view frustum,
+the camera frustum cut at the nearest and farthest view-sample depth.
+
+Paraboloid side: the closed half-space z >= 0 of its frame. The convex hull of the
+truncated frustum's 8 corners meets it iff some corner has z >= 0.
+Cube face: the pyramid |x| <= z, |y| <= z cut at `far`. Two convex polytopes are
+disjoint iff a separating axis exists among their face normals and the cross
+products of their edge directions (separating axis theorem), which is exact and
+cheaper than the point-in-frustum / edge-plane tests of the thesis.
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from .frames import Layer, Parameterization, light_layers
+from .projection import CUBE
+from .scene import CameraSpec, LightSpec
+
+# Relative slack: culling must be conservative, never drop a needed layer.
+_SLACK = 1e-6
+
+
+@dataclass
+class Plan:
+    """Layers of a frame: all the emission could use, and those to draw."""
+
+    parameterization: Parameterization
+    all_layers: list[Layer]
+    drawn: list[Layer]
+    frustum_corners: np.ndarray | None  # (8, 3) world, None for an empty view
+    culled_names: list[str] = field(default_factory=list)
+
+    @property
+    def drawn_slots(self) -> list[int]:
+        return [layer.slot for layer in self.drawn]
+
+
+def frustum_corners(camera: CameraSpec, near_depth: float, far_depth: float) -> np.ndarray:
+    """World-space corners (8, 3) of the camera frustum between two view depths."""
+    width, height = camera.resolution
+    half = math.tan(math.radians(camera.fov_deg) / 2.0)
+    if width >= height:
+        hx, hy = half, half * height / width
+    else:
+        hx, hy = half * width / height, half
+    corners = []
+    for depth in (near_depth, far_depth):
+        for sx, sy in ((-1, -1), (1, -1), (1, 1), (-1, 1)):
+            corners.append([sx * hx * depth, sy * hy * depth, -depth])
+    local = np.asarray(corners, dtype=np.float64)
+    m = np.asarray(camera.matrix_world, dtype=np.float64)
+    return local @ m[:3, :3].T + m[:3, 3]
+
+
+def truncated_frustum(camera: CameraSpec, positions: np.ndarray, hit: np.ndarray,
+                      margin: float = 0.02) -> np.ndarray | None:
+    """Camera frustum cut at the min/max view depth of the hit samples (with margin).
+
+    Strict min and max are used here: the foundation's culling must never change a
+    shadow. Returns None when no sample hits geometry (nothing needs a map).
+    """
+    pts = np.asarray(positions, dtype=np.float64)[np.asarray(hit, dtype=bool)]
+    pts = pts[np.all(np.isfinite(pts), axis=1)]
+    if len(pts) == 0:
+        return None
+    m = np.asarray(camera.matrix_world, dtype=np.float64)
+    view_depth = -((pts - m[:3, 3]) @ m[:3, 2])  # camera looks along its local -Z
+    near = max(float(view_depth.min()) * (1.0 - margin), 1e-9)
+    far = float(view_depth.max()) * (1.0 + margin) + 1e-9
+    return frustum_corners(camera, near, far)
+
+
+def _hull_axes(corners: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Face normals and edge directions of a frustum given as near quad + far quad."""
+    near, far = corners[:4], corners[4:]
+    edges = [near[1] - near[0], near[3] - near[0], far[0] - near[0], far[1] - near[1],
+             far[2] - near[2], far[3] - near[3]]
+    faces = []
+    for i in range(4):
+        j = (i + 1) % 4
+        faces.append(np.cross(near[j] - near[i], far[i] - near[i]))
+    faces.append(np.cross(near[1] - near[0], near[3] - near[0]))
+    return np.asarray(faces), np.asarray(edges)
+
+
+def _separated(a: np.ndarray, b: np.ndarray, axes: np.ndarray) -> bool:
+    norms = np.linalg.norm(axes, axis=1)
+    axes = axes[norms > 1e-12] / norms[norms > 1e-12, None]
+    pa, pb = a @ axes.T, b @ axes.T
+    scale = max(float(np.abs(a).max()), float(np.abs(b).max()), 1e-30)
+    gap = _SLACK * scale
+    return bool(np.any((pa.max(axis=0) + gap < pb.min(axis=0)) | (pb.max(axis=0) + gap < pa.min(axis=0))))
+
+
+def layer_meets_frustum(layer: Layer, light_position: np.ndarray, corners: np.ndarray, far: float) -> bool:
+    """True when the layer's frustum (out to `far`) meets the convex hull of `corners`."""
+    local = layer.to_local(np.asarray(corners, dtype=np.float64) - light_position)
+    scale = float(np.abs(local).max()) + 1e-30
+    if layer.kind != CUBE:
+        return bool(local[:, 2].max() >= -_SLACK * scale)
+    reach = max(far, float(np.linalg.norm(local, axis=1).max())) * 1.01
+    pyramid = np.array([[0.0, 0.0, 0.0], [reach, reach, reach], [-reach, reach, reach],
+                        [-reach, -reach, reach], [reach, -reach, reach]])
+    pyr_faces = np.array([[1.0, 0, -1], [-1.0, 0, -1], [0, 1.0, -1], [0, -1.0, -1], [0, 0, 1.0]])
+    pyr_edges = np.array([[1.0, 1, 1], [-1.0, 1, 1], [-1.0, -1, 1], [1.0, -1, 1], [1.0, 0, 0], [0, 1.0, 0]])
+    fr_faces, fr_edges = _hull_axes(local)
+    crosses = np.cross(pyr_edges[:, None, :], fr_edges[None, :, :]).reshape(-1, 3)
+    axes = np.concatenate([pyr_faces, fr_faces, crosses])
+    return not _separated(pyramid, local, axes)
+
+
+def plan_frame(light: LightSpec, parameterization: Parameterization, camera: CameraSpec,
+               positions: np.ndarray, hit: np.ndarray, far: float, cull: bool = True) -> Plan:
+    """Decide which layers to draw for one frame."""
+    layers = light_layers(light, parameterization)
+    corners = truncated_frustum(camera, positions, hit)
+    if not cull:
+        return Plan(parameterization, layers, list(layers), corners)
+    if corners is None:
+        return Plan(parameterization, layers, [], None, [layer.name for layer in layers])
+    drawn, culled = [], []
+    for layer in layers:
+        (drawn if layer_meets_frustum(layer, light.position, corners, far) else culled).append(layer)
+    return Plan(parameterization, layers, drawn, corners, [layer.name for layer in culled])

@@ -1,0 +1,123 @@
+"""Paraboloid and cube-face projections, forward and inverse (numpy, float64).
+
+Every layer works in its own local frame with the layer axis along +Z
+(DESIGN.md section 4). Map coordinates `xy` lie in [-1, 1]^2; texture
+coordinates are uv = 0.5 + 0.5 * xy, texel (i, j) = floor(uv * res).
+
+Paraboloid (Brabec et al. 2002, eq. 1-3): for a unit direction v with v_z >= 0,
+    (x, y) = (v_x, v_y) / (1 + v_z)
+which is the stereographic projection from the opposite pole, so the front
+hemisphere fills the unit disk. It is singular only at v_z = -1, which a side
+never sees because triangles are split at the seam plane first.
+
+Cube face: a 90 degree perspective view, (x, y) = (p_x, p_y) / p_z.
+"""
+from __future__ import annotations
+
+import numpy as np
+
+PARABOLOID = 0
+CUBE = 1
+
+_TINY = 1e-300
+
+
+def paraboloid_project(local: np.ndarray) -> np.ndarray:
+    """Map layer-local points (..., 3) to paraboloid coordinates (..., 2).
+
+    The point is normalised first, so the result depends only on direction.
+    Points at the origin map to the centre (they subtend no solid angle).
+    """
+    p = np.asarray(local, dtype=np.float64)
+    length = np.linalg.norm(p, axis=-1, keepdims=True)
+    v = p / np.maximum(length, _TINY)
+    denom = 1.0 + v[..., 2:3]
+    return v[..., :2] / np.maximum(denom, _TINY)
+
+
+def paraboloid_unproject(xy: np.ndarray) -> np.ndarray:
+    """Inverse of `paraboloid_project`: unit directions for map points (..., 2).
+
+    Inverse stereographic projection: v = (2x, 2y, 1 - r^2) / (1 + r^2).
+    """
+    q = np.asarray(xy, dtype=np.float64)
+    r2 = np.sum(q * q, axis=-1, keepdims=True)
+    return np.concatenate([2.0 * q, 1.0 - r2], axis=-1) / (1.0 + r2)
+
+
+def cube_project(local: np.ndarray) -> np.ndarray:
+    """Map face-local points (..., 3) with p_z > 0 to face coordinates (..., 2)."""
+    p = np.asarray(local, dtype=np.float64)
+    return p[..., :2] / np.maximum(p[..., 2:3], _TINY)
+
+
+def cube_unproject(xy: np.ndarray) -> np.ndarray:
+    """Unit directions for cube-face coordinates (..., 2)."""
+    q = np.asarray(xy, dtype=np.float64)
+    d = np.concatenate([q, np.ones(q.shape[:-1] + (1,))], axis=-1)
+    return d / np.linalg.norm(d, axis=-1, keepdims=True)
+
+
+def project(kind: int, local: np.ndarray) -> np.ndarray:
+    """Project with the layer kind (PARABOLOID or CUBE)."""
+    return paraboloid_project(local) if kind == PARABOLOID else cube_project(local)
+
+
+def unproject(kind: int, xy: np.ndarray) -> np.ndarray:
+    """Inverse projection with the layer kind."""
+    return paraboloid_unproject(xy) if kind == PARABOLOID else cube_unproject(xy)
+
+
+def xy_to_texel(xy: np.ndarray, resolution: int) -> np.ndarray:
+    """Continuous texel coordinates (texel centres at i + 0.5) of map points."""
+    return (np.asarray(xy, dtype=np.float64) * 0.5 + 0.5) * resolution
+
+
+def texel_index(xy: np.ndarray, resolution: int) -> np.ndarray:
+    """Integer texel (column, row) containing each map point, clamped to the map."""
+    idx = np.floor(xy_to_texel(xy, resolution)).astype(np.int64)
+    return np.clip(idx, 0, resolution - 1)
+
+
+def texel_angle(kind: int, xy: np.ndarray, resolution: int) -> np.ndarray:
+    """Angular size (radians) of one texel at map point `xy` (an upper bound).
+
+    Paraboloid: r = tan(theta/2), so d(theta)/dr = 2 / (1 + r^2); one texel spans
+    2/res in r. Cube: a step dx on the plane z = 1 at distance rho = sqrt(1 + r^2)
+    turns the ray by at most dx / rho (the tangential direction).
+    """
+    q = np.asarray(xy, dtype=np.float64)
+    r2 = np.sum(q * q, axis=-1)
+    step = 2.0 / resolution
+    if kind == PARABOLOID:
+        return step * 2.0 / (1.0 + r2)
+    return step / np.sqrt(1.0 + r2)
+
+
+def normalized_depth(distance: np.ndarray, near: float, far: float) -> np.ndarray:
+    """Normalised radial depth (L - near) / (far - near)."""
+    return (np.asarray(distance, dtype=np.float64) - near) / (far - near)
+
+
+def depth_range(triangles: np.ndarray, light_position: np.ndarray, margin: float = 0.01) -> tuple[float, float]:
+    """Near and far radial distances from the light to the scene's bounding box.
+
+    near is the distance from the light to the box (0 when the light is inside),
+    far the distance to its farthest corner; both get a relative margin so that
+    geometry on the box surface stays strictly inside (0, 1) depth.
+    """
+    pts = np.asarray(triangles, dtype=np.float64).reshape(-1, 3)
+    pts = pts[np.all(np.isfinite(pts), axis=1)]
+    light = np.asarray(light_position, dtype=np.float64)
+    if len(pts) == 0:
+        return 0.0, 1.0
+    lo, hi = pts.min(axis=0), pts.max(axis=0)
+    nearest = np.clip(light, lo, hi)
+    near = float(np.linalg.norm(nearest - light))
+    corners = np.array([[x, y, z] for x in (lo[0], hi[0]) for y in (lo[1], hi[1]) for z in (lo[2], hi[2])])
+    far = float(np.max(np.linalg.norm(corners - light, axis=1)))
+    near = near * (1.0 - margin)
+    far = far * (1.0 + margin)
+    # A flat or point-like scene still needs a non-empty range.
+    far = max(far, near + 1e-6 * max(1.0, far))
+    return near, far

@@ -1,0 +1,235 @@
+"""Scene description shared by presets, the Cycles reference and the pipeline.
+
+A `SceneSpec` is plain numpy data: meshes in object space with a world matrix, one
+light and one camera. Preset modules fill it through a `SceneBuilder`, so the same
+builder feeds the Blender scene (reference, UI) and the bpy-free pipeline.
+
+Conventions (Blender's): world is right-handed and Z-up. A camera looks along its
+local -Z with +Y up. A light's axis (for hemispherical emission) is its local -Z,
+the direction a Blender spot light points.
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+from typing import Literal
+
+import numpy as np
+
+from .errors import InputError
+
+Emission = Literal["omni", "hemi"]
+
+
+@dataclass
+class MeshSpec:
+    """One triangle mesh: object-space vertices, triangle indices and a world matrix."""
+
+    name: str
+    vertices: np.ndarray  # (n, 3) float64, object space
+    triangles: np.ndarray  # (m, 3) int64
+    matrix_world: np.ndarray = field(default_factory=lambda: np.eye(4))
+
+    def world_triangles(self) -> np.ndarray:
+        """Return (m, 3, 3) float64 world-space triangle corners."""
+        v = np.asarray(self.vertices, dtype=np.float64)
+        homo = np.concatenate([v, np.ones((len(v), 1))], axis=1)
+        world = (homo @ np.asarray(self.matrix_world, dtype=np.float64).T)[:, :3]
+        return world[np.asarray(self.triangles, dtype=np.int64)]
+
+
+@dataclass
+class LightSpec:
+    """A point light: omni (POINT) or hemispherical (180 degree SPOT along local -Z)."""
+
+    emission: Emission
+    matrix_world: np.ndarray
+    energy: float = 1000.0
+
+    @property
+    def position(self) -> np.ndarray:
+        return np.asarray(self.matrix_world, dtype=np.float64)[:3, 3].copy()
+
+    @property
+    def rotation(self) -> np.ndarray:
+        """Orthonormal 3x3 light-to-world rotation (scale removed)."""
+        m = np.asarray(self.matrix_world, dtype=np.float64)[:3, :3]
+        return orthonormalize(m)
+
+    @property
+    def axis(self) -> np.ndarray:
+        """World direction of the light's local -Z (the hemisphere axis)."""
+        return -self.rotation[:, 2]
+
+
+@dataclass
+class CameraSpec:
+    """A perspective camera. `fov_deg` spans the larger image side (Blender AUTO fit)."""
+
+    matrix_world: np.ndarray
+    fov_deg: float
+    resolution: tuple[int, int]  # (width, height)
+    clip_start: float = 0.05
+    clip_end: float = 200.0
+
+    def projection(self) -> np.ndarray:
+        """OpenGL-style 4x4 projection matrix matching Blender's camera."""
+        width, height = self.resolution
+        half = math.tan(math.radians(self.fov_deg) / 2.0)
+        if width >= height:
+            sx, sy = 1.0 / half, (width / height) / half
+        else:
+            sx, sy = (height / width) / half, 1.0 / half
+        n, f = self.clip_start, self.clip_end
+        return np.array(
+            [
+                [sx, 0, 0, 0],
+                [0, sy, 0, 0],
+                [0, 0, -(f + n) / (f - n), -2 * f * n / (f - n)],
+                [0, 0, -1, 0],
+            ],
+            dtype=np.float64,
+        )
+
+
+@dataclass
+class SceneSpec:
+    """Everything a preset defines."""
+
+    name: str
+    meshes: list[MeshSpec]
+    light: LightSpec
+    camera: CameraSpec
+    description: str = ""
+    stresses: str = ""
+
+    def world_triangles(self) -> np.ndarray:
+        """All triangles in world space as (T, 3, 3) float64."""
+        parts = [m.world_triangles() for m in self.meshes]
+        if not parts:
+            return np.zeros((0, 3, 3), dtype=np.float64)
+        return np.concatenate(parts, axis=0)
+
+
+def orthonormalize(m: np.ndarray) -> np.ndarray:
+    """Closest rotation to `m` (polar decomposition through SVD)."""
+    u, _, vt = np.linalg.svd(np.asarray(m, dtype=np.float64))
+    r = u @ vt
+    if np.linalg.det(r) < 0:
+        u[:, -1] *= -1
+        r = u @ vt
+    return r
+
+
+def look_at(eye, target, up=(0.0, 0.0, 1.0)) -> np.ndarray:
+    """World matrix of a camera (or light) at `eye` whose local -Z points at `target`."""
+    eye = np.asarray(eye, dtype=np.float64)
+    forward = np.asarray(target, dtype=np.float64) - eye
+    norm = np.linalg.norm(forward)
+    if norm == 0:
+        raise InputError("look_at: eye and target coincide")
+    forward /= norm
+    up_v = np.asarray(up, dtype=np.float64)
+    if abs(float(np.dot(forward, up_v))) > 0.999:
+        up_v = np.array([0.0, 1.0, 0.0])
+    right = np.cross(forward, up_v)
+    right /= np.linalg.norm(right)
+    true_up = np.cross(right, forward)
+    m = np.eye(4)
+    m[:3, 0], m[:3, 1], m[:3, 2], m[:3, 3] = right, true_up, -forward, eye
+    return m
+
+
+def translation(offset) -> np.ndarray:
+    """4x4 translation matrix."""
+    m = np.eye(4)
+    m[:3, 3] = np.asarray(offset, dtype=np.float64)
+    return m
+
+
+def rotation_z(degrees: float) -> np.ndarray:
+    """4x4 rotation about world Z."""
+    a = math.radians(degrees)
+    m = np.eye(4)
+    m[0, 0], m[0, 1], m[1, 0], m[1, 1] = math.cos(a), -math.sin(a), math.sin(a), math.cos(a)
+    return m
+
+
+_BOX_FACES = np.array(
+    [
+        [0, 2, 1], [0, 3, 2],  # bottom (z-)
+        [4, 5, 6], [4, 6, 7],  # top (z+)
+        [0, 1, 5], [0, 5, 4],  # y-
+        [2, 3, 7], [2, 7, 6],  # y+
+        [1, 2, 6], [1, 6, 5],  # x+
+        [3, 0, 4], [3, 4, 7],  # x-
+    ],
+    dtype=np.int64,
+)
+
+
+class SceneBuilder:
+    """What a preset module's `build(builder)` receives. Deterministic, numpy only."""
+
+    def __init__(self, name: str, resolution: tuple[int, int] = (640, 480)) -> None:
+        self.name = name
+        self.resolution = resolution
+        self._meshes: list[MeshSpec] = []
+        self._light: LightSpec | None = None
+        self._camera: CameraSpec | None = None
+
+    # geometry -------------------------------------------------------------
+    def mesh(self, name: str, vertices, triangles, matrix_world=None) -> MeshSpec:
+        """Add an arbitrary triangle mesh."""
+        verts = np.asarray(vertices, dtype=np.float64).reshape(-1, 3)
+        tris = np.asarray(triangles, dtype=np.int64).reshape(-1, 3)
+        if len(tris) and (tris.min() < 0 or tris.max() >= len(verts)):
+            raise InputError(f"mesh {name!r}: triangle index out of range")
+        spec = MeshSpec(name, verts, tris, np.eye(4) if matrix_world is None else np.asarray(matrix_world, float))
+        self._meshes.append(spec)
+        return spec
+
+    def box(self, name: str, center, size, rotate_z_deg: float = 0.0, inward: bool = False) -> MeshSpec:
+        """Axis-aligned box (optionally turned about Z). `inward` flips normals (a room)."""
+        sx, sy, sz = (np.asarray(size, dtype=np.float64) / 2.0)
+        corners = np.array(
+            [[-sx, -sy, -sz], [sx, -sy, -sz], [sx, sy, -sz], [-sx, sy, -sz],
+             [-sx, -sy, sz], [sx, -sy, sz], [sx, sy, sz], [-sx, sy, sz]]
+        )
+        tris = _BOX_FACES[:, ::-1] if inward else _BOX_FACES
+        matrix = translation(center) @ rotation_z(rotate_z_deg)
+        return self.mesh(name, corners, tris, matrix)
+
+    def plane(self, name: str, center, size_x: float, size_y: float, subdivisions: int = 1) -> MeshSpec:
+        """Horizontal grid facing +Z, split into `subdivisions`^2 quads."""
+        n = max(1, int(subdivisions))
+        xs = np.linspace(-size_x / 2, size_x / 2, n + 1)
+        ys = np.linspace(-size_y / 2, size_y / 2, n + 1)
+        gx, gy = np.meshgrid(xs, ys, indexing="xy")
+        verts = np.stack([gx.ravel(), gy.ravel(), np.zeros(gx.size)], axis=1)
+        idx = np.arange((n + 1) * (n + 1)).reshape(n + 1, n + 1)
+        a, b = idx[:-1, :-1].ravel(), idx[:-1, 1:].ravel()
+        c, d = idx[1:, 1:].ravel(), idx[1:, :-1].ravel()
+        tris = np.concatenate([np.stack([a, b, c], 1), np.stack([a, c, d], 1)])
+        return self.mesh(name, verts, tris, translation(center))
+
+    # light and camera -----------------------------------------------------
+    def point_light(self, location, energy: float = 1000.0) -> None:
+        """Omnidirectional point light."""
+        self._light = LightSpec("omni", translation(location), energy)
+
+    def hemi_light(self, location, target, energy: float = 1000.0) -> None:
+        """Hemispherical light at `location` whose axis points at `target`."""
+        self._light = LightSpec("hemi", look_at(location, target), energy)
+
+    def camera(self, location, target, fov_deg: float = 60.0, clip_end: float = 200.0) -> None:
+        """Perspective camera looking at `target`."""
+        self._camera = CameraSpec(look_at(location, target), fov_deg, self.resolution, 0.05, clip_end)
+
+    def finish(self, description: str = "", stresses: str = "") -> SceneSpec:
+        """Return the scene; a preset must have set a light and a camera."""
+        if self._light is None:
+            raise InputError(f"preset {self.name!r} defines no light")
+        if self._camera is None:
+            raise InputError(f"preset {self.name!r} defines no camera")
+        return SceneSpec(self.name, list(self._meshes), self._light, self._camera, description, stresses)

@@ -1,0 +1,179 @@
+"""Geometry preparation: sanitising, seam splitting and adaptive tessellation.
+
+All functions take and return triangle arrays of shape (T, 3, 3), float64.
+
+Why tessellate: the rasteriser interpolates linearly between projected vertices,
+but the paraboloid maps straight edges to circular arcs (it is a stereographic
+projection). An edge whose arc departs from its chord by more than about a texel
+would leave holes or overlaps in the map, so only those edges are split.
+
+Refinement is conforming: whether an edge is split depends on its two end points
+only (midpoints are computed symmetrically), so the two triangles sharing an edge
+always agree and no T-junction (a pinhole leak in a shadow map) can appear.
+"""
+from __future__ import annotations
+
+import logging
+from collections.abc import Callable
+from dataclasses import dataclass
+
+import numpy as np
+
+log = logging.getLogger(__name__)
+
+MAX_LEVELS = 12
+MAX_TRIANGLES = 4_000_000
+
+
+@dataclass
+class SanitizeReport:
+    """What `sanitize` removed, by reason."""
+
+    nonfinite: int = 0
+    degenerate: int = 0
+    edge_on: int = 0
+
+    @property
+    def skipped(self) -> int:
+        return self.nonfinite + self.degenerate + self.edge_on
+
+
+def sanitize(triangles: np.ndarray, light_position: np.ndarray, scale: float) -> tuple[np.ndarray, SanitizeReport]:
+    """Drop triangles that cannot cast a shadow or cannot be projected.
+
+    - non-finite corners (NaN or inf): skipped and counted;
+    - zero area (relative to `scale`^2): skipped and counted;
+    - planes passing through the light (e.g. a vertex exactly at the light): seen
+      edge-on they cover no solid angle, so they occlude nothing, and projecting
+      them would normalise a zero vector.
+    """
+    tris = np.asarray(triangles, dtype=np.float64).reshape(-1, 3, 3)
+    report = SanitizeReport()
+    finite = np.all(np.isfinite(tris), axis=(1, 2))
+    report.nonfinite = int(np.count_nonzero(~finite))
+    tris = tris[finite]
+    normal = np.cross(tris[:, 1] - tris[:, 0], tris[:, 2] - tris[:, 0])
+    area2 = np.linalg.norm(normal, axis=1)
+    tiny = (1e-12 * scale) ** 2
+    degenerate = area2 <= tiny
+    report.degenerate = int(np.count_nonzero(degenerate))
+    tris, normal, area2 = tris[~degenerate], normal[~degenerate], area2[~degenerate]
+    unit = normal / area2[:, None]
+    plane_distance = np.abs(np.einsum("ij,ij->i", unit, tris[:, 0] - light_position))
+    edge_on = plane_distance <= 1e-9 * scale
+    report.edge_on = int(np.count_nonzero(edge_on))
+    return tris[~edge_on], report
+
+
+def clip_halfspace(triangles: np.ndarray, signed: np.ndarray) -> np.ndarray:
+    """Keep the part of each triangle where the per-vertex value `signed` >= 0.
+
+    `signed` has shape (T, 3) and must be affine in position (a plane distance),
+    so the cut points are exact. A triangle with one corner inside becomes one
+    triangle, with two corners inside a quad split into two.
+    """
+    tris = np.asarray(triangles, dtype=np.float64)
+    d = np.asarray(signed, dtype=np.float64)
+    inside = d >= 0.0
+    n_in = inside.sum(axis=1)
+    out = [tris[n_in == 3]]
+
+    def rotate(sel: np.ndarray, first: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        order = (first[:, None] + np.arange(3)[None, :]) % 3
+        rows = np.arange(len(order))[:, None]
+        return tris[sel][rows, order], d[sel][rows, order]
+
+    def cut(p, q, dp, dq):
+        t = dp / (dp - dq)  # dp >= 0 > dq, so the denominator is positive
+        return p + t[:, None] * (q - p)
+
+    one = n_in == 1
+    if np.any(one):
+        t, dd = rotate(one, np.argmax(inside[one], axis=1))  # the inside corner first
+        a, b, c = t[:, 0], t[:, 1], t[:, 2]
+        out.append(np.stack([a, cut(a, b, dd[:, 0], dd[:, 1]), cut(a, c, dd[:, 0], dd[:, 2])], axis=1))
+    two = n_in == 2
+    if np.any(two):
+        t, dd = rotate(two, (np.argmin(inside[two], axis=1) + 1) % 3)  # corner after the outside one first
+        a, b, c = t[:, 0], t[:, 1], t[:, 2]  # a, b inside; c outside
+        pbc = cut(b, c, dd[:, 1], dd[:, 2])
+        pca = cut(a, c, dd[:, 0], dd[:, 2])
+        out.append(np.stack([a, b, pbc], axis=1))
+        out.append(np.stack([a, pbc, pca], axis=1))
+    return np.concatenate(out, axis=0) if out else np.zeros((0, 3, 3))
+
+
+def split_at_seam(local_triangles: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Split light-centred triangles (in a frame whose z is the seam normal) at z = 0.
+
+    Returns (front, back): the parts with z >= 0 and with z <= 0. Triangles lying
+    in the plane itself subtend no solid angle and are dropped from both.
+    """
+    tris = np.asarray(local_triangles, dtype=np.float64)
+    z = tris[..., 2]
+    flat = np.all(z == 0.0, axis=1)
+    tris, z = tris[~flat], z[~flat]
+    return clip_halfspace(tris, z), clip_halfspace(tris, -z)
+
+
+def _edge_marks(tris: np.ndarray, project_texels: Callable[[np.ndarray], np.ndarray], tolerance: float) -> np.ndarray:
+    """(T, 3) bool: edge k (corner k to corner k+1) bends by more than `tolerance` texels."""
+    a = tris
+    b = np.roll(tris, -1, axis=1)
+    pa = project_texels(a.reshape(-1, 3)).reshape(len(tris), 3, 2)
+    pb = np.roll(pa, -1, axis=1)
+    pm = project_texels(((a + b) * 0.5).reshape(-1, 3)).reshape(len(tris), 3, 2)
+    bend = np.linalg.norm(pm - (pa + pb) * 0.5, axis=-1)
+    return bend > tolerance
+
+
+def _refine_once(tris: np.ndarray, marks: np.ndarray) -> np.ndarray:
+    pattern = marks.sum(axis=1)
+    out = [tris[pattern == 0]]
+    rows_of = lambda sel: np.arange(np.count_nonzero(sel))[:, None]  # noqa: E731
+
+    one = pattern == 1
+    if np.any(one):
+        k = np.argmax(marks[one], axis=1)
+        t = tris[one][rows_of(one), (k[:, None] + np.arange(3)) % 3]  # marked edge is now 0-1
+        m01 = (t[:, 0] + t[:, 1]) * 0.5
+        out += [np.stack([t[:, 0], m01, t[:, 2]], 1), np.stack([m01, t[:, 1], t[:, 2]], 1)]
+    two = pattern == 2
+    if np.any(two):
+        k = (np.argmin(marks[two], axis=1) + 1) % 3  # unmarked edge becomes 2-0
+        t = tris[two][rows_of(two), (k[:, None] + np.arange(3)) % 3]
+        m01 = (t[:, 0] + t[:, 1]) * 0.5
+        m12 = (t[:, 1] + t[:, 2]) * 0.5
+        out += [np.stack([m01, t[:, 1], m12], 1), np.stack([t[:, 0], m01, m12], 1),
+                np.stack([t[:, 0], m12, t[:, 2]], 1)]
+    three = pattern == 3
+    if np.any(three):
+        t = tris[three]
+        m01 = (t[:, 0] + t[:, 1]) * 0.5
+        m12 = (t[:, 1] + t[:, 2]) * 0.5
+        m20 = (t[:, 2] + t[:, 0]) * 0.5
+        out += [np.stack([t[:, 0], m01, m20], 1), np.stack([m01, t[:, 1], m12], 1),
+                np.stack([m20, m12, t[:, 2]], 1), np.stack([m01, m12, m20], 1)]
+    return np.concatenate(out, axis=0)
+
+
+def tessellate(triangles: np.ndarray, project_texels: Callable[[np.ndarray], np.ndarray],
+               tolerance_texels: float = 1.0) -> tuple[np.ndarray, int]:
+    """Subdivide only the triangles with an edge bending by more than the tolerance.
+
+    `project_texels` maps (n, 3) points to (n, 2) texel coordinates of the map.
+    Returns the new triangles and how many triangles were added.
+    """
+    tris = np.asarray(triangles, dtype=np.float64)
+    start = len(tris)
+    for level in range(MAX_LEVELS):
+        if len(tris) == 0:
+            break
+        marks = _edge_marks(tris, project_texels, tolerance_texels)
+        if not marks.any():
+            break
+        if len(tris) + 3 * int(marks.any(axis=1).sum()) > MAX_TRIANGLES:
+            log.warning("tessellation stopped at level %d: triangle budget %d reached", level, MAX_TRIANGLES)
+            break
+        tris = _refine_once(tris, marks)
+    return tris, len(tris) - start

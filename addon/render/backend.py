@@ -1,0 +1,98 @@
+"""The small interface the pipeline draws through.
+
+A backend owns GPU objects: the shadow-map atlas (one R32F texture whose tiles are
+the layers, plus a depth buffer), the compiled programs, and the sample
+textures of the shadow test. The pipeline hands it numpy arrays and uniform
+values keyed by the names in `shaders.ProgramInterface`, so every backend runs
+the same GLSL.
+"""
+from __future__ import annotations
+
+from abc import ABC, abstractmethod
+from dataclasses import dataclass
+
+import numpy as np
+
+
+@dataclass(frozen=True)
+class AtlasLayout:
+    """Tiles of `resolution`^2 texels, `columns` x `rows`, tile i at (i % columns, i // columns)."""
+
+    resolution: int
+    tiles: int
+    columns: int
+
+    @property
+    def rows(self) -> int:
+        return max(1, -(-self.tiles // self.columns))
+
+    @property
+    def size(self) -> tuple[int, int]:
+        return self.columns * self.resolution, self.rows * self.resolution
+
+    def origin(self, tile: int) -> tuple[int, int]:
+        return (tile % self.columns) * self.resolution, (tile // self.columns) * self.resolution
+
+    @staticmethod
+    def for_tiles(resolution: int, tiles: int, max_texture: int) -> "AtlasLayout":
+        """Widest layout (at most 3 columns) that fits the GPU's texture size limit."""
+        tiles = max(1, tiles)
+        for columns in (min(tiles, 3), 2, 1):
+            layout = AtlasLayout(resolution, tiles, columns)
+            if max(layout.size) <= max_texture:
+                return layout
+        raise ValueError(f"{tiles} tiles of {resolution}^2 exceed the GPU texture limit {max_texture}")
+
+
+UniformValues = dict[str, object]
+
+
+class ShadowBackend(ABC):
+    """What a GPU backend provides to the pipeline."""
+
+    name: str = "abstract"
+
+    @abstractmethod
+    def renderer(self) -> str:
+        """Human-readable renderer string (GL_RENDERER and version)."""
+
+    @abstractmethod
+    def max_texture_size(self) -> int:
+        """Largest 2D texture side the GPU accepts."""
+
+    @abstractmethod
+    def begin_atlas(self, layout: AtlasLayout) -> None:
+        """Make the atlas exist at this layout and clear it to depth 1 (empty)."""
+
+    @abstractmethod
+    def draw_layer(self, tile: int, vertices: np.ndarray, uniforms: UniformValues) -> None:
+        """Draw triangles into one tile with the depth program.
+
+        `vertices` is (n, 9) float32, three rows per triangle: light-centred
+        position (3), plane (4) and distance range (2), matching DEPTH_PROGRAM.
+        """
+
+    @abstractmethod
+    def shadow_test(self, positions: np.ndarray, normals: np.ndarray, uniforms: UniformValues) -> np.ndarray:
+        """Run the shadow test; positions/normals are (H, W, 4) float32, row 0 at the bottom.
+
+        Returns (H, W, 2) float32: visibility and flag per sample.
+        """
+
+    @abstractmethod
+    def read_atlas(self) -> np.ndarray:
+        """The atlas as (rows*res, columns*res) float32, row 0 at the bottom."""
+
+    @abstractmethod
+    def finish(self) -> None:
+        """Block until the GPU has finished all submitted work (for timing)."""
+
+    @abstractmethod
+    def release(self) -> None:
+        """Free every GPU object; the backend is unusable afterwards."""
+
+    def __enter__(self) -> "ShadowBackend":
+        return self
+
+    def __exit__(self, *exc) -> None:
+        self.release()

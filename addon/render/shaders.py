@@ -1,0 +1,161 @@
+"""GLSL loader: the shader bodies in `gpu_shaders/` are written once.
+
+Stage files hold only functions and `main()`; they pull helpers in with
+`#include "lib/name.glsl"`. Declarations (inputs, outputs, uniforms, samplers,
+varyings) live in a `ProgramInterface` here, and each backend turns that into its
+own header: a `#version` block of declarations for moderngl, a
+`GPUShaderCreateInfo` for Blender's `gpu` module. Names are the same in both, so
+the bodies need no backend switch.
+"""
+from __future__ import annotations
+
+import logging
+import re
+from dataclasses import dataclass, field
+from pathlib import Path
+
+from ..core.errors import BackendError
+
+log = logging.getLogger(__name__)
+
+SHADER_DIR = Path(__file__).resolve().parents[2] / "gpu_shaders"
+_INCLUDE = re.compile(r'^\s*#include\s+"([^"]+)"\s*$', re.MULTILINE)
+GLSL_VERSION = "430 core"
+
+
+@dataclass(frozen=True)
+class Uniform:
+    glsl_type: str  # float, int, vec2, vec4, mat3, ...
+    name: str
+    array: int = 0  # 0 = not an array
+
+
+@dataclass(frozen=True)
+class Varying:
+    glsl_type: str
+    name: str
+    flat: bool = False
+
+
+@dataclass(frozen=True)
+class ProgramInterface:
+    """Everything a backend must declare around the shared stage bodies."""
+
+    name: str
+    vertex_file: str
+    fragment_file: str
+    vertex_in: tuple[tuple[str, str], ...]  # (type, name)
+    fragment_out: tuple[tuple[str, str], ...]  # (type, name), location = index
+    uniforms: tuple[Uniform, ...] = ()
+    samplers: tuple[str, ...] = ()  # sampler2D names, binding = index
+    varyings: tuple[Varying, ...] = ()
+    writes_depth: bool = False
+    defines: dict[str, str] = field(default_factory=dict)
+
+
+def load_source(relative: str, shader_dir: Path = SHADER_DIR) -> str:
+    """Read a GLSL file and inline its `#include`s, each file at most once.
+
+    Raises BackendError for a missing file or an include cycle.
+    """
+    seen: set[Path] = set()
+
+    def expand(path: Path, stack: tuple[Path, ...]) -> str:
+        resolved = path.resolve()
+        if resolved in stack:
+            chain = " -> ".join(p.name for p in stack + (resolved,))
+            raise BackendError(f"GLSL include cycle: {chain}")
+        if not resolved.is_file():
+            raise BackendError(f"GLSL file not found: {path} (looked under {shader_dir})")
+        if resolved in seen:
+            return f"// (already included: {path.name})\n"
+        seen.add(resolved)
+        text = resolved.read_text(encoding="utf-8")
+
+        def replace(match: re.Match) -> str:
+            return expand(shader_dir / match.group(1), stack + (resolved,))
+
+        return _INCLUDE.sub(replace, text)
+
+    return expand(shader_dir / relative, ())
+
+
+# Shared interfaces ---------------------------------------------------------
+
+DEPTH_PROGRAM = ProgramInterface(
+    name="omniwarp_depth",
+    vertex_file="depth.vert",
+    fragment_file="depth.frag",
+    vertex_in=(("vec3", "ow_position"), ("vec4", "ow_plane"), ("vec2", "ow_range")),
+    fragment_out=(("float", "ow_depth"),),
+    uniforms=(
+        Uniform("mat3", "ow_layer_rot"),
+        Uniform("int", "ow_layer_kind"),
+        Uniform("float", "ow_near"),
+        Uniform("float", "ow_far"),
+        Uniform("float", "ow_clip_near"),
+        Uniform("float", "ow_resolution"),
+        Uniform("vec2", "ow_tile_origin"),
+    ),
+    varyings=(
+        Varying("float", "v_distance"),
+        Varying("vec4", "v_plane", flat=True),
+        Varying("vec2", "v_range", flat=True),
+    ),
+    writes_depth=True,
+)
+
+SHADOW_TEST_PROGRAM = ProgramInterface(
+    name="omniwarp_shadow_test",
+    vertex_file="fullscreen.vert",
+    fragment_file="shadow_test.frag",
+    vertex_in=(("vec2", "ow_corner"),),
+    fragment_out=(("vec2", "ow_result"),),
+    uniforms=(
+        Uniform("mat3", "ow_light_rot"),
+        Uniform("mat3", "ow_layer_rot", 6),
+        Uniform("vec4", "ow_layer_tile", 6),
+        Uniform("int", "ow_param"),
+        Uniform("int", "ow_layer_kind"),
+        Uniform("int", "ow_hemi"),
+        Uniform("float", "ow_resolution"),
+        Uniform("float", "ow_near"),
+        Uniform("float", "ow_far"),
+        Uniform("float", "ow_bias_const"),
+        Uniform("float", "ow_bias_slope"),
+        Uniform("float", "ow_bias_normal"),
+    ),
+    samplers=("ow_positions", "ow_normals", "ow_atlas"),
+)
+
+PROGRAMS = (DEPTH_PROGRAM, SHADOW_TEST_PROGRAM)
+
+
+def _decl_uniform(u: Uniform) -> str:
+    return f"uniform {u.glsl_type} {u.name}{f'[{u.array}]' if u.array else ''};"
+
+
+def glsl_header(iface: ProgramInterface, stage: str) -> str:
+    """Declarations for a plain-GLSL backend (moderngl) of one stage ('vertex' or 'fragment')."""
+    if stage not in ("vertex", "fragment"):
+        raise BackendError(f"unknown shader stage {stage!r}")
+    lines = [f"#version {GLSL_VERSION}"]
+    lines += [f"#define {k} {v}" for k, v in iface.defines.items()]
+    lines += [_decl_uniform(u) for u in iface.uniforms]
+    lines += [f"uniform sampler2D {name};" for name in iface.samplers]
+    for var in iface.varyings:
+        qualifier = "flat " if var.flat else ""
+        direction = "out" if stage == "vertex" else "in"
+        lines.append(f"{qualifier}{direction} {var.glsl_type} {var.name};")
+    if stage == "vertex":
+        lines += [f"layout(location = {i}) in {t} {n};" for i, (t, n) in enumerate(iface.vertex_in)]
+    else:
+        lines += [f"layout(location = {i}) out {t} {n};" for i, (t, n) in enumerate(iface.fragment_out)]
+    return "\n".join(lines) + "\n#line 1\n"
+
+
+def moderngl_sources(iface: ProgramInterface, shader_dir: Path = SHADER_DIR) -> tuple[str, str]:
+    """Complete vertex and fragment sources for moderngl."""
+    vertex = glsl_header(iface, "vertex") + load_source(iface.vertex_file, shader_dir)
+    fragment = glsl_header(iface, "fragment") + load_source(iface.fragment_file, shader_dir)
+    return vertex, fragment

@@ -1,0 +1,19 @@
+// Layer choice for a light-local direction; mirrors pick_slot in addon/core/frames.py.
+
+#define OW_PARAM_DPSM 0
+#define OW_PARAM_CUBE 1
+
+int ow_pick_slot(int parameterization, vec3 d)
+{
+  if (parameterization == OW_PARAM_DPSM) {
+    return (d.z <= 0.0) ? 0 : 1;
+  }
+  vec3 a = abs(d);
+  if (a.x >= a.y && a.x >= a.z) {
+    return (d.x >= 0.0) ? 0 : 1;
+  }
+  if (a.y >= a.z) {
+    return (d.y >= 0.0) ? 2 : 3;
+  }
+  return (d.z >= 0.0) ? 4 : 5;
+}

@@ -1,0 +1,73 @@
+// Shadow test: one fragment per view sample. Positions are light-centred world
+// coordinates (w = 1 where the pixel hit geometry). Output: x = visibility
+// (1 lit, 0 shadowed), y = flag (0 tested, 1 no geometry, 2 outside the emission
+// domain or at the light, 3 its layer was not drawn).
+#include "lib/projection.glsl"
+#include "lib/layers.glsl"
+
+void main()
+{
+  ivec2 pix = ivec2(gl_FragCoord.xy);
+  vec4 pw = texelFetch(ow_positions, pix, 0);
+  if (pw.w < 0.5) {
+    ow_result = vec2(0.0, 1.0);
+    return;
+  }
+  vec3 p = pw.xyz;
+  vec3 n = texelFetch(ow_normals, pix, 0).xyz;
+  float dist = length(p);
+  if (!(dist > 0.0)) {
+    ow_result = vec2(1.0, 2.0);
+    return;
+  }
+  vec3 dir = p / dist;
+  float cos_i = dot(n, -dir);
+  if (cos_i < 0.0) {
+    n = -n;  // offset towards the side the light sees
+    cos_i = -cos_i;
+  }
+  vec3 ldir = ow_light_rot * dir;
+  if (ow_hemi != 0 && ldir.z >= 0.0) {
+    ow_result = vec2(0.0, 2.0);
+    return;
+  }
+  int slot = ow_pick_slot(ow_param, ldir);
+  vec2 xy = ow_project(ow_layer_kind, ow_layer_rot[slot] * dir);
+  float footprint = dist * ow_texel_angle(ow_layer_kind, xy, ow_resolution);
+
+  // Normal offset (in texel footprints), then project the moved point exactly
+  // per pixel (Osman et al.): never interpolate map coordinates.
+  vec3 q = p + n * (ow_bias_normal * footprint);
+  float qdist = length(q);
+  vec3 qdir = q / qdist;
+  vec3 qldir = ow_light_rot * qdir;
+  if (ow_hemi != 0 && qldir.z >= 0.0) {
+    q = p;
+    qdist = dist;
+    qdir = dir;
+    qldir = ldir;
+  }
+  slot = ow_pick_slot(ow_param, qldir);
+  vec4 tile = ow_layer_tile[slot];
+  if (tile.z < 0.5) {
+    ow_result = vec2(1.0, 3.0);
+    return;
+  }
+  xy = ow_project(ow_layer_kind, ow_layer_rot[slot] * qdir);
+  if (ow_layer_kind == OW_KIND_PARABOLOID) {
+    // Rim texels are only partly covered by the chords of tessellated edges;
+    // read 1.5 texels inside the disk instead (an error of one texel's angle).
+    float r = length(xy);
+    float r_max = 1.0 - 3.0 / ow_resolution;
+    if (r > r_max) {
+      xy *= r_max / r;
+    }
+  }
+  int res = int(ow_resolution);
+  ivec2 texel = clamp(ivec2(floor((xy * 0.5 + 0.5) * ow_resolution)), ivec2(0), ivec2(res - 1));
+  float stored = texelFetch(ow_atlas, texel + ivec2(tile.xy), 0).r;
+  float t_map = ow_near + stored * (ow_far - ow_near);
+  float tan_i = sqrt(max(1.0 - cos_i * cos_i, 0.0)) / max(cos_i, 0.05);
+  float bias = footprint * (ow_bias_const + ow_bias_slope * min(tan_i, 20.0));
+  ow_result = vec2((qdist - bias <= t_map) ? 1.0 : 0.0, 0.0);
+}

@@ -1,0 +1,85 @@
+"""Exact numpy ray casting: the test oracle for tiny scenes (no Cycles, no GPU)."""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from addon.core.scene import CameraSpec, SceneSpec
+from addon.render.pipeline import ViewSamples
+
+
+def ray_hits(origins: np.ndarray, dirs: np.ndarray, tris: np.ndarray, t_max=None, eps: float = 1e-9):
+    """Nearest hit distance (inf if none) and triangle index per ray (Moller-Trumbore)."""
+    n = len(origins)
+    best = np.full(n, np.inf)
+    index = np.full(n, -1)
+    limit = np.full(n, np.inf) if t_max is None else np.asarray(t_max, dtype=np.float64)
+    for start in range(0, len(tris), 256):
+        chunk = tris[start:start + 256]
+        v0, e1, e2 = chunk[:, 0], chunk[:, 1] - chunk[:, 0], chunk[:, 2] - chunk[:, 0]
+        pvec = np.cross(dirs[:, None, :], e2[None])
+        det = np.einsum("tk,rtk->rt", e1, pvec)
+        ok = np.abs(det) > 1e-14
+        inv = np.where(ok, 1.0 / np.where(ok, det, 1.0), 0.0)
+        tvec = origins[:, None, :] - v0[None]
+        u = np.einsum("rtk,rtk->rt", tvec, pvec) * inv
+        qvec = np.cross(tvec, e1[None])
+        v = np.einsum("rk,rtk->rt", dirs, qvec) * inv
+        t = np.einsum("tk,rtk->rt", e2, qvec) * inv
+        valid = ok & (u >= 0) & (v >= 0) & (u + v <= 1) & (t > eps) & (t < limit[:, None])
+        t = np.where(valid, t, np.inf)
+        k = np.argmin(t, axis=1)
+        tk = t[np.arange(n), k]
+        better = tk < best
+        best[better] = tk[better]
+        index[better] = k[better] + start
+    return best, index
+
+
+def camera_rays(camera: CameraSpec):
+    """World origins and unit directions through pixel centres, row 0 at the top."""
+    width, height = camera.resolution
+    half = math.tan(math.radians(camera.fov_deg) / 2)
+    if width >= height:
+        hx, hy = half, half * height / width
+    else:
+        hx, hy = half * width / height, half
+    xs = ((np.arange(width) + 0.5) / width * 2 - 1) * hx
+    ys = (1 - (np.arange(height) + 0.5) / height * 2) * hy
+    gx, gy = np.meshgrid(xs, ys)
+    local = np.stack([gx, gy, -np.ones_like(gx)], axis=-1).reshape(-1, 3)
+    m = np.asarray(camera.matrix_world)
+    dirs = local @ m[:3, :3].T
+    dirs /= np.linalg.norm(dirs, axis=1, keepdims=True)
+    return np.repeat(m[None, :3, 3], len(dirs), axis=0), dirs
+
+
+def view_samples(scene: SceneSpec):
+    """View samples plus exact visibility (H, W) and the evaluable mask."""
+    camera = scene.camera
+    width, height = camera.resolution
+    tris = scene.world_triangles()
+    origins, dirs = camera_rays(camera)
+    t, idx = ray_hits(origins, dirs, tris)
+    hit = np.isfinite(t)
+    pos = np.where(hit[:, None], origins + dirs * np.where(hit, t, 0)[:, None], 0.0)
+    ng = np.cross(tris[:, 1] - tris[:, 0], tris[:, 2] - tris[:, 0])
+    ng /= np.linalg.norm(ng, axis=1, keepdims=True)
+    nrm = np.where(hit[:, None], ng[np.maximum(idx, 0)], 0.0)
+    flip = np.einsum("ij,ij->i", nrm, dirs) > 0  # face the camera, as Cycles does
+    nrm[flip] *= -1
+    light = scene.light.position
+    to_light = light - pos
+    dist = np.linalg.norm(to_light, axis=1)
+    ldir = to_light / np.maximum(dist, 1e-300)[:, None]
+    facing = np.einsum("ij,ij->i", nrm, ldir) > 0
+    origin_s = pos + nrm * 1e-7 * max(1.0, float(np.abs(tris).max()))
+    ts, _ = ray_hits(origin_s, ldir, tris, t_max=dist * (1 - 1e-7))
+    lit = ~np.isfinite(ts)
+    evaluable = hit & facing
+    if scene.light.emission == "hemi":
+        evaluable &= (pos - light) @ scene.light.axis > 0
+    shape = (height, width)
+    samples = ViewSamples(pos.reshape(height, width, 3), nrm.reshape(height, width, 3), hit.reshape(shape), camera)
+    return samples, lit.reshape(shape), evaluable.reshape(shape)
