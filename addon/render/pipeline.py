@@ -24,7 +24,7 @@ from .backend import AtlasLayout, ShadowBackend
 log = logging.getLogger(__name__)
 
 MIN_RESOLUTION = 16
-MAX_RESOLUTION = 8192
+MAX_RESOLUTION = 4096
 # Near clip of cube faces, relative to far: geometry closer to the light than this
 # is lost to clipping; 1e-6 keeps it far below a texel at any supported resolution.
 CLIP_NEAR_RELATIVE = 1e-6

@@ -74,8 +74,11 @@ def view_samples(scene: SceneSpec):
     dist = np.linalg.norm(to_light, axis=1)
     ldir = to_light / np.maximum(dist, 1e-300)[:, None]
     facing = np.einsum("ij,ij->i", nrm, ldir) > 0
-    origin_s = pos + nrm * 1e-7 * max(1.0, float(np.abs(tris).max()))
-    ts, _ = ray_hits(origin_s, ldir, tris, t_max=dist * (1 - 1e-7))
+    # Cast from the light towards the receiver and stop just short of it: a ray that
+    # starts exactly at the light meets a triangle touching the light at t = 0 only,
+    # which `ray_hits` excludes, so edge-on geometry at the light casts no shadow.
+    scale = max(1.0, float(np.abs(tris).max()))
+    ts, _ = ray_hits(np.repeat(light[None], len(pos), axis=0), -ldir, tris, t_max=dist - 1e-7 * scale)
     lit = ~np.isfinite(ts)
     evaluable = hit & facing
     if scene.light.emission == "hemi":

@@ -1,0 +1,162 @@
+"""The `omniwarp` command line (also `python -m addon`), DESIGN.md section 6.
+
+    omniwarp presets
+    omniwarp reference --preset SEL [--size WxH] [--refresh]
+    omniwarp compare --preset SEL | --blend FILE [--light NAME] [--camera NAME]
+                     [--methods m1,m2] [--resolutions 512,1024] [--no-cull] [--out DIR]
+
+Bad input exits with status 2 and one line naming the problem; other known
+failures exit with status 1.
+"""
+from __future__ import annotations
+
+import argparse
+import logging
+import sys
+from collections.abc import Callable, Sequence
+from pathlib import Path
+
+from .core.errors import InputError, OmniWarpError
+from .core.presets import DEFAULT_PRESET, available_presets, select_presets
+
+log = logging.getLogger("omniwarp")
+
+EXIT_BAD_INPUT = 2
+EXIT_FAILURE = 1
+
+
+def _parser() -> argparse.ArgumentParser:
+    parser = argparse.ArgumentParser(prog="omniwarp", description="Omnidirectional shadow maps measured against Cycles.")
+    parser.add_argument("-v", "--verbose", action="store_true", help="log progress details")
+    sub = parser.add_subparsers(dest="command", required=True)
+
+    sub.add_parser("presets", help="list presets and what each stresses")
+
+    ref = sub.add_parser("reference", help="build or refresh the Cycles reference cache")
+    ref.add_argument("--preset", required=True, help="a preset, a comma list, 'all' or 'stress_all'")
+    ref.add_argument("--size", default="640x480", help="camera size WxH (default 640x480)")
+    ref.add_argument("--refresh", action="store_true", help="render again even when cached")
+    ref.add_argument("--samples", type=int, default=2, help="Cycles samples per pixel (1-4 suffice)")
+
+    cmp_ = sub.add_parser("compare", help="measure methods against Cycles: error %% and time per stage")
+    source = cmp_.add_mutually_exclusive_group(required=True)
+    source.add_argument("--preset", help="a preset, a comma list, 'all' (non-stress) or 'stress_all'")
+    source.add_argument("--blend", help="a saved .blend file (its scene camera and one point/spot light)")
+    cmp_.add_argument("--light", help="with --blend: the light object to use")
+    cmp_.add_argument("--camera", help="with --blend: the camera object to use")
+    cmp_.add_argument("--methods", default="dpsm,cube", help="comma list of methods (default dpsm,cube)")
+    cmp_.add_argument("--resolutions", default="512,1024,2048", help="comma list of map resolutions")
+    cmp_.add_argument("--no-cull", action="store_true", help="draw every layer and triangle (measure culling)")
+    cmp_.add_argument("--out", default="out/compare", help="output folder (default out/compare)")
+    cmp_.add_argument("--size", default="640x480", help="camera size WxH for presets (default 640x480)")
+    cmp_.add_argument("--frames", type=int, default=3, help="timed frames per row after one warm-up (default 3)")
+    cmp_.add_argument("--no-images", action="store_true", help="skip the mismatch images")
+    return parser
+
+
+def _say(message: str) -> None:
+    print(message, file=sys.stderr, flush=True)
+
+
+def cmd_presets(_: argparse.Namespace) -> int:
+    for info in available_presets().values():
+        print(f"{info.name:14s} {info.description}\n{'':14s} stresses: {info.stresses}")
+    return 0
+
+
+def cmd_reference(args: argparse.Namespace) -> int:
+    from .compare import parse_size
+    from .reference.cache import load_or_capture
+
+    size = parse_size(args.size)
+    if not 1 <= args.samples <= 64:
+        raise InputError(f"bad --samples {args.samples}: use 1-64")
+    for name in select_presets(args.preset):
+        ref = load_or_capture(name, size, refresh=args.refresh, samples=args.samples, log_progress=_say)
+        seconds = ref.meta.get("render_seconds", {})
+        print(f"{name}: {size[0]}x{size[1]}, {int(ref.hit.sum())} hit pixels, {len(ref.triangles)} triangles, "
+              f"key {ref.meta.get('cache_key', '?')}, render s {seconds}")
+    return 0
+
+
+def _blend_reference(args: argparse.Namespace) -> Callable[[], object]:
+    path = Path(args.blend)
+    if not path.is_file():
+        raise InputError(f"--blend file not found: {path}")
+    if path.suffix.lower() != ".blend":
+        raise InputError(f"--blend expects a .blend file, got {path.name}")
+
+    def load():
+        try:
+            import bpy
+        except ImportError:
+            raise InputError("--blend needs the bpy module (pip install bpy==5.2.3)") from None
+        from .reference.capture import capture
+
+        # Loading replaces bpy's in-memory data only; nothing is ever saved back.
+        bpy.ops.wm.open_mainfile(filepath=str(path.resolve()), load_ui=False)
+        scene = bpy.context.scene
+        if args.camera:
+            cam = bpy.data.objects.get(args.camera)
+            if cam is None or cam.type != "CAMERA":
+                raise InputError(f"--camera {args.camera!r}: no camera object of that name in {path.name}")
+            scene.camera = cam
+        if args.light and (bpy.data.objects.get(args.light) is None):
+            raise InputError(f"--light {args.light!r}: no object of that name in {path.name}")
+        _say(f"rendering Cycles reference of {path.name}")
+        return capture(scene, light=args.light, progress=_say)
+
+    return load
+
+
+def cmd_compare(args: argparse.Namespace) -> int:
+    from .compare import CompareOptions, parse_methods, parse_resolutions, parse_size, run_compare
+    from .render.moderngl_backend import ModernGLBackend
+    from .render.pipeline import ShadowPipeline
+
+    methods = parse_methods(args.methods)
+    resolutions = parse_resolutions(args.resolutions)
+    if args.frames < 1:
+        raise InputError(f"bad --frames {args.frames}: at least 1")
+    if args.preset is not None and (args.light or args.camera):
+        raise InputError("--light and --camera apply to --blend only")
+    if args.preset is not None:
+        size = parse_size(args.size)
+        from .reference.cache import load_or_capture
+
+        references = {name: (lambda n=name: load_or_capture(n, size, log_progress=_say))
+                      for name in select_presets(args.preset)}
+    else:
+        references = {Path(args.blend).stem: _blend_reference(args)}
+    options = CompareOptions(methods, resolutions, cull=not args.no_cull, frames=args.frames,
+                             out_dir=Path(args.out), write_images=not args.no_images)
+    rows = run_compare(references, options, lambda: ShadowPipeline(ModernGLBackend()))
+    for row in rows:
+        print(f"{row['preset']:12s} {row['method']:6s} {row['resolution']:5d}  error {row['error_pct']:6.3f} %  "
+              f"total {row['time_ms']['total']:8.1f} ms  passes {row['passes']}")
+    return 0
+
+
+COMMANDS = {"presets": cmd_presets, "reference": cmd_reference, "compare": cmd_compare}
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    """Entry point of the `omniwarp` console script."""
+    args = _parser().parse_args(argv)
+    logging.basicConfig(level=logging.INFO if args.verbose else logging.WARNING,
+                        format="%(levelname)s %(name)s: %(message)s")
+    try:
+        return COMMANDS[args.command](args)
+    except InputError as exc:
+        print(f"omniwarp: error: {exc}", file=sys.stderr)
+        return EXIT_BAD_INPUT
+    except OmniWarpError as exc:
+        print(f"omniwarp: failed: {exc}", file=sys.stderr)
+        return EXIT_FAILURE
+
+
+if __name__ == "__main__":
+    sys.exit(main())
+
+
+__all__ = ["main", "DEFAULT_PRESET"]

@@ -1,0 +1,217 @@
+"""`omniwarp compare`: every method against the Cycles reference, timed per stage.
+
+Writes DIR/results.json (a list of rows, DESIGN.md section 6), DIR/report.md,
+DIR/error_vs_time.png and one mismatch image per row under DIR/images/.
+"""
+from __future__ import annotations
+
+import datetime as _dt
+import json
+import logging
+import math
+import statistics
+import sys
+import time
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from .core import metrics
+from .core.errors import InputError
+from .core.scene import CameraSpec, LightSpec
+from .reference.data import ReferenceData
+from .render.pipeline import MAX_RESOLUTION, MIN_RESOLUTION, ShadowPipeline, ShadowSettings, ViewSamples
+
+log = logging.getLogger(__name__)
+
+# Methods this build implements, with the parameterization each one uses.
+METHODS: dict[str, str] = {"dpsm": "dpsm", "cube": "cube"}
+DEFAULT_METHODS = ("dpsm", "cube")
+DEFAULT_RESOLUTIONS = (512, 1024, 2048)
+
+
+@dataclass(frozen=True)
+class CompareOptions:
+    methods: tuple[str, ...] = DEFAULT_METHODS
+    resolutions: tuple[int, ...] = DEFAULT_RESOLUTIONS
+    cull: bool = True
+    frames: int = 3  # timed frames per row, after one warm-up frame
+    out_dir: Path = Path("out/compare")
+    write_images: bool = True
+
+
+def parse_methods(text: str) -> tuple[str, ...]:
+    """Comma list of method names; unknown names are an InputError."""
+    names = tuple(s.strip() for s in text.split(",") if s.strip())
+    if not names:
+        raise InputError("no methods given; known: " + ", ".join(METHODS))
+    for name in names:
+        if name not in METHODS:
+            raise InputError(f"unknown method {name!r}; this build implements: {', '.join(METHODS)}")
+    return names
+
+
+def parse_resolutions(text: str) -> tuple[int, ...]:
+    """Comma list of shadow-map resolutions, each an integer in the supported range."""
+    values = []
+    for part in (s.strip() for s in text.split(",")):
+        if not part:
+            continue
+        try:
+            value = int(part)
+        except ValueError:
+            raise InputError(f"bad resolution {part!r}: expected an integer such as 1024") from None
+        if not MIN_RESOLUTION <= value <= MAX_RESOLUTION:
+            raise InputError(f"bad resolution {value}: must lie in [{MIN_RESOLUTION}, {MAX_RESOLUTION}]")
+        values.append(value)
+    if not values:
+        raise InputError("no resolutions given")
+    return tuple(values)
+
+
+def parse_size(text: str) -> tuple[int, int]:
+    """'WxH' camera size."""
+    try:
+        w_text, h_text = text.lower().split("x")
+        width, height = int(w_text), int(h_text)
+    except ValueError:
+        raise InputError(f"bad size {text!r}: expected WxH such as 640x480") from None
+    if not (8 <= width <= 8192 and 8 <= height <= 8192):
+        raise InputError(f"bad size {text!r}: each side must lie in [8, 8192]")
+    return width, height
+
+
+def light_from_reference(ref: ReferenceData) -> LightSpec:
+    if ref.emission not in ("omni", "hemi"):
+        raise InputError(f"the reference light is {ref.emission!r}; dpsm and cube need an omni or hemi light")
+    return LightSpec(ref.emission, ref.light_matrix)  # type: ignore[arg-type]
+
+
+def camera_from_reference(ref: ReferenceData) -> CameraSpec:
+    return CameraSpec(ref.camera_matrix, ref.camera_fov_deg, ref.resolution)
+
+
+def samples_from_reference(ref: ReferenceData) -> ViewSamples:
+    return ViewSamples(ref.position.astype(np.float64), ref.normal.astype(np.float64), ref.hit,
+                       camera_from_reference(ref))
+
+
+class Progress:
+    """One status line on stderr with an estimate of the time left."""
+
+    def __init__(self, total: int, stream=sys.stderr) -> None:
+        self.total = max(total, 1)
+        self.done = 0
+        self.start = time.perf_counter()
+        self.stream = stream
+
+    def step(self, label: str) -> None:
+        elapsed = time.perf_counter() - self.start
+        if self.done:
+            eta = elapsed / self.done * (self.total - self.done)
+            eta_text = f"~{eta:.0f}s left"
+        else:
+            eta_text = "estimating"
+        print(f"[{self.done + 1}/{self.total}] {label} ({elapsed:.0f}s elapsed, {eta_text})",
+              file=self.stream, flush=True)
+
+    def advance(self) -> None:
+        self.done += 1
+
+
+def _median_times(frames: Sequence[dict[str, float]]) -> dict[str, float]:
+    keys = ("total", "prepare", "analysis", "shadow_maps", "shadow_test")
+    return {k: float(statistics.median(f.get(k, 0.0) for f in frames)) for k in keys}
+
+
+def run_row(pipeline: ShadowPipeline, ref: ReferenceData, preset: str, method: str, resolution: int,
+            options: CompareOptions, image_dir: Path | None) -> dict:
+    """Measure one (preset, method, resolution) row."""
+    light = light_from_reference(ref)
+    samples = samples_from_reference(ref)
+    settings = ShadowSettings(METHODS[method], resolution, cull=options.cull)
+    triangles = ref.triangles.astype(np.float64)
+    pipeline.render(light, triangles, samples, settings)  # warm-up: shader compile, allocation
+    frames = [pipeline.render(light, triangles, samples, settings) for _ in range(max(1, options.frames))]
+    last = frames[-1]
+    ref_lit = metrics.reference_visibility(ref.shadowed, ref.unshadowed)
+    evaluable = metrics.evaluable_mask(ref.position, ref.normal, ref.hit, ref.unshadowed, light)
+    est_lit = last.visibility > 0.5
+    figure = metrics.error_figure(est_lit, ref_lit, evaluable)
+    times = _median_times([f.time_ms for f in frames])
+    row = {
+        "preset": preset,
+        "method": method,
+        "emission": light.emission,
+        "resolution": resolution,
+        "error_pct": figure.error_pct,
+        "false_shadow_pct": figure.false_shadow_pct,
+        "false_lit_pct": figure.false_lit_pct,
+        "evaluated_pixels": figure.evaluated_pixels,
+        "time_ms": times,
+        "passes": last.passes,
+        "triangles_drawn": last.geometry.triangles_drawn,
+        "texels": last.texels,
+        "renderer": pipeline.backend.renderer(),
+        "backend": pipeline.backend.name,
+        "tessellated_triangles": last.geometry.tessellated_triangles,
+        "skipped_triangles": last.geometry.skipped_triangles,
+        "layers": [layer.name for layer in last.plan.drawn],
+        "cull": options.cull,
+        "frames": len(frames),
+        "camera_size": list(ref.resolution),
+    }
+    if image_dir is not None:
+        image_dir.mkdir(parents=True, exist_ok=True)
+        name = f"{preset}_{method}_{resolution}{'' if options.cull else '_nocull'}_mismatch.png"
+        img = metrics.mismatch_image(ref.shadowed, est_lit, ref_lit, evaluable)
+        _write_png(image_dir / name, img)
+        row["mismatch_image"] = f"images/{name}"
+    return row
+
+
+def _write_png(path: Path, rgb: np.ndarray) -> None:
+    import matplotlib.image as mpimg  # lazy: matplotlib is slow to import
+
+    mpimg.imsave(path, rgb)
+
+
+def check_rows(rows: Sequence[dict]) -> None:
+    """Every number finite; raise if not (a NaN must never reach results.json silently)."""
+    for row in rows:
+        values = [v for k, v in row.items() if isinstance(v, float)] + list(row["time_ms"].values())
+        if not all(math.isfinite(v) for v in values):
+            raise ValueError(f"non-finite value in row {row['preset']}/{row['method']}/{row['resolution']}")
+
+
+def run_compare(references: dict[str, Callable[[], ReferenceData]], options: CompareOptions,
+                pipeline_factory: Callable[[], ShadowPipeline]) -> list[dict]:
+    """Measure every preset x method x resolution and write the outputs."""
+    out = Path(options.out_dir)
+    out.mkdir(parents=True, exist_ok=True)
+    image_dir = out / "images" if options.write_images else None
+    progress = Progress(len(references) * len(options.methods) * len(options.resolutions))
+    rows: list[dict] = []
+    pipeline = pipeline_factory()
+    try:
+        for preset, load in references.items():
+            ref = load()
+            for method in options.methods:
+                for resolution in options.resolutions:
+                    progress.step(f"{preset} {method} @ {resolution}")
+                    rows.append(run_row(pipeline, ref, preset, method, resolution, options, image_dir))
+                    progress.advance()
+    finally:
+        pipeline.backend.release()
+    check_rows(rows)
+    stamp = _dt.datetime.now(_dt.timezone.utc).strftime("%Y-%m-%d %H:%M UTC")
+    (out / "results.json").write_text(json.dumps(rows, indent=1), encoding="utf-8")
+    from .report import write_markdown, write_plot
+
+    write_markdown(rows, out / "report.md", stamp)
+    write_plot(rows, out / "error_vs_time.png")
+    print(f"wrote {len(rows)} rows to {out / 'results.json'}, {out / 'report.md'}, {out / 'error_vs_time.png'}",
+          file=sys.stderr)
+    return rows

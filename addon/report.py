@@ -1,0 +1,94 @@
+"""Report outputs of `compare`: a markdown table and the error-vs-time Pareto plot."""
+from __future__ import annotations
+
+from collections.abc import Sequence
+from pathlib import Path
+
+
+def _pareto(points: list[tuple[float, float]]) -> list[tuple[float, float]]:
+    """Points not beaten on both time and error, sorted by time."""
+    front, best = [], float("inf")
+    for t, e in sorted(points):
+        if e < best:
+            front.append((t, e))
+            best = e
+    return front
+
+
+def markdown_table(rows: Sequence[dict]) -> str:
+    """One line per row: the fields a reader compares."""
+    head = ("| preset | method | res | error % | false shadow % | false lit % | evaluated px | total ms | "
+            "prepare ms | maps ms | test ms | passes | triangles | tess. added | texels |")
+    lines = [head, "|" + "|".join(["---"] * (head.count("|") - 1)) + "|"]
+    for r in rows:
+        t = r["time_ms"]
+        lines.append(
+            f"| {r['preset']} | {r['method']}{'' if r.get('cull', True) else ' (no cull)'} | {r['resolution']} "
+            f"| {r['error_pct']:.3f} | {r['false_shadow_pct']:.3f} | {r['false_lit_pct']:.3f} "
+            f"| {r['evaluated_pixels']} | {t['total']:.1f} | {t.get('prepare', 0.0):.1f} | {t['shadow_maps']:.1f} "
+            f"| {t['shadow_test']:.1f} | {r['passes']} | {r['triangles_drawn']} "
+            f"| {r.get('tessellated_triangles', 0)} | {r['texels']} |"
+        )
+    return "\n".join(lines) + "\n"
+
+
+def write_markdown(rows: Sequence[dict], path: Path, stamp: str) -> None:
+    """report.md: provenance, then the table."""
+    renderers = sorted({r["renderer"] for r in rows})
+    backends = sorted({r["backend"] for r in rows})
+    sizes = sorted({"x".join(str(v) for v in r.get("camera_size", [])) for r in rows})
+    text = [
+        "# OmniWarp comparison against Cycles",
+        "",
+        f"- measured: {stamp}",
+        f"- renderer: {', '.join(renderers)}",
+        f"- backend: {', '.join(backends)}",
+        f"- camera size: {', '.join(sizes)}; times are medians of {rows[0]['frames'] if rows else 0} frames "
+        "after one warm-up frame",
+        "- error % = mismatching evaluated pixels against the Cycles visibility; times on a software "
+        "rasteriser mean little in absolute terms, compare them as ratios within this table",
+        "",
+        markdown_table(rows),
+    ]
+    path.write_text("\n".join(text), encoding="utf-8")
+
+
+def write_plot(rows: Sequence[dict], path: Path) -> None:
+    """Error % against total ms per frame, one colour per preset, a marker per method."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    fig, ax = plt.subplots(figsize=(8, 5.5), dpi=110)
+    presets = sorted({r["preset"] for r in rows})
+    methods = sorted({r["method"] + ("" if r.get("cull", True) else " (no cull)") for r in rows})
+    markers = "osD^v<>ph*"
+    colours = plt.rcParams["axes.prop_cycle"].by_key()["color"]
+    for pi, preset in enumerate(presets):
+        colour = colours[pi % len(colours)]
+        pts = []
+        for mi, method in enumerate(methods):
+            sel = [r for r in rows if r["preset"] == preset
+                   and r["method"] + ("" if r.get("cull", True) else " (no cull)") == method]
+            if not sel:
+                continue
+            xs = [r["time_ms"]["total"] for r in sel]
+            ys = [r["error_pct"] for r in sel]
+            pts += list(zip(xs, ys))
+            ax.scatter(xs, ys, color=colour, marker=markers[mi % len(markers)], s=40,
+                       label=f"{preset} / {method}")
+            for r, x, y in zip(sel, xs, ys):
+                ax.annotate(str(r["resolution"]), (x, y), textcoords="offset points", xytext=(4, 3), fontsize=7)
+        front = _pareto(pts)
+        if len(front) > 1:
+            ax.plot(*zip(*front), color=colour, linewidth=1, alpha=0.6)
+    ax.set_xscale("log")
+    ax.set_xlabel("time per frame, ms (log; median, all stages)")
+    ax.set_ylabel("error % of evaluated pixels vs Cycles")
+    ax.set_title("Shadow error against time (lines: Pareto front per preset)")
+    ax.grid(True, which="both", alpha=0.3)
+    ax.legend(fontsize=7, loc="upper right")
+    fig.tight_layout()
+    fig.savefig(path)
+    plt.close(fig)

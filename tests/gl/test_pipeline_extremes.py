@@ -1,0 +1,105 @@
+"""The whole pipeline against an exact numpy ray caster on small extreme scenes.
+
+Each scene is one of the foundation's named hard cases: a vertex exactly at the
+light, a triangle straddling the paraboloid seam, and a huge floor quad.
+"""
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from addon.core.metrics import error_figure
+from addon.core.scene import SceneBuilder
+from addon.render.pipeline import ShadowPipeline, ShadowSettings
+from tests.support.oracle import view_samples
+
+pytestmark = pytest.mark.gl
+
+SIZE = (96, 72)
+
+
+def _vertex_at_light():
+    b = SceneBuilder("vertex_at_light", SIZE)
+    b.plane("floor", (0, 0, 0), 12, 12)
+    b.box("box", (1.2, 0.4, 0.5), (0.8, 0.8, 1.0))
+    # A fan whose shared vertex is exactly the light position.
+    b.mesh("fan", [[0, 0, 2.5], [0.8, -0.6, 1.6], [0.8, 0.6, 1.6], [-0.8, 0.0, 1.9]], [[0, 1, 2], [0, 2, 3]])
+    b.point_light((0, 0, 2.5))
+    b.camera((5, -5, 4), (0, 0, 0.3), fov_deg=60)
+    return b.finish()
+
+
+def _seam_straddler():
+    b = SceneBuilder("seam", SIZE)
+    b.plane("floor", (0, 0, 0), 14, 14)
+    # The light's seam plane is z = 2 (omni light, local Z up); the slab crosses it.
+    b.mesh("slab", [[0.5, -1.5, 1.0], [0.5, 1.5, 1.0], [1.0, 0.0, 3.2]], [[0, 1, 2]])
+    b.box("post", (-1.5, 1.0, 1.8), (0.3, 0.3, 3.6))
+    b.point_light((0, 0, 2.0))
+    b.camera((6, 5, 5), (0, 0, 0.5), fov_deg=60)
+    return b.finish()
+
+
+def _huge_floor():
+    b = SceneBuilder("huge_floor", SIZE)
+    b.plane("floor", (0, 0, 0), 2000, 2000)  # two triangles, 1 km on a side
+    b.box("box", (0.0, 0.0, 0.5), (1.0, 1.0, 1.0))
+    b.point_light((0.3, 0.2, 1.6))
+    b.camera((4, -4, 3), (0, 0, 0), fov_deg=70)
+    return b.finish()
+
+
+@pytest.fixture(scope="module", params=["vertex_at_light", "seam", "huge_floor"])
+def case(request):
+    scene = {"vertex_at_light": _vertex_at_light, "seam": _seam_straddler, "huge_floor": _huge_floor}[request.param]()
+    samples, lit, evaluable = view_samples(scene)
+    return scene, samples, lit, evaluable
+
+
+@pytest.mark.parametrize("param", ["dpsm", "cube"])
+def test_extreme_case_matches_ray_caster(gl_backend, case, param):
+    """Finite maps, and visibility within 1 % of exact at 1024 (mostly edge texels)."""
+    scene, samples, lit, evaluable = case
+    result = ShadowPipeline(gl_backend).render(scene.light, scene.world_triangles(), samples,
+                                               ShadowSettings(param, 1024), keep_atlas=True)
+    assert np.all(np.isfinite(result.atlas))
+    assert np.all(np.isfinite(result.visibility))
+    assert evaluable.sum() > 1000
+    shadowed_share = 1.0 - lit[evaluable].mean()
+    assert shadowed_share > 0.01  # there is a shadow to get right
+    figure = error_figure(result.visibility > 0.5, lit, evaluable)
+    assert figure.error_pct < 1.0, figure
+
+
+def test_vertex_at_light_is_skipped_and_counted(gl_backend):
+    """Triangles whose plane holds the light are dropped as edge-on and counted."""
+    scene = _vertex_at_light()
+    samples, _, _ = view_samples(scene)
+    result = ShadowPipeline(gl_backend).render(scene.light, scene.world_triangles(), samples,
+                                               ShadowSettings("dpsm", 256))
+    # the two fan triangles, and the box face in the plane y = 0, which holds the light
+    assert result.geometry.skipped_triangles == 4
+
+
+def test_huge_floor_is_tessellated_only_where_needed(gl_backend):
+    """The 1 km floor is subdivided, and a finer map needs more triangles."""
+    scene = _huge_floor()
+    samples, _, _ = view_samples(scene)
+    pipe = ShadowPipeline(gl_backend)
+    coarse = pipe.render(scene.light, scene.world_triangles(), samples, ShadowSettings("dpsm", 256))
+    fine = pipe.render(scene.light, scene.world_triangles(), samples, ShadowSettings("dpsm", 1024))
+    assert coarse.geometry.tessellated_triangles > 0
+    assert fine.geometry.tessellated_triangles > coarse.geometry.tessellated_triangles
+    cube = pipe.render(scene.light, scene.world_triangles(), samples, ShadowSettings("cube", 1024))
+    assert cube.geometry.tessellated_triangles == 0  # perspective keeps lines straight
+
+
+def test_resolution_lowers_error(gl_backend):
+    """More texels, fewer mismatches (a method-level bound, on the seam scene)."""
+    scene = _seam_straddler()
+    samples, lit, evaluable = view_samples(scene)
+    pipe = ShadowPipeline(gl_backend)
+    errors = [error_figure(pipe.render(scene.light, scene.world_triangles(), samples,
+                                       ShadowSettings("dpsm", res)).visibility > 0.5, lit, evaluable).error_pct
+              for res in (128, 1024)]
+    assert errors[1] < errors[0]
