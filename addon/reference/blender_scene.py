@@ -1,0 +1,148 @@
+"""Turn a `SceneSpec` into a new Blender scene (and remove it again).
+
+Everything created here is tagged with the custom property `TAG` holding the scene
+name, so `remove_blender_scene` deletes exactly what was built and nothing else.
+"""
+from __future__ import annotations
+
+import logging
+import math
+from typing import TYPE_CHECKING
+
+import numpy as np
+
+from ..core.errors import InputError
+from ..core.scene import MeshSpec, SceneSpec
+
+if TYPE_CHECKING:  # pragma: no cover - typing only
+    import bpy
+
+log = logging.getLogger(__name__)
+
+TAG = "omniwarp_generated"
+
+
+def _matrix(m: np.ndarray):
+    """numpy 4x4 -> mathutils.Matrix."""
+    from mathutils import Matrix
+
+    return Matrix(np.asarray(m, dtype=np.float64).tolist())
+
+
+def _unique_scene_name(base: str) -> str:
+    import bpy
+
+    name, i = base, 1
+    while name in bpy.data.scenes:
+        i += 1
+        name = f"{base}.{i:03d}"
+    return name
+
+
+def build_mesh(spec: MeshSpec) -> "bpy.types.Mesh":
+    """A flat-shaded Blender mesh from a MeshSpec (object space), filled with foreach_set."""
+    import bpy
+
+    verts = np.ascontiguousarray(spec.vertices, dtype=np.float32).reshape(-1, 3)
+    tris = np.ascontiguousarray(spec.triangles, dtype=np.int32).reshape(-1, 3)
+    if not np.all(np.isfinite(verts)):
+        raise InputError(f"mesh {spec.name!r} has non-finite vertices")
+    mesh = bpy.data.meshes.new(spec.name)
+    mesh.vertices.add(len(verts))
+    mesh.vertices.foreach_set("co", verts.ravel())
+    mesh.loops.add(tris.size)
+    mesh.loops.foreach_set("vertex_index", tris.ravel())
+    mesh.polygons.add(len(tris))
+    mesh.polygons.foreach_set("loop_start", np.arange(0, tris.size, 3, dtype=np.int32))
+    # New faces are smooth by default since Blender 4.1; the box corners are shared,
+    # so smooth shading would bend the lighting at every edge. Shade flat.
+    mesh.polygons.foreach_set("use_smooth", np.zeros(len(tris), dtype=bool))
+    mesh.update(calc_edges=True)
+    if mesh.validate(verbose=False):
+        # validate() returns True when it had to fix something (e.g. degenerate faces).
+        log.warning("mesh %r had invalid geometry that Blender corrected", spec.name)
+    return mesh
+
+
+def build_blender_scene(spec: SceneSpec) -> "bpy.types.Scene":
+    """Create a NEW scene holding the spec's meshes, light and camera; other scenes are untouched."""
+    import bpy
+
+    scene = bpy.data.scenes.new(_unique_scene_name(f"OmniWarp {spec.name}"))
+    scene[TAG] = scene.name
+    collection = scene.collection
+
+    def link(obj: "bpy.types.Object") -> None:
+        obj[TAG] = scene.name
+        if obj.data is not None:
+            obj.data[TAG] = scene.name
+        collection.objects.link(obj)
+
+    for mesh_spec in spec.meshes:
+        obj = bpy.data.objects.new(mesh_spec.name, build_mesh(mesh_spec))
+        obj.matrix_world = _matrix(mesh_spec.matrix_world)
+        link(obj)
+
+    light_spec = spec.light
+    if light_spec.emission == "omni":
+        light = bpy.data.lights.new(f"{spec.name}_light", "POINT")
+    elif light_spec.emission == "hemi":
+        light = bpy.data.lights.new(f"{spec.name}_light", "SPOT")
+        light.spot_size = math.pi  # 180 degree cone: the half space in front of local -Z
+        light.spot_blend = 0.0
+    else:
+        raise InputError(f"scene {spec.name!r}: unknown light emission {light_spec.emission!r}")
+    light.energy = float(light_spec.energy)
+    light.shadow_soft_size = 0.0  # a hard point light, as the shadow maps assume
+    light_obj = bpy.data.objects.new(f"{spec.name}_light", light)
+    light_obj.matrix_world = _matrix(light_spec.matrix_world)
+    link(light_obj)
+
+    cam_spec = spec.camera
+    camera = bpy.data.cameras.new(f"{spec.name}_camera")
+    camera.type = "PERSP"
+    camera.sensor_fit = "AUTO"  # the angle spans the larger image side, like CameraSpec
+    camera.angle = math.radians(cam_spec.fov_deg)
+    camera.clip_start = float(cam_spec.clip_start)
+    camera.clip_end = float(cam_spec.clip_end)
+    cam_obj = bpy.data.objects.new(f"{spec.name}_camera", camera)
+    cam_obj.matrix_world = _matrix(cam_spec.matrix_world)
+    link(cam_obj)
+    scene.camera = cam_obj
+
+    width, height = cam_spec.resolution
+    scene.render.resolution_x = int(width)
+    scene.render.resolution_y = int(height)
+    scene.render.resolution_percentage = 100
+    scene.render.pixel_aspect_x = 1.0
+    scene.render.pixel_aspect_y = 1.0
+    log.debug("built scene %r: %d meshes, %s light", scene.name, len(spec.meshes), light_spec.emission)
+    return scene
+
+
+def remove_blender_scene(scene: "bpy.types.Scene") -> None:
+    """Delete a scene made by `build_blender_scene` and the datablocks it created.
+
+    Only IDs carrying our tag for this scene are removed, so user data linked into
+    the scene afterwards survives (it just loses the scene).
+    """
+    import bpy
+
+    name = scene.get(TAG)
+    if name is None:
+        raise InputError(f"scene {scene.name!r} was not built by OmniWarp; refusing to remove it")
+    objects = [o for o in scene.collection.all_objects if o.get(TAG) == name]
+    data = [o.data for o in objects if o.data is not None and o.data.get(TAG) == name]
+    bpy.data.scenes.remove(scene)
+    for obj in objects:
+        bpy.data.objects.remove(obj)
+    for datablock in data:
+        if datablock.users:
+            log.debug("keeping %r: still used elsewhere", datablock.name)
+            continue
+        if isinstance(datablock, bpy.types.Mesh):
+            bpy.data.meshes.remove(datablock)
+        elif isinstance(datablock, bpy.types.Light):
+            bpy.data.lights.remove(datablock)
+        elif isinstance(datablock, bpy.types.Camera):
+            bpy.data.cameras.remove(datablock)

@@ -1,0 +1,173 @@
+"""Cache of Cycles references per preset, resolution and sample count.
+
+A cached reference loads without `bpy`; Blender is imported only to render a new one.
+The cache key hashes the preset's builder source (with scene.py), the Blender
+version, the resolution, the sample count and `capture.CAPTURE_VERSION`.
+
+Where: `cache_dir` if given, else the folder named by $OMNIWARP_CACHE, else
+`<repo>/.cache/reference/`. Files are `<preset>_<W>x<H>_<key>.npz`.
+"""
+from __future__ import annotations
+
+import hashlib
+import importlib.metadata
+import importlib.util
+import json
+import logging
+import os
+import re
+import sys
+import time
+from pathlib import Path
+from typing import Any, Callable
+
+from ..core.errors import ReferenceCaptureError
+from ..core.presets import DEFAULT_RESOLUTION, build_preset, preset_source_hash
+# capture.py imports bpy only inside functions, so this import is bpy-free.
+from .capture import CAPTURE_VERSION, DEFAULT_SAMPLES
+from .data import ReferenceData, read_meta
+
+log = logging.getLogger(__name__)
+
+CACHE_ENV = "OMNIWARP_CACHE"
+DEFAULT_CACHE_DIR = Path(__file__).resolve().parents[2] / ".cache" / "reference"
+
+Progress = Callable[[str], None]
+
+
+def cache_dir_path(cache_dir: str | os.PathLike | None = None) -> Path:
+    """The folder holding cached references."""
+    if cache_dir is not None:
+        return Path(cache_dir)
+    env = os.environ.get(CACHE_ENV)
+    return Path(env) if env else DEFAULT_CACHE_DIR
+
+
+def blender_version() -> str | None:
+    """'X.Y.Z' of the bpy that would render, or None if bpy is not installed.
+
+    Avoids importing bpy when it can: a loaded module, else the PyPI package metadata.
+    """
+    bpy = sys.modules.get("bpy")
+    if bpy is not None:
+        return "%d.%d.%d" % tuple(bpy.app.version[:3])
+    try:
+        match = re.match(r"^(\d+)\.(\d+)\.(\d+)", importlib.metadata.version("bpy"))
+        if match:
+            return ".".join(match.groups())
+    except importlib.metadata.PackageNotFoundError:
+        log.debug("no bpy package metadata")
+    if importlib.util.find_spec("bpy") is None:
+        return None
+    import bpy  # a bpy without metadata (e.g. a custom build): ask it directly
+
+    return "%d.%d.%d" % tuple(bpy.app.version[:3])
+
+
+def key_fields(preset: str, resolution: tuple[int, int], samples: int, version: str | None) -> dict[str, Any]:
+    """What a cached reference depends on."""
+    return {
+        "preset_hash": preset_source_hash(preset),
+        "blender": version,
+        "resolution": [int(resolution[0]), int(resolution[1])],
+        "samples": int(samples),
+        "capture_version": CAPTURE_VERSION,
+    }
+
+
+def cache_key(fields: dict[str, Any]) -> str:
+    """Short stable hash of the key fields."""
+    return hashlib.sha256(json.dumps(fields, sort_keys=True).encode()).hexdigest()[:16]
+
+
+def cache_path(preset: str, resolution: tuple[int, int], key: str, cache_dir: Path) -> Path:
+    width, height = resolution
+    return cache_dir / f"{preset}_{int(width)}x{int(height)}_{key}.npz"
+
+
+def _find_without_blender(preset: str, resolution: tuple[int, int], fields: dict[str, Any],
+                          folder: Path) -> Path | None:
+    """Newest cached file matching everything but the Blender version (bpy is absent)."""
+    width, height = resolution
+    wanted = {k: v for k, v in fields.items() if k != "blender"}
+    candidates = sorted(folder.glob(f"{preset}_{int(width)}x{int(height)}_*.npz"),
+                        key=lambda p: p.stat().st_mtime, reverse=True)
+    for path in candidates:
+        try:
+            stored = read_meta(path).get("key_fields", {})
+        except ReferenceCaptureError as exc:
+            log.warning("skipping unreadable cache file: %s", exc)
+            continue
+        if {k: v for k, v in stored.items() if k != "blender"} == wanted:
+            log.info("bpy is not installed: using %s (rendered with Blender %s)", path.name, stored.get("blender"))
+            return path
+    return None
+
+
+def _capture_preset(preset: str, resolution: tuple[int, int], samples: int,
+                    progress: Progress | None) -> ReferenceData:
+    """Build the preset in a new Blender scene, capture it and delete everything created."""
+    try:
+        import bpy  # noqa: F401  (only to fail early with a clear message)
+    except ImportError as exc:
+        raise ReferenceCaptureError(
+            f"the Cycles reference of preset {preset!r} at {resolution[0]}x{resolution[1]} is not cached, "
+            "and rendering it needs the bpy module (pip install bpy, or run inside Blender)"
+        ) from exc
+    from .blender_scene import build_blender_scene, remove_blender_scene
+    from .capture import capture
+
+    spec = build_preset(preset, tuple(resolution))
+    scene = build_blender_scene(spec)
+    try:
+        return capture(scene, samples=samples, progress=progress)
+    finally:
+        remove_blender_scene(scene)
+
+
+def load_or_capture(preset: str, resolution: tuple[int, int] = DEFAULT_RESOLUTION, refresh: bool = False,
+                    samples: int = DEFAULT_SAMPLES, cache_dir: str | os.PathLike | None = None,
+                    log_progress: Progress | None = None) -> ReferenceData:
+    """The reference of `preset`: from the cache, or rendered with Cycles and cached.
+
+    `refresh` renders anew even when a cached file exists. `log_progress` receives
+    one-line progress messages during a render.
+    """
+    resolution = (int(resolution[0]), int(resolution[1]))
+    folder = cache_dir_path(cache_dir)
+    version = blender_version()
+    fields = key_fields(preset, resolution, samples, version)
+
+    if not refresh:
+        path: Path | None
+        if version is None:
+            path = _find_without_blender(preset, resolution, fields, folder)
+        else:
+            path = cache_path(preset, resolution, cache_key(fields), folder)
+            path = path if path.exists() else None
+        if path is not None:
+            try:
+                ref = ReferenceData.load(path)
+                log.debug("reference cache hit: %s", path)
+                return ref
+            except ReferenceCaptureError as exc:
+                if version is None:
+                    raise
+                log.warning("cached reference unusable, rendering again: %s", exc)
+
+    if version is None:
+        raise ReferenceCaptureError(
+            f"the Cycles reference of preset {preset!r} at {resolution[0]}x{resolution[1]} "
+            f"({samples} samples) is not cached in {folder}, and rendering it needs the bpy module "
+            "(pip install bpy, or run inside Blender)"
+        )
+    key = cache_key(fields)
+    path = cache_path(preset, resolution, key, folder)
+    say = log_progress or (lambda message: None)
+    say(f"rendering Cycles reference of {preset} at {resolution[0]}x{resolution[1]}")
+    start = time.perf_counter()
+    ref = _capture_preset(preset, resolution, samples, log_progress)
+    ref.meta.update(preset=preset, cache_key=key, key_fields=fields)
+    ref.save(path)
+    say(f"reference of {preset} cached in {time.perf_counter() - start:.1f} s: {path}")
+    return ref

@@ -1,0 +1,571 @@
+"""Render the Cycles ground truth of a Blender scene into a `ReferenceData`.
+
+`capture(scene)` works on any scene with a perspective camera and one point or spot
+light (the presets, and user .blend files). It temporarily switches the scene to the
+reference set-up of DESIGN.md section 5 and restores every setting it touched:
+
+- Cycles on the CPU, by default 1 sample at the pixel centre (no pixel jitter,
+  Gaussian filter 0.01 px: Cycles ignores the width of a box filter), no denoising,
+  no adaptive sampling, light threshold 0, no bounces (direct light only);
+- the light is hard (radius 0); other lights are hidden from the render;
+- every material is replaced by a white diffuse one (view-layer material override),
+  which also writes the Geometry node's True Normal into a shader AOV;
+- a black world and a transparent film (its alpha is the hit mask).
+
+It renders twice: once as is and once with the light's shadow casting off, which
+gives the `shadowed` and `unshadowed` Diffuse Direct passes. `bpy` is imported lazily.
+"""
+from __future__ import annotations
+
+import logging
+import math
+import shutil
+import tempfile
+import time
+from pathlib import Path
+from typing import TYPE_CHECKING, Any, Callable
+
+import numpy as np
+
+from ..core.errors import ReferenceCaptureError
+from ..core.scene import orthonormalize
+from .data import ReferenceData
+
+if TYPE_CHECKING:  # pragma: no cover - typing only
+    import bpy
+
+log = logging.getLogger(__name__)
+
+# Part of the cache key: bump whenever the capture settings or outputs change.
+CAPTURE_VERSION = 1
+
+# One sample is exact: a point light with direct light only has no randomness, and
+# on 5.2 later samples land slightly off the pixel centre (see _apply_render_settings),
+# where data passes (Position) keep the first sample only.
+DEFAULT_SAMPLES = 1
+AOV_NORMAL = "OmniWarpTrueNormal"
+PIXEL_FILTER_WIDTH = 0.01  # px; effectively no filter (Blender's minimum)
+# Object types whose evaluated geometry becomes triangles (to_mesh understands them).
+_GEOMETRY_TYPES = {"MESH", "CURVE", "SURFACE", "META", "FONT"}
+# A spot this close to 180 degrees with no blend is the hemispherical light.
+_HEMI_TOLERANCE = 1e-3
+
+Progress = Callable[[str], None]
+
+
+class _Overrides:
+    """Set attributes temporarily and put the old values back in reverse order."""
+
+    def __init__(self) -> None:
+        self._saved: list[tuple[Any, str, Any]] = []
+
+    def set(self, owner: Any, attr: str, value: Any, optional: bool = False) -> None:
+        """Set `owner.attr = value`, remembering the old value.
+
+        `optional` attributes that this Blender version lacks are skipped (logged).
+        """
+        if optional and not hasattr(owner, attr):
+            log.debug("%s has no %r in this Blender version; skipped", type(owner).__name__, attr)
+            return
+        old = getattr(owner, attr)
+        if not isinstance(old, str) and hasattr(old, "__len__") and not hasattr(old, "bl_rna"):
+            old = tuple(old)  # bpy arrays (colors, vectors) are views; keep a copy
+        self._saved.append((owner, attr, old))
+        setattr(owner, attr, value)
+
+    def on_restore(self, fn: Callable[[], None]) -> None:
+        """Run `fn` on restore (after the attributes set after it are restored)."""
+        self._saved.append((None, "", fn))
+
+    def restore(self) -> None:
+        errors = []
+        for owner, attr, old in reversed(self._saved):
+            try:
+                if owner is None:
+                    old()
+                else:
+                    setattr(owner, attr, old)
+            except (AttributeError, TypeError, ValueError, RuntimeError, ReferenceError) as exc:
+                # Keep restoring the rest; report every failure at the end.
+                errors.append(f"{attr or getattr(old, '__name__', 'cleanup')}: {exc}")
+        self._saved.clear()
+        if errors:
+            raise ReferenceCaptureError("could not restore scene settings after capture: " + "; ".join(errors))
+
+
+# ----------------------------------------------------------------------------
+# scene inspection
+# ----------------------------------------------------------------------------
+def _render_visible_objects(view_layer: "bpy.types.ViewLayer") -> set[str]:
+    """Names (name_full) of objects Cycles renders in this view layer."""
+    names: set[str] = set()
+
+    def walk(layer_collection: "bpy.types.LayerCollection") -> None:
+        if layer_collection.exclude or layer_collection.collection.hide_render:
+            return
+        for obj in layer_collection.collection.objects:
+            if not obj.hide_render:
+                names.add(obj.name_full)
+        for child in layer_collection.children:
+            walk(child)
+
+    walk(view_layer.layer_collection)
+    return names
+
+
+def _pick_view_layer(scene: "bpy.types.Scene", name: str | None) -> "bpy.types.ViewLayer":
+    if name is not None:
+        if name not in scene.view_layers:
+            raise ReferenceCaptureError(f"scene {scene.name!r} has no view layer {name!r}")
+        return scene.view_layers[name]
+    for layer in scene.view_layers:
+        if layer.use:
+            return layer
+    raise ReferenceCaptureError(f"scene {scene.name!r} has no view layer enabled for rendering")
+
+
+def _pick_light(scene: "bpy.types.Scene", visible: set[str], light: "bpy.types.Object | str | None"):
+    """The point/spot light object to capture; the scene must hold exactly one unless named."""
+    import bpy
+
+    if light is not None:
+        obj = bpy.data.objects.get(light) if isinstance(light, str) else light
+        if obj is None or obj.type != "LIGHT" or obj.data.type not in {"POINT", "SPOT"}:
+            raise ReferenceCaptureError(f"{light!r} is not a point or spot light object")
+        if obj.name not in scene.objects:
+            raise ReferenceCaptureError(f"light {obj.name!r} is not in scene {scene.name!r}")
+        return obj
+    candidates = [
+        o for o in scene.objects
+        if o.type == "LIGHT" and o.data.type in {"POINT", "SPOT"} and o.name_full in visible
+    ]
+    if not candidates:
+        raise ReferenceCaptureError(
+            f"scene {scene.name!r} has no rendered point or spot light; the reference needs one"
+        )
+    if len(candidates) > 1:
+        names = ", ".join(sorted(o.name for o in candidates))
+        raise ReferenceCaptureError(
+            f"scene {scene.name!r} has several point/spot lights ({names}); name the one to capture"
+        )
+    return candidates[0]
+
+
+def _emission_of(light: "bpy.types.Light") -> str:
+    if light.type == "POINT":
+        return "omni"
+    if light.spot_size >= math.pi - _HEMI_TOLERANCE and light.spot_blend <= _HEMI_TOLERANCE:
+        return "hemi"
+    return "spot"
+
+
+def _camera_fov_deg(camera: "bpy.types.Camera", width: int, height: int) -> float:
+    """Field of view along the larger image side, for any sensor fit."""
+    fit = camera.sensor_fit
+    if fit == "AUTO":
+        return math.degrees(camera.angle)
+    if fit == "HORIZONTAL":
+        half = math.tan(camera.angle_x / 2.0)
+        if width < height:
+            half *= height / width
+    else:  # VERTICAL
+        half = math.tan(camera.angle_y / 2.0)
+        if height < width:
+            half *= width / height
+    return math.degrees(2.0 * math.atan(half))
+
+
+def _rigid(matrix) -> np.ndarray:
+    """4x4 float64 with the rotation part orthonormalized (object scale dropped)."""
+    m = np.array(matrix, dtype=np.float64)
+    out = np.eye(4)
+    out[:3, :3] = orthonormalize(m[:3, :3])
+    out[:3, 3] = m[:3, 3]
+    return out
+
+
+def _evaluated_depsgraph(scene: "bpy.types.Scene", view_layer: "bpy.types.ViewLayer"):
+    """The evaluated (viewport) depsgraph of a scene that need not be the active one."""
+    import bpy
+
+    # view_layer.depsgraph is None until something evaluates the scene; the context
+    # override makes Blender create and evaluate it for this scene and layer.
+    with bpy.context.temp_override(scene=scene, view_layer=view_layer):
+        depsgraph = bpy.context.evaluated_depsgraph_get()
+    return depsgraph
+
+
+def _warn_viewport_render_mismatch(scene: "bpy.types.Scene", visible: set[str]) -> None:
+    """The triangles come from the viewport depsgraph; warn where render geometry may differ."""
+    for obj in scene.objects:
+        if obj.name_full not in visible or obj.type not in _GEOMETRY_TYPES:
+            continue
+        for mod in obj.modifiers:
+            differs = mod.show_viewport != mod.show_render
+            if mod.type in {"SUBSURF", "MULTIRES"}:
+                differs |= getattr(mod, "levels", 0) != getattr(mod, "render_levels", 0)
+            if differs:
+                log.warning(
+                    "object %r modifier %r differs between viewport and render; "
+                    "the stored triangles follow the viewport", obj.name, mod.name,
+                )
+
+
+def world_triangles(depsgraph, visible: set[str]) -> tuple[np.ndarray, set[str]]:
+    """All rendered triangles of an evaluated depsgraph in world space, (T, 3, 3) float32.
+
+    Also returns the names of the original objects that contributed.
+    """
+    parts: list[np.ndarray] = []
+    seen: set[str] = set()
+    for inst in depsgraph.object_instances:
+        obj = inst.object
+        if obj.type not in _GEOMETRY_TYPES:
+            continue
+        owner = (inst.parent if inst.is_instance else obj).original
+        if owner.name_full not in visible:
+            continue
+        if not inst.is_instance and obj.is_instancer and not obj.original.show_instancer_for_render:
+            continue  # an emitter Cycles does not draw itself
+        matrix = np.array(inst.matrix_world, dtype=np.float64)
+        local = _local_triangles(obj, depsgraph)
+        if len(local):
+            corners = local.reshape(-1, 3).astype(np.float64) @ matrix[:3, :3].T + matrix[:3, 3]
+            parts.append(corners.reshape(-1, 3, 3).astype(np.float32))
+        seen.add(owner.name_full)
+    if not parts:
+        return np.zeros((0, 3, 3), dtype=np.float32), seen
+    return np.concatenate(parts, axis=0), seen
+
+
+def _local_triangles(obj, depsgraph) -> np.ndarray:
+    """Object-space triangles (n, 3, 3) float32 of an evaluated object."""
+    temporary = obj.type != "MESH"
+    mesh = obj.to_mesh(preserve_all_data_layers=False, depsgraph=depsgraph) if temporary else obj.data
+    try:
+        if mesh is None:
+            return np.zeros((0, 3, 3), dtype=np.float32)
+        if len(mesh.polygons) and not len(mesh.loop_triangles):
+            mesh.calc_loop_triangles()
+        n_tris = len(mesh.loop_triangles)
+        coords = np.empty(len(mesh.vertices) * 3, dtype=np.float32)
+        mesh.vertices.foreach_get("co", coords)
+        indices = np.empty(n_tris * 3, dtype=np.int32)
+        mesh.loop_triangles.foreach_get("vertices", indices)
+        return coords.reshape(-1, 3)[indices].reshape(n_tris, 3, 3)
+    finally:
+        if temporary:
+            obj.to_mesh_clear()
+
+
+# ----------------------------------------------------------------------------
+# temporary datablocks
+# ----------------------------------------------------------------------------
+def _override_material(overrides: _Overrides):
+    """White diffuse material that also writes the geometric normal to the AOV."""
+    import bpy
+
+    mat = bpy.data.materials.new("OmniWarp reference white")
+    overrides.on_restore(lambda: bpy.data.materials.remove(mat))
+    if not mat.node_tree:  # older Blender: node trees are opt-in
+        mat.use_nodes = True
+    tree = mat.node_tree
+    tree.nodes.clear()
+    out = tree.nodes.new("ShaderNodeOutputMaterial")
+    out.target = "ALL"
+    diffuse = tree.nodes.new("ShaderNodeBsdfDiffuse")
+    diffuse.inputs["Color"].default_value = (1.0, 1.0, 1.0, 1.0)
+    diffuse.inputs["Roughness"].default_value = 0.0  # Lambert
+    tree.links.new(diffuse.outputs["BSDF"], out.inputs["Surface"])
+    geometry = tree.nodes.new("ShaderNodeNewGeometry")
+    aov = tree.nodes.new("ShaderNodeOutputAOV")
+    aov.aov_name = AOV_NORMAL
+    tree.links.new(geometry.outputs["True Normal"], aov.inputs["Color"])
+    return mat
+
+
+def _black_world(overrides: _Overrides):
+    import bpy
+
+    world = bpy.data.worlds.new("OmniWarp reference black")
+    overrides.on_restore(lambda: bpy.data.worlds.remove(world))
+    world.color = (0.0, 0.0, 0.0)
+    tree = world.node_tree
+    if tree is not None:
+        for node in tree.nodes:
+            if node.type == "BACKGROUND":
+                node.inputs["Color"].default_value = (0.0, 0.0, 0.0, 1.0)
+                node.inputs["Strength"].default_value = 0.0
+    return world
+
+
+def _add_aov(view_layer, overrides: _Overrides) -> None:
+    existing = view_layer.aovs.get(AOV_NORMAL) if hasattr(view_layer.aovs, "get") else None
+    if existing is not None:
+        view_layer.aovs.remove(existing)  # left over from a crashed capture
+    aov = view_layer.aovs.add()
+    aov.name = AOV_NORMAL
+    aov.type = "COLOR"
+    overrides.on_restore(lambda: view_layer.aovs.remove(view_layer.aovs[AOV_NORMAL]))
+
+
+def _apply_render_settings(scene, view_layer, light_obj, visible: set[str], samples: int,
+                           filepath: str, overrides: _Overrides) -> None:
+    """Switch the scene to the reference set-up (DESIGN.md section 5)."""
+    s = overrides.set
+    render = scene.render
+    s(render, "engine", "CYCLES")
+    cycles = scene.cycles
+    s(cycles, "device", "CPU")
+    s(cycles, "samples", samples)
+    s(cycles, "use_adaptive_sampling", False)
+    s(cycles, "use_denoising", False)
+    # Sample the pixel centre, so position and visibility describe the same point.
+    # Measured on 5.2.3: BOX ignores the width (Cycles forces 1 px for box) and keeps
+    # jittering even with use_pixel_jitter off; GAUSSIAN at 0.01 px with the jitter
+    # off puts the first sample within 2e-5 px of the centre.
+    s(cycles, "pixel_filter_type", "GAUSSIAN", optional=True)
+    s(cycles, "filter_width", PIXEL_FILTER_WIDTH, optional=True)
+    s(cycles, "use_pixel_jitter", False, optional=True)
+    s(cycles, "seed", 0)
+    s(cycles, "use_animated_seed", False)
+    # The default 0.01 light threshold drops faint light: it would zero far pixels.
+    s(cycles, "light_sampling_threshold", 0.0)
+    s(cycles, "sample_clamp_direct", 0.0)
+    s(cycles, "sample_clamp_indirect", 0.0)
+    for attr in ("max_bounces", "diffuse_bounces", "glossy_bounces", "transmission_bounces",
+                 "volume_bounces", "transparent_max_bounces"):
+        s(cycles, attr, 0)
+    s(cycles, "use_guiding", False, optional=True)
+    # Culling would drop geometry that still casts shadows into the view.
+    s(cycles, "use_camera_cull", False, optional=True)
+    s(cycles, "use_distance_cull", False, optional=True)
+    s(cycles, "use_layer_samples", "USE", optional=True)
+
+    s(render, "film_transparent", True)
+    s(render, "use_border", False)
+    s(render, "use_compositing", False)
+    s(render, "use_sequencer", False)
+    s(render, "use_motion_blur", False)
+    s(render, "use_freestyle", False, optional=True)
+    s(render, "use_multiview", False)  # stereo would rename every EXR channel per view
+    s(render, "filepath", filepath)
+    s(render, "use_file_extension", True)
+    image = render.image_settings
+    if hasattr(image, "media_type"):  # Blender 5.x: pick the media type first
+        s(image, "media_type", "MULTI_LAYER_IMAGE")
+    else:
+        s(image, "file_format", "OPEN_EXR_MULTILAYER")
+    s(image, "color_depth", "32")
+    s(image, "exr_codec", "ZIP", optional=True)
+
+    s(scene, "world", _black_world(overrides))
+
+    s(view_layer, "use_pass_combined", True)
+    s(view_layer, "use_pass_position", True)
+    s(view_layer, "use_pass_diffuse_direct", True)
+    s(view_layer, "samples", 0)  # 0: use the scene's sample count
+    s(view_layer, "material_override", _override_material(overrides))
+    s(view_layer.cycles, "use_denoising", False, optional=True)
+    _add_aov(view_layer, overrides)
+
+    light = light_obj.data
+    s(light, "shadow_soft_size", 0.0)
+    s(light, "use_shadow", True, optional=True)
+    s(light, "use_soft_falloff", False, optional=True)
+    s(light_obj, "visible_diffuse", True, optional=True)
+    for obj in scene.objects:
+        # Catchers and holdouts would change the passes and the alpha mask.
+        if getattr(obj, "is_shadow_catcher", False):
+            s(obj, "is_shadow_catcher", False)
+        if getattr(obj, "is_holdout", False):
+            s(obj, "is_holdout", False)
+        if obj.type == "LIGHT" and obj != light_obj and obj.name_full in visible:
+            s(obj, "hide_render", True)  # only the captured light may light the scene
+
+
+def _disable_shadows(scene, light_obj, overrides: _Overrides) -> None:
+    """The same light without any occlusion, for the `unshadowed` render."""
+    if hasattr(light_obj.data, "use_shadow"):
+        # One switch on the light: no shadow rays at all (verified equal to cos/r^2).
+        overrides.set(light_obj.data, "use_shadow", False)
+        return
+    for obj in scene.objects:  # older Blender: stop every object from casting
+        if hasattr(obj, "visible_shadow"):
+            overrides.set(obj, "visible_shadow", False)
+
+
+# ----------------------------------------------------------------------------
+# render and read
+# ----------------------------------------------------------------------------
+def _render(scene, view_layer, path: Path) -> float:
+    """Render one still into `path` (multilayer EXR); return wall seconds."""
+    import bpy
+
+    start = time.perf_counter()
+    result = bpy.ops.render.render(write_still=True, scene=scene.name, layer=view_layer.name)
+    seconds = time.perf_counter() - start
+    if "FINISHED" not in result or not path.exists():
+        raise ReferenceCaptureError(f"Cycles render of scene {scene.name!r} failed (no {path.name} written)")
+    return seconds
+
+
+def _remove_dir(path: Path) -> None:
+    try:
+        shutil.rmtree(path)
+    except OSError as exc:
+        log.warning("could not remove temporary folder %s: %s", path, exc)
+
+
+def read_exr_channels(path: Path) -> dict[str, np.ndarray]:
+    """Every channel of a (multi-part) EXR by its full name, as (H, W) float32 arrays.
+
+    Row 0 is the top of the image: Blender writes the data window top-down.
+    """
+    import OpenEXR
+
+    channels: dict[str, np.ndarray] = {}
+    try:
+        with OpenEXR.File(str(path), separate_channels=True) as exr:
+            for part in exr.parts:
+                for name, channel in part.channels.items():
+                    channels[name] = np.asarray(channel.pixels, dtype=np.float32)
+    except (OSError, RuntimeError) as exc:
+        raise ReferenceCaptureError(f"cannot read Cycles output {path}: {exc}") from exc
+    return channels
+
+
+def _channel(channels: dict[str, np.ndarray], layer: str, name: str) -> np.ndarray:
+    key = f"{layer}.{name}"
+    if key not in channels:
+        raise ReferenceCaptureError(
+            f"Cycles output lacks channel {key!r}; found: {', '.join(sorted(channels))}"
+        )
+    return channels[key]
+
+
+def _stack(channels: dict[str, np.ndarray], layer: str, name: str, comps: str) -> np.ndarray:
+    return np.stack([_channel(channels, layer, f"{name}.{c}") for c in comps], axis=-1)
+
+
+def capture(scene: "bpy.types.Scene", samples: int = DEFAULT_SAMPLES, *, light: "bpy.types.Object | str | None" = None,
+            view_layer: str | None = None, progress: Progress | None = None) -> ReferenceData:
+    """Render the Cycles reference of `scene` from its camera; the scene is left as it was.
+
+    `light` picks the point/spot light when the scene has several (else exactly one
+    rendered point/spot light must exist); every other light is hidden from the render.
+    """
+    import bpy
+
+    if samples < 1:
+        raise ReferenceCaptureError(f"samples must be at least 1, got {samples}")
+    cam_obj = scene.camera
+    if cam_obj is None or cam_obj.type != "CAMERA":
+        raise ReferenceCaptureError(f"scene {scene.name!r} has no active camera; the reference needs one")
+    if cam_obj.data.type != "PERSP":
+        raise ReferenceCaptureError(
+            f"camera {cam_obj.name!r} is {cam_obj.data.type}; the reference needs a perspective camera"
+        )
+    layer = _pick_view_layer(scene, view_layer)
+    # A new scene's view layer is synced lazily (layer_collection stays None until
+    # the scene is evaluated once), so evaluate before reading its collections.
+    _evaluated_depsgraph(scene, layer)
+    visible = _render_visible_objects(layer)
+    light_obj = _pick_light(scene, visible, light)
+    if light_obj.name_full not in visible:
+        raise ReferenceCaptureError(f"light {light_obj.name!r} is disabled for rendering")
+    if light_obj.data.energy <= 0.0 or max(light_obj.data.color) <= 0.0:
+        raise ReferenceCaptureError(f"light {light_obj.name!r} emits nothing (energy or colour is zero)")
+    say = progress or (lambda message: None)
+
+    render = scene.render
+    width = int(render.resolution_x * render.resolution_percentage / 100)
+    height = int(render.resolution_y * render.resolution_percentage / 100)
+    if abs(render.pixel_aspect_x - render.pixel_aspect_y) > 1e-6:
+        raise ReferenceCaptureError("non-square pixels (pixel aspect) are not supported by the reference")
+    if cam_obj.data.shift_x or cam_obj.data.shift_y:
+        log.warning("camera %r has lens shift; the stored camera matrix/fov ignore it", cam_obj.name)
+
+    tmpdir = Path(tempfile.mkdtemp(prefix="omniwarp_ref_"))
+    overrides = _Overrides()
+    try:
+        exr_path = tmpdir / "pass.exr"
+        _apply_render_settings(scene, layer, light_obj, visible, samples,
+                               str(tmpdir / "pass"), overrides)
+
+        depsgraph = _evaluated_depsgraph(scene, layer)
+        camera_matrix = _rigid(cam_obj.evaluated_get(depsgraph).matrix_world)
+        light_eval = light_obj.evaluated_get(depsgraph)
+        light_matrix = _rigid(light_eval.matrix_world)
+        scale = np.array(light_eval.matrix_world.to_scale())
+        if light_obj.data.type == "SPOT" and np.ptp(np.abs(scale)) > 1e-4:
+            log.warning("spot light %r has non-uniform scale %s: its cone is not circular", light_obj.name, scale)
+        _warn_viewport_render_mismatch(scene, visible)
+        say("collecting triangles")
+        triangles, seen = world_triangles(depsgraph, visible)
+        missing = {o.name_full for o in scene.objects
+                   if o.type in _GEOMETRY_TYPES and o.name_full in visible} - seen
+        if missing:
+            log.warning("objects rendered but not evaluated in the viewport (hidden there?); "
+                        "their triangles are missing: %s", ", ".join(sorted(missing)))
+
+        say(f"Cycles render 1/2 (shadowed, {width}x{height}, {samples} spp)")
+        t_shadowed = _render(scene, layer, exr_path)
+        lit = read_exr_channels(exr_path)
+        exr_path.unlink()
+        _disable_shadows(scene, light_obj, overrides)
+        say(f"Cycles render 2/2 (unshadowed, {width}x{height}, {samples} spp)")
+        t_unshadowed = _render(scene, layer, exr_path)
+        free = read_exr_channels(exr_path)
+    finally:
+        try:
+            overrides.restore()
+        finally:
+            _remove_dir(tmpdir)
+
+    name = layer.name
+    alpha = _channel(lit, name, "Combined.A")
+    hit = alpha > 0.5
+    # Pixels whose samples disagree on hitting geometry (only when samples > 1).
+    mixed = int(np.count_nonzero((alpha > 1e-6) & (alpha < 1.0 - 1e-6)))
+    position = np.where(hit[..., None], _stack(lit, name, "Position", "XYZ"), 0.0)
+    normal = _stack(lit, name, AOV_NORMAL, "RGB")
+    length = np.linalg.norm(normal, axis=-1, keepdims=True)
+    # Several samples average the AOV; re-normalize (only silhouettes can shrink it).
+    normal = np.where(hit[..., None] & (length > 1e-12), normal / np.maximum(length, 1e-12), 0.0)
+    shadowed = np.where(hit, _stack(lit, name, "Diffuse Direct", "RGB").mean(axis=-1), 0.0)
+    unshadowed = np.where(hit, _stack(free, name, "Diffuse Direct", "RGB").mean(axis=-1), 0.0)
+    if position.shape[:2] != (height, width):
+        raise ReferenceCaptureError(f"Cycles output is {position.shape[1]}x{position.shape[0]}, expected {width}x{height}")
+
+    meta = {
+        "preset": "custom",
+        "scene": scene.name,
+        "light": light_obj.name,
+        "camera": cam_obj.name,
+        "blender_version": bpy.app.version_string,
+        "samples": int(samples),
+        "mixed_pixels": mixed,
+        "capture_version": CAPTURE_VERSION,
+        "render_seconds": {"shadowed": round(t_shadowed, 3), "unshadowed": round(t_unshadowed, 3)},
+        "light_energy": float(light_obj.data.energy),
+    }
+    if light_obj.data.type == "SPOT":
+        meta["spot_size_deg"] = math.degrees(light_obj.data.spot_size)
+        meta["spot_blend"] = float(light_obj.data.spot_blend)
+    log.info("captured %r %dx%d: %d triangles, %.1f%% hit, renders %.2f s + %.2f s",
+             scene.name, width, height, len(triangles), 100.0 * hit.mean(), t_shadowed, t_unshadowed)
+    return ReferenceData(
+        position=position,
+        normal=normal,
+        hit=hit,
+        shadowed=shadowed,
+        unshadowed=unshadowed,
+        triangles=triangles,
+        light_matrix=light_matrix,
+        emission=_emission_of(light_obj.data),
+        camera_matrix=camera_matrix,
+        camera_fov_deg=_camera_fov_deg(cam_obj.data, width, height),
+        resolution=(width, height),
+        meta=meta,
+    )

@@ -1,0 +1,183 @@
+"""The Cycles reference as plain numpy arrays, saved as one compressed .npz file.
+
+Conventions (verified in tests/blender/test_reference.py):
+- Every image array is indexed [row, column] with row 0 the TOP row of the image,
+  as the camera sees it (the EXR data window is read top-down, INCREASING_Y).
+- `normal` is Cycles' geometric "True Normal" as the shader sees it: Cycles flips it
+  towards the incoming camera ray on backfaces, so it always faces the camera
+  (dot(normal, camera_position - position) > 0), whatever the winding.
+- `position` and `normal` are zero where `hit` is False.
+- Pixels are point samples at the pixel centre (with the default single sample the
+  position projects to (col + 0.5, row + 0.5) within 1e-4 px).
+- `meta` holds: preset ("custom" for a user scene), scene/light/camera names,
+  blender_version, samples, mixed_pixels, capture_version, render_seconds
+  {"shadowed", "unshadowed"} and, from the cache, cache_key and key_fields.
+"""
+from __future__ import annotations
+
+import json
+import logging
+import os
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from ..core.errors import ReferenceCaptureError
+
+log = logging.getLogger(__name__)
+
+# Bumped when the file layout changes; older files are then treated as stale.
+FORMAT_VERSION = 1
+
+_IMAGE_FIELDS = ("position", "normal", "hit", "shadowed", "unshadowed")
+
+
+@dataclass
+class ReferenceData:
+    """Per-pixel ground truth of one camera view plus the scene's world triangles."""
+
+    position: np.ndarray  # (H, W, 3) float32, world space
+    normal: np.ndarray  # (H, W, 3) float32, unit geometric normal facing the camera
+    hit: np.ndarray  # (H, W) bool, the camera ray hit geometry
+    shadowed: np.ndarray  # (H, W) float32, Diffuse Direct (mean of RGB) with shadows
+    unshadowed: np.ndarray  # (H, W) float32, the same with shadow casting disabled
+    triangles: np.ndarray  # (T, 3, 3) float32, world space, evaluated scene
+    light_matrix: np.ndarray  # (4, 4) float64, light to world, rotation orthonormal (scale dropped)
+    emission: str  # "omni" | "hemi" | "spot"
+    camera_matrix: np.ndarray  # (4, 4) float64, camera to world (looks along local -Z), no scale
+    camera_fov_deg: float  # field of view along the larger image side
+    resolution: tuple[int, int]  # (W, H)
+    meta: dict[str, Any] = field(default_factory=dict)
+
+    def __post_init__(self) -> None:
+        self.position = np.asarray(self.position, dtype=np.float32)
+        self.normal = np.asarray(self.normal, dtype=np.float32)
+        self.hit = np.asarray(self.hit, dtype=bool)
+        self.shadowed = np.asarray(self.shadowed, dtype=np.float32)
+        self.unshadowed = np.asarray(self.unshadowed, dtype=np.float32)
+        self.triangles = np.asarray(self.triangles, dtype=np.float32).reshape(-1, 3, 3)
+        self.light_matrix = np.asarray(self.light_matrix, dtype=np.float64)
+        self.camera_matrix = np.asarray(self.camera_matrix, dtype=np.float64)
+        self.camera_fov_deg = float(self.camera_fov_deg)
+        self.resolution = (int(self.resolution[0]), int(self.resolution[1]))
+        self.emission = str(self.emission)
+        self._check_shapes()
+
+    def _check_shapes(self) -> None:
+        width, height = self.resolution
+        expected = {
+            "position": (height, width, 3),
+            "normal": (height, width, 3),
+            "hit": (height, width),
+            "shadowed": (height, width),
+            "unshadowed": (height, width),
+        }
+        for name, shape in expected.items():
+            actual = getattr(self, name).shape
+            if actual != shape:
+                raise ReferenceCaptureError(
+                    f"reference field {name!r} has shape {actual}, expected {shape} for resolution {width}x{height}"
+                )
+        for name in ("light_matrix", "camera_matrix"):
+            if getattr(self, name).shape != (4, 4):
+                raise ReferenceCaptureError(f"reference field {name!r} must be 4x4")
+
+    # derived ---------------------------------------------------------------
+    @property
+    def light_position(self) -> np.ndarray:
+        """World position of the light."""
+        return self.light_matrix[:3, 3].copy()
+
+    @property
+    def camera_position(self) -> np.ndarray:
+        """World position of the camera."""
+        return self.camera_matrix[:3, 3].copy()
+
+    def visibility(self, eps: float = 1e-6) -> np.ndarray:
+        """Reference visibility (H, W) bool: lit where shadowed/unshadowed >= 0.5.
+
+        Pixels with unshadowed <= eps (missed, facing away, outside the emission
+        domain) are False; use `lit_domain(eps)` to tell them apart from shadow.
+        """
+        lit = self.lit_domain(eps)
+        ratio = np.zeros_like(self.unshadowed)
+        np.divide(self.shadowed, self.unshadowed, out=ratio, where=lit)
+        return lit & (ratio >= 0.5)
+
+    def lit_domain(self, eps: float = 1e-6) -> np.ndarray:
+        """(H, W) bool: hit pixels that receive light when no shadows are cast."""
+        return self.hit & (self.unshadowed > eps)
+
+    # persistence -------------------------------------------------------------
+    def save(self, path: str | os.PathLike) -> Path:
+        """Write a compressed .npz atomically (a temp file renamed into place)."""
+        path = Path(path)
+        path.parent.mkdir(parents=True, exist_ok=True)
+        meta = dict(self.meta)
+        meta["format_version"] = FORMAT_VERSION
+        tmp = path.with_name(f".{path.name}.{os.getpid()}.tmp")
+        try:
+            # A file object keeps numpy from appending ".npz" to the temp name.
+            with open(tmp, "wb") as fh:
+                np.savez_compressed(
+                    fh,
+                    position=self.position,
+                    normal=self.normal,
+                    hit=self.hit,
+                    shadowed=self.shadowed,
+                    unshadowed=self.unshadowed,
+                    triangles=self.triangles,
+                    light_matrix=self.light_matrix,
+                    emission=np.array(self.emission),
+                    camera_matrix=self.camera_matrix,
+                    camera_fov_deg=np.array(self.camera_fov_deg, dtype=np.float64),
+                    resolution=np.array(self.resolution, dtype=np.int64),
+                    meta=np.array(json.dumps(meta, sort_keys=True)),
+                )
+            os.replace(tmp, path)
+        finally:
+            if tmp.exists():
+                tmp.unlink()
+        log.debug("saved reference %s", path)
+        return path
+
+    @classmethod
+    def load(cls, path: str | os.PathLike) -> "ReferenceData":
+        """Read a file written by `save`."""
+        path = Path(path)
+        try:
+            with np.load(path, allow_pickle=False) as npz:
+                meta = json.loads(str(npz["meta"]))
+                if meta.get("format_version") != FORMAT_VERSION:
+                    raise ReferenceCaptureError(
+                        f"reference file {path} has format {meta.get('format_version')}, "
+                        f"expected {FORMAT_VERSION}; refresh it"
+                    )
+                return cls(
+                    position=npz["position"],
+                    normal=npz["normal"],
+                    hit=npz["hit"],
+                    shadowed=npz["shadowed"],
+                    unshadowed=npz["unshadowed"],
+                    triangles=npz["triangles"],
+                    light_matrix=npz["light_matrix"],
+                    emission=str(npz["emission"]),
+                    camera_matrix=npz["camera_matrix"],
+                    camera_fov_deg=float(npz["camera_fov_deg"]),
+                    resolution=tuple(int(v) for v in npz["resolution"]),
+                    meta=meta,
+                )
+        except (OSError, KeyError, ValueError) as exc:
+            # ValueError covers a truncated zip and bad JSON alike.
+            raise ReferenceCaptureError(f"cannot read reference file {path}: {exc}") from exc
+
+
+def read_meta(path: str | os.PathLike) -> dict[str, Any]:
+    """Only the meta dict of a saved reference (cheap: one small zip member)."""
+    try:
+        with np.load(Path(path), allow_pickle=False) as npz:
+            return json.loads(str(npz["meta"]))
+    except (OSError, KeyError, ValueError) as exc:
+        raise ReferenceCaptureError(f"cannot read reference file {path}: {exc}") from exc

@@ -1,0 +1,165 @@
+#!/usr/bin/env bash
+# Build (or check) the project environment in <repo>/.venv. Idempotent.
+#
+#  1. Mesa EGL system libraries (libegl1 libegl-mesa0 libgl1-mesa-dri):
+#     installed with apt-get only when dpkg says they are missing.
+#  2. Python 3.13 (bpy 5.2.3 from PyPI is built for CPython 3.13 only).
+#  3. <repo>/.venv, created when missing (or when it is broken / not 3.13).
+#  4. `pip install -e .[blender,dev]`, skipped while .venv/.omniwarp-stamp
+#     still matches (sha256 of pyproject.toml + the repo path, since an
+#     editable install points at this checkout).
+#
+# Environment overrides:
+#   OMNIWARP_PYTHON=/path/to/python3.13   use this interpreter to create .venv
+#                                         (no search; it must be 3.13)
+#   OMNIWARP_SKIP_APT=1                   do not check/install the apt packages
+#   OMNIWARP_FORCE_INSTALL=1              reinstall even if the stamp matches
+#
+# Everything this script says goes to stderr; it exits non-zero on failure.
+set -euo pipefail
+
+REPO_ROOT="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
+cd "$REPO_ROOT"
+
+VENV="$REPO_ROOT/.venv"
+STAMP="$VENV/.omniwarp-stamp"
+APT_PACKAGES=(libegl1 libegl-mesa0 libgl1-mesa-dri)
+PY_WANT="3.13"
+
+say() { printf 'setup_env: %s\n' "$*" >&2; }
+die() { printf 'setup_env: error: %s\n' "$*" >&2; exit 1; }
+
+# --- 1. Mesa EGL ------------------------------------------------------------
+ensure_apt_packages() {
+    if [[ "${OMNIWARP_SKIP_APT:-0}" == "1" ]]; then
+        say "OMNIWARP_SKIP_APT=1: not checking ${APT_PACKAGES[*]}"
+        return 0
+    fi
+    if ! command -v dpkg-query >/dev/null 2>&1; then
+        say "warning: dpkg-query not found (not a Debian/Ubuntu system?); cannot check" \
+            "for Mesa EGL (${APT_PACKAGES[*]}). Install Mesa's EGL + DRI drivers yourself" \
+            "if the moderngl tests fail to create an EGL context."
+        return 0
+    fi
+    local missing=() pkg status
+    for pkg in "${APT_PACKAGES[@]}"; do
+        status="$(dpkg-query -W -f='${Status}' "$pkg" 2>/dev/null || true)"
+        [[ "$status" == "install ok installed" ]] || missing+=("$pkg")
+    done
+    if ((${#missing[@]} == 0)); then
+        say "Mesa EGL packages present (${APT_PACKAGES[*]})"
+        return 0
+    fi
+    say "installing missing apt packages: ${missing[*]}"
+    if ! command -v apt-get >/dev/null 2>&1; then
+        die "packages ${missing[*]} are missing and apt-get is not available." \
+            "Install Mesa EGL (libEGL + Mesa DRI drivers) by other means, then re-run" \
+            "(or set OMNIWARP_SKIP_APT=1 to skip this check)."
+    fi
+    local sudo=()
+    if [[ "$(id -u)" != "0" ]]; then
+        command -v sudo >/dev/null 2>&1 || die "packages ${missing[*]} are missing; not root and" \
+            "sudo is not available. Run as root: apt-get install -y ${missing[*]}"
+        if [[ -t 0 ]]; then sudo=(sudo); else sudo=(sudo -n); fi
+    fi
+    "${sudo[@]}" env DEBIAN_FRONTEND=noninteractive apt-get update -qq >&2 \
+        || die "'apt-get update' failed; install ${missing[*]} manually and re-run."
+    "${sudo[@]}" env DEBIAN_FRONTEND=noninteractive apt-get install -y -qq \
+        --no-install-recommends "${missing[@]}" >&2 \
+        || die "'apt-get install ${missing[*]}' failed; install them manually and re-run."
+}
+
+# --- 2. Python 3.13 ---------------------------------------------------------
+# True when "$1" runs, is CPython 3.13 and can create a venv with pip.
+is_good_python() {
+    "$1" -c 'import sys, venv, ensurepip; sys.exit(0 if sys.version_info[:2] == (3, 13) else 1)' \
+        >/dev/null 2>&1
+}
+
+find_python() {
+    local c tried=()
+    if [[ -n "${OMNIWARP_PYTHON:-}" ]]; then
+        if is_good_python "$OMNIWARP_PYTHON"; then
+            printf '%s\n' "$OMNIWARP_PYTHON"
+            return 0
+        fi
+        python_missing "OMNIWARP_PYTHON=$OMNIWARP_PYTHON is not a working Python $PY_WANT" \
+            "with the venv and ensurepip modules"
+    fi
+
+    local candidates=()
+    command -v "python$PY_WANT" >/dev/null 2>&1 && candidates+=("$(command -v "python$PY_WANT")")
+    if command -v pyenv >/dev/null 2>&1; then
+        local v
+        while IFS= read -r v; do
+            [[ "$v" == "$PY_WANT"* ]] || continue
+            c="$(PYENV_VERSION="$v" pyenv which "python$PY_WANT" 2>/dev/null || true)"
+            [[ -n "$c" ]] && candidates+=("$c")
+        done < <(pyenv versions --bare 2>/dev/null || true)
+    fi
+    for c in "${PYENV_ROOT:-${HOME:-/root}/.pyenv}"/versions/"$PY_WANT"*/bin/"python$PY_WANT" \
+             /usr/local/bin/"python$PY_WANT" /usr/bin/"python$PY_WANT"; do
+        [[ -x "$c" ]] && candidates+=("$c")
+    done
+    command -v python3 >/dev/null 2>&1 && candidates+=("$(command -v python3)")
+
+    for c in "${candidates[@]}"; do
+        if is_good_python "$c"; then
+            printf '%s\n' "$c"
+            return 0
+        fi
+        tried+=("$c")
+    done
+    python_missing "no usable Python $PY_WANT found (tried: ${tried[*]:-nothing on PATH or in pyenv})"
+}
+
+python_missing() {
+    die "$*.
+  Python $PY_WANT is needed: bpy==5.2.3 (Blender 5.2 LTS as a Python module) is only
+  published for CPython $PY_WANT. Get one of these, then re-run:
+    pyenv install $PY_WANT          (pyenv; this script finds ~/.pyenv/versions/$PY_WANT*)
+    uv python install $PY_WANT      (then OMNIWARP_PYTHON=\$(uv python find $PY_WANT))
+    apt-get install python$PY_WANT python$PY_WANT-venv   (Debian 13 / Ubuntu 24.10+)
+  or point OMNIWARP_PYTHON at a python$PY_WANT binary."
+}
+
+# --- 3. the virtual environment ---------------------------------------------
+ensure_venv() {
+    if [[ -e "$VENV" ]]; then
+        if is_good_python "$VENV/bin/python"; then
+            say "using existing $VENV ($("$VENV/bin/python" -V 2>&1))"
+            return 0
+        fi
+        say "$VENV exists but its python is broken or not $PY_WANT: recreating it"
+        rm -rf -- "$VENV"
+    fi
+    local py
+    py="$(find_python)"
+    say "creating $VENV with $py ($("$py" -V 2>&1))"
+    "$py" -m venv "$VENV" || die "'$py -m venv $VENV' failed"
+}
+
+# --- 4. the packages --------------------------------------------------------
+stamp_value() {
+    { sha256sum pyproject.toml; printf '%s\n' "$REPO_ROOT"; } | sha256sum | cut -d' ' -f1
+}
+
+ensure_install() {
+    local want
+    want="$(stamp_value)"
+    if [[ "${OMNIWARP_FORCE_INSTALL:-0}" != "1" && -f "$STAMP" \
+          && "$(cat "$STAMP")" == "$want" && -x "$VENV/bin/omniwarp" ]]; then
+        say "packages up to date (stamp matches pyproject.toml); skipping pip install"
+        return 0
+    fi
+    say "installing -e .[blender,dev] into $VENV (the first install downloads bpy, ~1-2 min)"
+    rm -f -- "$STAMP"
+    "$VENV/bin/python" -m pip install --disable-pip-version-check -q -e ".[blender,dev]" >&2 \
+        || die "pip install -e .[blender,dev] failed (see the pip output above)"
+    printf '%s\n' "$want" >"$STAMP"
+    say "environment ready: $VENV"
+}
+
+ensure_apt_packages
+ensure_venv
+ensure_install

@@ -1,0 +1,234 @@
+"""The layering contract of DESIGN.md section 2.
+
+* `addon.core` and `addon.render` import without bpy / gpu / mathutils / bmesh
+  (checked at run time in a clean subprocess where those imports raise).
+* `addon.core` never imports `addon.render`, `addon.reference` or `addon.blender`,
+  nor bpy or a GL binding, not even inside a function (static check).
+* `addon.render` never imports `addon.blender` (static check).
+* Code under `addon/` that Blender loads uses relative imports only: inside
+  Blender the package is `bl_ext.<repo>.omniwarp_shadows.addon`, so
+  `import addon...` would fail there.
+
+Modules are discovered from the source tree, so new modules are covered and
+missing packages (not written yet) are simply empty.
+"""
+from __future__ import annotations
+
+import ast
+import json
+import subprocess
+import sys
+from dataclasses import dataclass
+from pathlib import Path
+
+import pytest
+
+REPO_ROOT = Path(__file__).resolve().parent.parent
+ADDON = REPO_ROOT / "addon"
+
+# Blender-only modules; importing any of them (or a submodule) must not be needed.
+BLENDER_MODULES = (
+    "bpy", "_bpy", "bpy_extras", "bpy_types", "bl_math", "bmesh",
+    "gpu", "gpu_extras", "mathutils", "idprop", "aud",
+)
+GL_MODULES = ("moderngl", "glcontext", "OpenGL")
+
+# Runs in a fresh interpreter: block Blender modules, then import everything.
+_IMPORT_ALL = r"""
+import importlib, importlib.abc, json, pkgutil, sys, traceback
+
+repo_root, blocked, packages = sys.argv[1], set(sys.argv[2].split(",")), sys.argv[3].split(",")
+sys.path.insert(0, repo_root)
+
+class BlockBlender(importlib.abc.MetaPathFinder):
+    def find_spec(self, name, path=None, target=None):
+        if name.partition(".")[0] in blocked:
+            raise ImportError(f"{name!r} is blocked: addon.core/addon.render must import without Blender")
+        return None
+
+sys.meta_path.insert(0, BlockBlender())
+for name in list(sys.modules):
+    if name.partition(".")[0] in blocked:
+        del sys.modules[name]
+
+imported, failed = [], {}
+
+def record_failure(name):
+    failed[name] = traceback.format_exc()
+
+for pkg_name in packages:
+    try:
+        pkg = importlib.import_module(pkg_name)
+    except BaseException:
+        record_failure(pkg_name)
+        continue
+    imported.append(pkg_name)
+    names = [info.name for info in pkgutil.walk_packages(pkg.__path__, pkg_name + ".", onerror=record_failure)]
+    for name in names:
+        if name in failed:
+            continue
+        try:
+            importlib.import_module(name)
+            imported.append(name)
+        except BaseException:
+            record_failure(name)
+
+leaked = sorted(n for n in sys.modules if n.partition(".")[0] in blocked)
+print(json.dumps({"imported": imported, "failed": failed, "leaked": leaked}))
+"""
+
+
+def _existing_packages(*names: str) -> list[str]:
+    """Dotted names of the given `addon` sub-packages that exist on disk."""
+    return [f"addon.{n}" for n in names if (ADDON / n).is_dir()]
+
+
+def test_core_and_render_import_without_blender() -> None:
+    """Every module under addon/core and addon/render imports with bpy & co. blocked."""
+    packages = _existing_packages("core", "render")
+    if not packages:
+        pytest.skip("neither addon/core nor addon/render exists yet")
+    proc = subprocess.run(
+        [sys.executable, "-c", _IMPORT_ALL, str(REPO_ROOT), ",".join(BLENDER_MODULES), ",".join(packages)],
+        cwd=REPO_ROOT,
+        capture_output=True,
+        text=True,
+        timeout=300,
+    )
+    assert proc.returncode == 0, f"import subprocess crashed:\n{proc.stdout}\n{proc.stderr}"
+    result = json.loads(proc.stdout.strip().splitlines()[-1])
+    failures = "\n".join(f"--- {name}\n{tb}" for name, tb in result["failed"].items())
+    assert not result["failed"], f"modules that need Blender (or fail to import):\n{failures}"
+    assert not result["leaked"], f"Blender modules got imported anyway: {result['leaked']}"
+    assert set(packages) <= set(result["imported"])
+
+
+@dataclass(frozen=True)
+class ImportRef:
+    """One imported module name, resolved to an absolute dotted name."""
+
+    source: Path
+    line: int
+    target: str
+    relative: bool
+
+    def where(self) -> str:
+        return f"{self.source.relative_to(REPO_ROOT)}:{self.line} imports {self.target}"
+
+
+def _module_name(path: Path) -> tuple[str, bool]:
+    """Dotted module name of a source file under the repo root, and whether it is a package."""
+    parts = list(path.relative_to(REPO_ROOT).with_suffix("").parts)
+    is_package = parts[-1] == "__init__"
+    if is_package:
+        parts.pop()
+    return ".".join(parts), is_package
+
+
+def _imports(path: Path) -> list[ImportRef]:
+    """All imports in a source file under the repo, resolved to absolute names."""
+    module, is_package = _module_name(path)
+    return _resolve_imports(path.read_text(encoding="utf-8"), module, is_package, path)
+
+
+def _resolve_imports(source: str, module: str, is_package: bool, path: Path) -> list[ImportRef]:
+    """All imports in `source` (including ones inside functions), resolved to absolute names.
+
+    `from . import x` yields both the package and `package.x`, since x may be a module.
+    """
+    package = module if is_package else module.rpartition(".")[0]
+    tree = ast.parse(source, filename=str(path))
+    refs: list[ImportRef] = []
+    for node in ast.walk(tree):
+        if isinstance(node, ast.Import):
+            refs.extend(ImportRef(path, node.lineno, alias.name, False) for alias in node.names)
+        elif isinstance(node, ast.ImportFrom):
+            if node.level == 0:
+                base = node.module or ""
+            else:
+                parts = package.split(".")
+                up = node.level - 1
+                if up >= len(parts):
+                    base = "<beyond top package>"
+                else:
+                    base = ".".join(parts[: len(parts) - up] + ([node.module] if node.module else []))
+            relative = node.level > 0
+            refs.append(ImportRef(path, node.lineno, base, relative))
+            refs.extend(
+                ImportRef(path, node.lineno, f"{base}.{alias.name}", relative)
+                for alias in node.names
+                if alias.name != "*"
+            )
+    return refs
+
+
+def _sources(*subdirs: str) -> list[Path]:
+    return sorted(p for d in subdirs for p in (ADDON / d).rglob("*.py") if "__pycache__" not in p.parts)
+
+
+def _hits(refs: list[ImportRef], forbidden: tuple[str, ...]) -> list[str]:
+    return sorted(
+        {r.where() for r in refs if any(r.target == f or r.target.startswith(f + ".") for f in forbidden)}
+    )
+
+
+def test_core_imports_only_downward() -> None:
+    """addon/core never imports the render, reference or blender layers."""
+    refs = [ref for path in _sources("core") for ref in _imports(path)]
+    bad = _hits(refs, ("addon.render", "addon.reference", "addon.blender", "addon.cli"))
+    assert not bad, "addon/core must stay at the ground floor:\n" + "\n".join(bad)
+
+
+def test_core_has_no_blender_or_gl_imports() -> None:
+    """addon/core is numpy only: no bpy family and no GL binding, not even lazily."""
+    refs = [ref for path in _sources("core") for ref in _imports(path) if not ref.relative]
+    bad = _hits(refs, BLENDER_MODULES + GL_MODULES)
+    assert not bad, "addon/core must not touch Blender or GL:\n" + "\n".join(bad)
+
+
+def test_render_never_imports_blender_layer() -> None:
+    """addon/render may use Blender's gpu module (lazily) but never the addon.blender UI layer."""
+    refs = [ref for path in _sources("render") for ref in _imports(path)]
+    bad = _hits(refs, ("addon.blender", "addon.cli"))
+    assert not bad, "addon/render must not import addon.blender:\n" + "\n".join(bad)
+
+
+def test_blender_loaded_code_uses_relative_imports() -> None:
+    """Inside Blender `addon` is a sub-package of the extension, so `import addon.x` breaks there."""
+    refs = [
+        ref
+        for path in _sources("core", "render", "reference", "blender")
+        for ref in _imports(path)
+        if not ref.relative
+    ]
+    bad = _hits(refs, ("addon",))
+    assert not bad, "use relative imports inside addon/ (the extension renames the package):\n" + "\n".join(bad)
+
+
+def test_import_resolution_helper() -> None:
+    """The static resolver maps relative imports to the right absolute names."""
+    src = (
+        "from ..render import pipeline\n"
+        "from . import scene\n"
+        "def f():\n"
+        "    from .. import blender\n"
+        "import numpy as np\n"
+        "from addon.reference import cache\n"
+    )
+    fake = ADDON / "core" / "probe.py"
+    assert _module_name(fake) == ("addon.core.probe", False)
+    refs = _resolve_imports(src, "addon.core.probe", False, fake)
+    names = {r.target for r in refs}
+    assert {"addon.render.pipeline", "addon.core.scene", "addon.blender", "numpy", "addon.reference.cache"} <= names
+    assert _hits(refs, ("addon.render", "addon.blender")) == [
+        "addon/core/probe.py:1 imports addon.render",
+        "addon/core/probe.py:1 imports addon.render.pipeline",
+        "addon/core/probe.py:4 imports addon.blender",
+    ]
+    assert _hits([r for r in refs if not r.relative], ("addon",)) == [
+        "addon/core/probe.py:6 imports addon.reference",
+        "addon/core/probe.py:6 imports addon.reference.cache",
+    ]
+    # In a package __init__, `.` is the package itself.
+    init_refs = _resolve_imports("from .frames import Frame\n", "addon.core", True, ADDON / "core" / "__init__.py")
+    assert "addon.core.frames.Frame" in {r.target for r in init_refs}
