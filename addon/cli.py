@@ -129,7 +129,8 @@ def cmd_compare(args: argparse.Namespace) -> int:
     else:
         references = {Path(args.blend).stem: _blend_reference(args)}
     options = CompareOptions(methods, resolutions, cull=not args.no_cull, frames=args.frames,
-                             out_dir=Path(args.out), write_images=not args.no_images)
+                             out_dir=Path(args.out), write_images=not args.no_images,
+                             command="omniwarp " + " ".join(args.argv))
     rows = run_compare(references, options, lambda: ShadowPipeline(ModernGLBackend()))
     for row in rows:
         print(f"{row['preset']:12s} {row['method']:6s} {row['resolution']:5d}  error {row['error_pct']:6.3f} %  "
@@ -142,7 +143,9 @@ COMMANDS = {"presets": cmd_presets, "reference": cmd_reference, "compare": cmd_c
 
 def main(argv: Sequence[str] | None = None) -> int:
     """Entry point of the `omniwarp` console script."""
+    argv = list(sys.argv[1:] if argv is None else argv)
     args = _parser().parse_args(argv)
+    args.argv = argv
     logging.basicConfig(level=logging.INFO if args.verbose else logging.WARNING,
                         format="%(levelname)s %(name)s: %(message)s")
     try:

@@ -40,6 +40,7 @@ class CompareOptions:
     frames: int = 3  # timed frames per row, after one warm-up frame
     out_dir: Path = Path("out/compare")
     write_images: bool = True
+    command: str = ""  # the command line, recorded in report.md for provenance
 
 
 def parse_methods(text: str) -> tuple[str, ...]:
@@ -210,7 +211,7 @@ def run_compare(references: dict[str, Callable[[], ReferenceData]], options: Com
     (out / "results.json").write_text(json.dumps(rows, indent=1), encoding="utf-8")
     from .report import write_markdown, write_plot
 
-    write_markdown(rows, out / "report.md", stamp)
+    write_markdown(rows, out / "report.md", stamp, options.command)
     write_plot(rows, out / "error_vs_time.png")
     print(f"wrote {len(rows)} rows to {out / 'results.json'}, {out / 'report.md'}, {out / 'error_vs_time.png'}",
           file=sys.stderr)

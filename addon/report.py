@@ -32,7 +32,7 @@ def markdown_table(rows: Sequence[dict]) -> str:
     return "\n".join(lines) + "\n"
 
 
-def write_markdown(rows: Sequence[dict], path: Path, stamp: str) -> None:
+def write_markdown(rows: Sequence[dict], path: Path, stamp: str, command: str = "") -> None:
     """report.md: provenance, then the table."""
     renderers = sorted({r["renderer"] for r in rows})
     backends = sorted({r["backend"] for r in rows})
@@ -41,6 +41,7 @@ def write_markdown(rows: Sequence[dict], path: Path, stamp: str) -> None:
         "# OmniWarp comparison against Cycles",
         "",
         f"- measured: {stamp}",
+        *([f"- command: `{command}`"] if command else []),
         f"- renderer: {', '.join(renderers)}",
         f"- backend: {', '.join(backends)}",
         f"- camera size: {', '.join(sizes)}; times are medians of {rows[0]['frames'] if rows else 0} frames "

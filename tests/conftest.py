@@ -33,3 +33,17 @@ def presets_dir(repo_root: Path) -> Path:
 def shaders_dir(repo_root: Path) -> Path:
     """The top-level `gpu_shaders/` folder with the GLSL shared by both backends."""
     return repo_root / "gpu_shaders"
+
+
+@pytest.fixture(scope="session")
+def gl_backend():
+    """One standalone moderngl (EGL) backend for the session.
+
+    A missing context is a failure, not a skip: the shaders are the product, and
+    CI installs Mesa EGL.
+    """
+    from addon.render.moderngl_backend import ModernGLBackend
+
+    backend = ModernGLBackend()
+    yield backend
+    backend.release()
