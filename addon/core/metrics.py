@@ -62,6 +62,8 @@ def mismatch_image(grey_source: np.ndarray, estimate_lit: np.ndarray, reference_
     src = np.asarray(grey_source, dtype=np.float64)
     finite = src[np.isfinite(src) & (src > 0)]
     top = float(np.percentile(finite, 99)) if finite.size else 1.0
+    # NaN would cast to an undefined uint8; +inf saturates like the brightest pixel.
+    src = np.nan_to_num(src, nan=0.0, posinf=top, neginf=0.0)
     grey = np.clip(src / max(top, 1e-12), 0.0, 1.0) ** (1 / 2.2)
     grey = 0.15 + 0.7 * grey
     img = np.repeat((grey * 255).astype(np.uint8)[..., None], 3, axis=-1)

@@ -19,7 +19,20 @@ import numpy as np
 PARABOLOID = 0
 CUBE = 1
 
-_TINY = 1e-300
+_TINY = float(np.finfo(np.float64).tiny)
+
+
+def unit_directions(points: np.ndarray) -> np.ndarray:
+    """Unit vectors of points (..., 3); the origin gives (0, 0, 0).
+
+    Dividing by the largest component first keeps the squares of very small
+    (1e-300) or very large (1e300) coordinates from under- or overflowing.
+    """
+    p = np.asarray(points, dtype=np.float64)
+    scale = np.max(np.abs(p), axis=-1, keepdims=True)
+    nonzero = scale > 0.0
+    q = p / np.where(nonzero, scale, 1.0)
+    return np.where(nonzero, q / np.where(nonzero, np.linalg.norm(q, axis=-1, keepdims=True), 1.0), 0.0)
 
 
 def paraboloid_project(local: np.ndarray) -> np.ndarray:
@@ -28,9 +41,7 @@ def paraboloid_project(local: np.ndarray) -> np.ndarray:
     The point is normalised first, so the result depends only on direction.
     Points at the origin map to the centre (they subtend no solid angle).
     """
-    p = np.asarray(local, dtype=np.float64)
-    length = np.linalg.norm(p, axis=-1, keepdims=True)
-    v = p / np.maximum(length, _TINY)
+    v = unit_directions(local)
     denom = 1.0 + v[..., 2:3]
     return v[..., :2] / np.maximum(denom, _TINY)
 
@@ -48,7 +59,10 @@ def paraboloid_unproject(xy: np.ndarray) -> np.ndarray:
 def cube_project(local: np.ndarray) -> np.ndarray:
     """Map face-local points (..., 3) with p_z > 0 to face coordinates (..., 2)."""
     p = np.asarray(local, dtype=np.float64)
-    return p[..., :2] / np.maximum(p[..., 2:3], _TINY)
+    z = p[..., 2:3]
+    # Only p_z > 0 is meaningful; the guard and the clamp keep points on or behind
+    # the face plane (or grazing it) finite.
+    return np.clip(p[..., :2] / np.where(z > 0.0, z, 1e-300), -1e30, 1e30)
 
 
 def cube_unproject(xy: np.ndarray) -> np.ndarray:
@@ -80,7 +94,10 @@ def texel_index(xy: np.ndarray, resolution: int) -> np.ndarray:
 
 
 def texel_angle(kind: int, xy: np.ndarray, resolution: int) -> np.ndarray:
-    """Angular size (radians) of one texel at map point `xy` (an upper bound).
+    """Angular size (radians) of one texel at map point `xy`, to first order.
+
+    For the cube it is the larger of the two directions (tangential); over a whole
+    texel step the true angle can exceed it by about 2/res relative.
 
     Paraboloid: r = tan(theta/2), so d(theta)/dr = 2 / (1 + r^2); one texel spans
     2/res in r. Cube: a step dx on the plane z = 1 at distance rho = sqrt(1 + r^2)

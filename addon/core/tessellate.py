@@ -74,6 +74,9 @@ def clip_halfspace(triangles: np.ndarray, signed: np.ndarray) -> np.ndarray:
     """
     tris = np.asarray(triangles, dtype=np.float64)
     d = np.asarray(signed, dtype=np.float64)
+    # A triangle with no corner strictly inside only touches the boundary: no area.
+    touches_only = ~np.any(d > 0.0, axis=1)
+    tris, d = tris[~touches_only], d[~touches_only]
     inside = d >= 0.0
     n_in = inside.sum(axis=1)
     out = [tris[n_in == 3]]
@@ -100,7 +103,10 @@ def clip_halfspace(triangles: np.ndarray, signed: np.ndarray) -> np.ndarray:
         pca = cut(a, c, dd[:, 0], dd[:, 2])
         out.append(np.stack([a, b, pbc], axis=1))
         out.append(np.stack([a, pbc, pca], axis=1))
-    return np.concatenate(out, axis=0) if out else np.zeros((0, 3, 3))
+    pieces = np.concatenate(out, axis=0)
+    # A corner exactly on the boundary makes one piece of the quad split degenerate.
+    area2 = np.linalg.norm(np.cross(pieces[:, 1] - pieces[:, 0], pieces[:, 2] - pieces[:, 0]), axis=1)
+    return pieces[area2 > 0.0]
 
 
 def split_at_seam(local_triangles: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -117,13 +123,22 @@ def split_at_seam(local_triangles: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
 
 
 def _edge_marks(tris: np.ndarray, project_texels: Callable[[np.ndarray], np.ndarray], tolerance: float) -> np.ndarray:
-    """(T, 3) bool: edge k (corner k to corner k+1) bends by more than `tolerance` texels."""
+    """(T, 3) bool: edge k (corner k to corner k+1) bends by more than `tolerance` texels.
+
+    The bend is measured at the quarter, half and three-quarter points. The midpoint
+    alone misses arcs symmetric about it, e.g. a floor diagonal passing right under
+    the light, whose midpoint lands on its chord. The three points form a set that is
+    the same for (a, b) and (b, a), bit for bit, so neighbours always agree.
+    """
     a = tris
     b = np.roll(tris, -1, axis=1)
-    pa = project_texels(a.reshape(-1, 3)).reshape(len(tris), 3, 2)
+    n = len(tris)
+    pa = project_texels(a.reshape(-1, 3)).reshape(n, 3, 2)
     pb = np.roll(pa, -1, axis=1)
-    pm = project_texels(((a + b) * 0.5).reshape(-1, 3)).reshape(len(tris), 3, 2)
-    bend = np.linalg.norm(pm - (pa + pb) * 0.5, axis=-1)
+    bend = np.zeros((n, 3))
+    for wa, wb in ((0.75, 0.25), (0.5, 0.5), (0.25, 0.75)):
+        point = project_texels((a * wa + b * wb).reshape(-1, 3)).reshape(n, 3, 2)
+        bend = np.maximum(bend, np.linalg.norm(point - (pa * wa + pb * wb), axis=-1))
     return bend > tolerance
 
 

@@ -5,6 +5,7 @@ process that also draws with Blender's `gpu` module or renders EEVEE.
 """
 from __future__ import annotations
 
+import functools
 import logging
 
 import numpy as np
@@ -28,6 +29,29 @@ def _uniform_bytes(value: object) -> bytes | None:
     return None
 
 
+def _current(method):
+    """Run a method with this backend's context current.
+
+    Several standalone contexts may live in one process (tests, a CLI run next to a
+    fixture); GL calls go to whichever is current, so each entry point binds its own.
+    Only the outermost call binds: leaving a nested `with ctx:` would unbind it
+    while the outer call still draws.
+    """
+
+    @functools.wraps(method)
+    def bound(self, *args, **kwargs):
+        if self._bound:
+            return method(self, *args, **kwargs)
+        with self.ctx:
+            self._bound = True
+            try:
+                return method(self, *args, **kwargs)
+            finally:
+                self._bound = False
+
+    return bound
+
+
 class ModernGLBackend(ShadowBackend):
     """Shadow backend on moderngl's standalone context."""
 
@@ -46,6 +70,7 @@ class ModernGLBackend(ShadowBackend):
                 f"could not create a standalone {backend.upper()} OpenGL context ({exc}); "
                 "install Mesa EGL: apt install libegl1 libegl-mesa0 libgl1-mesa-dri"
             ) from exc
+        self._bound = False
         self._programs: dict[str, object] = {}
         self._atlas_layout: AtlasLayout | None = None
         self._atlas = self._atlas_depth = self._atlas_fbo = None
@@ -55,6 +80,7 @@ class ModernGLBackend(ShadowBackend):
         self._released = False
 
     # programs ---------------------------------------------------------------
+    @_current
     def program(self, iface: ProgramInterface):
         """Compile (once) and return the program for an interface."""
         prog = self._programs.get(iface.name)
@@ -84,13 +110,16 @@ class ModernGLBackend(ShadowBackend):
                 prog[name].value = value
 
     # interface --------------------------------------------------------------
+    @_current
     def renderer(self) -> str:
         info = self.ctx.info
         return f"{info['GL_RENDERER']} | OpenGL {info['GL_VERSION']}"
 
+    @_current
     def max_texture_size(self) -> int:
         return int(self.ctx.info["GL_MAX_TEXTURE_SIZE"])
 
+    @_current
     def begin_atlas(self, layout: AtlasLayout) -> None:
         if self._atlas_layout != layout:
             self._free_atlas()
@@ -103,6 +132,7 @@ class ModernGLBackend(ShadowBackend):
         self._atlas_fbo.viewport = (0, 0) + layout.size
         self._atlas_fbo.clear(1.0, 1.0, 1.0, 1.0, depth=1.0)
 
+    @_current
     def draw_layer(self, tile: int, vertices: np.ndarray, uniforms: UniformValues) -> None:
         if self._atlas_layout is None:
             raise BackendError("draw_layer called before begin_atlas")
@@ -142,6 +172,7 @@ class ModernGLBackend(ShadowBackend):
             self._test_targets[size] = found
         return found
 
+    @_current
     def shadow_test(self, positions: np.ndarray, normals: np.ndarray, uniforms: UniformValues) -> np.ndarray:
         if self._atlas is None:
             raise BackendError("shadow_test called before any atlas exists")
@@ -163,12 +194,14 @@ class ModernGLBackend(ShadowBackend):
         raw = out.read()
         return np.frombuffer(raw, dtype="f4").reshape(height, width, 2).copy()
 
+    @_current
     def read_atlas(self) -> np.ndarray:
         if self._atlas is None or self._atlas_layout is None:
             raise BackendError("no atlas to read")
         width, height = self._atlas_layout.size
         return np.frombuffer(self._atlas.read(), dtype="f4").reshape(height, width).copy()
 
+    @_current
     def finish(self) -> None:
         self.ctx.finish()
 
@@ -182,16 +215,17 @@ class ModernGLBackend(ShadowBackend):
     def release(self) -> None:
         if self._released:
             return
-        self._free_atlas()
-        for pos, nrm, out, fbo in self._test_targets.values():
-            for obj in (fbo, out, nrm, pos):
-                obj.release()
-        self._test_targets.clear()
-        if self._fullscreen_vao is not None:
-            self._fullscreen_vao.release()
-        self._fullscreen_vbo.release()
-        for prog in self._programs.values():
-            prog.release()
-        self._programs.clear()
+        with self.ctx:
+            self._free_atlas()
+            for pos, nrm, out, fbo in self._test_targets.values():
+                for obj in (fbo, out, nrm, pos):
+                    obj.release()
+            self._test_targets.clear()
+            if self._fullscreen_vao is not None:
+                self._fullscreen_vao.release()
+            self._fullscreen_vbo.release()
+            for prog in self._programs.values():
+                prog.release()
+            self._programs.clear()
         self.ctx.release()
         self._released = True

@@ -36,7 +36,11 @@ def _run(gl_backend, body: str, inputs: np.ndarray, tmp_path, uniforms=()) -> np
         uniforms=tuple(Uniform(t, n) for t, n, _ in uniforms), samplers=("ow_input",),
     )
     vs, fs = moderngl_sources(iface, shader_dir)
-    ctx = gl_backend.ctx
+    with gl_backend.ctx:  # other contexts may have been current (the CLI tests make their own)
+        return _evaluate(gl_backend.ctx, vs, fs, inputs, uniforms)
+
+
+def _evaluate(ctx, vs, fs, inputs, uniforms):
     prog = ctx.program(vertex_shader=vs, fragment_shader=fs)
     for _, name, value in uniforms:
         prog[name].value = value

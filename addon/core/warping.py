@@ -1,0 +1,330 @@
+"""Texture warps: NoTW (thesis 4.2, Algorithm 3, eq. 4.4-4.9) and RTW (Rosen 2012).
+
+Coordinates are map uv in [0, 1]^2 of one layer, after the DV crop. A warp is two
+families of 1D offset functions stored on a grid of A rows x (A + 1) nodes:
+
+  rows[i, k]  offset o_x at node u_k = k / A of row i (row centre v_i = (i + 0.5) / A)
+  cols[j, k]  offset o_y at node v_k = k / A of column j (centre u'_j = (j + 0.5) / A,
+              indexed by the row-warped u', as in eq. 4.9)
+
+  warp(u, v) = (u' , v') with u' = u + o_x(u; v) and v' = v + o_y(v; u')
+
+Between nodes and between row (column) centres the offsets are interpolated
+linearly, so the warp is continuous everywhere. Every stored 1D function is
+strictly increasing (density floor), hence u' is increasing in u, v' increasing
+in v, and the Jacobian determinant (du'/du)(dv'/dv) is positive: no fold.
+Outside [0, 1] the offset is 0 (nodes 0 and A hold 0), so geometry beyond the
+map edge stays continuous with it.
+
+The GLSL in gpu_shaders/lib/warp.glsl evaluates the same functions.
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from .errors import InputError
+
+# Rules for the automatic parameters (docs/warping.md explains them).
+FLOOR_SHARE = 0.1  # uniform share mixed into every row's density: slope >= FLOOR_SHARE
+MAX_SLOPE = 8.0  # one cell may grow to at most this many cells (steepness clamp)
+SHEAR_LIMIT = 1.0  # largest |du'/dv| (resp. |dv'/du'|) the smoothing may leave
+IDENTITY_PRIOR = 0.02  # pseudo-count (share of the mean populated row) pulling sparse rows to identity
+
+
+@dataclass(frozen=True)
+class WarpParams:
+    """Parameters of one 1D-family construction, as chosen for the row and column passes."""
+
+    floor: float
+    max_slope: float
+    row_window: int
+    col_window: int
+
+
+@dataclass
+class Warp:
+    """A NoTW or RTW warp of one layer (or the identity)."""
+
+    rows: np.ndarray  # (A, A + 1) float64
+    cols: np.ndarray  # (A, A + 1) float64
+    params: WarpParams | None = None
+    kind: str = "notw"
+
+    @property
+    def size(self) -> int:
+        return self.rows.shape[0]
+
+    @staticmethod
+    def identity(size: int) -> "Warp":
+        z = np.zeros((size, size + 1))
+        return Warp(z, z.copy(), None, "identity")
+
+    def forward(self, uv: np.ndarray) -> np.ndarray:
+        """Warp map points (..., 2)."""
+        uv = np.asarray(uv, dtype=np.float64)
+        u2 = uv[..., 0] + family_offset(self.rows, uv[..., 0], uv[..., 1])
+        v2 = uv[..., 1] + family_offset(self.cols, uv[..., 1], u2)
+        return np.stack([u2, v2], axis=-1)
+
+    def inverse(self, uv_warped: np.ndarray) -> np.ndarray:
+        """Unwarp map points (..., 2): the exact inverse of `forward` inside [0, 1]^2."""
+        w = np.asarray(uv_warped, dtype=np.float64)
+        v = family_inverse(self.cols, w[..., 1], w[..., 0])
+        u = family_inverse(self.rows, w[..., 0], v)
+        return np.stack([u, v], axis=-1)
+
+    def slopes(self, uv: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """du'/du and dv'/dv (at fixed u') at map points: the local magnifications."""
+        uv = np.asarray(uv, dtype=np.float64)
+        u2 = uv[..., 0] + family_offset(self.rows, uv[..., 0], uv[..., 1])
+        return (1.0 + family_slope(self.rows, uv[..., 0], uv[..., 1]),
+                1.0 + family_slope(self.cols, uv[..., 1], u2))
+
+
+# ---------------------------------------------------------------------------
+# evaluation of one family (shared by rows and columns)
+# ---------------------------------------------------------------------------
+def _blend_rows(table: np.ndarray, across: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Indices of the two neighbouring function centres and the blend weight."""
+    size = table.shape[0]
+    t = np.asarray(across, dtype=np.float64) * size - 0.5
+    t = np.where(np.isfinite(t), t, 0.0)
+    i0 = np.clip(np.floor(t), 0, size - 1).astype(np.int64)
+    i1 = np.minimum(i0 + 1, size - 1)
+    f = np.clip(t - i0, 0.0, 1.0)
+    return i0, i1, f
+
+
+def _node(along: np.ndarray, size: int) -> tuple[np.ndarray, np.ndarray]:
+    s = np.asarray(along, dtype=np.float64) * size
+    s = np.where(np.isfinite(s), s, 0.0)
+    k = np.clip(np.floor(s), 0, size - 1).astype(np.int64)
+    frac = np.clip(s - k, 0.0, 1.0)
+    return k, frac
+
+
+def family_offset(table: np.ndarray, along: np.ndarray, across: np.ndarray) -> np.ndarray:
+    """Offset of the function family `table` at position `along`, interpolated `across`."""
+    size = table.shape[0]
+    i0, i1, f = _blend_rows(table, across)
+    k, s = _node(along, size)
+    o0 = table[i0, k] * (1 - s) + table[i0, k + 1] * s
+    o1 = table[i1, k] * (1 - s) + table[i1, k + 1] * s
+    return o0 * (1 - f) + o1 * f
+
+
+def family_slope(table: np.ndarray, along: np.ndarray, across: np.ndarray) -> np.ndarray:
+    """d(offset)/d(along) inside the current cell (0 outside [0, 1])."""
+    size = table.shape[0]
+    i0, i1, f = _blend_rows(table, across)
+    k, _ = _node(along, size)
+    d0 = table[i0, k + 1] - table[i0, k]
+    d1 = table[i1, k + 1] - table[i1, k]
+    a = np.asarray(along, dtype=np.float64)
+    inside = (a >= 0.0) & (a <= 1.0)
+    return np.where(inside, (d0 * (1 - f) + d1 * f) * size, 0.0)
+
+
+def family_inverse(table: np.ndarray, warped: np.ndarray, across: np.ndarray) -> np.ndarray:
+    """Solve x + o(x; across) = warped for x by binary search over the nodes.
+
+    The blended function is piecewise linear on the same nodes and increasing, so
+    the search finds the cell, and one division inverts it exactly.
+    """
+    size = table.shape[0]
+    w = np.asarray(warped, dtype=np.float64)
+    i0, i1, f = _blend_rows(table, across)
+
+    def node_value(k):
+        return k / size + table[i0, k] * (1 - f) + table[i1, k] * f
+
+    lo = np.zeros(w.shape, dtype=np.int64)
+    hi = np.full(w.shape, size, dtype=np.int64)
+    for _ in range(int(math.ceil(math.log2(size))) + 1):
+        mid = (lo + hi) // 2
+        go_right = node_value(mid) <= w
+        lo = np.where(go_right & (mid < hi), mid, lo)
+        hi = np.where(go_right, hi, mid)
+    k = np.clip(lo, 0, size - 1)
+    x0, x1 = node_value(k), node_value(k + 1)
+    frac = (w - x0) / np.maximum(x1 - x0, 1e-300)
+    inside = (k + frac) / size
+    # Outside [0, 1] the warp is the identity.
+    return np.where(w < 0.0, w, np.where(w > 1.0, w, inside))
+
+
+# ---------------------------------------------------------------------------
+# construction
+# ---------------------------------------------------------------------------
+def scatter_counts(uv: np.ndarray, size: int) -> np.ndarray:
+    """Count map (size x size, row = v) of map points; points outside [0,1)^2 are dropped.
+
+    The numpy oracle of the GPU scatter pass.
+    """
+    uv = np.asarray(uv, dtype=np.float64).reshape(-1, 2)
+    ok = np.all(np.isfinite(uv), axis=1) & np.all((uv >= 0.0) & (uv < 1.0), axis=1)
+    idx = np.floor(uv[ok] * size).astype(np.int64)
+    flat = np.clip(idx[:, 1], 0, size - 1) * size + np.clip(idx[:, 0], 0, size - 1)
+    return np.bincount(flat, minlength=size * size).reshape(size, size).astype(np.float64)
+
+
+def _cap_density(p: np.ndarray, cap: float) -> np.ndarray:
+    """Clip each row's cell shares at `cap`, handing the excess to uncapped cells (water filling)."""
+    p = p.copy()
+    for _ in range(32):
+        over = p > cap * (1 + 1e-12)
+        if not over.any():
+            break
+        excess = np.where(over, p - cap, 0.0).sum(axis=1, keepdims=True)
+        p = np.where(over, cap, p)
+        free = np.where(over, 0.0, p)
+        p = p + excess * free / np.maximum(free.sum(axis=1, keepdims=True), 1e-300)
+    return p
+
+
+def offsets_from_counts(counts: np.ndarray, floor: float = FLOOR_SHARE, max_slope: float = MAX_SLOPE) -> np.ndarray:
+    """Offsets o_i(x_k) = g_i(x_k)/N_i - x_k (eq. 4.7) of every row of a count map.
+
+    Each row's density gets a uniform share `floor` mixed in (so the warp is strictly
+    increasing with slope >= floor) and is clamped at `max_slope` times uniform. An
+    empty row gives the identity (all offsets 0).
+    """
+    counts = np.nan_to_num(np.asarray(counts, dtype=np.float64), nan=0.0, posinf=0.0, neginf=0.0)
+    counts = np.maximum(counts, 0.0)
+    rows, size = counts.shape
+    if not (0.0 < floor <= 1.0):
+        raise InputError(f"warp floor must lie in (0, 1], got {floor}")
+    if max_slope < 1.0:
+        raise InputError(f"warp steepness clamp must be >= 1, got {max_slope}")
+    totals = counts.sum(axis=1, keepdims=True)
+    empty = totals[:, 0] <= 0.0
+    share = np.where(totals > 0, counts / np.where(totals > 0, totals, 1.0), 1.0 / size)
+    share = (1.0 - floor) * share + floor / size
+    share = _cap_density(share, max_slope / size)
+    cumulative = np.concatenate([np.zeros((rows, 1)), np.cumsum(share, axis=1)], axis=1)
+    cumulative /= cumulative[:, -1:]  # exact 1 at the end despite rounding
+    offsets = cumulative - np.arange(size + 1)[None, :] / size
+    offsets[:, 0] = 0.0
+    offsets[:, -1] = 0.0
+    offsets[empty] = 0.0
+    return offsets
+
+
+def smooth_offsets(offsets: np.ndarray, totals: np.ndarray, window: int,
+                   prior: float | None = None) -> np.ndarray:
+    """Count-weighted tent average of neighbouring rows' offsets (thesis 4.2.4, Fig. 4.11).
+
+    Row i becomes sum_j K(i-j) N_j o_j / (sum_j K(i-j) N_j + prior), a convex mix of
+    increasing functions and the identity, so it stays increasing with the same
+    floor. The prior pulls rows far from any sample smoothly back to the identity.
+    """
+    offsets = np.asarray(offsets, dtype=np.float64)
+    totals = np.asarray(totals, dtype=np.float64).reshape(-1)
+    if window <= 0:
+        return offsets.copy()
+    if prior is None:
+        populated = totals[totals > 0]
+        prior = IDENTITY_PRIOR * float(populated.mean()) if populated.size else 1.0
+    kernel = 1.0 - np.abs(np.arange(-window, window + 1)) / (window + 1.0)
+    weighted = offsets * totals[:, None]
+    num = np.apply_along_axis(lambda col: np.convolve(col, kernel, mode="same"), 0, weighted)
+    den = np.convolve(totals, kernel, mode="same")
+    return num / (den[:, None] + prior)
+
+
+def max_shear(offsets: np.ndarray) -> float:
+    """Largest |d offset / d across| between neighbouring rows, in map units per map unit."""
+    if offsets.shape[0] < 2:
+        return 0.0
+    return float(np.abs(np.diff(offsets, axis=0)).max() * offsets.shape[0])
+
+
+def choose_window(offsets: np.ndarray, totals: np.ndarray, shear_limit: float = SHEAR_LIMIT) -> int:
+    """Narrowest smoothing half-width (1, 2, 4, ... rows) that brings the shear under the limit.
+
+    Narrow windows keep the warp local (the point of NoTW); the shear bound keeps
+    neighbouring rows from sliding past each other so fast that rasterised edges
+    and the interpolation between rows stop following the warp.
+    """
+    size = offsets.shape[0]
+    window = 1
+    while window < size:
+        if max_shear(smooth_offsets(offsets, totals, window)) <= shear_limit:
+            return window
+        window *= 2
+    return size
+
+
+def _one_family(counts: np.ndarray, floor: float, max_slope: float, shear_limit: float) -> tuple[np.ndarray, int]:
+    offsets = offsets_from_counts(counts, floor, max_slope)
+    totals = np.asarray(counts, dtype=np.float64).sum(axis=1)
+    if not np.any(totals > 0):
+        return offsets, 0
+    window = choose_window(offsets, totals, shear_limit)
+    return smooth_offsets(offsets, totals, window), window
+
+
+def notw_rows(counts: np.ndarray, floor: float = FLOOR_SHARE, max_slope: float = MAX_SLOPE,
+              shear_limit: float = SHEAR_LIMIT) -> tuple[np.ndarray, int]:
+    """Smoothed row offsets of a count map (row = v), and the window chosen."""
+    return _one_family(counts, floor, max_slope, shear_limit)
+
+
+def notw_cols(counts_after_rows: np.ndarray, floor: float = FLOOR_SHARE, max_slope: float = MAX_SLOPE,
+              shear_limit: float = SHEAR_LIMIT) -> tuple[np.ndarray, int]:
+    """Column offsets from the count map re-scattered through the row warps."""
+    return _one_family(np.asarray(counts_after_rows).T, floor, max_slope, shear_limit)
+
+
+def build_notw(uv: np.ndarray, size: int, floor: float = FLOOR_SHARE, max_slope: float = MAX_SLOPE,
+               shear_limit: float = SHEAR_LIMIT) -> Warp:
+    """The whole NoTW construction on the CPU (the oracle of the GPU analysis)."""
+    uv = np.asarray(uv, dtype=np.float64).reshape(-1, 2)
+    rows, row_window = notw_rows(scatter_counts(uv, size), floor, max_slope, shear_limit)
+    u2 = uv[:, 0] + family_offset(rows, uv[:, 0], uv[:, 1])
+    cols, col_window = notw_cols(scatter_counts(np.stack([u2, uv[:, 1]], axis=1), size),
+                                 floor, max_slope, shear_limit)
+    return Warp(rows, cols, WarpParams(floor, max_slope, row_window, col_window), "notw")
+
+
+def rtw_from_counts(counts: np.ndarray, floor: float = FLOOR_SHARE, max_slope: float = MAX_SLOPE,
+                    blur: int | None = None) -> Warp:
+    """RTW: importance collapsed to the max of each column and each row, tent-blurred,
+    prefix-summed into two 1D warps shared by all rows and all columns (Rosen 2012)."""
+    counts = np.asarray(counts, dtype=np.float64)
+    size = counts.shape[0]
+    blur = max(1, size // 64) if blur is None else blur
+    kernel = 1.0 - np.abs(np.arange(-blur, blur + 1)) / (blur + 1.0)
+    kernel /= kernel.sum()
+    along_u = np.convolve(counts.max(axis=0), kernel, mode="same")  # importance per column -> warps u
+    along_v = np.convolve(counts.max(axis=1), kernel, mode="same")
+    row_fn = offsets_from_counts(along_u[None, :], floor, max_slope)[0]
+    col_fn = offsets_from_counts(along_v[None, :], floor, max_slope)[0]
+    rows = np.tile(row_fn, (size, 1))
+    cols = np.tile(col_fn, (size, 1))
+    return Warp(rows, cols, WarpParams(floor, max_slope, blur, blur), "rtw")
+
+
+def build_rtw(uv: np.ndarray, size: int, floor: float = FLOOR_SHARE, max_slope: float = MAX_SLOPE) -> Warp:
+    """RTW from map points (the CPU oracle)."""
+    return rtw_from_counts(scatter_counts(uv, size), floor, max_slope)
+
+
+def crop_box(uv: np.ndarray, margin: float) -> tuple[np.ndarray, np.ndarray]:
+    """DV crop: the bounding box of the map points grown by `margin`, within [0, 1]^2.
+
+    Returns (lo, hi). With no finite point the whole map is kept.
+    """
+    pts = np.asarray(uv, dtype=np.float64).reshape(-1, 2)
+    pts = pts[np.all(np.isfinite(pts), axis=1)]
+    if len(pts) == 0:
+        return np.zeros(2), np.ones(2)
+    lo = np.clip(pts.min(axis=0) - margin, 0.0, 1.0)
+    hi = np.clip(pts.max(axis=0) + margin, 0.0, 1.0)
+    # Never zoom beyond the point where one crop texel spans less than 1e-4 of the map.
+    centre = (lo + hi) / 2
+    half = np.maximum((hi - lo) / 2, 5e-5)
+    return centre - half, centre + half
