@@ -1,11 +1,14 @@
 // Depth pass, fragment stage: exact normalised radial distance to the triangle.
-// The ray through this texel's own direction meets the triangle's plane at
-// t = c / dot(n, dir), so depth is exact even where interpolation would not be.
+// The texel centre is taken back through the warp and the crop to its own ray,
+// which meets the triangle's plane at t = c / dot(n, dir): depth is exact however
+// coarse the tessellation, and whatever the warp.
 #include "lib/projection.glsl"
+#include "lib/mapping.glsl"
 
 void main()
 {
-  vec2 xy = (gl_FragCoord.xy - ow_tile_origin) / ow_resolution * 2.0 - 1.0;
+  vec2 uv = (gl_FragCoord.xy - ow_tile_origin) / ow_resolution;
+  vec2 xy = ow_map_inverse(ow_warp_rows, ow_warp_cols, ow_layer_slot, ow_warp_size, ow_crop, uv);
   vec3 dir = transpose(ow_layer_rot) * ow_unproject(ow_layer_kind, xy);
   float t = v_plane.w / dot(v_plane.xyz, dir);
   if (!(t > 0.0) || isinf(t)) {

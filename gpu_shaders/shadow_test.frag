@@ -4,6 +4,7 @@
 // domain or at the light, 3 its layer was not drawn).
 #include "lib/projection.glsl"
 #include "lib/layers.glsl"
+#include "lib/mapping.glsl"
 
 void main()
 {
@@ -33,7 +34,10 @@ void main()
   }
   int slot = ow_pick_slot(ow_param, ldir);
   vec2 xy = ow_project(ow_layer_kind, ow_layer_rot[slot] * dir);
-  float footprint = dist * ow_texel_angle(ow_layer_kind, xy, ow_resolution);
+  float magnification;
+  ow_map_forward(ow_warp_rows, ow_warp_cols, slot, ow_warp_size, ow_layer_crop[slot], xy, magnification);
+  // One texel of this (cropped, warped) map seen from the light, at the sample.
+  float footprint = dist * ow_texel_angle(ow_layer_kind, xy, ow_resolution) / magnification;
 
   // Normal offset (in texel footprints), then project the moved point exactly
   // per pixel (Osman et al.): never interpolate map coordinates.
@@ -58,13 +62,15 @@ void main()
     // Rim texels are only partly covered by the chords of tessellated edges;
     // read 1.5 texels inside the disk instead (an error of one texel's angle).
     float r = length(xy);
-    float r_max = 1.0 - 3.0 / ow_resolution;
+    float r_max = 1.0 - 3.0 / (ow_resolution * magnification);
     if (r > r_max) {
       xy *= r_max / r;
     }
   }
+  vec2 uv = ow_map_forward(ow_warp_rows, ow_warp_cols, slot, ow_warp_size, ow_layer_crop[slot], xy,
+                           magnification);
   int res = int(ow_resolution);
-  ivec2 texel = clamp(ivec2(floor((xy * 0.5 + 0.5) * ow_resolution)), ivec2(0), ivec2(res - 1));
+  ivec2 texel = clamp(ivec2(floor(uv * ow_resolution)), ivec2(0), ivec2(res - 1));
   float stored = texelFetch(ow_atlas, texel + ivec2(tile.xy), 0).r;
   float t_map = ow_near + stored * (ow_far - ow_near);
   float tan_i = sqrt(max(1.0 - cos_i * cos_i, 0.0)) / max(cos_i, 0.05);

@@ -122,13 +122,18 @@ def split_at_seam(local_triangles: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     return clip_halfspace(tris, z), clip_halfspace(tris, -z)
 
 
-def _edge_marks(tris: np.ndarray, project_texels: Callable[[np.ndarray], np.ndarray], tolerance: float) -> np.ndarray:
+def _edge_marks(tris: np.ndarray, project_texels: Callable[[np.ndarray], np.ndarray], tolerance: float,
+                window: float | None = None) -> np.ndarray:
     """(T, 3) bool: edge k (corner k to corner k+1) bends by more than `tolerance` texels.
 
     The bend is measured at the quarter, half and three-quarter points. The midpoint
     alone misses arcs symmetric about it, e.g. a floor diagonal passing right under
     the light, whose midpoint lands on its chord. The three points form a set that is
     the same for (a, b) and (b, a), bit for bit, so neighbours always agree.
+
+    With `window` (the map side in texels), an edge whose five points all lie beyond
+    the same side of the map, by more than its bend plus the tolerance, is left alone:
+    the GPU clips it, and its curvature outside the map changes no texel.
     """
     a = tris
     b = np.roll(tris, -1, axis=1)
@@ -136,10 +141,19 @@ def _edge_marks(tris: np.ndarray, project_texels: Callable[[np.ndarray], np.ndar
     pa = project_texels(a.reshape(-1, 3)).reshape(n, 3, 2)
     pb = np.roll(pa, -1, axis=1)
     bend = np.zeros((n, 3))
+    points = [pa, pb]
     for wa, wb in ((0.75, 0.25), (0.5, 0.5), (0.25, 0.75)):
         point = project_texels((a * wa + b * wb).reshape(-1, 3)).reshape(n, 3, 2)
         bend = np.maximum(bend, np.linalg.norm(point - (pa * wa + pb * wb), axis=-1))
-    return bend > tolerance
+        points.append(point)
+    marks = bend > tolerance
+    if window is not None:
+        stack = np.stack(points)  # (5, n, 3, 2)
+        margin = bend + tolerance
+        outside = (np.all(stack < -margin[None, ..., None], axis=0)
+                   | np.all(stack > window + margin[None, ..., None], axis=0))
+        marks &= ~np.any(outside, axis=-1)
+    return marks
 
 
 def _refine_once(tris: np.ndarray, marks: np.ndarray) -> np.ndarray:
@@ -173,10 +187,11 @@ def _refine_once(tris: np.ndarray, marks: np.ndarray) -> np.ndarray:
 
 
 def tessellate(triangles: np.ndarray, project_texels: Callable[[np.ndarray], np.ndarray],
-               tolerance_texels: float = 1.0) -> tuple[np.ndarray, int]:
+               tolerance_texels: float = 1.0, window: float | None = None) -> tuple[np.ndarray, int]:
     """Subdivide only the triangles with an edge bending by more than the tolerance.
 
-    `project_texels` maps (n, 3) points to (n, 2) texel coordinates of the map.
+    `project_texels` maps (n, 3) points to (n, 2) texel coordinates of the map;
+    `window`, the map side in texels, lets edges wholly outside the map stay coarse.
     Returns the new triangles and how many triangles were added.
     """
     tris = np.asarray(triangles, dtype=np.float64)
@@ -184,7 +199,7 @@ def tessellate(triangles: np.ndarray, project_texels: Callable[[np.ndarray], np.
     for level in range(MAX_LEVELS):
         if len(tris) == 0:
             break
-        marks = _edge_marks(tris, project_texels, tolerance_texels)
+        marks = _edge_marks(tris, project_texels, tolerance_texels, window)
         if not marks.any():
             break
         if len(tris) + 3 * int(marks.any(axis=1).sum()) > MAX_TRIANGLES:

@@ -32,6 +32,7 @@ FLOOR_SHARE = 0.1  # uniform share mixed into every row's density: slope >= FLOO
 MAX_SLOPE = 8.0  # one cell may grow to at most this many cells (steepness clamp)
 SHEAR_LIMIT = 1.0  # largest |du'/dv| (resp. |dv'/du'|) the smoothing may leave
 IDENTITY_PRIOR = 0.02  # pseudo-count (share of the mean populated row) pulling sparse rows to identity
+ALONG_BLUR_SHARE = 1 / 32  # tent half-width along each row, as a share of A (smooths kinks)
 
 
 @dataclass(frozen=True)
@@ -220,6 +221,7 @@ def smooth_offsets(offsets: np.ndarray, totals: np.ndarray, window: int,
     Row i becomes sum_j K(i-j) N_j o_j / (sum_j K(i-j) N_j + prior), a convex mix of
     increasing functions and the identity, so it stays increasing with the same
     floor. The prior pulls rows far from any sample smoothly back to the identity.
+    K is a tent of half-width `window` rows (two box filters, O(rows) per column).
     """
     offsets = np.asarray(offsets, dtype=np.float64)
     totals = np.asarray(totals, dtype=np.float64).reshape(-1)
@@ -228,11 +230,33 @@ def smooth_offsets(offsets: np.ndarray, totals: np.ndarray, window: int,
     if prior is None:
         populated = totals[totals > 0]
         prior = IDENTITY_PRIOR * float(populated.mean()) if populated.size else 1.0
-    kernel = 1.0 - np.abs(np.arange(-window, window + 1)) / (window + 1.0)
-    weighted = offsets * totals[:, None]
-    num = np.apply_along_axis(lambda col: np.convolve(col, kernel, mode="same"), 0, weighted)
-    den = np.convolve(totals, kernel, mode="same")
-    return num / (den[:, None] + prior)
+    num = tent_filter(offsets * totals[:, None], window)
+    den = tent_filter(totals[:, None], window)
+    return num / (den + prior)
+
+
+def _window_sum(values: np.ndarray, first: int, last: int) -> np.ndarray:
+    """out[i] = sum of values[i + first .. i + last] (zero outside), by cumulative sums."""
+    n = values.shape[0]
+    csum = np.concatenate([np.zeros((1,) + values.shape[1:]), np.cumsum(values, axis=0)])
+    upper = np.clip(np.arange(n) + last + 1, 0, n)
+    lower = np.clip(np.arange(n) + first, 0, n)
+    return csum[upper] - csum[lower]
+
+
+def tent_filter(values: np.ndarray, window: int) -> np.ndarray:
+    """Tent of half-width `window` (weights 1 - |d|/(window+1)) along axis 0, zero padded.
+
+    A forward and a backward box of width n = window + 1 convolve to n - |d|, the
+    tent times n, centred; each box costs O(rows) through cumulative sums.
+    """
+    values = np.asarray(values, dtype=np.float64)
+    n = window + 1
+    # Pad so the intermediate box sums exist where the tent reaches past the ends.
+    pad = np.zeros((window,) + values.shape[1:])
+    padded = np.concatenate([pad, values, pad])
+    full = _window_sum(_window_sum(padded, 0, n - 1), -(n - 1), 0) / n
+    return full[window:window + values.shape[0]]
 
 
 def max_shear(offsets: np.ndarray) -> float:
@@ -251,14 +275,25 @@ def choose_window(offsets: np.ndarray, totals: np.ndarray, shear_limit: float = 
     """
     size = offsets.shape[0]
     window = 1
-    while window < size:
+    while window < size // 2:
         if max_shear(smooth_offsets(offsets, totals, window)) <= shear_limit:
             return window
         window *= 2
-    return size
+    return window
 
 
-def _one_family(counts: np.ndarray, floor: float, max_slope: float, shear_limit: float) -> tuple[np.ndarray, int]:
+def _one_family(counts: np.ndarray, floor: float | None, max_slope: float | None,
+                shear_limit: float | None) -> tuple[np.ndarray, int]:
+    # None reads the module's rule constants at call time (the study script varies them).
+    floor = FLOOR_SHARE if floor is None else floor
+    max_slope = MAX_SLOPE if max_slope is None else max_slope
+    shear_limit = SHEAR_LIMIT if shear_limit is None else shear_limit
+    counts = np.asarray(counts, dtype=np.float64)
+    along = int(round(counts.shape[1] * ALONG_BLUR_SHARE))
+    if along > 0:
+        # Blurring along the row keeps the density, and so the offsets' slope, from
+        # changing cell to cell: fewer kinks for rasterised edges to follow.
+        counts = tent_filter(counts.T, along).T
     offsets = offsets_from_counts(counts, floor, max_slope)
     totals = np.asarray(counts, dtype=np.float64).sum(axis=1)
     if not np.any(totals > 0):
@@ -267,14 +302,14 @@ def _one_family(counts: np.ndarray, floor: float, max_slope: float, shear_limit:
     return smooth_offsets(offsets, totals, window), window
 
 
-def notw_rows(counts: np.ndarray, floor: float = FLOOR_SHARE, max_slope: float = MAX_SLOPE,
-              shear_limit: float = SHEAR_LIMIT) -> tuple[np.ndarray, int]:
+def notw_rows(counts: np.ndarray, floor: float | None = None, max_slope: float | None = None,
+              shear_limit: float | None = None) -> tuple[np.ndarray, int]:
     """Smoothed row offsets of a count map (row = v), and the window chosen."""
     return _one_family(counts, floor, max_slope, shear_limit)
 
 
-def notw_cols(counts_after_rows: np.ndarray, floor: float = FLOOR_SHARE, max_slope: float = MAX_SLOPE,
-              shear_limit: float = SHEAR_LIMIT) -> tuple[np.ndarray, int]:
+def notw_cols(counts_after_rows: np.ndarray, floor: float | None = None, max_slope: float | None = None,
+              shear_limit: float | None = None) -> tuple[np.ndarray, int]:
     """Column offsets from the count map re-scattered through the row warps."""
     return _one_family(np.asarray(counts_after_rows).T, floor, max_slope, shear_limit)
 
@@ -297,10 +332,8 @@ def rtw_from_counts(counts: np.ndarray, floor: float = FLOOR_SHARE, max_slope: f
     counts = np.asarray(counts, dtype=np.float64)
     size = counts.shape[0]
     blur = max(1, size // 64) if blur is None else blur
-    kernel = 1.0 - np.abs(np.arange(-blur, blur + 1)) / (blur + 1.0)
-    kernel /= kernel.sum()
-    along_u = np.convolve(counts.max(axis=0), kernel, mode="same")  # importance per column -> warps u
-    along_v = np.convolve(counts.max(axis=1), kernel, mode="same")
+    along_u = tent_filter(counts.max(axis=0)[:, None], blur)[:, 0]  # importance per column -> warps u
+    along_v = tent_filter(counts.max(axis=1)[:, None], blur)[:, 0]
     row_fn = offsets_from_counts(along_u[None, :], floor, max_slope)[0]
     col_fn = offsets_from_counts(along_v[None, :], floor, max_slope)[0]
     rows = np.tile(row_fn, (size, 1))
@@ -328,3 +361,58 @@ def crop_box(uv: np.ndarray, margin: float) -> tuple[np.ndarray, np.ndarray]:
     centre = (lo + hi) / 2
     half = np.maximum((hi - lo) / 2, 5e-5)
     return centre - half, centre + half
+
+
+@dataclass
+class LayerMapping:
+    """Map transform of one layer: projection xy -> DV crop -> warp -> map uv in [0, 1]^2."""
+
+    lo: np.ndarray  # crop box in uncropped uv
+    hi: np.ndarray
+    warp: Warp | None = None
+
+    @staticmethod
+    def identity() -> "LayerMapping":
+        return LayerMapping(np.zeros(2), np.ones(2), None)
+
+    @property
+    def scale(self) -> np.ndarray:
+        return 1.0 / (self.hi - self.lo)
+
+    @property
+    def is_identity(self) -> bool:
+        return self.warp is None and bool(np.all(self.lo == 0.0) and np.all(self.hi == 1.0))
+
+    def crop_vec4(self) -> tuple[float, float, float, float]:
+        """(lo.x, lo.y, scale.x, scale.y) as the GLSL `crop` uniform wants it."""
+        s = self.scale
+        return float(self.lo[0]), float(self.lo[1]), float(s[0]), float(s[1])
+
+    def forward(self, xy: np.ndarray) -> np.ndarray:
+        """Projection coordinates (..., 2) in [-1, 1] to final map uv (..., 2)."""
+        uv = (np.asarray(xy, dtype=np.float64) * 0.5 + 0.5 - self.lo) * self.scale
+        return self.warp.forward(uv) if self.warp is not None else uv
+
+    def inverse(self, uv: np.ndarray) -> np.ndarray:
+        """Final map uv back to projection coordinates."""
+        uv = np.asarray(uv, dtype=np.float64)
+        if self.warp is not None:
+            uv = self.warp.inverse(uv)
+        return (self.lo + uv / self.scale) * 2.0 - 1.0
+
+
+def dv_crop_from_counts(counts: np.ndarray, margin_texels: float = 2.0) -> tuple[np.ndarray, np.ndarray]:
+    """DV crop from a count map (row = v): first/last occupied column and row, grown by a margin.
+
+    The margin (in count-map texels) covers the shadow test's normal offset and rim
+    clamp, which move a sample's lookup slightly. An empty map keeps the whole map.
+    """
+    counts = np.asarray(counts)
+    size = counts.shape[0]
+    cols = np.nonzero(counts.sum(axis=0) > 0)[0]
+    rows = np.nonzero(counts.sum(axis=1) > 0)[0]
+    if cols.size == 0:
+        return np.zeros(2), np.ones(2)
+    lo = np.array([cols[0], rows[0]], dtype=np.float64) - margin_texels
+    hi = np.array([cols[-1] + 1, rows[-1] + 1], dtype=np.float64) + margin_texels
+    return np.clip(lo / size, 0.0, 1.0), np.clip(hi / size, 0.0, 1.0)

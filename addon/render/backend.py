@@ -73,10 +73,25 @@ class ShadowBackend(ABC):
         """
 
     @abstractmethod
-    def shadow_test(self, positions: np.ndarray, normals: np.ndarray, uniforms: UniformValues) -> np.ndarray:
-        """Run the shadow test; positions/normals are (H, W, 4) float32, row 0 at the bottom.
+    def upload_samples(self, positions: np.ndarray, normals: np.ndarray) -> None:
+        """View samples for the scatter and test passes: (H, W, 4) float32, row 0 at the bottom.
 
-        Returns (H, W, 2) float32: visibility and flag per sample.
+        positions: light-centred xyz and w = 1 where the pixel hit geometry.
+        """
+
+    @abstractmethod
+    def set_warp_tables(self, rows: np.ndarray | None, cols: np.ndarray | None) -> None:
+        """Warp offset tables, (6 * A, A + 1) float32 each (slot-major), or None for no warp."""
+
+    @abstractmethod
+    def scatter_counts(self, size: int, uniforms: UniformValues) -> np.ndarray:
+        """Count map (size x size float32, row 0 at the bottom) of the uploaded samples."""
+
+    @abstractmethod
+    def shadow_test(self, uniforms: UniformValues) -> np.ndarray:
+        """Run the shadow test on the uploaded samples.
+
+        Returns (H, W, 2) float32, row 0 at the bottom: visibility and flag per sample.
         """
 
     @abstractmethod

@@ -12,7 +12,13 @@ import numpy as np
 
 from ..core.errors import BackendError
 from .backend import AtlasLayout, ShadowBackend, UniformValues
-from .shaders import DEPTH_PROGRAM, SHADOW_TEST_PROGRAM, ProgramInterface, moderngl_sources
+from .shaders import (
+    DEPTH_PROGRAM,
+    SCATTER_PROGRAM,
+    SHADOW_TEST_PROGRAM,
+    ProgramInterface,
+    moderngl_sources,
+)
 
 log = logging.getLogger(__name__)
 
@@ -71,13 +77,22 @@ class ModernGLBackend(ShadowBackend):
                 "install Mesa EGL: apt install libegl1 libegl-mesa0 libgl1-mesa-dri"
             ) from exc
         self._bound = False
+        self._released = False
         self._programs: dict[str, object] = {}
         self._atlas_layout: AtlasLayout | None = None
         self._atlas = self._atlas_depth = self._atlas_fbo = None
-        self._test_targets: dict[tuple[int, int], tuple] = {}
-        self._fullscreen_vbo = self.ctx.buffer(_FULLSCREEN.tobytes())
-        self._fullscreen_vao = None
-        self._released = False
+        # Textures bound by sampler name; the warp tables start as 1x1 dummies.
+        self._textures: dict[str, object] = {}
+        self._sample_size: tuple[int, int] | None = None
+        self._test_target = None  # (texture, framebuffer) of the sample size
+        self._count_targets: dict[int, tuple] = {}
+        self._index_vbo = None
+        self._index_count = 0
+        with self.ctx:
+            self._fullscreen_vbo = self.ctx.buffer(_FULLSCREEN.tobytes())
+            self._set_table("ow_warp_rows", None)
+            self._set_table("ow_warp_cols", None)
+        self._vaos: dict[str, object] = {}
 
     # programs ---------------------------------------------------------------
     @_current
@@ -96,8 +111,8 @@ class ModernGLBackend(ShadowBackend):
             self._programs[iface.name] = prog
         return prog
 
-    @staticmethod
-    def _set_uniforms(prog, uniforms: UniformValues) -> None:
+    def _use(self, iface: ProgramInterface, uniforms: UniformValues):
+        prog = self.program(iface)
         for name, value in uniforms.items():
             if name not in prog:
                 continue  # optimised away by the GLSL compiler
@@ -108,6 +123,30 @@ class ModernGLBackend(ShadowBackend):
                 prog[name].value = tuple(float(v) for v in np.asarray(value).ravel())
             else:
                 prog[name].value = value
+        for binding, sampler in enumerate(iface.samplers):
+            texture = self._textures.get(sampler)
+            if texture is None:
+                raise BackendError(f"{iface.name}: no texture for sampler {sampler}")
+            texture.use(binding)
+        return prog
+
+    def _float_texture(self, size: tuple[int, int], components: int, data: bytes | None = None):
+        tex = self.ctx.texture(size, components, data, dtype="f4")
+        tex.filter = (self._mgl.NEAREST, self._mgl.NEAREST)
+        return tex
+
+    def _set_table(self, name: str, table: np.ndarray | None) -> None:
+        old = self._textures.get(name)
+        if table is None:
+            data = np.zeros((1, 1), dtype="f4")
+        else:
+            data = np.ascontiguousarray(table, dtype="f4")
+        if old is not None and old.size == (data.shape[1], data.shape[0]):
+            old.write(data.tobytes())
+            return
+        if old is not None:
+            old.release()
+        self._textures[name] = self._float_texture((data.shape[1], data.shape[0]), 1, data.tobytes())
 
     # interface --------------------------------------------------------------
     @_current
@@ -123,11 +162,11 @@ class ModernGLBackend(ShadowBackend):
     def begin_atlas(self, layout: AtlasLayout) -> None:
         if self._atlas_layout != layout:
             self._free_atlas()
-            self._atlas = self.ctx.texture(layout.size, 1, dtype="f4")
-            self._atlas.filter = (self._mgl.NEAREST, self._mgl.NEAREST)
+            self._atlas = self._float_texture(layout.size, 1)
             self._atlas_depth = self.ctx.depth_renderbuffer(layout.size)
             self._atlas_fbo = self.ctx.framebuffer(color_attachments=[self._atlas], depth_attachment=self._atlas_depth)
             self._atlas_layout = layout
+            self._textures["ow_atlas"] = self._atlas
         self._atlas_fbo.use()
         self._atlas_fbo.viewport = (0, 0) + layout.size
         self._atlas_fbo.clear(1.0, 1.0, 1.0, 1.0, depth=1.0)
@@ -138,8 +177,7 @@ class ModernGLBackend(ShadowBackend):
             raise BackendError("draw_layer called before begin_atlas")
         if len(vertices) == 0:
             return
-        prog = self.program(DEPTH_PROGRAM)
-        self._set_uniforms(prog, uniforms)
+        prog = self._use(DEPTH_PROGRAM, uniforms)
         data = np.ascontiguousarray(vertices, dtype="f4")
         vbo = self.ctx.buffer(data.tobytes())
         try:
@@ -159,40 +197,82 @@ class ModernGLBackend(ShadowBackend):
             vbo.release()
             self.ctx.disable(self._mgl.DEPTH_TEST)
 
-    def _targets(self, size: tuple[int, int]):
-        found = self._test_targets.get(size)
-        if found is None:
-            pos = self.ctx.texture(size, 4, dtype="f4")
-            nrm = self.ctx.texture(size, 4, dtype="f4")
-            out = self.ctx.texture(size, 2, dtype="f4")
-            for tex in (pos, nrm, out):
-                tex.filter = (self._mgl.NEAREST, self._mgl.NEAREST)
-            fbo = self.ctx.framebuffer(color_attachments=[out])
-            found = (pos, nrm, out, fbo)
-            self._test_targets[size] = found
-        return found
+    @_current
+    def upload_samples(self, positions: np.ndarray, normals: np.ndarray) -> None:
+        height, width = positions.shape[:2]
+        if self._sample_size != (width, height):
+            for name in ("ow_positions", "ow_normals"):
+                if name in self._textures:
+                    self._textures[name].release()
+                self._textures[name] = self._float_texture((width, height), 4)
+            if self._test_target is not None:
+                for obj in reversed(self._test_target):
+                    obj.release()
+            out = self._float_texture((width, height), 2)
+            self._test_target = (out, self.ctx.framebuffer(color_attachments=[out]))
+            if self._index_vbo is not None:
+                self._index_vbo.release()
+            self._index_vbo = self.ctx.buffer(np.arange(width * height, dtype="f4").tobytes())
+            self._index_count = width * height
+            self._sample_size = (width, height)
+            self._drop_vao("scatter")
+        self._textures["ow_positions"].write(np.ascontiguousarray(positions, dtype="f4").tobytes())
+        self._textures["ow_normals"].write(np.ascontiguousarray(normals, dtype="f4").tobytes())
 
     @_current
-    def shadow_test(self, positions: np.ndarray, normals: np.ndarray, uniforms: UniformValues) -> np.ndarray:
-        if self._atlas is None:
-            raise BackendError("shadow_test called before any atlas exists")
-        height, width = positions.shape[:2]
-        pos, nrm, out, fbo = self._targets((width, height))
-        pos.write(np.ascontiguousarray(positions, dtype="f4").tobytes())
-        nrm.write(np.ascontiguousarray(normals, dtype="f4").tobytes())
-        prog = self.program(SHADOW_TEST_PROGRAM)
-        self._set_uniforms(prog, uniforms)
-        if self._fullscreen_vao is None:
-            self._fullscreen_vao = self.ctx.vertex_array(prog, [(self._fullscreen_vbo, "2f", "ow_corner")])
-        pos.use(0)
-        nrm.use(1)
-        self._atlas.use(2)
+    def set_warp_tables(self, rows: np.ndarray | None, cols: np.ndarray | None) -> None:
+        self._set_table("ow_warp_rows", rows)
+        self._set_table("ow_warp_cols", cols)
+
+    def _drop_vao(self, name: str) -> None:
+        vao = self._vaos.pop(name, None)
+        if vao is not None:
+            vao.release()
+
+    @_current
+    def scatter_counts(self, size: int, uniforms: UniformValues) -> np.ndarray:
+        if self._sample_size is None:
+            raise BackendError("scatter_counts called before upload_samples")
+        target = self._count_targets.get(size)
+        if target is None:
+            tex = self._float_texture((size, size), 1)
+            target = (tex, self.ctx.framebuffer(color_attachments=[tex]))
+            self._count_targets[size] = target
+        tex, fbo = target
+        prog = self._use(SCATTER_PROGRAM, uniforms)
+        vao = self._vaos.get("scatter")
+        if vao is None:
+            vao = self.ctx.vertex_array(prog, [(self._index_vbo, "f", "ow_index")])
+            self._vaos["scatter"] = vao
+        fbo.use()
+        fbo.viewport = (0, 0, size, size)
+        fbo.clear(0.0, 0.0, 0.0, 0.0)
+        # Additive blending (ONE, ONE) sums one per sample into an R32F texel.
+        self.ctx.enable(self._mgl.BLEND | self._mgl.PROGRAM_POINT_SIZE)
+        self.ctx.blend_func = (self._mgl.ONE, self._mgl.ONE)
+        self.ctx.blend_equation = self._mgl.FUNC_ADD
+        try:
+            vao.render(self._mgl.POINTS, vertices=self._index_count)
+        finally:
+            self.ctx.disable(self._mgl.BLEND | self._mgl.PROGRAM_POINT_SIZE)
+        return np.frombuffer(tex.read(), dtype="f4").reshape(size, size).copy()
+
+    @_current
+    def shadow_test(self, uniforms: UniformValues) -> np.ndarray:
+        if self._atlas is None or self._sample_size is None:
+            raise BackendError("shadow_test needs an atlas and uploaded samples")
+        width, height = self._sample_size
+        prog = self._use(SHADOW_TEST_PROGRAM, uniforms)
+        vao = self._vaos.get("fullscreen")
+        if vao is None:
+            vao = self.ctx.vertex_array(prog, [(self._fullscreen_vbo, "2f", "ow_corner")])
+            self._vaos["fullscreen"] = vao
+        out, fbo = self._test_target
         fbo.use()
         fbo.viewport = (0, 0, width, height)
         self.ctx.disable(self._mgl.DEPTH_TEST)
-        self._fullscreen_vao.render(self._mgl.TRIANGLES)
-        raw = out.read()
-        return np.frombuffer(raw, dtype="f4").reshape(height, width, 2).copy()
+        vao.render(self._mgl.TRIANGLES)
+        return np.frombuffer(out.read(), dtype="f4").reshape(height, width, 2).copy()
 
     @_current
     def read_atlas(self) -> np.ndarray:
@@ -209,6 +289,7 @@ class ModernGLBackend(ShadowBackend):
         for obj in (self._atlas_fbo, self._atlas, self._atlas_depth):
             if obj is not None:
                 obj.release()
+        self._textures.pop("ow_atlas", None)
         self._atlas = self._atlas_depth = self._atlas_fbo = None
         self._atlas_layout = None
 
@@ -217,13 +298,22 @@ class ModernGLBackend(ShadowBackend):
             return
         with self.ctx:
             self._free_atlas()
-            for pos, nrm, out, fbo in self._test_targets.values():
-                for obj in (fbo, out, nrm, pos):
+            for vao in self._vaos.values():
+                vao.release()
+            self._vaos.clear()
+            for tex, fbo in self._count_targets.values():
+                fbo.release()
+                tex.release()
+            self._count_targets.clear()
+            if self._test_target is not None:
+                for obj in reversed(self._test_target):
                     obj.release()
-            self._test_targets.clear()
-            if self._fullscreen_vao is not None:
-                self._fullscreen_vao.release()
-            self._fullscreen_vbo.release()
+            for tex in self._textures.values():
+                tex.release()
+            self._textures.clear()
+            for buf in (self._index_vbo, self._fullscreen_vbo):
+                if buf is not None:
+                    buf.release()
             for prog in self._programs.values():
                 prog.release()
             self._programs.clear()

@@ -19,6 +19,7 @@ from ..core.errors import InputError
 from ..core.frames import Layer, Parameterization
 from ..core.plan import Plan, plan_frame
 from ..core.scene import CameraSpec, LightSpec
+from ..core.warping import LayerMapping, dv_crop_from_counts, notw_cols, notw_rows, rtw_from_counts
 from .backend import AtlasLayout, ShadowBackend
 
 log = logging.getLogger(__name__)
@@ -28,6 +29,19 @@ MAX_RESOLUTION = 4096
 # Near clip of cube faces, relative to far: geometry closer to the light than this
 # is lost to clipping; 1e-6 keeps it far below a texel at any supported resolution.
 CLIP_NEAR_RELATIVE = 1e-6
+
+
+WARP_KINDS = ("none", "notw", "rtw")
+
+
+def analysis_size_for(resolution: int) -> int:
+    """Count-map side A for a map resolution: an eighth of the map, within [64, 256].
+
+    The chosen smoothing windows span tens of rows even at A = 128 (docs/warping.md),
+    so a finer count map adds cost (scatter, read-back, per-row work, tessellation
+    against more kinks) without changing the measured error beyond noise.
+    """
+    return int(min(256, max(64, resolution // 8)))
 
 
 @dataclass(frozen=True)
@@ -46,10 +60,14 @@ class ShadowSettings:
     bias: BiasSettings = BiasSettings()
     cull: bool = True
     tessellation_tolerance: float = 1.0  # texels of chord-to-arc bend
+    warp: str = "none"  # "none", "notw" or "rtw"
+    analysis_size: int | None = None  # count-map side A; None = analysis_size_for(resolution)
 
     def __post_init__(self) -> None:
         if self.parameterization not in ("dpsm", "cube"):
             raise InputError(f"unknown parameterization {self.parameterization!r}; use 'dpsm' or 'cube'")
+        if self.warp not in WARP_KINDS:
+            raise InputError(f"unknown warp {self.warp!r}; use one of {', '.join(WARP_KINDS)}")
         if not (MIN_RESOLUTION <= int(self.resolution) <= MAX_RESOLUTION):
             raise InputError(f"resolution {self.resolution} out of range [{MIN_RESOLUTION}, {MAX_RESOLUTION}]")
 
@@ -90,6 +108,8 @@ class FrameResult:
     texels: int
     atlas: np.ndarray | None = None
     tile_of_slot: dict[int, int] = field(default_factory=dict)
+    mappings: dict[int, LayerMapping] = field(default_factory=dict)
+    count_maps: dict[int, np.ndarray] = field(default_factory=dict)  # analysis count map per slot
 
     @property
     def passes(self) -> int:
@@ -120,7 +140,17 @@ def _cull_to_face(local_tris: np.ndarray) -> np.ndarray:
     return ~outside
 
 
-def prepare_geometry(light: LightSpec, triangles: np.ndarray, plan: Plan, settings: ShadowSettings) -> PreparedGeometry:
+def _map_texels(kind: int, mapping: LayerMapping, res: int):
+    """Layer-local points -> texel coordinates of the final (cropped, warped) map."""
+
+    def to_texels(points: np.ndarray) -> np.ndarray:
+        return mapping.forward(projection.project(kind, points)) * res
+
+    return to_texels
+
+
+def prepare_geometry(light: LightSpec, triangles: np.ndarray, plan: Plan, settings: ShadowSettings,
+                     mappings: dict[int, LayerMapping] | None = None) -> PreparedGeometry:
     """Sanitise, split, tessellate and cull the scene's triangles for every drawn layer."""
     light_pos = light.position
     near, far = projection.depth_range(triangles, light_pos)
@@ -129,34 +159,46 @@ def prepare_geometry(light: LightSpec, triangles: np.ndarray, plan: Plan, settin
     streams: dict[int, np.ndarray] = {}
     added = 0
     res = settings.resolution
+    mappings = mappings or {}
     if settings.parameterization == "dpsm":
         # Split once at the seam plane of side 0 (whose +z is the light's -Z axis).
         side0 = frames.light_layers(light, "dpsm")[0]
         front, back = tessellate.split_at_seam(side0.to_local(centred))
         # Side 1's frame is diag(1, -1, -1) times side 0's, so flip y and z of the back pieces.
         pieces = {0: front, 1: back * np.array([1.0, -1.0, -1.0])}
-
-        def to_texels(points: np.ndarray) -> np.ndarray:
-            return projection.xy_to_texel(projection.paraboloid_project(points), res)
-
         for layer in plan.drawn:
-            local = pieces[layer.slot]
-            refined, n_added = tessellate.tessellate(local, to_texels, settings.tessellation_tolerance)
+            mapping = mappings.get(layer.slot, LayerMapping.identity())
+            refined, n_added = tessellate.tessellate(pieces[layer.slot], _map_texels(layer.kind, mapping, res),
+                                                     settings.tessellation_tolerance, window=float(res))
             added += n_added
-            world_dir = refined @ layer.rotation  # layer local -> light-centred world
-            streams[layer.slot] = _vertex_stream(world_dir)
+            streams[layer.slot] = _vertex_stream(refined @ layer.rotation)  # layer local -> world
     else:
         for layer in plan.drawn:
             local = layer.to_local(centred)
             keep = _cull_to_face(local) if settings.cull else np.ones(len(local), dtype=bool)
-            streams[layer.slot] = _vertex_stream(centred[keep])
+            mapping = mappings.get(layer.slot)
+            if mapping is None or mapping.is_identity:
+                streams[layer.slot] = _vertex_stream(centred[keep])
+                continue
+            # A cropped or warped face is no longer a linear projection: clip to the
+            # front of the face on the CPU (the GPU clips linearly) and tessellate.
+            clipped = tessellate.clip_halfspace(local[keep], local[keep][..., 2] - far * CLIP_NEAR_RELATIVE)
+            refined, n_added = tessellate.tessellate(clipped, _map_texels(layer.kind, mapping, res),
+                                                     settings.tessellation_tolerance, window=float(res))
+            added += n_added
+            streams[layer.slot] = _vertex_stream(refined @ layer.rotation)
     return PreparedGeometry(streams, near, far, report.skipped, added)
 
 
-def _layer_uniforms(layer: Layer, geometry: PreparedGeometry, res: int, origin: tuple[int, int]) -> dict:
+def _layer_uniforms(layer: Layer, geometry: PreparedGeometry, res: int, origin: tuple[int, int],
+                    mapping: LayerMapping, warp_size: int) -> dict:
     return {
         "ow_layer_rot": layer.rotation,
         "ow_layer_kind": layer.kind,
+        "ow_layer_slot": layer.slot,
+        "ow_mapped": 0 if mapping.is_identity else 1,
+        "ow_warp_size": warp_size if mapping.warp is not None else 0,
+        "ow_crop": mapping.crop_vec4(),
         "ow_near": geometry.near,
         "ow_far": geometry.far,
         "ow_clip_near": geometry.far * CLIP_NEAR_RELATIVE,
@@ -165,67 +207,165 @@ def _layer_uniforms(layer: Layer, geometry: PreparedGeometry, res: int, origin: 
     }
 
 
+def _stack_tables(mappings: dict[int, LayerMapping], size: int) -> tuple[np.ndarray, np.ndarray]:
+    """Slot-major (6 * A, A + 1) tables of every layer's row and column offsets."""
+    rows = np.zeros((6 * size, size + 1), dtype=np.float32)
+    cols = np.zeros((6 * size, size + 1), dtype=np.float32)
+    for slot, mapping in mappings.items():
+        if mapping.warp is not None:
+            rows[slot * size:(slot + 1) * size] = mapping.warp.rows
+            cols[slot * size:(slot + 1) * size] = mapping.warp.cols
+    return rows, cols
+
+
 class ShadowPipeline:
     """Runs frames on one backend."""
 
     def __init__(self, backend: ShadowBackend) -> None:
         self.backend = backend
 
+    def _scatter_uniforms(self, light: LightSpec, settings: ShadowSettings, layer: Layer,
+                          mapping: LayerMapping, warp_size: int, mode: int) -> dict:
+        return {
+            "ow_light_rot": light.rotation.T,
+            "ow_layer_rot": layer.rotation,
+            "ow_layer_kind": layer.kind,
+            "ow_layer_slot": layer.slot,
+            "ow_param": 0 if settings.parameterization == "dpsm" else 1,
+            "ow_hemi": 1 if light.emission == "hemi" else 0,
+            "ow_warp_size": warp_size,
+            "ow_scatter_mode": mode,
+            "ow_crop": mapping.crop_vec4(),
+        }
+
+    def count_map(self, light: LightSpec, settings: ShadowSettings, layer: Layer, mapping: LayerMapping,
+                  size: int, mode: int) -> np.ndarray:
+        """GPU count map of the uploaded samples for one layer (row 0 = v = 0).
+
+        mode 0: after the crop only; 1: through the row warps; 2: through the full warp.
+        The warp tables must already be uploaded for modes 1 and 2.
+        """
+        warp_size = mapping.warp.size if mapping.warp is not None else 0
+        uniforms = self._scatter_uniforms(light, settings, layer, mapping, warp_size, mode)
+        return self.backend.scatter_counts(size, uniforms)
+
+    def _analyse(self, light: LightSpec, settings: ShadowSettings, plan: Plan) -> tuple[dict, dict]:
+        """DV crop and warp construction per drawn layer (Algorithm 3, steps 2-7)."""
+        size = settings.analysis_size or analysis_size_for(settings.resolution)
+        mappings: dict[int, LayerMapping] = {}
+        counts: dict[int, np.ndarray] = {}
+        self.backend.set_warp_tables(None, None)
+        for layer in plan.drawn:
+            whole = self.count_map(light, settings, layer, LayerMapping.identity(), size, 0)
+            lo, hi = dv_crop_from_counts(whole)
+            crop = LayerMapping(lo, hi, None)
+            cropped = self.count_map(light, settings, layer, crop, size, 0)
+            counts[layer.slot] = cropped
+            if settings.warp == "rtw":
+                warp = rtw_from_counts(cropped)
+            else:
+                rows, row_window = notw_rows(cropped)
+                mappings[layer.slot] = LayerMapping(lo, hi, _warp_of(rows, None, size))
+                self.backend.set_warp_tables(*_stack_tables(mappings, size))
+                after_rows = self.count_map(light, settings, layer, mappings[layer.slot], size, 1)
+                cols, col_window = notw_cols(after_rows)
+                warp = _warp_of(rows, cols, size, row_window, col_window)
+            mappings[layer.slot] = LayerMapping(lo, hi, warp)
+        self.backend.set_warp_tables(*_stack_tables(mappings, size))
+        return mappings, counts
+
     def render(self, light: LightSpec, triangles: np.ndarray, samples: ViewSamples, settings: ShadowSettings,
                keep_atlas: bool = False) -> FrameResult:
-        """One frame: plan, maps, test. Times each stage with a GPU sync."""
+        """One frame: plan, analysis, maps, test. Times each stage with a GPU sync."""
         backend = self.backend
-        timings: dict[str, float] = {"analysis": 0.0}
+        timings: dict[str, float] = {}
         t0 = time.perf_counter()
+        self._upload_samples(light, samples)
+        backend.finish()
+        t_upload = time.perf_counter() - t0
+
+        t1 = time.perf_counter()
         _, far_estimate = projection.depth_range(triangles, light.position)
         plan = plan_frame(light, settings.parameterization, samples.camera, samples.positions, samples.hit,
                           far_estimate, cull=settings.cull)
-        geometry = prepare_geometry(light, triangles, plan, settings)
-        t1 = time.perf_counter()
-        timings["prepare"] = (t1 - t0) * 1e3
+        t_plan = time.perf_counter() - t1
+
+        t2 = time.perf_counter()
+        mappings: dict[int, LayerMapping] = {}
+        counts: dict[int, np.ndarray] = {}
+        if settings.warp != "none" and plan.drawn:
+            mappings, counts = self._analyse(light, settings, plan)
+        else:
+            backend.set_warp_tables(None, None)
+        backend.finish()
+        t3 = time.perf_counter()
+        timings["analysis"] = (t3 - t2) * 1e3
+
+        geometry = prepare_geometry(light, triangles, plan, settings, mappings)
+        t4 = time.perf_counter()
+        timings["prepare"] = (t4 - t3 + t_plan) * 1e3
 
         res = settings.resolution
         tile_of_slot = {layer.slot: i for i, layer in enumerate(plan.drawn)}
         layout = AtlasLayout.for_tiles(res, len(plan.drawn), backend.max_texture_size())
         backend.begin_atlas(layout)
+        size = settings.analysis_size or analysis_size_for(res)
         for layer in plan.drawn:
             origin = layout.origin(tile_of_slot[layer.slot])
+            mapping = mappings.get(layer.slot, LayerMapping.identity())
             backend.draw_layer(tile_of_slot[layer.slot], geometry.streams[layer.slot],
-                               _layer_uniforms(layer, geometry, res, origin))
+                               _layer_uniforms(layer, geometry, res, origin, mapping, size))
         backend.finish()
-        t2 = time.perf_counter()
-        timings["shadow_maps"] = (t2 - t1) * 1e3
+        t5 = time.perf_counter()
+        timings["shadow_maps"] = (t5 - t4) * 1e3
 
-        result = self._shadow_test(light, samples, settings, plan, geometry, layout, tile_of_slot)
+        result = self._shadow_test(light, settings, plan, geometry, layout, tile_of_slot, mappings, size)
         backend.finish()
-        t3 = time.perf_counter()
-        timings["shadow_test"] = (t3 - t2) * 1e3
-        timings["total"] = (t3 - t0) * 1e3
+        t6 = time.perf_counter()
+        timings["shadow_test"] = (t6 - t5 + t_upload) * 1e3
+        timings["total"] = (t6 - t0) * 1e3
 
         atlas = backend.read_atlas() if keep_atlas else None
         visibility = result[..., 0][::-1].copy()
         flags = result[..., 1][::-1].astype(np.int8)
         return FrameResult(visibility, flags, timings, plan, geometry, layout,
-                           texels=len(plan.drawn) * res * res, atlas=atlas, tile_of_slot=tile_of_slot)
+                           texels=len(plan.drawn) * res * res, atlas=atlas, tile_of_slot=tile_of_slot,
+                           mappings=mappings, count_maps=counts)
 
-    def _shadow_test(self, light: LightSpec, samples: ViewSamples, settings: ShadowSettings, plan: Plan,
-                     geometry: PreparedGeometry, layout: AtlasLayout, tile_of_slot: dict[int, int]) -> np.ndarray:
+    def _upload_samples(self, light: LightSpec, samples: ViewSamples) -> None:
+        height, width = samples.hit.shape
+        pos = np.zeros((height, width, 4), dtype=np.float32)
+        nrm = np.zeros((height, width, 4), dtype=np.float32)
+        hit = samples.hit & np.all(np.isfinite(samples.positions), axis=-1)
+        pos[..., :3] = np.where(hit[..., None], samples.positions - light.position, 0.0)
+        pos[..., 3] = hit
+        nrm[..., :3] = np.where(hit[..., None], samples.normals, 0.0)
+        # GL textures start at the bottom row; the samples start at the top.
+        self.backend.upload_samples(pos[::-1], nrm[::-1])
+
+    def _shadow_test(self, light: LightSpec, settings: ShadowSettings, plan: Plan, geometry: PreparedGeometry,
+                     layout: AtlasLayout, tile_of_slot: dict[int, int], mappings: dict[int, LayerMapping],
+                     warp_size: int) -> np.ndarray:
         n_slots = 6
         rotations = np.tile(np.eye(3), (n_slots, 1, 1))
         tiles = np.zeros((n_slots, 4))
+        crops = np.tile([0.0, 0.0, 1.0, 1.0], (n_slots, 1))
         for layer in plan.all_layers:
             rotations[layer.slot] = layer.rotation
         for slot, tile in tile_of_slot.items():
             x, y = layout.origin(tile)
             tiles[slot] = (x, y, 1.0, 0.0)
-        kind = projection.PARABOLOID if settings.parameterization == "dpsm" else projection.CUBE
+        for slot, mapping in mappings.items():
+            crops[slot] = mapping.crop_vec4()
         uniforms = {
             "ow_light_rot": light.rotation.T,
             "ow_layer_rot": rotations,
             "ow_layer_tile": tiles,
+            "ow_layer_crop": crops,
             "ow_param": 0 if settings.parameterization == "dpsm" else 1,
-            "ow_layer_kind": kind,
+            "ow_layer_kind": projection.PARABOLOID if settings.parameterization == "dpsm" else projection.CUBE,
             "ow_hemi": 1 if light.emission == "hemi" else 0,
+            "ow_warp_size": warp_size if any(m.warp is not None for m in mappings.values()) else 0,
             "ow_resolution": float(settings.resolution),
             "ow_near": geometry.near,
             "ow_far": geometry.far,
@@ -233,13 +373,53 @@ class ShadowPipeline:
             "ow_bias_slope": settings.bias.slope,
             "ow_bias_normal": settings.bias.normal,
         }
-        height, width = samples.hit.shape
-        pos = np.zeros((height, width, 4), dtype=np.float32)
-        nrm = np.zeros((height, width, 4), dtype=np.float32)
-        hit = samples.hit & np.all(np.isfinite(samples.positions), axis=-1)
-        centred = np.where(hit[..., None], samples.positions - light.position, 0.0)
-        pos[..., :3] = centred
-        pos[..., 3] = hit
-        nrm[..., :3] = np.where(hit[..., None], samples.normals, 0.0)
-        # GL textures start at the bottom row; the samples start at the top.
-        return self.backend.shadow_test(pos[::-1], nrm[::-1], uniforms)
+        return self.backend.shadow_test(uniforms)
+
+
+def _warp_of(rows: np.ndarray, cols: np.ndarray | None, size: int, row_window: int = 0, col_window: int = 0):
+    from ..core.warping import FLOOR_SHARE, MAX_SLOPE, Warp, WarpParams
+
+    return Warp(rows, np.zeros((size, size + 1)) if cols is None else cols,
+                WarpParams(FLOOR_SHARE, MAX_SLOPE, row_window, col_window), "notw")
+
+
+@dataclass
+class CountStatistics:
+    """View samples per shadow texel, before and after the layer mappings (DESIGN.md 4)."""
+
+    before: dict[int, np.ndarray]  # slot -> count map of the plain projection, map resolution
+    after: dict[int, np.ndarray]  # slot -> importance map: counts through crop and warp
+
+    @property
+    def max_count_before(self) -> float:
+        return float(max((m.max() for m in self.before.values()), default=0.0))
+
+    @property
+    def max_count_after(self) -> float:
+        return float(max((m.max() for m in self.after.values()), default=0.0))
+
+    @property
+    def texel_utilization(self) -> float:
+        """Share of the drawn texels that resolve at least one view sample."""
+        total = sum(m.size for m in self.after.values())
+        used = sum(int(np.count_nonzero(m)) for m in self.after.values())
+        return used / total if total else 0.0
+
+
+def count_statistics(pipeline: ShadowPipeline, light: LightSpec, settings: ShadowSettings,
+                     result: FrameResult) -> CountStatistics:
+    """Scatter the samples (still uploaded from the last frame) at the map resolution.
+
+    Not part of the timed frame: this is measurement. The warp tables of the frame
+    must still be bound, which holds right after `render`.
+    """
+    res = settings.resolution
+    before, after = {}, {}
+    for layer in result.plan.drawn:
+        before[layer.slot] = pipeline.count_map(light, settings, layer, LayerMapping.identity(), res, 0)
+        mapping = result.mappings.get(layer.slot)
+        if mapping is None:
+            after[layer.slot] = before[layer.slot]
+        else:
+            after[layer.slot] = pipeline.count_map(light, settings, layer, mapping, res, 2)
+    return CountStatistics(before, after)

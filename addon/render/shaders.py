@@ -82,6 +82,8 @@ def load_source(relative: str, shader_dir: Path = SHADER_DIR) -> str:
 
 # Shared interfaces ---------------------------------------------------------
 
+_WARP_SAMPLERS = ("ow_warp_rows", "ow_warp_cols")
+
 DEPTH_PROGRAM = ProgramInterface(
     name="omniwarp_depth",
     vertex_file="depth.vert",
@@ -91,12 +93,17 @@ DEPTH_PROGRAM = ProgramInterface(
     uniforms=(
         Uniform("mat3", "ow_layer_rot"),
         Uniform("int", "ow_layer_kind"),
+        Uniform("int", "ow_layer_slot"),
+        Uniform("int", "ow_mapped"),
+        Uniform("int", "ow_warp_size"),
+        Uniform("vec4", "ow_crop"),
         Uniform("float", "ow_near"),
         Uniform("float", "ow_far"),
         Uniform("float", "ow_clip_near"),
         Uniform("float", "ow_resolution"),
         Uniform("vec2", "ow_tile_origin"),
     ),
+    samplers=_WARP_SAMPLERS,
     varyings=(
         Varying("float", "v_distance"),
         Varying("vec4", "v_plane", flat=True),
@@ -115,9 +122,11 @@ SHADOW_TEST_PROGRAM = ProgramInterface(
         Uniform("mat3", "ow_light_rot"),
         Uniform("mat3", "ow_layer_rot", 6),
         Uniform("vec4", "ow_layer_tile", 6),
+        Uniform("vec4", "ow_layer_crop", 6),
         Uniform("int", "ow_param"),
         Uniform("int", "ow_layer_kind"),
         Uniform("int", "ow_hemi"),
+        Uniform("int", "ow_warp_size"),
         Uniform("float", "ow_resolution"),
         Uniform("float", "ow_near"),
         Uniform("float", "ow_far"),
@@ -125,10 +134,30 @@ SHADOW_TEST_PROGRAM = ProgramInterface(
         Uniform("float", "ow_bias_slope"),
         Uniform("float", "ow_bias_normal"),
     ),
-    samplers=("ow_positions", "ow_normals", "ow_atlas"),
+    samplers=("ow_positions", "ow_normals", "ow_atlas") + _WARP_SAMPLERS,
 )
 
-PROGRAMS = (DEPTH_PROGRAM, SHADOW_TEST_PROGRAM)
+SCATTER_PROGRAM = ProgramInterface(
+    name="omniwarp_scatter",
+    vertex_file="scatter.vert",
+    fragment_file="scatter.frag",
+    vertex_in=(("float", "ow_index"),),
+    fragment_out=(("float", "ow_count"),),
+    uniforms=(
+        Uniform("mat3", "ow_light_rot"),
+        Uniform("mat3", "ow_layer_rot"),
+        Uniform("int", "ow_layer_kind"),
+        Uniform("int", "ow_layer_slot"),
+        Uniform("int", "ow_param"),
+        Uniform("int", "ow_hemi"),
+        Uniform("int", "ow_warp_size"),
+        Uniform("int", "ow_scatter_mode"),
+        Uniform("vec4", "ow_crop"),
+    ),
+    samplers=("ow_positions",) + _WARP_SAMPLERS,
+)
+
+PROGRAMS = (DEPTH_PROGRAM, SHADOW_TEST_PROGRAM, SCATTER_PROGRAM)
 
 
 def _decl_uniform(u: Uniform) -> str:

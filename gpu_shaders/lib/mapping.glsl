@@ -1,0 +1,25 @@
+// Layer map transform: projection xy -> DV crop -> warp -> map uv, and back.
+// Mirrors LayerMapping in addon/core/warping.py. `crop` holds (lo.x, lo.y, scale.x, scale.y)
+// with uv_crop = (uv_full - lo) * scale; `warp_size` 0 means no warp.
+#include "lib/warp.glsl"
+
+vec2 ow_map_forward(sampler2D rows, sampler2D cols, int slot, int warp_size, vec4 crop, vec2 xy,
+                    out float magnification)
+{
+  vec2 uv = ((xy * 0.5 + 0.5) - crop.xy) * crop.zw;
+  magnification = min(crop.z, crop.w);
+  if (warp_size > 0) {
+    vec2 slopes;
+    uv = ow_warp(rows, cols, slot, warp_size, uv, slopes);
+    magnification *= min(slopes.x, slopes.y);
+  }
+  return uv;
+}
+
+vec2 ow_map_inverse(sampler2D rows, sampler2D cols, int slot, int warp_size, vec4 crop, vec2 uv)
+{
+  if (warp_size > 0) {
+    uv = ow_unwarp(rows, cols, slot, warp_size, uv);
+  }
+  return (crop.xy + uv / crop.zw) * 2.0 - 1.0;
+}

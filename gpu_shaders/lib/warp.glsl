@@ -1,0 +1,95 @@
+// NoTW / RTW warps; mirrors addon/core/warping.py (Warp.forward, .inverse, .slopes).
+// Tables are R32F textures of width A + 1 (nodes k / A) and height 6 * A: the A
+// functions of layer slot s occupy rows s * A .. s * A + A - 1. Offsets are
+// interpolated linearly along the nodes and between neighbouring function centres
+// with texelFetch and mix(): fixed-function filtering has too few weight bits.
+
+struct OwBlend {
+  int i0;
+  int i1;
+  float f;
+};
+
+OwBlend ow_blend(float across, int size)
+{
+  float t = across * float(size) - 0.5;
+  OwBlend b;
+  b.i0 = clamp(int(floor(t)), 0, size - 1);
+  b.i1 = min(b.i0 + 1, size - 1);
+  b.f = clamp(t - float(b.i0), 0.0, 1.0);
+  return b;
+}
+
+float ow_node_value(sampler2D table, int base, OwBlend b, int k, int size)
+{
+  float o0 = texelFetch(table, ivec2(k, base + b.i0), 0).r;
+  float o1 = texelFetch(table, ivec2(k, base + b.i1), 0).r;
+  return float(k) / float(size) + mix(o0, o1, b.f);
+}
+
+// Offset of the family at `along`, blended `across`; `slope` gets d(offset)/d(along).
+float ow_family_offset(sampler2D table, int slot, int size, float along, float across, out float slope)
+{
+  OwBlend b = ow_blend(across, size);
+  int base = slot * size;
+  float s = along * float(size);
+  int k = clamp(int(floor(s)), 0, size - 1);
+  float fr = clamp(s - float(k), 0.0, 1.0);
+  float a0 = texelFetch(table, ivec2(k, base + b.i0), 0).r;
+  float a1 = texelFetch(table, ivec2(k + 1, base + b.i0), 0).r;
+  float c0 = texelFetch(table, ivec2(k, base + b.i1), 0).r;
+  float c1 = texelFetch(table, ivec2(k + 1, base + b.i1), 0).r;
+  bool inside = along >= 0.0 && along <= 1.0;
+  slope = inside ? mix(a1 - a0, c1 - c0, b.f) * float(size) : 0.0;
+  return mix(mix(a0, a1, fr), mix(c0, c1, fr), b.f);
+}
+
+// Solve x + offset(x; across) = warped by binary search over the nodes (increasing).
+float ow_family_inverse(sampler2D table, int slot, int size, float warped, float across)
+{
+  if (warped < 0.0 || warped > 1.0) {
+    return warped;  // the warp is the identity outside the map
+  }
+  OwBlend b = ow_blend(across, size);
+  int base = slot * size;
+  int lo = 0;
+  int hi = size;
+  for (int step = 0; step < 16 && hi - lo > 1; step++) {
+    int mid = (lo + hi) / 2;
+    if (ow_node_value(table, base, b, mid, size) <= warped) {
+      lo = mid;
+    }
+    else {
+      hi = mid;
+    }
+  }
+  float x0 = ow_node_value(table, base, b, lo, size);
+  float x1 = ow_node_value(table, base, b, lo + 1, size);
+  float frac = (warped - x0) / max(x1 - x0, 1e-30);
+  return (float(lo) + frac) / float(size);
+}
+
+// Full warp (eq. 4.9): rows first, then columns indexed by the row-warped u.
+vec2 ow_warp(sampler2D rows, sampler2D cols, int slot, int size, vec2 uv, out vec2 slopes)
+{
+  float su;
+  float sv;
+  float u2 = uv.x + ow_family_offset(rows, slot, size, uv.x, uv.y, su);
+  float v2 = uv.y + ow_family_offset(cols, slot, size, uv.y, u2, sv);
+  slopes = vec2(1.0 + su, 1.0 + sv);
+  return vec2(u2, v2);
+}
+
+// Row warp only (the second scatter of Algorithm 3).
+vec2 ow_apply_row_warp(sampler2D rows, int slot, int size, vec2 uv)
+{
+  float su;
+  return vec2(uv.x + ow_family_offset(rows, slot, size, uv.x, uv.y, su), uv.y);
+}
+
+vec2 ow_unwarp(sampler2D rows, sampler2D cols, int slot, int size, vec2 uvw)
+{
+  float v = ow_family_inverse(cols, slot, size, uvw.y, uvw.x);
+  float u = ow_family_inverse(rows, slot, size, uvw.x, v);
+  return vec2(u, v);
+}
