@@ -44,7 +44,9 @@ def _parser() -> argparse.ArgumentParser:
     source.add_argument("--blend", help="a saved .blend file (its scene camera and one point/spot light)")
     cmp_.add_argument("--light", help="with --blend: the light object to use")
     cmp_.add_argument("--camera", help="with --blend: the camera object to use")
-    cmp_.add_argument("--methods", default="dpsm,cube", help="comma list of methods (default dpsm,cube)")
+    cmp_.add_argument("--methods", default="dpsm,cube",
+                      help="comma list of methods: dpsm, cube, dpsm+notw, cube+notw, dpsm+rtw, cube+rtw "
+                           "(default dpsm,cube)")
     cmp_.add_argument("--resolutions", default="512,1024,2048", help="comma list of map resolutions")
     cmp_.add_argument("--no-cull", action="store_true", help="draw every layer and triangle (measure culling)")
     cmp_.add_argument("--out", default="out/compare", help="output folder (default out/compare)")

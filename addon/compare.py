@@ -22,12 +22,28 @@ from .core import metrics
 from .core.errors import InputError
 from .core.scene import CameraSpec, LightSpec
 from .reference.data import ReferenceData
-from .render.pipeline import MAX_RESOLUTION, MIN_RESOLUTION, ShadowPipeline, ShadowSettings, ViewSamples
+from .render.pipeline import (
+    MAX_RESOLUTION,
+    MIN_RESOLUTION,
+    FrameResult,
+    ShadowPipeline,
+    ShadowSettings,
+    ViewSamples,
+    count_statistics,
+)
 
 log = logging.getLogger(__name__)
 
-# Methods this build implements, with the parameterization each one uses.
-METHODS: dict[str, str] = {"dpsm": "dpsm", "cube": "cube"}
+# Methods this build implements: (parameterization, warp).
+METHODS: dict[str, tuple[str, str]] = {
+    "dpsm": ("dpsm", "none"),
+    "cube": ("cube", "none"),
+    "dpsm+notw": ("dpsm", "notw"),
+    "cube+notw": ("cube", "notw"),
+    "dpsm+rtw": ("dpsm", "rtw"),
+    "cube+rtw": ("cube", "rtw"),
+}
+MAP_IMAGE_MAX = 512  # map images are pooled down to at most this many pixels a side
 DEFAULT_METHODS = ("dpsm", "cube")
 DEFAULT_RESOLUTIONS = (512, 1024, 2048)
 
@@ -132,11 +148,14 @@ def run_row(pipeline: ShadowPipeline, ref: ReferenceData, preset: str, method: s
     """Measure one (preset, method, resolution) row."""
     light = light_from_reference(ref)
     samples = samples_from_reference(ref)
-    settings = ShadowSettings(METHODS[method], resolution, cull=options.cull)
+    parameterization, warp = METHODS[method]
+    settings = ShadowSettings(parameterization, resolution, cull=options.cull, warp=warp)
     triangles = ref.triangles.astype(np.float64)
     pipeline.render(light, triangles, samples, settings)  # warm-up: shader compile, allocation
-    frames = [pipeline.render(light, triangles, samples, settings) for _ in range(max(1, options.frames))]
+    count = max(1, options.frames)
+    frames = [pipeline.render(light, triangles, samples, settings, keep_atlas=(i == count - 1)) for i in range(count)]
     last = frames[-1]
+    counts = count_statistics(pipeline, light, settings, last)  # measurement, not timed
     ref_lit = metrics.reference_visibility(ref.shadowed, ref.unshadowed)
     evaluable = metrics.evaluable_mask(ref.position, ref.normal, ref.hit, ref.unshadowed, light)
     est_lit = last.visibility > 0.5
@@ -157,20 +176,77 @@ def run_row(pipeline: ShadowPipeline, ref: ReferenceData, preset: str, method: s
         "texels": last.texels,
         "renderer": pipeline.backend.renderer(),
         "backend": pipeline.backend.name,
+        "max_count_before": counts.max_count_before,
+        "max_count_after": counts.max_count_after,
+        "texel_utilization": counts.texel_utilization,
         "tessellated_triangles": last.geometry.tessellated_triangles,
         "skipped_triangles": last.geometry.skipped_triangles,
         "layers": [layer.name for layer in last.plan.drawn],
+        "warp": _warp_summary(last),
         "cull": options.cull,
         "frames": len(frames),
         "camera_size": list(ref.resolution),
     }
     if image_dir is not None:
         image_dir.mkdir(parents=True, exist_ok=True)
-        name = f"{preset}_{method}_{resolution}{'' if options.cull else '_nocull'}_mismatch.png"
+        stem = f"{preset}_{method}_{resolution}{'' if options.cull else '_nocull'}"
         img = metrics.mismatch_image(ref.shadowed, est_lit, ref_lit, evaluable)
-        _write_png(image_dir / name, img)
-        row["mismatch_image"] = f"images/{name}"
+        _write_png(image_dir / f"{stem}_mismatch.png", img)
+        row["mismatch_image"] = f"images/{stem}_mismatch.png"
+        row["map_images"] = _write_map_images(image_dir, stem, last, counts)
     return row
+
+
+def _warp_summary(result: FrameResult) -> dict:
+    """Per layer: the DV crop and the smoothing windows the automatic rule chose."""
+    summary = {}
+    for layer in result.plan.drawn:
+        mapping = result.mappings.get(layer.slot)
+        if mapping is None:
+            continue
+        entry = {"crop_lo": [round(float(v), 5) for v in mapping.lo],
+                 "crop_hi": [round(float(v), 5) for v in mapping.hi]}
+        if mapping.warp is not None and mapping.warp.params is not None:
+            entry.update(kind=mapping.warp.kind, analysis_size=mapping.warp.size,
+                         row_window=mapping.warp.params.row_window, col_window=mapping.warp.params.col_window)
+        summary[layer.name] = entry
+    return summary
+
+
+def _pool(image: np.ndarray, reduce) -> np.ndarray:
+    factor = max(1, -(-max(image.shape) // MAP_IMAGE_MAX))
+    if factor == 1:
+        return image
+    h, w = (image.shape[0] // factor) * factor, (image.shape[1] // factor) * factor
+    return reduce(reduce(image[:h, :w].reshape(h // factor, factor, w // factor, factor), axis=3), axis=1)
+
+
+def _write_map_images(image_dir: Path, stem: str, result: FrameResult, counts) -> list[str]:
+    """Per layer: count map (log), importance map (counts after crop and warp), depth map."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    names = []
+    res = result.layout.resolution if result.layout else 0
+    top = max(counts.max_count_before, counts.max_count_after, 1.0)
+    for layer in result.plan.drawn:
+        tag = layer.name.replace("(", "_").replace(")", "").replace("+", "p").replace("-", "m")
+        x, y = result.layout.origin(result.tile_of_slot[layer.slot])
+        depth = result.atlas[y:y + res, x:x + res] if result.atlas is not None else None
+        panels = {"count": counts.before[layer.slot], "importance": counts.after[layer.slot], "depth": depth}
+        for kind, data in panels.items():
+            if data is None:
+                continue
+            path = image_dir / f"{stem}_{tag}_{kind}.png"
+            if kind == "depth":
+                plt.imsave(path, _pool(data, np.min), cmap="viridis", origin="lower", vmin=0.0, vmax=1.0)
+            else:
+                pooled = _pool(data, np.max)
+                plt.imsave(path, np.log1p(pooled), cmap="inferno", origin="lower", vmin=0.0, vmax=np.log1p(top))
+            names.append(f"images/{path.name}")
+    return names
 
 
 def _write_png(path: Path, rgb: np.ndarray) -> None:

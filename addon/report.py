@@ -18,16 +18,18 @@ def _pareto(points: list[tuple[float, float]]) -> list[tuple[float, float]]:
 def markdown_table(rows: Sequence[dict]) -> str:
     """One line per row: the fields a reader compares."""
     head = ("| preset | method | res | error % | false shadow % | false lit % | evaluated px | total ms | "
-            "prepare ms | maps ms | test ms | passes | triangles | tess. added | texels |")
+            "prepare ms | analysis ms | maps ms | test ms | passes | triangles | tess. added | texels | "
+            "max count before | max count after | texel use |")
     lines = [head, "|" + "|".join(["---"] * (head.count("|") - 1)) + "|"]
     for r in rows:
         t = r["time_ms"]
         lines.append(
             f"| {r['preset']} | {r['method']}{'' if r.get('cull', True) else ' (no cull)'} | {r['resolution']} "
             f"| {r['error_pct']:.3f} | {r['false_shadow_pct']:.3f} | {r['false_lit_pct']:.3f} "
-            f"| {r['evaluated_pixels']} | {t['total']:.1f} | {t.get('prepare', 0.0):.1f} | {t['shadow_maps']:.1f} "
-            f"| {t['shadow_test']:.1f} | {r['passes']} | {r['triangles_drawn']} "
-            f"| {r.get('tessellated_triangles', 0)} | {r['texels']} |"
+            f"| {r['evaluated_pixels']} | {t['total']:.1f} | {t.get('prepare', 0.0):.1f} | {t['analysis']:.1f} "
+            f"| {t['shadow_maps']:.1f} | {t['shadow_test']:.1f} | {r['passes']} | {r['triangles_drawn']} "
+            f"| {r.get('tessellated_triangles', 0)} | {r['texels']} | {r.get('max_count_before', 0):.0f} "
+            f"| {r.get('max_count_after', 0):.0f} | {r.get('texel_utilization', 0.0):.3f} |"
         )
     return "\n".join(lines) + "\n"
 

@@ -173,17 +173,42 @@ def scatter_counts(uv: np.ndarray, size: int) -> np.ndarray:
 
 
 def _cap_density(p: np.ndarray, cap: float) -> np.ndarray:
-    """Clip each row's cell shares at `cap`, handing the excess to uncapped cells (water filling)."""
-    p = p.copy()
-    for _ in range(32):
-        over = p > cap * (1 + 1e-12)
-        if not over.any():
-            break
-        excess = np.where(over, p - cap, 0.0).sum(axis=1, keepdims=True)
-        p = np.where(over, cap, p)
-        free = np.where(over, 0.0, p)
-        p = p + excess * free / np.maximum(free.sum(axis=1, keepdims=True), 1e-300)
-    return p
+    """Clip each row's cell shares at `cap`, scaling the others up so each row still sums to 1.
+
+    Exact water filling: with the shares sorted in descending order and the first m
+    cells capped, the rest scale by lambda_m = (1 - m cap) / (sum of the rest); the
+    answer is the smallest m whose first uncapped cell stays under the cap.
+    """
+    p = np.asarray(p, dtype=np.float64)
+    rows, size = p.shape
+    if cap * size < 1.0:
+        raise InputError(f"a cap of {cap} per cell cannot hold a whole row of {size} cells")
+    order = np.argsort(-p, axis=1)
+    desc = np.take_along_axis(p, order, axis=1)
+    tail = np.cumsum(desc[:, ::-1], axis=1)[:, ::-1]  # tail[m] = sum of desc[m:]
+    m = np.arange(size)[None, :]
+    lam = (1.0 - m * cap) / np.maximum(tail, 1e-300)
+    ok = desc * lam <= cap * (1 + 1e-12)
+    first = np.argmax(ok, axis=1)  # smallest m that fits (m = 0: nothing capped)
+    lam_row = lam[np.arange(rows), first][:, None]
+    capped = m < first[:, None]
+    out_sorted = np.where(capped, cap, np.minimum(desc * lam_row, cap))
+    out = np.empty_like(p)
+    np.put_along_axis(out, order, out_sorted, axis=1)
+    return out
+
+
+def clean_counts(counts: np.ndarray) -> np.ndarray:
+    """Counts as finite, non-negative float64: NaN, inf and negative entries count 0.
+
+    Huge finite counts are scaled down per row, so prefix sums cannot overflow.
+    """
+    c = np.nan_to_num(np.asarray(counts, dtype=np.float64), nan=0.0, posinf=0.0, neginf=0.0)
+    c = np.maximum(c, 0.0)
+    if c.ndim == 2 and c.size:
+        peak = c.max(axis=1, keepdims=True)
+        c = np.where(peak > 1e100, c / np.where(peak > 0, peak, 1.0), c)
+    return c
 
 
 def offsets_from_counts(counts: np.ndarray, floor: float = FLOOR_SHARE, max_slope: float = MAX_SLOPE) -> np.ndarray:
@@ -193,8 +218,7 @@ def offsets_from_counts(counts: np.ndarray, floor: float = FLOOR_SHARE, max_slop
     increasing with slope >= floor) and is clamped at `max_slope` times uniform. An
     empty row gives the identity (all offsets 0).
     """
-    counts = np.nan_to_num(np.asarray(counts, dtype=np.float64), nan=0.0, posinf=0.0, neginf=0.0)
-    counts = np.maximum(counts, 0.0)
+    counts = clean_counts(counts)
     rows, size = counts.shape
     if not (0.0 < floor <= 1.0):
         raise InputError(f"warp floor must lie in (0, 1], got {floor}")
@@ -288,14 +312,15 @@ def _one_family(counts: np.ndarray, floor: float | None, max_slope: float | None
     floor = FLOOR_SHARE if floor is None else floor
     max_slope = MAX_SLOPE if max_slope is None else max_slope
     shear_limit = SHEAR_LIMIT if shear_limit is None else shear_limit
-    counts = np.asarray(counts, dtype=np.float64)
+    counts = clean_counts(counts)
     along = int(round(counts.shape[1] * ALONG_BLUR_SHARE))
     if along > 0:
         # Blurring along the row keeps the density, and so the offsets' slope, from
-        # changing cell to cell: fewer kinks for rasterised edges to follow.
-        counts = tent_filter(counts.T, along).T
+        # changing cell to cell: fewer kinks for rasterised edges to follow. Dividing
+        # by the blurred ones keeps a uniform row uniform up to its ends.
+        counts = (tent_filter(counts.T, along) / tent_filter(np.ones((counts.shape[1], 1)), along)).T
     offsets = offsets_from_counts(counts, floor, max_slope)
-    totals = np.asarray(counts, dtype=np.float64).sum(axis=1)
+    totals = counts.sum(axis=1)
     if not np.any(totals > 0):
         return offsets, 0
     window = choose_window(offsets, totals, shear_limit)
@@ -329,7 +354,7 @@ def rtw_from_counts(counts: np.ndarray, floor: float = FLOOR_SHARE, max_slope: f
                     blur: int | None = None) -> Warp:
     """RTW: importance collapsed to the max of each column and each row, tent-blurred,
     prefix-summed into two 1D warps shared by all rows and all columns (Rosen 2012)."""
-    counts = np.asarray(counts, dtype=np.float64)
+    counts = clean_counts(counts)
     size = counts.shape[0]
     blur = max(1, size // 64) if blur is None else blur
     along_u = tent_filter(counts.max(axis=0)[:, None], blur)[:, 0]  # importance per column -> warps u

@@ -10,7 +10,7 @@ import pytest
 
 from addon.core.metrics import error_figure
 from addon.core.scene import SceneBuilder
-from addon.render.pipeline import ShadowPipeline, ShadowSettings
+from addon.render.pipeline import ShadowPipeline, ShadowSettings, count_statistics
 from tests.support.oracle import view_samples
 
 pytestmark = pytest.mark.gl
@@ -56,12 +56,15 @@ def case(request):
     return scene, samples, lit, evaluable
 
 
-@pytest.mark.parametrize("param", ["dpsm", "cube"])
-def test_extreme_case_matches_ray_caster(gl_backend, case, param):
-    """Finite maps, and visibility within 1 % of exact at 1024 (mostly edge texels)."""
+@pytest.mark.parametrize("param,warp", [("dpsm", "none"), ("cube", "none"), ("dpsm", "notw"), ("cube", "notw"),
+                                        ("dpsm", "rtw"), ("cube", "rtw")])
+def test_extreme_case_matches_ray_caster(gl_backend, case, param, warp):
+    """Finite maps, and visibility within 1 % of exact at 1024 (mostly edge texels),
+    with and without warping."""
     scene, samples, lit, evaluable = case
-    result = ShadowPipeline(gl_backend).render(scene.light, scene.world_triangles(), samples,
-                                               ShadowSettings(param, 1024), keep_atlas=True)
+    pipe = ShadowPipeline(gl_backend)
+    result = pipe.render(scene.light, scene.world_triangles(), samples, ShadowSettings(param, 1024, warp=warp),
+                         keep_atlas=True)
     assert np.all(np.isfinite(result.atlas))
     assert np.all(np.isfinite(result.visibility))
     assert evaluable.sum() > 1000
@@ -103,3 +106,20 @@ def test_resolution_lowers_error(gl_backend):
                                        ShadowSettings("dpsm", res)).visibility > 0.5, lit, evaluable).error_pct
               for res in (128, 1024)]
     assert errors[1] < errors[0]
+
+
+@pytest.mark.parametrize("param,warp", [("dpsm", "notw"), ("cube", "notw"), ("dpsm", "rtw")])
+def test_warp_lowers_the_peak_count(gl_backend, case, param, warp):
+    """On a coarse map, where texels hold many samples, every layer's peak count drops."""
+    scene, samples, _, _ = case
+    pipe = ShadowPipeline(gl_backend)
+    settings = ShadowSettings(param, 64, warp=warp)
+    result = pipe.render(scene.light, scene.world_triangles(), samples, settings)
+    stats = count_statistics(pipe, scene.light, settings, result)
+    checked = 0
+    for slot, before in stats.before.items():
+        if before.max() >= 6:
+            assert stats.after[slot].max() < before.max(), (slot, before.max(), stats.after[slot].max())
+            checked += 1
+    assert checked >= 1
+    assert stats.texel_utilization > np.mean([np.count_nonzero(b) / b.size for b in stats.before.values()])

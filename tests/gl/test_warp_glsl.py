@@ -1,0 +1,129 @@
+"""The GLSL warp and the GPU count-map scatter against the numpy core, on tiny targets."""
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from addon.core import warping as W
+from addon.core.scene import SceneBuilder
+from addon.render.pipeline import ShadowPipeline, ShadowSettings, ViewSamples
+from addon.render.shaders import SHADER_DIR, ProgramInterface, Uniform, moderngl_sources
+
+pytestmark = pytest.mark.gl
+
+
+def _harness(gl_backend, tmp_path, body: str, inputs: np.ndarray, warp: W.Warp, slot: int) -> np.ndarray:
+    """Evaluate `body` per input row with the warp tables of `warp` stored at `slot`."""
+    shader_dir = tmp_path / "gpu_shaders"
+    (shader_dir / "lib").mkdir(parents=True, exist_ok=True)
+    for name in ("projection.glsl", "warp.glsl", "mapping.glsl"):
+        (shader_dir / "lib" / name).write_text((SHADER_DIR / "lib" / name).read_text())
+    (shader_dir / "fullscreen.vert").write_text((SHADER_DIR / "fullscreen.vert").read_text())
+    (shader_dir / "h.frag").write_text(
+        '#include "lib/mapping.glsl"\nvoid main() {\n'
+        "  vec4 inp = texelFetch(ow_input, ivec2(gl_FragCoord.xy), 0);\n  vec4 outp = vec4(0.0);\n"
+        + body + "\n  ow_out = outp;\n}\n")
+    iface = ProgramInterface("warp_harness", "fullscreen.vert", "h.frag", (("vec2", "ow_corner"),),
+                             (("vec4", "ow_out"),), (Uniform("int", "ow_slot"), Uniform("int", "ow_size"),
+                                                     Uniform("vec4", "ow_crop")),
+                             ("ow_input", "ow_warp_rows", "ow_warp_cols"))
+    vs, fs = moderngl_sources(iface, shader_dir)
+    size = warp.size
+    rows = np.zeros((6 * size, size + 1), "f4")
+    cols = np.zeros((6 * size, size + 1), "f4")
+    rows[slot * size:(slot + 1) * size] = warp.rows
+    cols[slot * size:(slot + 1) * size] = warp.cols
+    n = len(inputs)
+    data = np.zeros((1, n, 4), "f4")
+    data[0, :, :inputs.shape[1]] = inputs
+    ctx = gl_backend.ctx
+    with ctx:
+        prog = ctx.program(vertex_shader=vs, fragment_shader=fs)
+        textures = [ctx.texture((n, 1), 4, data.tobytes(), dtype="f4"),
+                    ctx.texture((size + 1, 6 * size), 1, rows.tobytes(), dtype="f4"),
+                    ctx.texture((size + 1, 6 * size), 1, cols.tobytes(), dtype="f4")]
+        out = ctx.texture((n, 1), 4, dtype="f4")
+        fbo = ctx.framebuffer(color_attachments=[out])
+        vbo = ctx.buffer(np.array([[-1, -1], [3, -1], [-1, 3]], "f4").tobytes())
+        vao = ctx.vertex_array(prog, [(vbo, "2f", "ow_corner")])
+        try:
+            for i, (name, tex) in enumerate(zip(("ow_input", "ow_warp_rows", "ow_warp_cols"), textures)):
+                tex.use(i)
+                if name in prog:  # unused samplers are optimised away
+                    prog[name].value = i
+            for name, value in (("ow_slot", slot), ("ow_size", size)):
+                if name in prog:
+                    prog[name].value = value
+            if "ow_crop" in prog:
+                prog["ow_crop"].value = (0.25, 0.5, 2.0, 4.0)
+            fbo.use()
+            fbo.viewport = (0, 0, n, 1)
+            vao.render()
+            return np.frombuffer(out.read(), "f4").reshape(n, 4).astype(np.float64)
+        finally:
+            for obj in [vao, vbo, fbo, out, prog] + textures:
+                obj.release()
+
+
+@pytest.fixture(scope="module")
+def clustered_warp():
+    rng = np.random.default_rng(11)
+    uv = np.concatenate([rng.normal([0.3, 0.6], 0.05, (4000, 2)), rng.random((1000, 2))]).clip(0, 0.999)
+    return W.build_notw(uv, 16)
+
+
+def test_glsl_warp_matches_numpy(gl_backend, tmp_path, clustered_warp):
+    """ow_warp, its slopes, the row-only warp and ow_unwarp agree with Warp in float32 precision."""
+    q = np.random.default_rng(4).uniform(-0.05, 1.05, (300, 2))
+    got = _harness(gl_backend, tmp_path,
+                   "vec2 s; outp.xy = ow_warp(ow_warp_rows, ow_warp_cols, ow_slot, ow_size, inp.xy, s); outp.zw = s;",
+                   q, clustered_warp, slot=3)
+    assert np.allclose(got[:, :2], clustered_warp.forward(q), atol=2e-6)
+    su, sv = clustered_warp.slopes(q)
+    inside = np.all((q > 0.001) & (q < 0.999), axis=1)
+    assert np.allclose(got[inside, 2], su[inside], rtol=1e-4) and np.allclose(got[inside, 3], sv[inside], rtol=1e-4)
+    rows_only = _harness(gl_backend, tmp_path, "outp.xy = ow_apply_row_warp(ow_warp_rows, ow_slot, ow_size, inp.xy);",
+                         q, clustered_warp, slot=3)
+    expected_u = q[:, 0] + W.family_offset(clustered_warp.rows, q[:, 0], q[:, 1])
+    assert np.allclose(rows_only[:, 0], expected_u, atol=2e-6)
+    w = np.random.default_rng(5).uniform(0.0, 1.0, (300, 2))
+    back = _harness(gl_backend, tmp_path, "outp.xy = ow_unwarp(ow_warp_rows, ow_warp_cols, ow_slot, ow_size, inp.xy);",
+                    w, clustered_warp, slot=3)
+    assert np.allclose(back[:, :2], clustered_warp.inverse(w), atol=2e-5)
+
+
+def test_glsl_mapping_matches_numpy(gl_backend, tmp_path, clustered_warp):
+    """Crop plus warp forward, and back to projection coordinates."""
+    mapping = W.LayerMapping(np.array([0.25, 0.5]), np.array([0.75, 0.75]), clustered_warp)
+    xy = np.random.default_rng(6).uniform([-0.45, 0.05], [0.45, 0.45], (200, 2))
+    got = _harness(gl_backend, tmp_path,
+                   "float m; outp.xy = ow_map_forward(ow_warp_rows, ow_warp_cols, ow_slot, ow_size, ow_crop, inp.xy, m);"
+                   " outp.zw = ow_map_inverse(ow_warp_rows, ow_warp_cols, ow_slot, ow_size, ow_crop, outp.xy);",
+                   xy, clustered_warp, slot=0)
+    assert np.allclose(got[:, :2], mapping.forward(xy), atol=3e-6)
+    assert np.allclose(got[:, 2:], xy, atol=3e-5)
+
+
+def test_gpu_scatter_matches_numpy_count_map(gl_backend):
+    """The additive-blend scatter counts exactly what numpy's bincount counts."""
+    b = SceneBuilder("s", (8, 8))
+    b.plane("floor", (0, 0, -1), 4, 4)
+    b.point_light((0, 0, 0))
+    b.camera((0, 0, 3), (0, 0, 0))
+    scene = b.finish()
+    rng = np.random.default_rng(8)
+    # Directions aimed at texel centres of a 16^2 paraboloid map, many per texel.
+    texels = rng.integers(3, 13, size=(40, 40, 2))
+    xy = (texels + 0.5) / 16 * 2 - 1
+    from addon.core import frames, projection
+
+    layer = frames.light_layers(scene.light, "dpsm")[0]
+    dirs = projection.paraboloid_unproject(xy) @ layer.rotation
+    samples = ViewSamples(dirs * 2.0, -dirs, np.ones((40, 40), bool), scene.camera)
+    pipe = ShadowPipeline(gl_backend)
+    settings = ShadowSettings("dpsm", 16, warp="none")
+    pipe.render(scene.light, scene.world_triangles(), samples, settings)
+    gpu = pipe.count_map(scene.light, settings, layer, W.LayerMapping.identity(), 16, 0)
+    expected = W.scatter_counts((xy * 0.5 + 0.5).reshape(-1, 2), 16)
+    assert gpu.sum() == 1600
+    assert np.array_equal(gpu, expected)
