@@ -77,6 +77,18 @@ class Warp:
         u = family_inverse(self.rows, w[..., 0], v)
         return np.stack([u, v], axis=-1)
 
+    def jacobian(self, uv: np.ndarray) -> np.ndarray:
+        """(..., 2, 2) d(u', v')/d(u, v): rows (du', dv'), columns (d/du, d/dv)."""
+        uv = np.asarray(uv, dtype=np.float64)
+        u, v = uv[..., 0], uv[..., 1]
+        u2 = u + family_offset(self.rows, u, v)
+        du_du = 1.0 + family_slope(self.rows, u, v)
+        du_dv = family_shear(self.rows, u, v)
+        dv_dv_fixed = 1.0 + family_slope(self.cols, v, u2)
+        shear_v = family_shear(self.cols, v, u2)
+        return np.stack([np.stack([du_du, du_dv], -1),
+                         np.stack([shear_v * du_du, dv_dv_fixed + shear_v * du_dv], -1)], -2)
+
     def slopes(self, uv: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """du'/du and dv'/dv (at fixed u') at map points: the local magnifications."""
         uv = np.asarray(uv, dtype=np.float64)
@@ -127,6 +139,18 @@ def family_slope(table: np.ndarray, along: np.ndarray, across: np.ndarray) -> np
     a = np.asarray(along, dtype=np.float64)
     inside = (a >= 0.0) & (a <= 1.0)
     return np.where(inside, (d0 * (1 - f) + d1 * f) * size, 0.0)
+
+
+def family_shear(table: np.ndarray, along: np.ndarray, across: np.ndarray) -> np.ndarray:
+    """d(offset)/d(across): how fast neighbouring functions differ (0 beyond the end centres)."""
+    size = table.shape[0]
+    i0, i1, _ = _blend_rows(table, across)
+    k, s = _node(along, size)
+    o0 = table[i0, k] * (1 - s) + table[i0, k + 1] * s
+    o1 = table[i1, k] * (1 - s) + table[i1, k + 1] * s
+    t = np.asarray(across, dtype=np.float64) * size - 0.5
+    blending = (t > 0.0) & (t < size - 1)
+    return np.where(blending, (o1 - o0) * size, 0.0)
 
 
 def family_inverse(table: np.ndarray, warped: np.ndarray, across: np.ndarray) -> np.ndarray:
@@ -417,6 +441,21 @@ class LayerMapping:
         """Projection coordinates (..., 2) in [-1, 1] to final map uv (..., 2)."""
         uv = (np.asarray(xy, dtype=np.float64) * 0.5 + 0.5 - self.lo) * self.scale
         return self.warp.forward(uv) if self.warp is not None else uv
+
+    def magnification(self, xy: np.ndarray) -> np.ndarray:
+        """Smallest singular value of d(map uv)/d(uncropped uv) at projection points xy.
+
+        A map texel's preimage spans at most 1/magnification plain-map texels in any
+        direction; the shadow test scales its bias footprint by it.
+        """
+        xy = np.asarray(xy, dtype=np.float64)
+        crop = np.zeros(xy.shape[:-1] + (2, 2))
+        crop[..., 0, 0], crop[..., 1, 1] = self.scale
+        jac = crop
+        if self.warp is not None:
+            uv = (xy * 0.5 + 0.5 - self.lo) * self.scale
+            jac = self.warp.jacobian(uv) @ crop
+        return np.linalg.svd(jac, compute_uv=False)[..., -1]
 
     def inverse(self, uv: np.ndarray) -> np.ndarray:
         """Final map uv back to projection coordinates."""

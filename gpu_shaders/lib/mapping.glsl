@@ -7,12 +7,15 @@ vec2 ow_map_forward(sampler2D rows, sampler2D cols, int slot, int warp_size, vec
                     out float magnification)
 {
   vec2 uv = ((xy * 0.5 + 0.5) - crop.xy) * crop.zw;
-  magnification = min(crop.z, crop.w);
+  // Magnification = the smallest singular value of d(map uv)/d(uncropped uv): a texel's
+  // preimage is at most 1/magnification texels of the plain map across, shear included.
+  mat2 jacobian = mat2(crop.z, 0.0, 0.0, crop.w);
   if (warp_size > 0) {
-    vec2 slopes;
-    uv = ow_warp(rows, cols, slot, warp_size, uv, slopes);
-    magnification *= min(slopes.x, slopes.y);
+    mat2 warp_jacobian;
+    uv = ow_warp_jacobian(rows, cols, slot, warp_size, uv, warp_jacobian);
+    jacobian = warp_jacobian * jacobian;
   }
+  magnification = ow_min_singular(jacobian);
   return uv;
 }
 

@@ -27,8 +27,10 @@ float ow_node_value(sampler2D table, int base, OwBlend b, int k, int size)
   return float(k) / float(size) + mix(o0, o1, b.f);
 }
 
-// Offset of the family at `along`, blended `across`; `slope` gets d(offset)/d(along).
-float ow_family_offset(sampler2D table, int slot, int size, float along, float across, out float slope)
+// Offset of the family at `along`, blended `across`; `slope` gets d(offset)/d(along)
+// and `shear` d(offset)/d(across).
+float ow_family_offset2(sampler2D table, int slot, int size, float along, float across, out float slope,
+                        out float shear)
 {
   OwBlend b = ow_blend(across, size);
   int base = slot * size;
@@ -41,7 +43,16 @@ float ow_family_offset(sampler2D table, int slot, int size, float along, float a
   float c1 = texelFetch(table, ivec2(k + 1, base + b.i1), 0).r;
   bool inside = along >= 0.0 && along <= 1.0;
   slope = inside ? mix(a1 - a0, c1 - c0, b.f) * float(size) : 0.0;
+  float t = across * float(size) - 0.5;
+  bool blending = t > 0.0 && t < float(size - 1);
+  shear = blending ? (mix(c0, c1, fr) - mix(a0, a1, fr)) * float(size) : 0.0;
   return mix(mix(a0, a1, fr), mix(c0, c1, fr), b.f);
+}
+
+float ow_family_offset(sampler2D table, int slot, int size, float along, float across, out float slope)
+{
+  float shear;
+  return ow_family_offset2(table, slot, size, along, across, slope, shear);
 }
 
 // Solve x + offset(x; across) = warped by binary search over the nodes (increasing).
@@ -70,14 +81,36 @@ float ow_family_inverse(sampler2D table, int slot, int size, float warped, float
 }
 
 // Full warp (eq. 4.9): rows first, then columns indexed by the row-warped u.
+// `jacobian` gets d(u', v')/d(u, v) (column-major: J[0] = d/du, J[1] = d/dv).
+vec2 ow_warp_jacobian(sampler2D rows, sampler2D cols, int slot, int size, vec2 uv, out mat2 jacobian)
+{
+  float su, shear_u, sv, shear_v;
+  float u2 = uv.x + ow_family_offset2(rows, slot, size, uv.x, uv.y, su, shear_u);
+  float v2 = uv.y + ow_family_offset2(cols, slot, size, uv.y, u2, sv, shear_v);
+  float du_du = 1.0 + su;
+  float du_dv = shear_u;
+  // v' = v + o_y(v; u'(u, v)): the chain rule through u'.
+  jacobian = mat2(du_du, shear_v * du_du, du_dv, 1.0 + sv + shear_v * du_dv);
+  return vec2(u2, v2);
+}
+
 vec2 ow_warp(sampler2D rows, sampler2D cols, int slot, int size, vec2 uv, out vec2 slopes)
 {
-  float su;
-  float sv;
-  float u2 = uv.x + ow_family_offset(rows, slot, size, uv.x, uv.y, su);
-  float v2 = uv.y + ow_family_offset(cols, slot, size, uv.y, u2, sv);
-  slopes = vec2(1.0 + su, 1.0 + sv);
-  return vec2(u2, v2);
+  mat2 j;
+  vec2 w = ow_warp_jacobian(rows, cols, slot, size, uv, j);
+  slopes = vec2(j[0][0], j[1][1] - j[0][1] * j[1][0] / j[0][0]);  // dv'/dv at fixed u'
+  return w;
+}
+
+// Smallest singular value of a 2x2 matrix: the least a texel is magnified in any direction.
+float ow_min_singular(mat2 m)
+{
+  float a = dot(m[0], m[0]);
+  float b = dot(m[0], m[1]);
+  float c = dot(m[1], m[1]);
+  float mean = 0.5 * (a + c);
+  float spread = sqrt(max(0.25 * (a - c) * (a - c) + b * b, 0.0));
+  return sqrt(max(mean - spread, 0.0));
 }
 
 // Row warp only (the second scatter of Algorithm 3).

@@ -102,6 +102,10 @@ def test_glsl_mapping_matches_numpy(gl_backend, tmp_path, clustered_warp):
                    xy, clustered_warp, slot=0)
     assert np.allclose(got[:, :2], mapping.forward(xy), atol=3e-6)
     assert np.allclose(got[:, 2:], xy, atol=3e-5)
+    mag = _harness(gl_backend, tmp_path,
+                   "ow_map_forward(ow_warp_rows, ow_warp_cols, ow_slot, ow_size, ow_crop, inp.xy, outp.x);",
+                   xy, clustered_warp, slot=0)
+    assert np.allclose(mag[:, 0], mapping.magnification(xy), rtol=1e-4)
 
 
 def test_gpu_scatter_matches_numpy_count_map(gl_backend):
