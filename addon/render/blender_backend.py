@@ -1,0 +1,331 @@
+"""Blender `gpu` module backend: the same GLSL as moderngl, declared through
+`GPUShaderCreateInfo`.
+
+`gpu` is imported lazily, so this module imports without Blender (the layering
+test checks that). In background mode call `ensure_gpu()` first: Blender 5.2 has
+`gpu.init()`; older versions need one tiny Workbench render (DESIGN.md section 3).
+
+One GL owner per process: never mix this backend with moderngl in one process.
+"""
+from __future__ import annotations
+
+import logging
+from typing import Any
+
+import numpy as np
+
+from ..core.errors import BackendError
+from .backend import AtlasLayout, ShadowBackend, UniformValues
+from .shaders import (
+    DEPTH_PROGRAM,
+    SCATTER_PROGRAM,
+    SHADOW_TEST_PROGRAM,
+    ProgramInterface,
+    load_source,
+)
+
+log = logging.getLogger(__name__)
+
+_FULLSCREEN = [(-1.0, -1.0), (3.0, -1.0), (-1.0, 3.0)]
+_GLSL_TYPES = {
+    "float": "FLOAT", "vec2": "VEC2", "vec3": "VEC3", "vec4": "VEC4", "mat3": "MAT3", "mat4": "MAT4",
+    "int": "INT", "ivec2": "IVEC2", "ivec3": "IVEC3", "ivec4": "IVEC4", "bool": "BOOL",
+}
+_VECTOR_SIZES = {"float": 1, "vec2": 2, "vec3": 3, "vec4": 4, "mat3": 9, "mat4": 16}
+
+
+def ensure_gpu() -> None:
+    """Make the `gpu` module usable for drawing (needed in background mode)."""
+    import bpy
+    import gpu
+
+    if not bpy.app.background:
+        return
+    init = getattr(gpu, "init", None)
+    if init is not None:
+        init()  # Blender 5.2+: creates the GPU context for background mode; idempotent
+        return
+    # Older versions: one tiny Workbench render creates the context as a side effect.
+    scene = bpy.data.scenes.new("omniwarp_gpu_init")
+    try:
+        scene.render.engine = "BLENDER_WORKBENCH"
+        scene.render.resolution_x = scene.render.resolution_y = 4
+        camera = bpy.data.objects.new("omniwarp_gpu_init_cam", bpy.data.cameras.new("omniwarp_gpu_init_cam"))
+        scene.collection.objects.link(camera)
+        scene.camera = camera
+        bpy.ops.render.render(scene=scene.name)
+    finally:
+        data = scene.camera.data if scene.camera else None
+        if scene.camera:
+            bpy.data.objects.remove(scene.camera)
+        if data:
+            bpy.data.cameras.remove(data)
+        bpy.data.scenes.remove(scene)
+
+
+def create_info(iface: ProgramInterface) -> Any:
+    """A `GPUShaderCreateInfo` declaring everything `iface` names, with the shared GLSL."""
+    import gpu
+
+    info = gpu.types.GPUShaderCreateInfo()
+    for uniform in iface.uniforms:
+        info.push_constant(_GLSL_TYPES[uniform.glsl_type], uniform.name, uniform.array)
+    for slot, sampler in enumerate(iface.samplers):
+        info.sampler(slot, "FLOAT_2D", sampler)
+    for slot, (glsl_type, name) in enumerate(iface.vertex_in):
+        info.vertex_in(slot, _GLSL_TYPES[glsl_type], name)
+    if iface.varyings:
+        stage = gpu.types.GPUStageInterfaceInfo(f"{iface.name}_iface")
+        for var in iface.varyings:
+            (stage.flat if var.flat else stage.smooth)(_GLSL_TYPES[var.glsl_type], var.name)
+        info.vertex_out(stage)
+    for slot, (glsl_type, name) in enumerate(iface.fragment_out):
+        info.fragment_out(slot, _GLSL_TYPES[glsl_type], name)
+    if iface.writes_depth:
+        info.depth_write("ANY")
+    for key, value in iface.defines.items():
+        info.define(key, value)
+    info.vertex_source(load_source(iface.vertex_file))
+    info.fragment_source(load_source(iface.fragment_file))
+    return info
+
+
+def _float_texture(size: tuple[int, int], fmt: str, data: np.ndarray | None = None):
+    import gpu
+
+    buffer = None
+    if data is not None:
+        flat = np.ascontiguousarray(data, dtype=np.float32).ravel()
+        buffer = gpu.types.Buffer("FLOAT", flat.size, flat)
+    return gpu.types.GPUTexture(size, format=fmt, data=buffer)
+
+
+def _components(fmt: str) -> int:
+    return {"R32F": 1, "RG32F": 2, "RGBA32F": 4}[fmt]
+
+
+def _read(texture, fmt: str) -> np.ndarray:
+    """Texture contents as (height, width[, channels]) float32, row 0 at the bottom."""
+    raw = np.asarray(texture.read(), dtype=np.float32)
+    channels = _components(fmt)
+    shape = (texture.height, texture.width) + ((channels,) if channels > 1 else ())
+    return raw.reshape(shape).copy()
+
+
+class BlenderGPUBackend(ShadowBackend):
+    """Shadow backend on Blender's `gpu` module (viewport, background, headless)."""
+
+    name = "blender-gpu"
+
+    def __init__(self) -> None:
+        try:
+            import gpu  # noqa: F401
+        except ImportError as exc:
+            raise BackendError("the Blender gpu backend needs Blender (bpy) to run") from exc
+        self._shaders: dict[str, Any] = {}
+        self._layout: AtlasLayout | None = None
+        self._atlas = self._atlas_depth = self._atlas_fb = None
+        self._textures: dict[str, Any] = {}
+        self._sample_size: tuple[int, int] | None = None
+        self._test_target = None
+        self._count_targets: dict[int, tuple] = {}
+        self._batches: dict[str, Any] = {}
+        self._released = False
+        self.set_warp_tables(None, None)
+
+    # shaders ----------------------------------------------------------------
+    def shader(self, iface: ProgramInterface):
+        """Build (once) the shader for an interface."""
+        import gpu
+
+        shader = self._shaders.get(iface.name)
+        if shader is None:
+            try:
+                shader = gpu.shader.create_from_info(create_info(iface))
+            except Exception as exc:  # gpu reports GLSL errors as plain Exception
+                raise BackendError(f"GLSL program {iface.name} failed to build in Blender: {exc}") from exc
+            self._shaders[iface.name] = shader
+        return shader
+
+    def _bind(self, iface: ProgramInterface, uniforms: UniformValues):
+        shader = self.shader(iface)
+        shader.bind()
+        types = {u.name: u for u in iface.uniforms}
+        for name, value in uniforms.items():
+            uniform = types.get(name)
+            if uniform is None:
+                continue
+            self._set_uniform(shader, uniform, value)
+        for sampler in iface.samplers:
+            texture = self._textures.get(sampler)
+            if texture is None:
+                raise BackendError(f"{iface.name}: no texture for sampler {sampler}")
+            shader.uniform_sampler(sampler, texture)
+        return shader
+
+    @staticmethod
+    def _set_uniform(shader, uniform, value) -> None:
+        import gpu
+
+        arr = np.asarray(value, dtype=np.float64)
+        if uniform.glsl_type in ("int", "bool", "ivec2", "ivec3", "ivec4"):
+            shader.uniform_int(uniform.name, int(value) if arr.ndim == 0 else [int(v) for v in arr.ravel()])
+            return
+        if uniform.glsl_type.startswith("mat"):
+            # GLSL matrices are column-major: upload the transpose's rows.
+            arr = np.swapaxes(arr.reshape((-1,) + arr.shape[-2:]), -1, -2)
+        flat = np.ascontiguousarray(arr, dtype=np.float32).ravel()
+        if uniform.array:
+            location = shader.uniform_from_name(uniform.name)
+            length = _VECTOR_SIZES[uniform.glsl_type]
+            shader.uniform_vector_float(location, gpu.types.Buffer("FLOAT", flat.size, flat), length,
+                                        flat.size // length)
+        elif flat.size == 1:
+            shader.uniform_float(uniform.name, float(flat[0]))
+        else:
+            shader.uniform_float(uniform.name, [float(v) for v in flat])
+
+    # interface --------------------------------------------------------------
+    def renderer(self) -> str:
+        import gpu
+
+        return f"{gpu.platform.renderer_get()} | {gpu.platform.version_get()} (Blender gpu)"
+
+    def max_texture_size(self) -> int:
+        import gpu
+
+        return int(gpu.capabilities.max_texture_size_get())
+
+    def begin_atlas(self, layout: AtlasLayout) -> None:
+        import gpu
+
+        if self._layout != layout:
+            self._atlas = _float_texture(layout.size, "R32F")
+            self._atlas_depth = gpu.types.GPUTexture(layout.size, format="DEPTH_COMPONENT32F")
+            self._atlas_fb = gpu.types.GPUFrameBuffer(color_slots=(self._atlas,), depth_slot=self._atlas_depth)
+            self._layout = layout
+            self._textures["ow_atlas"] = self._atlas
+        with self._atlas_fb.bind():
+            self._atlas_fb.clear(color=(1.0, 1.0, 1.0, 1.0), depth=1.0)
+
+    def draw_layer(self, tile: int, vertices: np.ndarray, uniforms: UniformValues) -> None:
+        import gpu
+        from gpu_extras.batch import batch_for_shader
+
+        if self._layout is None:
+            raise BackendError("draw_layer called before begin_atlas")
+        if len(vertices) == 0:
+            return
+        data = np.ascontiguousarray(vertices, dtype=np.float32)
+        x, y = self._layout.origin(tile)
+        res = self._layout.resolution
+        with self._atlas_fb.bind():
+            shader = self._bind(DEPTH_PROGRAM, uniforms)
+            batch = batch_for_shader(shader, "TRIS", {
+                "ow_position": data[:, 0:3], "ow_plane": data[:, 3:7], "ow_range": data[:, 7:9]})
+            gpu.state.viewport_set(x, y, res, res)
+            gpu.state.depth_test_set("LESS")
+            gpu.state.depth_mask_set(True)
+            gpu.state.face_culling_set("NONE")  # both windings cast shadows
+            try:
+                batch.draw(shader)
+            finally:
+                gpu.state.depth_test_set("NONE")
+                gpu.state.depth_mask_set(False)
+
+    def upload_samples(self, positions: np.ndarray, normals: np.ndarray) -> None:
+        import gpu
+
+        height, width = positions.shape[:2]
+        self._textures["ow_positions"] = _float_texture((width, height), "RGBA32F", positions)
+        self._textures["ow_normals"] = _float_texture((width, height), "RGBA32F", normals)
+        if self._sample_size != (width, height):
+            out = _float_texture((width, height), "RG32F")
+            self._test_target = (out, gpu.types.GPUFrameBuffer(color_slots=(out,)))
+            self._batches.pop("scatter", None)
+            self._sample_size = (width, height)
+
+    def set_warp_tables(self, rows: np.ndarray | None, cols: np.ndarray | None) -> None:
+        for name, table in (("ow_warp_rows", rows), ("ow_warp_cols", cols)):
+            data = np.zeros((1, 1), np.float32) if table is None else np.asarray(table, np.float32)
+            self._textures[name] = _float_texture((data.shape[1], data.shape[0]), "R32F", data)
+
+    def scatter_counts(self, size: int, uniforms: UniformValues) -> np.ndarray:
+        import gpu
+        from gpu_extras.batch import batch_for_shader
+
+        if self._sample_size is None:
+            raise BackendError("scatter_counts called before upload_samples")
+        target = self._count_targets.get(size)
+        if target is None:
+            tex = _float_texture((size, size), "R32F")
+            target = (tex, gpu.types.GPUFrameBuffer(color_slots=(tex,)))
+            self._count_targets[size] = target
+        tex, fb = target
+        with fb.bind():
+            fb.clear(color=(0.0, 0.0, 0.0, 0.0))
+            shader = self._bind(SCATTER_PROGRAM, uniforms)
+            batch = self._batches.get("scatter")
+            if batch is None:
+                count = self._sample_size[0] * self._sample_size[1]
+                batch = batch_for_shader(shader, "POINTS",
+                                         {"ow_index": np.arange(count, dtype=np.float32)})
+                self._batches["scatter"] = batch
+            gpu.state.viewport_set(0, 0, size, size)
+            # (ONE, ONE): 'ADDITIVE' would scale by the source alpha, which a
+            # one-channel output leaves at 0 (DESIGN.md section 3).
+            gpu.state.blend_set("ADDITIVE_PREMULT")
+            gpu.state.program_point_size_set(True)
+            try:
+                batch.draw(shader)
+            finally:
+                gpu.state.blend_set("NONE")
+                gpu.state.program_point_size_set(False)
+        return _read(tex, "R32F")
+
+    def shadow_test(self, uniforms: UniformValues) -> np.ndarray:
+        import gpu
+        from gpu_extras.batch import batch_for_shader
+
+        if self._atlas is None or self._sample_size is None:
+            raise BackendError("shadow_test needs an atlas and uploaded samples")
+        out, fb = self._test_target
+        width, height = self._sample_size
+        with fb.bind():
+            shader = self._bind(SHADOW_TEST_PROGRAM, uniforms)
+            batch = self._batches.get("fullscreen")
+            if batch is None:
+                batch = batch_for_shader(shader, "TRIS", {"ow_corner": _FULLSCREEN})
+                self._batches["fullscreen"] = batch
+            gpu.state.viewport_set(0, 0, width, height)
+            gpu.state.depth_test_set("NONE")
+            batch.draw(shader)
+        return _read(out, "RG32F")
+
+    def read_atlas(self) -> np.ndarray:
+        if self._atlas is None:
+            raise BackendError("no atlas to read")
+        return _read(self._atlas, "R32F")
+
+    def finish(self) -> None:
+        import gpu
+
+        # Reading one texel back forces the queue to drain (there is no glFinish in `gpu`).
+        if self._atlas is not None:
+            with self._atlas_fb.bind():
+                self._atlas_fb.read_color(0, 0, 1, 1, 1, 0, "FLOAT")
+        else:
+            gpu.state.viewport_get()
+
+    def release(self) -> None:
+        """Drop every GPU object; Blender frees them when the last reference goes."""
+        if self._released:
+            return
+        self._batches.clear()
+        self._count_targets.clear()
+        self._test_target = None
+        self._textures.clear()
+        self._atlas = self._atlas_depth = self._atlas_fb = None
+        self._layout = None
+        self._shaders.clear()
+        self._released = True
