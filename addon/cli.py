@@ -4,6 +4,7 @@
     omniwarp reference --preset SEL [--size WxH] [--refresh]
     omniwarp compare --preset SEL | --blend FILE [--light NAME] [--camera NAME]
                      [--methods m1,m2] [--resolutions 512,1024] [--no-cull] [--out DIR]
+    omniwarp preview --preset NAME | --blend FILE [--light NAME] [--out DIR]
 
 Bad input exits with status 2 and one line naming the problem; other known
 failures exit with status 1.
@@ -11,6 +12,7 @@ failures exit with status 1.
 from __future__ import annotations
 
 import argparse
+import json
 import logging
 import sys
 from collections.abc import Callable, Sequence
@@ -53,6 +55,14 @@ def _parser() -> argparse.ArgumentParser:
     cmp_.add_argument("--size", default="640x480", help="camera size WxH for presets (default 640x480)")
     cmp_.add_argument("--frames", type=int, default=3, help="timed frames per row after one warm-up (default 3)")
     cmp_.add_argument("--no-images", action="store_true", help="skip the mismatch images")
+
+    prev = sub.add_parser("preview", help="the viewport preview and map overlay, drawn headless with Blender's gpu")
+    psource = prev.add_mutually_exclusive_group(required=True)
+    psource.add_argument("--preset", help="one preset name")
+    psource.add_argument("--blend", help="a saved .blend file (its scene camera)")
+    prev.add_argument("--light", help="with --blend: the light object to preview")
+    prev.add_argument("--out", default="out/preview", help="output folder (default out/preview)")
+    prev.add_argument("--size", default="640x480", help="camera size WxH for presets (default 640x480)")
     return parser
 
 
@@ -140,7 +150,48 @@ def cmd_compare(args: argparse.Namespace) -> int:
     return 0
 
 
-COMMANDS = {"presets": cmd_presets, "reference": cmd_reference, "compare": cmd_compare}
+def cmd_preview(args: argparse.Namespace) -> int:
+    """Reference first (Cycles, this process), then the Blender gpu backend in a child process."""
+    import os
+    import subprocess
+    import tempfile
+
+    from .compare import parse_size
+
+    if args.preset is not None:
+        if "," in args.preset or args.preset in ("all", "stress_all"):
+            raise InputError("preview takes one preset name")
+        name = select_presets(args.preset)[0]
+        from .reference.cache import load_or_capture
+
+        reference = load_or_capture(name, parse_size(args.size), log_progress=_say)
+        source = ["--preset", name]
+    else:
+        args.camera = None
+        reference = _blend_reference(args)()
+        source = ["--blend", str(Path(args.blend).resolve())] + (["--light", args.light] if args.light else [])
+    out = Path(args.out)
+    out.mkdir(parents=True, exist_ok=True)
+    with tempfile.TemporaryDirectory(prefix="omniwarp_preview_") as tmp:
+        ref_path = reference.save(Path(tmp) / "reference.npz")
+        env = dict(os.environ)
+        repo_root = str(Path(__file__).resolve().parents[1])
+        env["PYTHONPATH"] = repo_root + os.pathsep + env.get("PYTHONPATH", "")
+        # One GL owner per process: Blender's gpu runs in a child (DESIGN.md section 3).
+        proc = subprocess.run([sys.executable, "-m", "addon.blender.headless", *source,
+                               "--reference", str(ref_path), "--out", str(out.resolve())],
+                              env=env, cwd=repo_root, capture_output=True, text=True)
+    if proc.returncode != 0:
+        tail = "\n".join(line for line in proc.stderr.splitlines() if "EGL_BAD" not in line)[-2000:]
+        raise OmniWarpError(f"the preview process failed (exit {proc.returncode}):\n{tail}")
+    print(f"wrote {out / 'preview.png'}, {out / 'overlay.png'}, {out / 'preview.json'}")
+    report = json.loads((out / "preview.json").read_text())
+    print(f"error {report['error_pct']:.3f} % of {report['evaluated_pixels']} px; "
+          f"total {report['time_ms']['total']:.1f} ms (+ G-buffer {report['time_ms']['gbuffer']:.1f} ms)")
+    return 0
+
+
+COMMANDS = {"presets": cmd_presets, "reference": cmd_reference, "compare": cmd_compare, "preview": cmd_preview}
 
 
 def main(argv: Sequence[str] | None = None) -> int:

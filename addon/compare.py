@@ -22,6 +22,7 @@ from .core import metrics
 from .core.errors import InputError
 from .core.scene import CameraSpec, LightSpec
 from .reference.data import ReferenceData
+from .render.blender_draw import pool_image
 from .render.pipeline import (
     MAX_RESOLUTION,
     MIN_RESOLUTION,
@@ -214,11 +215,7 @@ def _warp_summary(result: FrameResult) -> dict:
 
 
 def _pool(image: np.ndarray, reduce) -> np.ndarray:
-    factor = max(1, -(-max(image.shape) // MAP_IMAGE_MAX))
-    if factor == 1:
-        return image
-    h, w = (image.shape[0] // factor) * factor, (image.shape[1] // factor) * factor
-    return reduce(reduce(image[:h, :w].reshape(h // factor, factor, w // factor, factor), axis=3), axis=1)
+    return pool_image(image, MAP_IMAGE_MAX, reduce)
 
 
 def _write_map_images(image_dir: Path, stem: str, result: FrameResult, counts) -> list[str]:

@@ -1,4 +1,13 @@
-"""Registers the extension's bpy classes with Blender, in one fixed order.
+"""Registers the extension with Blender, in one fixed order.
+
+`register()` does three steps, and `unregister()` undoes them in exactly the
+reverse order:
+
+1. the bpy classes in `CLASSES` (PropertyGroups first, then panels);
+2. the namespaced settings pointers `bpy.types.Light.omniwarp` and
+   `bpy.types.Scene.omniwarp` (see `POINTERS`);
+3. the runtime modules in `RUNTIME_MODULES` (depsgraph handlers, viewport draw
+   handlers and timers), each imported lazily and asked to `register()`.
 
 Order matters: a PropertyGroup must be registered before anything that points
 at it, and panels after the operators they draw. Add new classes to `CLASSES`
@@ -6,40 +15,119 @@ in dependency order; `unregister()` walks it backwards.
 """
 from __future__ import annotations
 
+import importlib
 import logging
+from types import ModuleType
 
 import bpy
 
+from . import panels, properties
+
 log = logging.getLogger(__name__)
 
-CLASSES: tuple[type, ...] = ()
+CLASSES: tuple[type, ...] = (
+    properties.OMNIWARP_PG_light,
+    properties.OMNIWARP_PG_scene,
+    panels.OMNIWARP_PT_light,
+    panels.OMNIWARP_PT_viewport,
+    panels.OMNIWARP_PT_overlay,
+)
+
+# (owner type, attribute, PropertyGroup): one namespaced pointer per owner.
+POINTERS: tuple[tuple[type, str, type], ...] = (
+    (bpy.types.Light, "omniwarp", properties.OMNIWARP_PG_light),
+    (bpy.types.Scene, "omniwarp", properties.OMNIWARP_PG_scene),
+)
+
+# Sibling modules with their own register()/unregister(), called in this order
+# (and in reverse on unregister). Tests may set this to () to run without them.
+RUNTIME_MODULES: tuple[str, ...] = ("scene_cache", "viewport")
+
+
+def _runtime_module(name: str) -> ModuleType:
+    """Import the sibling runtime module `name` (relative to this package)."""
+    return importlib.import_module(f".{name}", __package__)
+
+
+def _register_classes(done: list[type]) -> None:
+    for cls in CLASSES:
+        bpy.utils.register_class(cls)
+        done.append(cls)
+
+
+def _add_pointers(done: list[tuple[type, str]]) -> None:
+    for owner, attr, group in POINTERS:
+        setattr(owner, attr, bpy.props.PointerProperty(type=group))
+        done.append((owner, attr))
+
+
+def _register_runtime(done: list[ModuleType]) -> None:
+    for name in RUNTIME_MODULES:
+        module = _runtime_module(name)
+        module.register()
+        done.append(module)
+
+
+def _remove_pointer(owner: type, attr: str) -> bool:
+    """Delete `owner.attr` if it is there; True when something was removed."""
+    if not hasattr(owner, attr):
+        return False
+    delattr(owner, attr)
+    return True
 
 
 def register() -> None:
-    """Register every class in `CLASSES`, in order.
+    """Register classes, then the settings pointers, then the runtime modules.
 
-    If one fails, the classes registered so far are unregistered again and the
+    If a step fails, everything done so far is undone in reverse order and the
     error is re-raised, so a failed enable leaves Blender clean.
     """
-    done: list[type] = []
+    classes: list[type] = []
+    pointers: list[tuple[type, str]] = []
+    runtime: list[ModuleType] = []
     try:
-        for cls in CLASSES:
-            bpy.utils.register_class(cls)
-            done.append(cls)
+        _register_classes(classes)
+        _add_pointers(pointers)
+        _register_runtime(runtime)
     except Exception:
-        log.exception("registering %s failed; rolling back", CLASSES[len(done)].__name__)
-        for cls in reversed(done):
+        log.exception(
+            "registering OmniWarp failed after %d classes, %d pointers, %d runtime modules; rolling back",
+            len(classes), len(pointers), len(runtime),
+        )
+        for module in reversed(runtime):
+            module.unregister()
+        for owner, attr in reversed(pointers):
+            _remove_pointer(owner, attr)
+        for cls in reversed(classes):
             bpy.utils.unregister_class(cls)
         raise
-    log.debug("registered %d classes", len(done))
+    log.debug("registered %d classes, %d pointers, %d runtime modules", len(classes), len(pointers), len(runtime))
 
 
 def unregister() -> None:
-    """Unregister every class in `CLASSES`, in reverse order.
+    """Undo `register()` in reverse: runtime modules, pointers, then classes.
 
-    Classes that are not registered (e.g. after a failed register) are skipped
-    with a warning instead of stopping the rest.
+    Safe to call when nothing (or only part) is registered: a runtime module
+    that cannot be imported, a missing pointer or an unregistered class is
+    skipped with a log line instead of stopping the rest.
     """
+    modules = 0
+    for name in reversed(RUNTIME_MODULES):
+        try:
+            module = _runtime_module(name)
+        except ModuleNotFoundError as err:
+            log.warning("runtime module %r not importable (%s); skipping its unregister", name, err)
+            continue
+        module.unregister()
+        modules += 1
+
+    pointers = 0
+    for owner, attr, _group in reversed(POINTERS):
+        if _remove_pointer(owner, attr):
+            pointers += 1
+        else:
+            log.debug("%s.%s was not registered; skipping", owner.__name__, attr)
+
     count = 0
     for cls in reversed(CLASSES):
         try:
@@ -47,4 +135,4 @@ def unregister() -> None:
             count += 1
         except RuntimeError:
             log.warning("%s was not registered; skipping", cls.__name__)
-    log.debug("unregistered %d classes", count)
+    log.debug("unregistered %d runtime modules, %d pointers, %d classes", modules, pointers, count)

@@ -116,10 +116,16 @@ def layer_meets_frustum(layer: Layer, light_position: np.ndarray, corners: np.nd
     return not _separated(pyramid, local, axes)
 
 
-def plan_frame(light: LightSpec, parameterization: Parameterization, camera: CameraSpec,
+def plan_frame(light: LightSpec, parameterization: Parameterization, camera: CameraSpec | None,
                positions: np.ndarray, hit: np.ndarray, far: float, cull: bool = True) -> Plan:
-    """Decide which layers to draw for one frame."""
+    """Decide which layers to draw for one frame.
+
+    Without a perspective camera (e.g. an orthographic viewport) there is no view
+    frustum to test against, so every layer is drawn.
+    """
     layers = light_layers(light, parameterization)
+    if camera is None:
+        return Plan(parameterization, layers, list(layers), None)
     corners = truncated_frustum(camera, positions, hit)
     if not cull:
         return Plan(parameterization, layers, list(layers), corners)

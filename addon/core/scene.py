@@ -92,6 +92,26 @@ class CameraSpec:
         )
 
 
+def camera_from_matrices(view_matrix: np.ndarray, projection: np.ndarray,
+                         resolution: tuple[int, int]) -> CameraSpec | None:
+    """The perspective camera behind an OpenGL view and projection matrix, or None.
+
+    Returns None for orthographic or off-centre (lens-shifted) projections, which a
+    `CameraSpec` cannot describe.
+    """
+    p = np.asarray(projection, dtype=np.float64)
+    if abs(p[3, 2] + 1.0) > 1e-6 or abs(p[3, 3]) > 1e-9 or abs(p[0, 2]) > 1e-6 or abs(p[1, 2]) > 1e-6:
+        return None
+    width, height = resolution
+    # P[0,0] = 1/tan(half fov x), P[1,1] = 1/tan(half fov y); fov spans the larger side.
+    half = 1.0 / p[0, 0] if width >= height else 1.0 / p[1, 1]
+    fov = math.degrees(2.0 * math.atan(half))
+    near = p[2, 3] / (p[2, 2] - 1.0)
+    far = p[2, 3] / (p[2, 2] + 1.0)
+    world = np.linalg.inv(np.asarray(view_matrix, dtype=np.float64))
+    return CameraSpec(world, fov, (int(width), int(height)), float(near), float(far))
+
+
 @dataclass
 class SceneSpec:
     """Everything a preset defines."""

@@ -184,15 +184,18 @@ def _rigid(matrix) -> np.ndarray:
     return out
 
 
-def _evaluated_depsgraph(scene: "bpy.types.Scene", view_layer: "bpy.types.ViewLayer"):
+def evaluated_depsgraph(scene: "bpy.types.Scene", view_layer: "bpy.types.ViewLayer | None" = None):
     """The evaluated (viewport) depsgraph of a scene that need not be the active one."""
     import bpy
 
     # view_layer.depsgraph is None until something evaluates the scene; the context
     # override makes Blender create and evaluate it for this scene and layer.
-    with bpy.context.temp_override(scene=scene, view_layer=view_layer):
+    with bpy.context.temp_override(scene=scene, view_layer=view_layer or scene.view_layers[0]):
         depsgraph = bpy.context.evaluated_depsgraph_get()
     return depsgraph
+
+
+_evaluated_depsgraph = evaluated_depsgraph
 
 
 def _warn_viewport_render_mismatch(scene: "bpy.types.Scene", visible: set[str]) -> None:

@@ -90,6 +90,16 @@ def create_info(iface: ProgramInterface) -> Any:
     return info
 
 
+def float_texture(size: tuple[int, int], fmt: str, data: np.ndarray | None = None):
+    """A float `GPUTexture` (R32F, RG32F or RGBA32F), optionally filled from numpy (row 0 at the bottom)."""
+    return _float_texture(size, fmt, data)
+
+
+def read_texture(texture, fmt: str) -> np.ndarray:
+    """Texture contents as numpy, row 0 at the bottom."""
+    return _read(texture, fmt)
+
+
 def _float_texture(size: tuple[int, int], fmt: str, data: np.ndarray | None = None):
     import gpu
 
@@ -147,7 +157,14 @@ class BlenderGPUBackend(ShadowBackend):
             self._shaders[iface.name] = shader
         return shader
 
-    def _bind(self, iface: ProgramInterface, uniforms: UniformValues):
+    def bind_program(self, iface: ProgramInterface, uniforms: UniformValues, textures: dict[str, Any] | None = None):
+        """Bind a program with uniforms and textures (by sampler name); return the shader.
+
+        Textures not given are taken from the backend's own (samples, atlas, warps).
+        """
+        return self._bind(iface, uniforms, textures)
+
+    def _bind(self, iface: ProgramInterface, uniforms: UniformValues, textures: dict[str, Any] | None = None):
         shader = self.shader(iface)
         shader.bind()
         types = {u.name: u for u in iface.uniforms}
@@ -157,7 +174,7 @@ class BlenderGPUBackend(ShadowBackend):
                 continue
             self._set_uniform(shader, uniform, value)
         for sampler in iface.samplers:
-            texture = self._textures.get(sampler)
+            texture = (textures or {}).get(sampler) or self._textures.get(sampler)
             if texture is None:
                 raise BackendError(f"{iface.name}: no texture for sampler {sampler}")
             shader.uniform_sampler(sampler, texture)

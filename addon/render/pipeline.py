@@ -79,7 +79,7 @@ class ViewSamples:
     positions: np.ndarray  # (H, W, 3) world
     normals: np.ndarray  # (H, W, 3) world, unit
     hit: np.ndarray  # (H, W) bool
-    camera: CameraSpec
+    camera: CameraSpec | None  # None: no perspective camera, so no layer culling
 
 
 @dataclass

@@ -157,7 +157,40 @@ SCATTER_PROGRAM = ProgramInterface(
     samplers=("ow_positions",) + _WARP_SAMPLERS,
 )
 
-PROGRAMS = (DEPTH_PROGRAM, SHADOW_TEST_PROGRAM, SCATTER_PROGRAM)
+GBUFFER_PROGRAM = ProgramInterface(
+    name="omniwarp_gbuffer",
+    vertex_file="gbuffer.vert",
+    fragment_file="gbuffer.frag",
+    vertex_in=(("vec3", "ow_world"), ("vec3", "ow_face_normal")),
+    fragment_out=(("vec4", "ow_gb_position"), ("vec4", "ow_gb_normal")),
+    uniforms=(Uniform("mat4", "ow_view_proj"), Uniform("vec3", "ow_camera_pos")),
+    varyings=(Varying("vec3", "v_world"), Varying("vec3", "v_normal", flat=True)),
+)
+
+PREVIEW_PROGRAM = ProgramInterface(
+    name="omniwarp_preview",
+    vertex_file="fullscreen.vert",
+    fragment_file="preview.frag",
+    vertex_in=(("vec2", "ow_corner"),),
+    fragment_out=(("vec4", "ow_color"),),
+    uniforms=(Uniform("vec3", "ow_light_pos"), Uniform("float", "ow_strength"), Uniform("int", "ow_draw_base"),
+              Uniform("vec2", "ow_target_size")),
+    samplers=("ow_gb_position", "ow_gb_normal", "ow_visibility"),
+)
+
+OVERLAY_PROGRAM = ProgramInterface(
+    name="omniwarp_overlay",
+    vertex_file="overlay.vert",
+    fragment_file="overlay.frag",
+    vertex_in=(("vec2", "ow_corner"),),
+    fragment_out=(("vec4", "ow_color"),),
+    uniforms=(Uniform("vec4", "ow_rect"), Uniform("vec2", "ow_target_size"), Uniform("int", "ow_mode"),
+              Uniform("float", "ow_max")),
+    samplers=("ow_image",),
+    varyings=(Varying("vec2", "v_uv"),),
+)
+
+PROGRAMS = (DEPTH_PROGRAM, SHADOW_TEST_PROGRAM, SCATTER_PROGRAM, GBUFFER_PROGRAM, PREVIEW_PROGRAM, OVERLAY_PROGRAM)
 
 
 def _decl_uniform(u: Uniform) -> str:

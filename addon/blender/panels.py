@@ -1,0 +1,145 @@
+"""OmniWarp panels: per-light settings in the Light properties, and the shadow
+preview (with its map overlay) in the 3D viewport's sidebar, tab "OmniWarp"."""
+from __future__ import annotations
+
+import logging
+
+import bpy
+
+from .properties import effective_emission, is_supported_light
+
+log = logging.getLogger(__name__)
+
+SIDEBAR_CATEGORY = "OmniWarp"
+
+_EMISSION_LABELS = {"omni": "Omnidirectional", "hemi": "Hemispherical"}
+
+
+def _light_summary(light: bpy.types.Light) -> str:
+    """One line describing what is previewed for a light, e.g. 'DPSM + NOTW, 1024 px, hemi'."""
+    props = light.omniwarp
+    method = props.parameterization if props.warp == "NONE" else f"{props.parameterization} + {props.warp}"
+    return f"{method}, {props.resolution} px, {effective_emission(light)}"
+
+
+def enabled_light_objects(scene: bpy.types.Scene) -> list[bpy.types.Object]:
+    """The scene's light objects of a supported type with OmniWarp enabled, by name."""
+    found = [
+        obj for obj in scene.objects
+        if obj.type == "LIGHT" and is_supported_light(obj.data) and obj.data.omniwarp.enabled
+    ]
+    return sorted(found, key=lambda obj: obj.name)
+
+
+class OMNIWARP_PT_light(bpy.types.Panel):
+    """OmniWarp shadow settings of the active light (Properties editor, Light tab)."""
+
+    bl_idname = "OMNIWARP_PT_light"
+    bl_label = "OmniWarp Shadows"
+    bl_space_type = "PROPERTIES"
+    bl_region_type = "WINDOW"
+    bl_context = "data"
+    bl_options = {"DEFAULT_CLOSED"}
+
+    @classmethod
+    def poll(cls, context: bpy.types.Context) -> bool:
+        return is_supported_light(getattr(context, "light", None))
+
+    def draw_header(self, context: bpy.types.Context) -> None:
+        self.layout.prop(context.light.omniwarp, "enabled", text="")
+
+    def draw(self, context: bpy.types.Context) -> None:
+        light = context.light
+        props = light.omniwarp
+        layout = self.layout
+        layout.use_property_split = True
+        layout.use_property_decorate = False
+        layout.active = props.enabled
+
+        layout.prop(props, "emission")
+        if props.emission == "AUTO":
+            row = layout.row()
+            row.alignment = "RIGHT"
+            row.label(text=f"Treated as: {_EMISSION_LABELS[effective_emission(light)]}")
+            if light.type == "SPOT" and effective_emission(light) == "omni":
+                note = layout.row()
+                note.alignment = "RIGHT"
+                note.label(text="Spot narrower than 179°: shadowed in all directions", icon="INFO")
+
+        layout.prop(props, "parameterization")
+        layout.prop(props, "warp")
+        layout.prop(props, "resolution")
+
+        box = layout.box()
+        box.label(text="Bias (texel footprints)")
+        col = box.column(align=True)
+        col.prop(props, "bias_constant")
+        col.prop(props, "bias_slope")
+        col.prop(props, "bias_normal")
+
+        layout.prop(props, "cull")
+
+
+class OMNIWARP_PT_viewport(bpy.types.Panel):
+    """The viewport shadow preview: on/off, look and cost settings, and what it previews."""
+
+    bl_idname = "OMNIWARP_PT_viewport"
+    bl_label = "Shadow preview"
+    bl_space_type = "VIEW_3D"
+    bl_region_type = "UI"
+    bl_category = SIDEBAR_CATEGORY
+
+    def draw(self, context: bpy.types.Context) -> None:
+        scene = context.scene
+        settings = scene.omniwarp
+        layout = self.layout
+        layout.use_property_split = True
+        layout.use_property_decorate = False
+
+        layout.prop(settings, "preview_enabled")
+        col = layout.column()
+        col.active = settings.preview_enabled
+        col.prop(settings, "shadow_strength")
+        col.prop(settings, "camera_resolution_scale")
+        col.prop(settings, "throttle_ms")
+
+        box = layout.box()
+        lights = enabled_light_objects(scene)
+        if not lights:
+            box.label(text="No light has OmniWarp enabled", icon="INFO")
+            box.label(text="Enable it in a point or spot light's properties")
+            return
+        box.label(text=f"Previewed lights ({len(lights)})")
+        for obj in lights:
+            row = box.row()
+            row.label(text=obj.name, icon="LIGHT")
+            row.label(text=_light_summary(obj.data))
+
+
+class OMNIWARP_PT_overlay(bpy.types.Panel):
+    """Overlay of the shadow, count and importance maps (sub-panel of the preview)."""
+
+    bl_idname = "OMNIWARP_PT_overlay"
+    bl_label = "Map overlay"
+    bl_space_type = "VIEW_3D"
+    bl_region_type = "UI"
+    bl_category = SIDEBAR_CATEGORY
+    bl_parent_id = "OMNIWARP_PT_viewport"
+
+    def draw_header(self, context: bpy.types.Context) -> None:
+        self.layout.prop(context.scene.omniwarp, "overlay_enabled", text="")
+
+    def draw(self, context: bpy.types.Context) -> None:
+        settings = context.scene.omniwarp
+        layout = self.layout
+        layout.use_property_split = True
+        layout.use_property_decorate = False
+        layout.active = settings.overlay_enabled
+
+        layout.prop(settings, "overlay_maps", expand=True)
+        layout.prop(settings, "overlay_size")
+        layout.prop(settings, "overlay_corner")
+        layout.prop(settings, "overlay_stats")
+
+
+CLASSES: tuple[type, ...] = (OMNIWARP_PT_light, OMNIWARP_PT_viewport, OMNIWARP_PT_overlay)

@@ -1,0 +1,456 @@
+"""Depsgraph-backed triangle cache for the viewport preview.
+
+The preview redraws often, but the scene's geometry rarely changes between two
+redraws. Reading every evaluated mesh each time would dominate the frame, so
+`SceneGeometryCache` keeps the object-space triangles of each object (read once
+through `loop_triangles` + `foreach_get`) and its world matrix, and re-reads an
+object only when the depsgraph says its geometry changed. A moved object costs
+one 4x4 compare and one matmul over its triangles.
+
+What is handled:
+- plain objects of the types that have surface geometry (MESH, CURVE, SURFACE,
+  META, FONT; modifiers and geometry nodes included, as evaluated), visible in
+  the depsgraph's view layer; an instancer whose own geometry is hidden
+  (`show_instancer_for_viewport` off) contributes only its instances;
+- instances (collection instances, particles, vertex/face instancing, geometry
+  nodes instances) from `depsgraph.object_instances`, grouped per instancer
+  (`is_instancer`, or any object with a viewport geometry-nodes modifier, since
+  `is_instancer` stays False for geometry-nodes instances). A
+  group is re-collected as a whole (one pass over the instances) when it is new,
+  when its instancer is flagged or moved, when one of its source objects is
+  flagged, or when one of its instanced collections is flagged.
+
+What is not handled:
+- object types without surface triangles (CURVES hair, POINTCLOUD, VOLUME,
+  GREASEPENCIL) contribute nothing;
+- geometry changes are only seen through the `depsgraph_update_post` flags fed
+  to `mark_dirty` (and on first sight of an object): comparing vertex data would
+  cost as much as re-reading it. Without a handler, only additions, removals,
+  visibility and matrix changes of plain objects and instancers are noticed;
+- a moved instancer re-collects its instances instead of only updating matrices
+  (particles need not follow their emitter, so there is no safe shortcut), and
+  geometry-nodes instance geometry is read again with it.
+
+Non-finite vertices are passed through (the pipeline's sanitiser drops and counts
+them); negative scale keeps the triangles as they are (winding does not matter
+to shadows); objects without faces contribute 0 triangles.
+"""
+from __future__ import annotations
+
+import logging
+import sys
+from dataclasses import dataclass, field
+from typing import Any, Callable, Hashable, Iterable
+
+import bpy
+import numpy as np
+
+from ..reference.capture import _GEOMETRY_TYPES, _local_triangles
+
+log = logging.getLogger(__name__)
+
+# Dirty flags per object key.
+GEOMETRY = 1
+TRANSFORM = 2
+
+# Data-block types whose geometry flag means "objects using it need a re-read".
+# (Text and surface curves are "CURVE" ids too.)
+_GEOMETRY_DATA_TYPES = {"MESH", "CURVE", "META"}
+
+Key = Hashable
+_EMPTY_LOCAL = np.zeros((0, 3, 3), dtype=np.float32)
+_EMPTY_LOCAL.flags.writeable = False
+
+
+def id_key(id_data: Any) -> Key:
+    """Stable key of an ID: the original's `session_uid`, else its `name_full`.
+
+    Evaluated copies report session_uid 0, so the original is always asked. The
+    session_uid survives renames; `name_full` is the fallback for Blender
+    versions without it.
+    """
+    original = getattr(id_data, "original", None) or id_data
+    uid = getattr(original, "session_uid", 0)
+    return uid if uid else original.name_full
+
+
+def _has_nodes_modifier(obj: Any) -> bool:
+    """Whether geometry nodes may make instances (`is_instancer` stays False for them)."""
+    return any(mod.type == "NODES" and mod.show_viewport for mod in getattr(obj, "modifiers", ()))
+
+
+def _matrix(matrix: Any) -> np.ndarray:
+    return np.array(matrix, dtype=np.float64).reshape(4, 4)
+
+
+@dataclass
+class _Part:
+    """One contribution to `world_triangles`: a plain object or one instancer's instances.
+
+    `sources` pairs object-space triangles (T, 3, 3) float32 with the world
+    matrices (N, 4, 4) float64 they are drawn with (N = 1 for a plain object).
+    """
+
+    name: str
+    matrix: np.ndarray  # world matrix of the object / instancer, for change detection
+    sources: list[tuple[np.ndarray, np.ndarray]]
+    data_key: Key | None = None  # original object data (plain objects)
+    source_keys: frozenset = frozenset()  # instanced source objects (instance groups)
+    collection_keys: frozenset = frozenset()  # instanced collections (instance groups)
+
+    @property
+    def count(self) -> int:
+        return sum(len(local) * len(matrices) for local, matrices in self.sources)
+
+    def write(self, out: np.ndarray) -> None:
+        """Transform into `out` (count, 3, 3) float64: one matmul per source."""
+        start = 0
+        with np.errstate(invalid="ignore", over="ignore"):  # NaN/inf pass through to the sanitiser
+            for local, matrices in self.sources:
+                n = len(local) * len(matrices)
+                if n == 0:
+                    continue
+                view = out[start:start + n].reshape(len(matrices), -1, 3)
+                corners = local.reshape(1, -1, 3)
+                np.matmul(corners, matrices[:, :3, :3].transpose(0, 2, 1), out=view)
+                view += matrices[:, None, :3, 3]
+                start += n
+
+
+@dataclass
+class _Dirty:
+    """What `depsgraph_update_post` reported since the last `update`."""
+
+    objects: dict[Key, int] = field(default_factory=dict)
+    data: set[Key] = field(default_factory=set)
+    collections: set[Key] = field(default_factory=set)
+
+    def clear(self) -> None:
+        self.objects.clear()
+        self.data.clear()
+        self.collections.clear()
+
+
+class SceneGeometryCache:
+    """World-space triangles of one depsgraph, kept in step with it incrementally.
+
+    Feed `mark_dirty` with each `DepsgraphUpdate` (the handler in this module
+    does), call `update(depsgraph)` before drawing, then `world_triangles()`.
+    `stats` counts `geometry_reads` (mesh reads), `matrix_updates` (objects whose
+    matrix alone was refreshed), `instance_collections` (instance groups
+    re-collected) and `version` (bumped whenever `world_triangles` changes; it
+    never goes back, so consumers may cache on it).
+    """
+
+    def __init__(self) -> None:
+        self._parts: dict[tuple[str, Key], _Part] = {}
+        # Instance sources without a plain part: key -> (local triangles, data key).
+        self._sources: dict[Key, tuple[np.ndarray, Key | None]] = {}
+        self._dirty = _Dirty()
+        self._identity: tuple[str, str] | None = None
+        self._world: np.ndarray | None = None
+        self._layout: dict[tuple[str, Key], tuple[int, int]] = {}
+        self._stale: set[tuple[str, Key]] = set()  # parts whose world triangles changed
+        self._world_valid = False
+        self.stats: dict[str, int] = {
+            "geometry_reads": 0, "matrix_updates": 0, "instance_collections": 0, "version": 0,
+        }
+
+    # ------------------------------------------------------------------ input
+    def mark_dirty(self, update: Any) -> str | None:
+        """Record one `DepsgraphUpdate`; return "geometry", "transform" or None.
+
+        The update is only valid inside the handler, so its flags are copied now.
+        """
+        geometry = bool(update.is_updated_geometry)
+        transform = bool(update.is_updated_transform)
+        if not (geometry or transform):
+            return None
+        id_data = update.id
+        id_type = getattr(id_data, "id_type", "")
+        key = id_key(id_data)
+        if id_type == "OBJECT":
+            flags = (GEOMETRY if geometry else 0) | (TRANSFORM if transform else 0)
+            self._dirty.objects[key] = self._dirty.objects.get(key, 0) | flags
+        elif geometry and id_type in _GEOMETRY_DATA_TYPES:
+            self._dirty.data.add(key)
+        elif geometry and id_type == "COLLECTION":
+            self._dirty.collections.add(key)
+        return "geometry" if geometry else "transform"
+
+    def mark_updates(self, updates: Iterable[Any]) -> tuple[bool, bool]:
+        """`mark_dirty` for every update; return (any geometry, any transform)."""
+        geometry = transform = False
+        for update in updates:
+            kind = self.mark_dirty(update)
+            geometry |= kind == "geometry"
+            transform |= kind == "transform"
+        return geometry, transform
+
+    # ------------------------------------------------------------------ sync
+    def update(self, depsgraph: "bpy.types.Depsgraph") -> None:
+        """Synchronise with an evaluated depsgraph.
+
+        New objects are read; hidden or deleted ones dropped; flagged ones re-read
+        only for geometry flags, otherwise only their matrix is compared and kept.
+        """
+        identity = (depsgraph.scene.name_full, depsgraph.view_layer.name)
+        if identity != self._identity:
+            if self._parts:
+                log.debug("depsgraph changed from %s to %s; cache cleared", self._identity, identity)
+            self.clear()
+            self._identity = identity
+        changed = False
+        seen: set[tuple[str, Key]] = set()
+        instancers: dict[Key, Any] = {}
+        for obj in depsgraph.objects:
+            key = id_key(obj)
+            if obj.is_instancer or _has_nodes_modifier(obj):
+                instancers[key] = obj
+                if obj.is_instancer and not obj.show_instancer_for_viewport:
+                    continue
+            if obj.type not in _GEOMETRY_TYPES:
+                continue
+            part_key = ("object", key)
+            seen.add(part_key)
+            changed |= self._sync_object(part_key, obj, depsgraph)
+        # Drop hidden/deleted objects before the instances look plain objects up.
+        changed |= self._drop(lambda k: k[0] == "object" and k not in seen)
+        changed |= self._sync_instances(instancers, depsgraph)
+        changed |= self._drop(lambda k: k[0] == "instances" and k[1] not in instancers)
+        self._dirty.clear()  # flags of objects not seen are moot: they are read afresh on sight
+        if changed:
+            self._world_valid = False
+            self.stats["version"] += 1
+
+    def _drop(self, gone: Callable[[tuple[str, Key]], bool]) -> bool:
+        """Remove the parts `gone` selects; return whether there were any."""
+        keys = [k for k in self._parts if gone(k)]
+        for k in keys:
+            del self._parts[k]
+        return bool(keys)
+
+    def _sync_object(self, part_key: tuple[str, Key], obj: Any, depsgraph: Any) -> bool:
+        """Bring one plain object up to date; return whether its triangles changed."""
+        matrix = _matrix(obj.matrix_world)
+        part = self._parts.get(part_key)
+        data_key = id_key(obj.original.data) if obj.original.data is not None else None
+        flags = self._dirty.objects.get(part_key[1], 0)
+        if part is None or flags & GEOMETRY or (data_key is not None and data_key in self._dirty.data):
+            local = self._read(obj, depsgraph)
+            self._parts[part_key] = _Part(obj.name, matrix, [(local, matrix[None])], data_key=data_key)
+            self._stale.add(part_key)
+            return True
+        if np.array_equal(matrix, part.matrix, equal_nan=True):
+            return False
+        part.matrix = matrix
+        part.sources = [(part.sources[0][0], matrix[None])]
+        self.stats["matrix_updates"] += 1
+        self._stale.add(part_key)
+        return True
+
+    def _sync_instances(self, instancers: dict[Key, Any], depsgraph: Any) -> bool:
+        """Re-collect the instance groups that may have changed; return whether any did."""
+        dirty = self._dirty
+        touched_objects = set(dirty.objects)
+        todo: dict[Key, Any] = {}
+        for key, obj in instancers.items():
+            part = self._parts.get(("instances", key))
+            if (part is None or key in touched_objects
+                    or not part.source_keys.isdisjoint(touched_objects)
+                    or not part.collection_keys.isdisjoint(dirty.collections)
+                    or not np.array_equal(_matrix(obj.matrix_world), part.matrix, equal_nan=True)):
+                todo[key] = obj
+        if todo:
+            for key, part in self._collect_instances(todo, depsgraph).items():
+                self._parts[("instances", key)] = part
+                self._stale.add(("instances", key))
+            self.stats["instance_collections"] += len(todo)
+        # Keep only the sources that groups still use (and no plain part provides).
+        used = set().union(*(p.source_keys for k, p in self._parts.items() if k[0] == "instances"))
+        for key in [k for k in self._sources if k not in used or ("object", k) in self._parts]:
+            del self._sources[key]
+        return bool(todo)
+
+    def _collect_instances(self, instancers: dict[Key, Any], depsgraph: Any) -> dict[Key, _Part]:
+        """One pass over `depsgraph.object_instances` for the given instancers."""
+        # Per instancer: source key -> (local triangles, list of world matrices).
+        groups: dict[Key, dict[Key, tuple[np.ndarray, list[np.ndarray]]]] = {k: {} for k in instancers}
+        source_keys: dict[Key, set[Key]] = {k: set() for k in instancers}
+        # Geometry-nodes instance geometry has no original object to key on; its
+        # evaluated data pointer identifies it during this pass only.
+        pass_local: dict[Key, np.ndarray] = {}
+        for inst in depsgraph.object_instances:
+            if not inst.is_instance or inst.parent is None:
+                continue
+            parent_key = id_key(inst.parent)
+            group = groups.get(parent_key)
+            if group is None:
+                continue
+            obj = inst.object
+            if obj.type not in _GEOMETRY_TYPES:
+                continue
+            source_key = id_key(obj)
+            if source_key == parent_key:
+                data = obj.data
+                local_key: Key = ("data", data.as_pointer() if data is not None else obj.as_pointer())
+            else:
+                local_key = ("object", source_key)
+                source_keys[parent_key].add(source_key)
+            entry = group.get(local_key)
+            if entry is None:
+                local = pass_local.get(local_key)
+                if local is None:
+                    local = self._source_local(local_key, obj, depsgraph)
+                    pass_local[local_key] = local
+                entry = group[local_key] = (local, [])
+            entry[1].append(_matrix(inst.matrix_world))
+        parts = {}
+        for key, obj in instancers.items():
+            sources = [(local, np.stack(mats)) for local, mats in groups[key].values() if len(local)]
+            collections = obj.original.instance_collection if obj.original.instance_type == "COLLECTION" else None
+            coll_keys = set()
+            if collections is not None:
+                coll_keys = {id_key(collections)} | {id_key(c) for c in collections.children_recursive}
+            parts[key] = _Part(obj.name, _matrix(obj.matrix_world), sources,
+                               source_keys=frozenset(source_keys[key]), collection_keys=frozenset(coll_keys))
+        return parts
+
+    def _source_local(self, local_key: tuple[str, Key], obj: Any, depsgraph: Any) -> np.ndarray:
+        """Object-space triangles of an instance source, read at most once per change.
+
+        A visible source is a plain part, already synced in this update. A hidden
+        one (e.g. in an excluded collection) is kept in `_sources` until flagged.
+        """
+        if local_key[0] != "object":
+            return self._read(obj, depsgraph)
+        key = local_key[1]
+        part = self._parts.get(local_key)
+        if part is not None:
+            return part.sources[0][0]
+        cached = self._sources.get(key)
+        if cached is not None:
+            local, data_key = cached
+            if not self._dirty.objects.get(key, 0) & GEOMETRY and data_key not in self._dirty.data:
+                return local
+        local = self._read(obj, depsgraph)
+        data = obj.original.data
+        self._sources[key] = (local, id_key(data) if data is not None else None)
+        return local
+
+    def _read(self, obj: Any, depsgraph: Any) -> np.ndarray:
+        """Read one evaluated object's triangles (counted); a failed read gives none."""
+        self.stats["geometry_reads"] += 1
+        try:
+            return _local_triangles(obj, depsgraph)
+        except (RuntimeError, ReferenceError) as exc:
+            log.warning("could not read the geometry of %r: %s; it casts no shadow", obj.name, exc)
+            return _EMPTY_LOCAL
+
+    # ------------------------------------------------------------------ output
+    def world_triangles(self) -> np.ndarray:
+        """All cached triangles in world space, (T, 3, 3) float64, read-only.
+
+        The same array object comes back until something changes. Parts that did
+        not change are copied from the previous array instead of transformed.
+        """
+        if self._world_valid and self._world is not None:
+            return self._world
+        total = sum(part.count for part in self._parts.values())
+        out = np.empty((total, 3, 3), dtype=np.float64)
+        layout: dict[tuple[str, Key], tuple[int, int]] = {}
+        previous = self._world
+        start = 0
+        for part_key, part in self._parts.items():
+            n = part.count
+            old = self._layout.get(part_key)
+            target = out[start:start + n]
+            if previous is not None and part_key not in self._stale and old is not None and old[1] == n:
+                target[...] = previous[old[0]:old[0] + n]
+            else:
+                part.write(target)
+            layout[part_key] = (start, n)
+            start += n
+        out.flags.writeable = False
+        self._world, self._layout, self._world_valid = out, layout, True
+        self._stale.clear()
+        return out
+
+    @property
+    def object_count(self) -> int:
+        """Cached plain objects plus instance groups."""
+        return len(self._parts)
+
+    def clear(self) -> None:
+        """Forget all geometry (counters stay, and `version` moves on if anything was cached)."""
+        had = bool(self._parts) or (self._world is not None and len(self._world) > 0)
+        self._parts.clear()
+        self._sources.clear()
+        self._dirty.clear()
+        self._layout.clear()
+        self._stale.clear()
+        self._world = None
+        self._world_valid = False
+        self._identity = None
+        if had:
+            self.stats["version"] += 1
+
+
+CACHE = SceneGeometryCache()
+
+
+def _noop(_kind: str) -> None:
+    """Stand-in for `viewport.request_update` when the viewport does not provide one."""
+
+
+def _notify_viewport(geometry: bool, transform: bool) -> None:
+    """Tell the viewport preview (if loaded) what kind of redraw it needs."""
+    if not (geometry or transform):
+        return
+    viewport = sys.modules.get(f"{__package__}.viewport")
+    if viewport is None:
+        return
+    request: Callable[[str], None] = getattr(viewport, "request_update", _noop)
+    request("geometry" if geometry else "transform")
+
+
+@bpy.app.handlers.persistent
+def on_depsgraph_update(_scene: "bpy.types.Scene", depsgraph: "bpy.types.Depsgraph") -> None:
+    """`depsgraph_update_post`: copy the update flags into `CACHE`, wake the viewport."""
+    try:
+        geometry, transform = CACHE.mark_updates(depsgraph.updates)
+    except ReferenceError as exc:  # an ID freed while the update was being reported
+        log.warning("depsgraph update skipped: %s; the cache will be rebuilt", exc)
+        CACHE.clear()
+        geometry, transform = True, False
+    _notify_viewport(geometry, transform)
+
+
+@bpy.app.handlers.persistent
+def on_load_post(*_args: Any) -> None:
+    """`load_post`: a new file means new IDs; nothing cached can be trusted."""
+    CACHE.clear()
+
+
+# (handler list name, function) in registration order; unregister walks it backwards.
+_HANDLERS: tuple[tuple[str, Callable[..., None]], ...] = (
+    ("depsgraph_update_post", on_depsgraph_update),
+    ("load_post", on_load_post),
+)
+
+
+def register() -> None:
+    """Install the handlers (once, however often this is called)."""
+    for list_name, fn in _HANDLERS:
+        handlers = getattr(bpy.app.handlers, list_name)
+        if fn not in handlers:
+            handlers.append(fn)
+
+
+def unregister() -> None:
+    """Remove exactly the handlers `register` added (idempotent) and free the cache."""
+    for list_name, fn in reversed(_HANDLERS):
+        handlers = getattr(bpy.app.handlers, list_name)
+        while fn in handlers:
+            handlers.remove(fn)
+    CACHE.clear()

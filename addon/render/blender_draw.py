@@ -1,0 +1,201 @@
+"""Drawing with Blender's `gpu` module around the pipeline: the G-buffer of a view,
+the shadow composite over it, and the map overlay.
+
+Every function takes explicit matrices, sizes and the target it draws into (the
+currently bound framebuffer), so the viewport handler, the headless `preview`
+command and the tests share them. `gpu`, `blf` and `gpu_extras` are imported
+lazily so that this module imports without Blender.
+"""
+from __future__ import annotations
+
+import logging
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+
+from .blender_backend import BlenderGPUBackend, float_texture, read_texture
+from .shaders import GBUFFER_PROGRAM, OVERLAY_PROGRAM, PREVIEW_PROGRAM
+
+log = logging.getLogger(__name__)
+
+_FULLSCREEN = [(-1.0, -1.0), (3.0, -1.0), (-1.0, 3.0)]
+_QUAD = [(0.0, 0.0), (1.0, 0.0), (1.0, 1.0), (0.0, 0.0), (1.0, 1.0), (0.0, 1.0)]
+
+
+@dataclass
+class GBuffer:
+    """World position (w = 1 on geometry) and camera-facing geometric normal per pixel."""
+
+    positions: np.ndarray  # (H, W, 4) float32, row 0 at the TOP
+    normals: np.ndarray  # (H, W, 4) float32, row 0 at the TOP
+    textures: dict[str, Any] = field(default_factory=dict)  # "ow_gb_position", "ow_gb_normal"
+
+    @property
+    def size(self) -> tuple[int, int]:
+        return self.positions.shape[1], self.positions.shape[0]
+
+    @property
+    def hit(self) -> np.ndarray:
+        return self.positions[..., 3] > 0.5
+
+
+def render_gbuffer(backend: BlenderGPUBackend, triangles: np.ndarray, view_proj: np.ndarray,
+                   camera_position: np.ndarray, size: tuple[int, int]) -> GBuffer:
+    """Rasterise world-space triangles (T, 3, 3) into a G-buffer of `size` (W, H)."""
+    import gpu
+    from gpu_extras.batch import batch_for_shader
+
+    width, height = size
+    pos_tex = float_texture((width, height), "RGBA32F")
+    nrm_tex = float_texture((width, height), "RGBA32F")
+    depth = gpu.types.GPUTexture((width, height), format="DEPTH_COMPONENT32F")
+    framebuffer = gpu.types.GPUFrameBuffer(color_slots=(pos_tex, nrm_tex), depth_slot=depth)
+    tris = np.asarray(triangles, dtype=np.float64)
+    tris = tris[np.all(np.isfinite(tris), axis=(1, 2))]
+    normal = np.cross(tris[:, 1] - tris[:, 0], tris[:, 2] - tris[:, 0])
+    length = np.linalg.norm(normal, axis=1, keepdims=True)
+    keep = length[:, 0] > 0
+    normal = normal[keep] / length[keep]
+    tris = tris[keep]
+    with framebuffer.bind():
+        framebuffer.clear(color=(0.0, 0.0, 0.0, 0.0), depth=1.0)
+        if len(tris):
+            shader = backend.bind_program(GBUFFER_PROGRAM, {
+                "ow_view_proj": np.asarray(view_proj, dtype=np.float64),
+                "ow_camera_pos": np.asarray(camera_position, dtype=np.float64)})
+            batch = batch_for_shader(shader, "TRIS", {
+                "ow_world": tris.reshape(-1, 3).astype(np.float32),
+                "ow_face_normal": np.repeat(normal, 3, axis=0).astype(np.float32)})
+            gpu.state.viewport_set(0, 0, width, height)
+            gpu.state.depth_test_set("LESS")
+            gpu.state.depth_mask_set(True)
+            try:
+                batch.draw(shader)
+            finally:
+                gpu.state.depth_test_set("NONE")
+                gpu.state.depth_mask_set(False)
+    positions = read_texture(pos_tex, "RGBA32F")[::-1].copy()
+    normals = read_texture(nrm_tex, "RGBA32F")[::-1].copy()
+    return GBuffer(positions, normals, {"ow_gb_position": pos_tex, "ow_gb_normal": nrm_tex})
+
+
+def draw_shadow_composite(backend: BlenderGPUBackend, gbuffer: GBuffer, test_result: np.ndarray,
+                          light_position: np.ndarray, strength: float, target_size: tuple[int, int],
+                          draw_base: bool) -> None:
+    """Draw one light's shadow into the bound framebuffer, stretched over `target_size`.
+
+    `test_result` is the pipeline's (H, W, 2) visibility and flag, row 0 at the TOP.
+    Without `draw_base`, shadowed pixels are darkened by alpha blending (viewport).
+    """
+    import gpu
+    from gpu_extras.batch import batch_for_shader
+
+    width, height = gbuffer.size
+    visibility = float_texture((width, height), "RG32F", np.asarray(test_result, np.float32)[::-1])
+    textures = dict(gbuffer.textures, ow_visibility=visibility)
+    shader = backend.bind_program(PREVIEW_PROGRAM, {
+        "ow_light_pos": np.asarray(light_position, dtype=np.float64),
+        "ow_strength": float(strength),
+        "ow_draw_base": 1 if draw_base else 0,
+        "ow_target_size": (float(target_size[0]), float(target_size[1]))}, textures)
+    batch = batch_for_shader(shader, "TRIS", {"ow_corner": _FULLSCREEN})
+    previous = gpu.state.blend_get()
+    gpu.state.blend_set("NONE" if draw_base else "ALPHA")
+    try:
+        batch.draw(shader)
+    finally:
+        gpu.state.blend_set(previous)
+
+
+def pool_image(image: np.ndarray, max_side: int, reduce=np.max) -> np.ndarray:
+    """Shrink an image by an integer factor until it fits `max_side`, keeping peaks
+    (np.max, for counts) or nearest surfaces (np.min, for depth)."""
+    image = np.asarray(image)
+    factor = max(1, -(-max(image.shape[:2]) // max_side))
+    if factor == 1:
+        return image
+    h, w = (image.shape[0] // factor) * factor, (image.shape[1] // factor) * factor
+    return reduce(reduce(image[:h, :w].reshape(h // factor, factor, w // factor, factor), axis=3), axis=1)
+
+
+@dataclass
+class OverlayPanel:
+    """One thumbnail: an image (row 0 at the bottom) and how to colour it."""
+
+    label: str
+    image: np.ndarray  # (h, w) float32
+    mode: int  # 0 depth, 1 count heat (log)
+    maximum: float = 1.0
+
+
+CORNERS = ("BOTTOM_LEFT", "BOTTOM_RIGHT", "TOP_LEFT", "TOP_RIGHT")
+
+
+def overlay_layout(count: int, thumb: int, target_size: tuple[int, int], corner: str,
+                   margin: int = 12, text_rows: int = 0) -> list[tuple[int, int]]:
+    """Lower-left pixel of each thumbnail, in a row from the chosen corner."""
+    width, height = target_size
+    gap = 6
+    line = 16
+    total = count * thumb + max(0, count - 1) * gap
+    x0 = margin if corner.endswith("LEFT") else max(margin, width - margin - total)
+    label_room = 18 + line * text_rows
+    y0 = margin + label_room if corner.startswith("BOTTOM") else max(margin, height - margin - thumb - 14)
+    return [(x0 + i * (thumb + gap), y0) for i in range(count)]
+
+
+def draw_overlay(backend: BlenderGPUBackend, panels: list[OverlayPanel], target_size: tuple[int, int],
+                 thumb: int, corner: str, stats_lines: list[str], legend_max: float | None) -> None:
+    """Thumbnails with labels, a heat legend for count maps, and stats lines, in pixels."""
+    import blf
+    import gpu
+    from gpu_extras.batch import batch_for_shader
+
+    if corner not in CORNERS:
+        raise ValueError(f"overlay corner must be one of {CORNERS}, got {corner!r}")
+    origins = overlay_layout(len(panels), thumb, target_size, corner, text_rows=len(stats_lines))
+    previous = gpu.state.blend_get()
+    gpu.state.blend_set("NONE")
+    try:
+        for panel, (x, y) in zip(panels, origins):
+            image = np.asarray(panel.image, dtype=np.float32)
+            texture = float_texture((image.shape[1], image.shape[0]), "R32F", image)
+            shader = backend.bind_program(OVERLAY_PROGRAM, {
+                "ow_rect": (float(x), float(y), float(thumb), float(thumb)),
+                "ow_target_size": (float(target_size[0]), float(target_size[1])),
+                "ow_mode": panel.mode, "ow_max": float(panel.maximum)}, {"ow_image": texture})
+            batch_for_shader(shader, "TRIS", {"ow_corner": _QUAD}).draw(shader)
+        if legend_max is not None and origins:
+            x, y = origins[0]
+            shader = backend.bind_program(OVERLAY_PROGRAM, {
+                "ow_rect": (float(x), float(y - 14), float(thumb), 6.0),
+                "ow_target_size": (float(target_size[0]), float(target_size[1])),
+                "ow_mode": 2, "ow_max": float(legend_max)}, {"ow_image": backend_dummy(backend)})
+            batch_for_shader(shader, "TRIS", {"ow_corner": _QUAD}).draw(shader)
+    finally:
+        gpu.state.blend_set(previous)
+    font = 0
+    blf.size(font, 11)
+    blf.color(font, 1.0, 1.0, 1.0, 0.95)
+    for panel, (x, y) in zip(panels, origins):
+        blf.position(font, x + 3, y + thumb + 3, 0)
+        blf.draw(font, panel.label)
+    if legend_max is not None and origins:
+        x, y = origins[0]
+        blf.position(font, x + thumb + 6, y - 15, 0)
+        blf.draw(font, f"count 0 .. {legend_max:.0f} (log)")
+    if origins:
+        x, y = origins[0]
+        for row, text in enumerate(stats_lines):
+            blf.position(font, x, y - 32 - 16 * row, 0)
+            blf.draw(font, text)
+
+
+def backend_dummy(backend: BlenderGPUBackend):
+    """A 1x1 texture for a sampler a draw mode does not read."""
+    texture = getattr(backend, "_overlay_dummy", None)
+    if texture is None:
+        texture = float_texture((1, 1), "R32F", np.zeros((1, 1), np.float32))
+        backend._overlay_dummy = texture
+    return texture

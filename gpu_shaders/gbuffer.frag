@@ -1,0 +1,10 @@
+// Geometric normals are turned towards the camera, as Cycles' True Normal is.
+void main()
+{
+  vec3 n = normalize(v_normal);
+  if (dot(n, ow_camera_pos - v_world) < 0.0) {
+    n = -n;
+  }
+  ow_gb_position = vec4(v_world, 1.0);
+  ow_gb_normal = vec4(n, 1.0);
+}

@@ -1,0 +1,26 @@
+// Preview composite of one light's shadow test over the view.
+// ow_draw_base 0: only darken shadowed surfaces (alpha-blended over the viewport);
+// 1: also draw a grey Lambert base (headless preview image).
+void main()
+{
+  ivec2 size = textureSize(ow_gb_position, 0);
+  ivec2 pix = clamp(ivec2(gl_FragCoord.xy / ow_target_size * vec2(size)), ivec2(0), size - 1);
+  vec4 p = texelFetch(ow_gb_position, pix, 0);
+  vec3 n = texelFetch(ow_gb_normal, pix, 0).xyz;
+  vec2 result = texelFetch(ow_visibility, pix, 0).xy;
+  if (p.w < 0.5) {
+    ow_color = (ow_draw_base != 0) ? vec4(0.05, 0.05, 0.06, 1.0) : vec4(0.0);
+    return;
+  }
+  vec3 to_light = ow_light_pos - p.xyz;
+  float diffuse = max(dot(n, normalize(to_light)), 0.0);
+  bool shadowed = result.y == 0.0 && result.x < 0.5 && diffuse > 0.0;
+  float darken = shadowed ? ow_strength : 0.0;
+  if (ow_draw_base != 0) {
+    float lit = 0.15 + 0.75 * diffuse * (1.0 - darken);
+    ow_color = vec4(vec3(lit), 1.0);
+  }
+  else {
+    ow_color = vec4(0.0, 0.0, 0.0, darken);
+  }
+}

@@ -1,0 +1,389 @@
+"""The viewport's depsgraph triangle cache (addon.blender.scene_cache).
+
+Each test builds a throw-away scene of tiny meshes with its own depsgraph, so the
+default scene is never touched. Expected triangles are computed in numpy from the
+vertex lists given to `from_pydata` and matrices built here from location and
+scale, not read back from Blender.
+"""
+from __future__ import annotations
+
+import sys
+import types
+
+import numpy as np
+import pytest
+
+bpy = pytest.importorskip("bpy")
+
+from addon.blender import scene_cache  # noqa: E402
+from addon.blender.scene_cache import SceneGeometryCache  # noqa: E402
+
+pytestmark = pytest.mark.blender
+
+CUBE_VERTS = [(x, y, z) for x in (-1.0, 1.0) for y in (-1.0, 1.0) for z in (-1.0, 1.0)]
+# Triangles only, so Blender's triangulation cannot differ from ours.
+CUBE_TRIS = [
+    (0, 1, 3), (0, 3, 2), (4, 6, 7), (4, 7, 5), (0, 4, 5), (0, 5, 1),
+    (2, 3, 7), (2, 7, 6), (0, 2, 6), (0, 6, 4), (1, 5, 7), (1, 7, 3),
+]
+PLANE_VERTS = [(-2.0, -2.0, 0.0), (2.0, -2.0, 0.0), (2.0, 2.0, 0.0), (-2.0, 2.0, 0.0)]
+PLANE_TRIS = [(0, 1, 2), (0, 2, 3)]
+
+
+def matrix(location=(0.0, 0.0, 0.0), scale=(1.0, 1.0, 1.0)) -> np.ndarray:
+    m = np.diag([*scale, 1.0]).astype(np.float64)
+    m[:3, 3] = location
+    return m
+
+
+def expected(verts, tris, m: np.ndarray) -> np.ndarray:
+    v = np.asarray(verts, dtype=np.float64)
+    world = v @ m[:3, :3].T + m[:3, 3]
+    return world[np.asarray(tris, dtype=np.int64).reshape(-1, 3)]
+
+
+def canonical(tris: np.ndarray) -> np.ndarray:
+    """Order-independent form: each triangle rotated to start at its smallest corner
+    (winding kept), triangles sorted."""
+    tris = np.round(np.asarray(tris, dtype=np.float64).reshape(-1, 3, 3), 6)
+    if not len(tris):
+        return tris
+    keys = tris[:, :, 0] * 1e12 + tris[:, :, 1] * 1e6 + tris[:, :, 2]
+    first = np.argmin(keys, axis=1)
+    order = (first[:, None] + np.arange(3)) % 3
+    tris = np.take_along_axis(tris, order[:, :, None], axis=1)
+    flat = tris.reshape(len(tris), 9)
+    return flat[np.lexsort(flat.T[::-1])].reshape(-1, 3, 3)
+
+
+def assert_same_triangles(actual: np.ndarray, *parts: np.ndarray) -> None:
+    want = np.concatenate(parts) if parts else np.zeros((0, 3, 3))
+    assert actual.shape == want.shape
+    np.testing.assert_allclose(canonical(actual), canonical(want), atol=1e-5)
+
+
+class World:
+    """A scene with its own depsgraph; `evaluate()` re-evaluates and syncs the cache.
+
+    A depsgraph_update_post handler feeds this scene's updates to `cache.mark_dirty`
+    (DepsgraphUpdate objects are only valid inside the handler).
+    """
+
+    def __init__(self) -> None:
+        self.scene = bpy.data.scenes.new("omniwarp_cache_test")
+        self.cache = SceneGeometryCache()
+        self.feed = True
+        self.objects: list[str] = []
+        self.datablocks: list[tuple] = []
+        with bpy.context.temp_override(scene=self.scene, view_layer=self.scene.view_layers[0]):
+            self.depsgraph = bpy.context.evaluated_depsgraph_get()
+        bpy.app.handlers.depsgraph_update_post.append(self._handler)
+
+    def _handler(self, scene, depsgraph) -> None:
+        if self.feed and scene.name_full == self.scene.name_full:
+            for update in depsgraph.updates:
+                self.cache.mark_dirty(update)
+
+    def mesh(self, name: str, verts, tris, edges=(), location=(0.0, 0.0, 0.0), scale=(1.0, 1.0, 1.0),
+             collection=None):
+        mesh = bpy.data.meshes.new(name)
+        mesh.from_pydata(verts, list(edges), tris)
+        mesh.update()
+        obj = bpy.data.objects.new(name, mesh)
+        obj.location = location
+        obj.scale = scale
+        (collection or self.scene.collection).objects.link(obj)
+        self.track(obj, mesh)
+        return obj
+
+    def track(self, *ids) -> None:
+        """Remember ids to remove in `close`."""
+        owners = {"OBJECT": bpy.data.objects, "MESH": bpy.data.meshes,
+                  "COLLECTION": bpy.data.collections, "NODETREE": bpy.data.node_groups}
+        for id_data in ids:
+            if id_data.id_type == "OBJECT":
+                self.objects.append(id_data.name_full)
+            else:
+                self.datablocks.append((owners[id_data.id_type], id_data.name_full))
+
+    def evaluate(self) -> np.ndarray:
+        self.depsgraph.update()
+        self.cache.update(self.depsgraph)
+        return self.cache.world_triangles()
+
+    def close(self) -> None:
+        """Remove what the test made; ids are looked up by name (tests delete some)."""
+        bpy.app.handlers.depsgraph_update_post.remove(self._handler)
+        for name in self.objects:
+            if name in bpy.data.objects:
+                bpy.data.objects.remove(bpy.data.objects[name])
+        for owner, name in self.datablocks:
+            if name in owner:
+                owner.remove(owner[name])
+        bpy.data.scenes.remove(self.scene)
+
+
+@pytest.fixture
+def world():
+    w = World()
+    yield w
+    w.close()
+
+
+@pytest.fixture
+def cube_plane(world: World):
+    cube = world.mesh("cube", CUBE_VERTS, CUBE_TRIS, location=(0.0, 0.0, 2.0))
+    plane = world.mesh("plane", PLANE_VERTS, PLANE_TRIS, location=(0.5, 0.0, 0.0), scale=(2.0, 1.0, 1.0))
+    world.evaluate()
+    return cube, plane
+
+
+def cube_world(location=(0.0, 0.0, 2.0)) -> np.ndarray:
+    return expected(CUBE_VERTS, CUBE_TRIS, matrix(location))
+
+
+def plane_world(location=(0.5, 0.0, 0.0), scale=(2.0, 1.0, 1.0)) -> np.ndarray:
+    return expected(PLANE_VERTS, PLANE_TRIS, matrix(location, scale))
+
+
+# ----------------------------------------------------------------------------
+# reading and caching
+# ----------------------------------------------------------------------------
+def test_first_update_reads_each_object_once(world: World, cube_plane) -> None:
+    assert world.cache.stats["geometry_reads"] == 2
+    tris = world.cache.world_triangles()
+    assert tris.dtype == np.float64 and tris.shape == (14, 3, 3)
+    assert_same_triangles(tris, cube_world(), plane_world())
+
+
+def test_unchanged_scene_reads_nothing_and_returns_the_same_array(world: World, cube_plane) -> None:
+    first = world.cache.world_triangles()
+    stats = dict(world.cache.stats)
+    again = world.evaluate()
+    assert again is first
+    assert world.cache.stats == stats
+    world.cache.update(world.depsgraph)  # no depsgraph change at all
+    assert world.cache.world_triangles() is first
+    assert not first.flags.writeable  # shared, so callers must not edit it
+
+
+def test_move_updates_only_the_matrix(world: World, cube_plane) -> None:
+    _, plane = cube_plane
+    before = world.cache.world_triangles()
+    stats = dict(world.cache.stats)
+    plane.location = (0.5, 3.0, -1.0)
+    after = world.evaluate()
+    assert world.cache.stats["geometry_reads"] == stats["geometry_reads"]
+    assert world.cache.stats["matrix_updates"] == stats["matrix_updates"] + 1
+    assert world.cache.stats["version"] == stats["version"] + 1
+    assert after is not before
+    assert_same_triangles(after, cube_world(), plane_world(location=(0.5, 3.0, -1.0)))
+    # The moved plane is exactly the old one shifted by the offset.
+    np.testing.assert_allclose(canonical(plane_world((0.5, 3.0, -1.0))),
+                               canonical(plane_world() + np.array([0.0, 3.0, -1.0])))
+
+
+def test_move_is_seen_without_handler_info(world: World, cube_plane) -> None:
+    cube, _ = cube_plane
+    world.feed = False
+    reads = world.cache.stats["geometry_reads"]
+    cube.location = (1.0, 1.0, 1.0)
+    tris = world.evaluate()
+    assert world.cache.stats["geometry_reads"] == reads
+    assert_same_triangles(tris, cube_world((1.0, 1.0, 1.0)), plane_world())
+
+
+def test_geometry_edit_rereads_only_that_object(world: World, cube_plane) -> None:
+    cube, _ = cube_plane
+    stats = dict(world.cache.stats)
+    cube.data.vertices[0].co = (-3.0, -1.0, -1.0)
+    cube.data.update()
+    tris = world.evaluate()
+    assert world.cache.stats["geometry_reads"] == stats["geometry_reads"] + 1
+    assert world.cache.stats["matrix_updates"] == stats["matrix_updates"]
+    verts = list(CUBE_VERTS)
+    verts[0] = (-3.0, -1.0, -1.0)
+    assert_same_triangles(tris, expected(verts, CUBE_TRIS, matrix((0.0, 0.0, 2.0))), plane_world())
+
+
+def test_shared_mesh_edit_rereads_every_user(world: World) -> None:
+    a = world.mesh("a", PLANE_VERTS, PLANE_TRIS)
+    b = bpy.data.objects.new("b", a.data)
+    b.location = (0.0, 0.0, 5.0)
+    world.scene.collection.objects.link(b)
+    world.track(b)
+    world.evaluate()
+    reads = world.cache.stats["geometry_reads"]
+    a.data.vertices[2].co = (3.0, 3.0, 0.0)
+    a.data.update()
+    tris = world.evaluate()
+    assert world.cache.stats["geometry_reads"] == reads + 2
+    verts = list(PLANE_VERTS)
+    verts[2] = (3.0, 3.0, 0.0)
+    assert_same_triangles(tris, expected(verts, PLANE_TRIS, matrix()),
+                          expected(verts, PLANE_TRIS, matrix((0.0, 0.0, 5.0))))
+
+
+def test_deleted_and_hidden_objects_are_dropped(world: World, cube_plane) -> None:
+    cube, plane = cube_plane
+    cube.hide_viewport = True
+    assert_same_triangles(world.evaluate(), plane_world())
+    cube.hide_viewport = False
+    reads = world.cache.stats["geometry_reads"]
+    assert_same_triangles(world.evaluate(), cube_world(), plane_world())
+    assert world.cache.stats["geometry_reads"] == reads + 1  # seen again: read again
+    version = world.cache.stats["version"]
+    bpy.data.objects.remove(plane)
+    assert_same_triangles(world.evaluate(), cube_world())
+    assert world.cache.stats["version"] == version + 1
+    assert world.cache.object_count == 1
+
+
+def test_faceless_negative_scale_and_nonfinite(world: World) -> None:
+    world.mesh("wire", PLANE_VERTS, [], edges=[(0, 1), (1, 2)])
+    world.mesh("flipped", PLANE_VERTS, PLANE_TRIS, location=(0.0, 0.0, 1.0), scale=(-1.0, 2.0, -0.5))
+    nan_verts = list(PLANE_VERTS)
+    nan_verts[1] = (float("nan"), 0.0, 0.0)
+    world.mesh("broken", nan_verts, PLANE_TRIS, location=(0.0, 0.0, 4.0))
+    tris = world.evaluate()
+    assert tris.shape == (4, 3, 3)
+    finite = np.all(np.isfinite(tris), axis=(1, 2))
+    assert np.count_nonzero(~finite) == 1  # the triangle using vertex 1: left to the sanitiser
+    flipped = expected(PLANE_VERTS, PLANE_TRIS, matrix((0.0, 0.0, 1.0), (-1.0, 2.0, -0.5)))
+    # Kept as they are: corners transformed, winding not flipped back.
+    at_z1 = finite & np.all(tris[:, :, 2] == 1.0, axis=1)
+    np.testing.assert_allclose(canonical(tris[at_z1]), canonical(flipped), atol=1e-6)
+    broken = expected(nan_verts, PLANE_TRIS, matrix((0.0, 0.0, 4.0)))
+    np.testing.assert_allclose(canonical(tris[finite & ~at_z1]), canonical(broken[1:]), atol=1e-6)
+    assert world.cache.stats["geometry_reads"] == 3
+
+
+def test_empty_scene_and_clear(world: World, cube_plane) -> None:
+    assert len(world.cache.world_triangles()) == 14
+    version = world.cache.stats["version"]
+    world.cache.clear()
+    empty = world.cache.world_triangles()
+    assert empty.shape == (0, 3, 3) and world.cache.stats["version"] == version + 1
+    world.cache.update(world.depsgraph)  # everything is new again
+    assert len(world.cache.world_triangles()) == 14
+
+
+# ----------------------------------------------------------------------------
+# instances (stretch goal)
+# ----------------------------------------------------------------------------
+def test_collection_instance(world: World) -> None:
+    coll = bpy.data.collections.new("omniwarp_cache_src")
+    world.scene.collection.children.link(coll)
+    world.track(coll)
+    src = world.mesh("src", CUBE_VERTS, CUBE_TRIS, collection=coll)
+    empty = bpy.data.objects.new("instancer", None)
+    empty.instance_type = "COLLECTION"
+    empty.instance_collection = coll
+    empty.location = (10.0, 0.0, 0.0)
+    world.scene.collection.objects.link(empty)
+    world.track(empty)
+    tris = world.evaluate()
+    assert world.cache.stats["geometry_reads"] == 1  # the instance reuses the plain read
+    assert_same_triangles(tris, cube_world((0.0, 0.0, 0.0)), cube_world((10.0, 0.0, 0.0)))
+
+    src.location = (0.0, 1.0, 0.0)  # moves the instance too
+    tris = world.evaluate()
+    assert world.cache.stats["geometry_reads"] == 1
+    assert_same_triangles(tris, cube_world((0.0, 1.0, 0.0)), cube_world((10.0, 1.0, 0.0)))
+
+    src.data.vertices[0].co = (-2.0, -1.0, -1.0)
+    src.data.update()
+    tris = world.evaluate()
+    assert world.cache.stats["geometry_reads"] == 2
+    verts = list(CUBE_VERTS)
+    verts[0] = (-2.0, -1.0, -1.0)
+    assert_same_triangles(tris, expected(verts, CUBE_TRIS, matrix((0.0, 1.0, 0.0))),
+                          expected(verts, CUBE_TRIS, matrix((10.0, 1.0, 0.0))))
+
+    bpy.data.objects.remove(empty)
+    assert len(world.evaluate()) == 12
+
+
+def test_geometry_nodes_instances(world: World) -> None:
+    points = world.mesh("points", [(0.0, 0.0, 0.0), (0.0, 0.0, 5.0)], [])
+    tree = bpy.data.node_groups.new("omniwarp_cache_gn", "GeometryNodeTree")
+    world.track(tree)
+    tree.interface.new_socket("Geometry", in_out="INPUT", socket_type="NodeSocketGeometry")
+    tree.interface.new_socket("Geometry", in_out="OUTPUT", socket_type="NodeSocketGeometry")
+    node_in, node_out = tree.nodes.new("NodeGroupInput"), tree.nodes.new("NodeGroupOutput")
+    on_points = tree.nodes.new("GeometryNodeInstanceOnPoints")
+    cube = tree.nodes.new("GeometryNodeMeshCube")
+    tree.links.new(node_in.outputs[0], on_points.inputs["Points"])
+    tree.links.new(cube.outputs[0], on_points.inputs["Instance"])
+    tree.links.new(on_points.outputs[0], node_out.inputs[0])
+    points.modifiers.new("scatter", "NODES").node_group = tree
+    tris = world.evaluate()
+    assert tris.shape == (24, 3, 3)  # 2 instances x 12 triangles; the points have no faces
+    centres = np.sort(tris.mean(axis=1)[:, 2])
+    assert np.allclose(centres[:12].mean(), 0.0, atol=0.2) and np.allclose(centres[12:].mean(), 5.0, atol=0.2)
+    assert tris.min() == pytest.approx(-0.5) and tris.max() == pytest.approx(5.5)
+
+    cube.inputs["Size"].default_value = (2.0, 2.0, 2.0)
+    tris = world.evaluate()
+    assert tris.min() == pytest.approx(-1.0) and tris.max() == pytest.approx(6.0)
+
+
+# ----------------------------------------------------------------------------
+# handlers
+# ----------------------------------------------------------------------------
+def _count(list_name: str, fn) -> int:
+    return sum(1 for h in getattr(bpy.app.handlers, list_name) if h is fn)
+
+
+def test_register_unregister_idempotent() -> None:
+    lengths = {name: len(getattr(bpy.app.handlers, name)) for name in ("depsgraph_update_post", "load_post")}
+    try:
+        scene_cache.register()
+        scene_cache.register()
+        assert _count("depsgraph_update_post", scene_cache.on_depsgraph_update) == 1
+        assert _count("load_post", scene_cache.on_load_post) == 1
+        assert len(bpy.app.handlers.depsgraph_update_post) == lengths["depsgraph_update_post"] + 1
+        assert len(bpy.app.handlers.load_post) == lengths["load_post"] + 1
+    finally:
+        scene_cache.unregister()
+        scene_cache.unregister()
+    assert _count("depsgraph_update_post", scene_cache.on_depsgraph_update) == 0
+    assert _count("load_post", scene_cache.on_load_post) == 0
+    assert {name: len(getattr(bpy.app.handlers, name)) for name in lengths} == lengths
+
+
+def test_handler_marks_cache_and_wakes_viewport(world: World, monkeypatch) -> None:
+    requests: list[str] = []
+    monkeypatch.setitem(sys.modules, f"{scene_cache.__package__}.viewport",
+                        types.SimpleNamespace(request_update=requests.append))
+    cache = scene_cache.CACHE
+    world.feed = False  # only the module's handler feeds CACHE here
+    obj = world.mesh("cube", CUBE_VERTS, CUBE_TRIS)
+    scene_cache.register()
+    try:
+        world.depsgraph.update()  # the link itself is a geometry update
+        cache.update(world.depsgraph)
+        reads = cache.stats["geometry_reads"]
+        requests.clear()
+        obj.location = (0.0, 0.0, 1.0)
+        world.depsgraph.update()
+        assert requests == ["transform"]
+        obj.data.vertices[0].co = (-2.0, -1.0, -1.0)
+        obj.data.update()
+        world.depsgraph.update()
+        assert requests[-1] == "geometry"
+        cache.update(world.depsgraph)
+        assert cache.stats["geometry_reads"] == reads + 1  # flagged by the module handler
+        # A viewport without request_update, or none at all, is fine.
+        monkeypatch.setitem(sys.modules, f"{scene_cache.__package__}.viewport", types.SimpleNamespace())
+        obj.location = (0.0, 0.0, 2.0)
+        world.depsgraph.update()
+        monkeypatch.delitem(sys.modules, f"{scene_cache.__package__}.viewport")
+        obj.location = (0.0, 0.0, 3.0)
+        world.depsgraph.update()
+        assert len(cache.world_triangles()) == 12
+        scene_cache.on_load_post("unused.blend")
+        assert len(cache.world_triangles()) == 0
+    finally:
+        scene_cache.unregister()
+        cache.clear()

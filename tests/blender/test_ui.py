@@ -1,0 +1,577 @@
+"""The bpy settings and panels of OmniWarp (addon.blender.properties / panels /
+registration), in background bpy.
+
+The runtime modules (viewport draw handlers, depsgraph cache) belong to other
+tests: `RUNTIME_MODULES` is patched to () and the viewport module that the
+property callbacks call is replaced by a recorder.
+"""
+from __future__ import annotations
+
+import math
+import re
+import sys
+from types import ModuleType, SimpleNamespace
+
+import numpy as np
+import pytest
+
+bpy = pytest.importorskip("bpy")
+
+from addon.blender import panels, properties, registration  # noqa: E402
+from addon.render.pipeline import BiasSettings, ShadowSettings  # noqa: E402
+
+pytestmark = pytest.mark.blender
+
+PG_NAME = re.compile(r"OMNIWARP_PG_[a-z][a-z0-9_]*")
+PT_NAME = re.compile(r"OMNIWARP_PT_[a-z][a-z0-9_]*")
+
+
+# ----------------------------------------------------------------------------
+# fakes
+# ----------------------------------------------------------------------------
+class ViewportRecorder:
+    """Stands in for addon.blender.viewport: records what the callbacks ask for."""
+
+    def __init__(self) -> None:
+        self.calls: list[tuple] = []
+
+    def request_update(self, reason: str) -> None:
+        self.calls.append(("request_update", reason))
+
+    def set_preview_enabled(self, context, enabled: bool) -> None:
+        self.calls.append(("set_preview_enabled", enabled))
+
+    def tag_redraw_all(self) -> None:
+        self.calls.append(("tag_redraw_all",))
+
+
+class FakeLayout:
+    """Records what a panel draws and checks every `prop()` names a real RNA property."""
+
+    def __init__(self, record: list[tuple] | None = None) -> None:
+        self.record: list[tuple] = [] if record is None else record
+        self.use_property_split = False
+        self.use_property_decorate = True
+        self.active = True
+        self.enabled = True
+        self.alignment = "EXPAND"
+
+    def prop(self, data, attr: str, **kwargs) -> None:
+        assert attr in data.bl_rna.properties, f"{type(data).__name__} has no property {attr!r}"
+        getattr(data, attr)
+        self.record.append(("prop", attr))
+
+    def label(self, text: str = "", icon: str = "NONE", **kwargs) -> None:
+        self.record.append(("label", text))
+
+    def separator(self, **kwargs) -> None:
+        self.record.append(("separator",))
+
+    def _child(self, kind: str) -> FakeLayout:
+        self.record.append((kind,))
+        return FakeLayout(self.record)
+
+    def row(self, **kwargs) -> FakeLayout:
+        return self._child("row")
+
+    def column(self, **kwargs) -> FakeLayout:
+        return self._child("column")
+
+    def box(self) -> FakeLayout:
+        return self._child("box")
+
+    def props(self) -> list[str]:
+        return [r[1] for r in self.record if r[0] == "prop"]
+
+    def labels(self) -> list[str]:
+        return [r[1] for r in self.record if r[0] == "label"]
+
+
+def draw_panel(panel_cls: type, context, header: bool = False) -> FakeLayout:
+    """Run a panel's draw (or draw_header) against a FakeLayout."""
+    layout = FakeLayout()
+    fake_self = SimpleNamespace(layout=layout)
+    (panel_cls.draw_header if header else panel_cls.draw)(fake_self, context)
+    return layout
+
+
+# ----------------------------------------------------------------------------
+# fixtures
+# ----------------------------------------------------------------------------
+@pytest.fixture
+def recorder(monkeypatch: pytest.MonkeyPatch) -> ViewportRecorder:
+    rec = ViewportRecorder()
+    monkeypatch.setattr(properties, "_viewport_module", lambda: rec)
+    return rec
+
+
+@pytest.fixture
+def no_runtime(monkeypatch: pytest.MonkeyPatch) -> None:
+    monkeypatch.setattr(registration, "RUNTIME_MODULES", ())
+
+
+@pytest.fixture
+def registered(no_runtime, recorder: ViewportRecorder):
+    registration.unregister()  # start clean whatever ran before
+    registration.register()
+    yield recorder
+    registration.unregister()
+
+
+@pytest.fixture
+def make_light(registered):
+    """Factory for light datablocks; removes them afterwards."""
+    made: list = []
+
+    def make(kind: str = "POINT", spot_deg: float | None = None):
+        light = bpy.data.lights.new(f"omniwarp_test_{kind.lower()}", kind)
+        if spot_deg is not None:
+            light.spot_size = math.radians(spot_deg)
+        made.append(light)
+        return light
+
+    yield make
+    for light in made:
+        bpy.data.lights.remove(light)
+
+
+@pytest.fixture
+def light_object(make_light):
+    """A factory for light objects linked to the current scene; unlinked and removed afterwards."""
+    made: list = []
+
+    def make(name: str, kind: str = "POINT", enabled: bool = True):
+        light = make_light(kind)
+        light.omniwarp.enabled = enabled
+        obj = bpy.data.objects.new(name, light)
+        bpy.context.scene.collection.objects.link(obj)
+        made.append(obj)
+        return obj
+
+    yield make
+    for obj in made:
+        bpy.data.objects.remove(obj)
+
+
+# ----------------------------------------------------------------------------
+# registration
+# ----------------------------------------------------------------------------
+def _is_registered() -> bool:
+    return hasattr(bpy.types.Light, "omniwarp") or hasattr(bpy.types.Scene, "omniwarp")
+
+
+def test_register_unregister_round_trip_twice(no_runtime) -> None:
+    registration.unregister()
+    for _ in range(2):
+        registration.register()
+        assert hasattr(bpy.types.Light, "omniwarp")
+        assert hasattr(bpy.types.Scene, "omniwarp")
+        assert all(cls.is_registered for cls in registration.CLASSES)
+        light = bpy.data.lights.new("omniwarp_round_trip", "POINT")
+        try:
+            assert isinstance(light.omniwarp, properties.OMNIWARP_PG_light)
+        finally:
+            bpy.data.lights.remove(light)
+        registration.unregister()
+        assert not _is_registered()
+        assert not any(cls.is_registered for cls in registration.CLASSES)
+    registration.unregister()  # unregistering again must not raise
+    assert not _is_registered()
+
+
+def test_classes_ordered_and_named() -> None:
+    names = [cls.__name__ for cls in registration.CLASSES]
+    groups = [cls for cls in registration.CLASSES if issubclass(cls, bpy.types.PropertyGroup)]
+    panel_classes = [cls for cls in registration.CLASSES if issubclass(cls, bpy.types.Panel)]
+    assert len(groups) + len(panel_classes) == len(names) == len(set(names))
+    assert registration.CLASSES[: len(groups)] == tuple(groups), "PropertyGroups come first"
+    for cls in groups:
+        assert PG_NAME.fullmatch(cls.__name__), cls.__name__
+    for cls in panel_classes:
+        assert PT_NAME.fullmatch(cls.__name__), cls.__name__
+        assert cls.bl_idname == cls.__name__
+        assert cls.bl_label
+        parent = getattr(cls, "bl_parent_id", "")
+        if parent:
+            assert parent in names[: names.index(cls.__name__)], f"{cls.__name__}: parent {parent} registered later"
+    assert {group for _, _, group in registration.POINTERS} == set(groups)
+    assert registration.RUNTIME_MODULES == ("scene_cache", "viewport")
+
+
+def _fake_runtime(monkeypatch: pytest.MonkeyPatch, name: str, log: list[str], fail: bool = False) -> str:
+    module = ModuleType(f"{registration.__package__}.{name}")
+
+    def register() -> None:
+        log.append(f"register {name}")
+        assert hasattr(bpy.types.Light, "omniwarp"), "runtime modules register after the pointers"
+        if fail:
+            raise RuntimeError(f"{name} failed on purpose")
+
+    def unregister() -> None:
+        log.append(f"unregister {name}")
+        assert hasattr(bpy.types.Light, "omniwarp"), "runtime modules unregister before the pointers go"
+
+    module.register, module.unregister = register, unregister
+    monkeypatch.setitem(sys.modules, module.__name__, module)
+    return name
+
+
+def test_runtime_modules_called_in_order_and_reverse(monkeypatch: pytest.MonkeyPatch) -> None:
+    log: list[str] = []
+    names = (_fake_runtime(monkeypatch, "_test_rt_a", log), _fake_runtime(monkeypatch, "_test_rt_b", log))
+    monkeypatch.setattr(registration, "RUNTIME_MODULES", ())
+    registration.unregister()  # start clean, without the fakes
+    monkeypatch.setattr(registration, "RUNTIME_MODULES", names)
+    registration.register()
+    registration.unregister()
+    assert log == ["register _test_rt_a", "register _test_rt_b", "unregister _test_rt_b", "unregister _test_rt_a"]
+    assert not _is_registered()
+
+
+def test_failed_register_rolls_back(monkeypatch: pytest.MonkeyPatch) -> None:
+    log: list[str] = []
+    names = (_fake_runtime(monkeypatch, "_test_rt_ok", log),
+             _fake_runtime(monkeypatch, "_test_rt_bad", log, fail=True))
+    monkeypatch.setattr(registration, "RUNTIME_MODULES", ())
+    registration.unregister()  # start clean, without the fakes
+    monkeypatch.setattr(registration, "RUNTIME_MODULES", names)
+    with pytest.raises(RuntimeError, match="on purpose"):
+        registration.register()
+    assert log == ["register _test_rt_ok", "register _test_rt_bad", "unregister _test_rt_ok"]
+    assert not _is_registered()
+    assert not any(cls.is_registered for cls in registration.CLASSES)
+
+
+def test_missing_runtime_module_fails_register_and_is_skipped_on_unregister(monkeypatch: pytest.MonkeyPatch) -> None:
+    monkeypatch.setattr(registration, "RUNTIME_MODULES", ())
+    registration.unregister()
+    monkeypatch.setattr(registration, "RUNTIME_MODULES", ("_omniwarp_no_such_module",))
+    with pytest.raises(ModuleNotFoundError):
+        registration.register()
+    assert not _is_registered()
+    registration.unregister()  # logs and skips the module
+
+
+# ----------------------------------------------------------------------------
+# properties
+# ----------------------------------------------------------------------------
+def test_light_defaults(make_light) -> None:
+    props = make_light("POINT").omniwarp
+    assert props.enabled is False
+    assert props.emission == "AUTO"
+    assert props.parameterization == "DPSM"
+    assert props.warp == "NONE"
+    assert props.resolution == 1024
+    assert props.bias_constant == pytest.approx(0.3)
+    assert props.bias_slope == pytest.approx(0.7)
+    assert props.bias_normal == pytest.approx(0.7)
+    assert props.cull is True
+
+
+def test_light_ranges(make_light) -> None:
+    props = make_light("POINT").omniwarp
+    props.resolution = 100
+    assert props.resolution == 256
+    props.resolution = 100000
+    assert props.resolution == 4096
+    props.bias_slope = -1.0
+    assert props.bias_slope == 0.0
+    rna = properties.OMNIWARP_PG_light.bl_rna.properties
+    assert (rna["resolution"].hard_min, rna["resolution"].hard_max) == (256, 4096)
+    assert rna["resolution"].subtype == "NONE"
+    for name in ("bias_constant", "bias_slope", "bias_normal"):
+        assert rna[name].hard_min == 0.0
+        assert (rna[name].soft_min, rna[name].soft_max) == (0.0, 4.0)
+    assert [i.identifier for i in rna["emission"].enum_items] == ["AUTO", "OMNI", "HEMI"]
+    assert [i.identifier for i in rna["parameterization"].enum_items] == ["DPSM", "CUBE"]
+    assert [i.identifier for i in rna["warp"].enum_items] == ["NONE", "NOTW", "RTW"]
+
+
+def test_scene_defaults_and_ranges(registered) -> None:
+    settings = bpy.context.scene.omniwarp
+    assert settings.preview_enabled is False
+    assert settings.shadow_strength == pytest.approx(0.6)
+    assert settings.overlay_enabled is True
+    assert set(settings.overlay_maps) == {"DEPTH", "COUNT", "IMPORTANCE"}
+    assert settings.overlay_size == 160
+    assert settings.overlay_corner == "BOTTOM_LEFT"
+    assert settings.overlay_stats is True
+    assert settings.camera_resolution_scale == pytest.approx(0.5)
+    assert settings.throttle_ms == 250
+    rna = properties.OMNIWARP_PG_scene.bl_rna.properties
+    assert rna["overlay_maps"].is_enum_flag
+    assert [i.identifier for i in rna["overlay_corner"].enum_items] == [
+        "BOTTOM_LEFT", "BOTTOM_RIGHT", "TOP_LEFT", "TOP_RIGHT"]
+    for name, lo, hi in (("shadow_strength", 0.0, 1.0), ("overlay_size", 64, 512),
+                         ("camera_resolution_scale", 0.1, 1.0), ("throttle_ms", 0, 2000)):
+        assert rna[name].hard_min == pytest.approx(lo), name
+        assert rna[name].hard_max == pytest.approx(hi), name
+    try:
+        settings.overlay_size = 8
+        assert settings.overlay_size == 64
+        settings.camera_resolution_scale = 3.0
+        assert settings.camera_resolution_scale == pytest.approx(1.0)
+        settings.overlay_maps = {"COUNT"}
+        assert set(settings.overlay_maps) == {"COUNT"}
+    finally:
+        for name in ("overlay_size", "camera_resolution_scale", "overlay_maps"):
+            settings.property_unset(name)
+
+
+@pytest.mark.parametrize("group", ["OMNIWARP_PG_light", "OMNIWARP_PG_scene"])
+def test_every_property_has_a_description(registered, group: str) -> None:
+    rna = getattr(properties, group).bl_rna.properties
+    own = [p for p in rna if p.identifier not in ("rna_type", "name")]
+    assert own
+    for prop in own:
+        assert len(prop.description) > 20, f"{group}.{prop.identifier} needs a tooltip"
+        assert prop.name, f"{group}.{prop.identifier} needs a UI name"
+        if prop.type == "ENUM":
+            for item in prop.enum_items:
+                assert item.description, f"{group}.{prop.identifier}: item {item.identifier} needs a tooltip"
+
+
+def test_cost_is_in_the_tooltips(registered) -> None:
+    rna = properties.OMNIWARP_PG_light.bl_rna.properties
+    assert "6 × resolution²" in rna["resolution"].description
+    items = {i.identifier: i.description for i in rna["parameterization"].enum_items}
+    assert "tessellat" in items["DPSM"] and "six passes" in items["CUBE"]
+    warps = {i.identifier: i.description for i in rna["warp"].enum_items}
+    assert "analysis" in warps["NOTW"] and "triangles" in warps["NOTW"]
+    assert "comparison" in warps["RTW"]
+
+
+def test_update_callbacks_reach_the_viewport(make_light, registered) -> None:
+    recorder = registered
+    props = make_light("POINT").omniwarp
+    recorder.calls.clear()
+    for name, value in (("enabled", True), ("emission", "HEMI"), ("parameterization", "CUBE"),
+                        ("warp", "NOTW"), ("resolution", 512), ("bias_constant", 1.0),
+                        ("bias_slope", 1.0), ("bias_normal", 1.0), ("cull", False)):
+        setattr(props, name, value)
+        assert recorder.calls[-1] == ("request_update", "light settings"), name
+    assert len(recorder.calls) == 9
+
+    settings = bpy.context.scene.omniwarp
+    recorder.calls.clear()
+    try:
+        settings.preview_enabled = True
+        assert recorder.calls == [("set_preview_enabled", True)]
+        settings.preview_enabled = False
+        assert recorder.calls[-1] == ("set_preview_enabled", False)
+    finally:
+        settings.property_unset("preview_enabled")
+
+
+def test_callbacks_without_viewport_module(monkeypatch: pytest.MonkeyPatch, make_light) -> None:
+    monkeypatch.setattr(properties, "_viewport_module", lambda: None)
+    props = make_light("POINT").omniwarp
+    props.resolution = 2048  # no viewport: nothing to notify, no error
+    assert props.resolution == 2048
+    settings = bpy.context.scene.omniwarp
+    try:
+        settings.preview_enabled = True
+        settings.overlay_size = 200
+    finally:
+        settings.property_unset("preview_enabled")
+        settings.property_unset("overlay_size")
+
+
+def test_viewport_lookup_is_package_relative() -> None:
+    module = properties._viewport_module()
+    if module is not None:
+        assert module.__name__ == f"{properties.__package__}.viewport"
+        for name in ("request_update", "set_preview_enabled", "tag_redraw_all"):
+            assert callable(getattr(module, name))
+
+
+# ----------------------------------------------------------------------------
+# helpers
+# ----------------------------------------------------------------------------
+@pytest.mark.parametrize(("kind", "spot_deg", "expected"), [
+    ("POINT", None, "omni"),
+    ("SPOT", 180.0, "hemi"),
+    ("SPOT", 179.0, "hemi"),
+    ("SPOT", 178.0, "omni"),
+    ("SPOT", 45.0, "omni"),
+])
+def test_effective_emission_auto(make_light, kind: str, spot_deg: float | None, expected: str) -> None:
+    assert properties.effective_emission(make_light(kind, spot_deg)) == expected
+
+
+def test_effective_emission_explicit(make_light) -> None:
+    point, wide = make_light("POINT"), make_light("SPOT", 180.0)
+    point.omniwarp.emission = "HEMI"
+    wide.omniwarp.emission = "OMNI"
+    assert properties.effective_emission(point) == "hemi"
+    assert properties.effective_emission(wide) == "omni"
+
+
+def test_is_supported_light(make_light) -> None:
+    assert properties.is_supported_light(make_light("POINT"))
+    assert properties.is_supported_light(make_light("SPOT"))
+    assert not properties.is_supported_light(make_light("SUN"))
+    assert not properties.is_supported_light(make_light("AREA"))
+    assert not properties.is_supported_light(None)
+
+
+@pytest.mark.parametrize("parameterization", ["DPSM", "CUBE"])
+@pytest.mark.parametrize("warp", ["NONE", "NOTW", "RTW"])
+def test_shadow_settings_for(make_light, parameterization: str, warp: str) -> None:
+    light = make_light("POINT")
+    props = light.omniwarp
+    props.parameterization = parameterization
+    props.warp = warp
+    props.resolution = 2048
+    props.bias_constant, props.bias_slope, props.bias_normal = 0.25, 1.5, 2.0
+    props.cull = False
+    settings = properties.shadow_settings_for(light)
+    assert isinstance(settings, ShadowSettings)
+    assert settings.parameterization == parameterization.lower()
+    assert settings.warp == warp.lower()
+    assert settings.resolution == 2048
+    assert settings.bias == BiasSettings(constant=0.25, slope=1.5, normal=2.0)
+    assert settings.cull is False
+
+
+def test_shadow_settings_for_defaults(make_light) -> None:
+    settings = properties.shadow_settings_for(make_light("SPOT"))
+    assert settings == ShadowSettings(parameterization="dpsm", resolution=1024, bias=BiasSettings(), cull=True,
+                                      warp="none")
+
+
+def test_light_spec_for(make_light) -> None:
+    from mathutils import Euler, Matrix
+
+    light = make_light("SPOT", 180.0)
+    light.energy = 250.0
+    obj = bpy.data.objects.new("omniwarp_test_spec", light)
+    try:
+        obj.matrix_world = Matrix.Translation((1.0, -2.0, 3.0)) @ Euler((math.pi, 0.0, 0.0)).to_matrix().to_4x4()
+        spec = properties.light_spec_for(obj)
+        assert spec.emission == "hemi"
+        assert spec.energy == pytest.approx(250.0)
+        assert spec.matrix_world.shape == (4, 4) and spec.matrix_world.dtype == np.float64
+        np.testing.assert_allclose(spec.position, [1.0, -2.0, 3.0])
+        np.testing.assert_allclose(spec.axis, [0.0, 0.0, 1.0], atol=1e-6)  # local -Z turned upward
+        light.omniwarp.emission = "OMNI"
+        assert properties.light_spec_for(obj).emission == "omni"
+    finally:
+        bpy.data.objects.remove(obj)
+
+
+def test_light_spec_for_rejects_non_lights(registered) -> None:
+    mesh = bpy.data.meshes.new("omniwarp_test_mesh")
+    obj = bpy.data.objects.new("omniwarp_test_mesh", mesh)
+    try:
+        with pytest.raises(TypeError, match="not a light"):
+            properties.light_spec_for(obj)
+    finally:
+        bpy.data.objects.remove(obj)
+        bpy.data.meshes.remove(mesh)
+
+
+# ----------------------------------------------------------------------------
+# panels
+# ----------------------------------------------------------------------------
+def test_light_panel_poll(make_light) -> None:
+    poll = panels.OMNIWARP_PT_light.poll
+    assert poll(SimpleNamespace(light=make_light("POINT")))
+    assert poll(SimpleNamespace(light=make_light("SPOT")))
+    assert not poll(SimpleNamespace(light=make_light("SUN")))
+    assert not poll(SimpleNamespace(light=None))  # e.g. a mesh is active
+    assert not poll(SimpleNamespace())
+
+
+def test_light_panel_poll_with_active_object(make_light) -> None:
+    """With the real context: a light object active gives context.object.data as the light."""
+    view_layer = bpy.context.view_layer
+    light = make_light("POINT")
+    obj = bpy.data.objects.new("omniwarp_test_active", light)
+    mesh = bpy.data.meshes.new("omniwarp_test_active_mesh")
+    mesh_obj = bpy.data.objects.new("omniwarp_test_active_mesh", mesh)
+    bpy.context.scene.collection.objects.link(obj)
+    bpy.context.scene.collection.objects.link(mesh_obj)
+    previous = view_layer.objects.active
+    try:
+        view_layer.objects.active = obj
+        ctx = SimpleNamespace(light=bpy.context.object.data if bpy.context.object.type == "LIGHT" else None)
+        assert panels.OMNIWARP_PT_light.poll(ctx)
+        view_layer.objects.active = mesh_obj
+        ctx = SimpleNamespace(light=bpy.context.object.data if bpy.context.object.type == "LIGHT" else None)
+        assert not panels.OMNIWARP_PT_light.poll(ctx)
+    finally:
+        view_layer.objects.active = previous
+        bpy.data.objects.remove(obj)
+        bpy.data.objects.remove(mesh_obj)
+        bpy.data.meshes.remove(mesh)
+
+
+def test_light_panel_draw(make_light) -> None:
+    light = make_light("SPOT", 45.0)
+    ctx = SimpleNamespace(light=light, scene=bpy.context.scene)
+    assert draw_panel(panels.OMNIWARP_PT_light, ctx, header=True).props() == ["enabled"]
+    layout = draw_panel(panels.OMNIWARP_PT_light, ctx)
+    assert layout.use_property_split
+    assert layout.props() == ["emission", "parameterization", "warp", "resolution",
+                              "bias_constant", "bias_slope", "bias_normal", "cull"]
+    labels = " | ".join(layout.labels())
+    assert "Omnidirectional" in labels and "179" in labels and "Bias" in labels
+    assert ("box",) in layout.record
+
+    wide = make_light("SPOT", 180.0)
+    labels = draw_panel(panels.OMNIWARP_PT_light, SimpleNamespace(light=wide)).labels()
+    assert any("Hemispherical" in text for text in labels)
+    wide.omniwarp.emission = "OMNI"
+    labels = draw_panel(panels.OMNIWARP_PT_light, SimpleNamespace(light=wide)).labels()
+    assert not any("Treated as" in text for text in labels)
+
+
+def test_viewport_panel_draw_without_lights(registered) -> None:
+    scene = bpy.context.scene
+    for obj in scene.objects:
+        if obj.type == "LIGHT":
+            assert not obj.data.omniwarp.enabled  # fresh registration: all off
+    layout = draw_panel(panels.OMNIWARP_PT_viewport, SimpleNamespace(scene=scene))
+    assert layout.use_property_split
+    assert layout.props() == ["preview_enabled", "shadow_strength", "camera_resolution_scale", "throttle_ms"]
+    assert any("No light has OmniWarp enabled" in text for text in layout.labels())
+
+
+def test_viewport_panel_lists_enabled_lights(light_object) -> None:
+    scene = bpy.context.scene
+    shown = light_object("omniwarp_test_shown")
+    shown.data.omniwarp.parameterization = "CUBE"
+    shown.data.omniwarp.warp = "NOTW"
+    shown.data.omniwarp.resolution = 512
+    light_object("omniwarp_test_hidden", enabled=False)
+    light_object("omniwarp_test_sun", kind="SUN")  # enabled but unsupported
+    assert [o.name for o in panels.enabled_light_objects(scene)] == ["omniwarp_test_shown"]
+    labels = draw_panel(panels.OMNIWARP_PT_viewport, SimpleNamespace(scene=scene)).labels()
+    assert "omniwarp_test_shown" in labels
+    assert "CUBE + NOTW, 512 px, omni" in labels
+    assert not any("hidden" in text or "sun" in text for text in labels)
+    assert not any("No light" in text for text in labels)
+
+
+def test_overlay_panel_draw(registered) -> None:
+    ctx = SimpleNamespace(scene=bpy.context.scene)
+    assert panels.OMNIWARP_PT_overlay.bl_parent_id == panels.OMNIWARP_PT_viewport.bl_idname
+    assert panels.OMNIWARP_PT_viewport.bl_category == "OmniWarp"
+    assert panels.OMNIWARP_PT_viewport.bl_label == "Shadow preview"
+    assert draw_panel(panels.OMNIWARP_PT_overlay, ctx, header=True).props() == ["overlay_enabled"]
+    layout = draw_panel(panels.OMNIWARP_PT_overlay, ctx)
+    assert layout.props() == ["overlay_maps", "overlay_size", "overlay_corner", "overlay_stats"]
+
+
+def test_unregister_removes_pointers(no_runtime) -> None:
+    registration.unregister()
+    registration.register()
+    registration.unregister()
+    assert not hasattr(bpy.types.Light, "omniwarp")
+    assert not hasattr(bpy.types.Scene, "omniwarp")
+    light = bpy.data.lights.new("omniwarp_after", "POINT")
+    try:
+        assert not hasattr(light, "omniwarp")
+    finally:
+        bpy.data.lights.remove(light)
