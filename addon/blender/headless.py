@@ -41,13 +41,13 @@ def _offscreen_draw(size: tuple[int, int], draw) -> np.ndarray:
     """Run `draw()` into a float offscreen target; return (H, W, 4) RGBA, row 0 at the bottom."""
     import gpu
 
-    from ..render.blender_backend import float_texture, read_texture
+    from ..render.blender_backend import float_texture, framebuffer, read_texture
 
     width, height = size
     color = float_texture((width, height), "RGBA32F")
-    framebuffer = gpu.types.GPUFrameBuffer(color_slots=(color,))
-    with framebuffer.bind():
-        framebuffer.clear(color=(0.08, 0.08, 0.09, 1.0))
+    target = framebuffer(color_slots=(color,))
+    with target.bind():
+        target.clear(color=(0.08, 0.08, 0.09, 1.0))
         gpu.state.viewport_set(0, 0, width, height)
         with gpu.matrix.push_pop():
             with gpu.matrix.push_pop_projection():
@@ -101,7 +101,7 @@ def run(reference: ReferenceData, lights: list[tuple[str, LightSpec, ShadowSetti
         thumb: int = 150) -> dict:
     """Render the preview of `lights` from the reference's camera and write the three files."""
     from ..render.blender_backend import BlenderGPUBackend, ensure_gpu
-    from ..render.blender_draw import draw_overlay, draw_shadow_composite, render_gbuffer
+    from ..render.blender_draw import draw_overlay, draw_shadow_composite, render_gbuffer, visibility_texture
 
     ensure_gpu()
     out_dir.mkdir(parents=True, exist_ok=True)
@@ -124,9 +124,11 @@ def run(reference: ReferenceData, lights: list[tuple[str, LightSpec, ShadowSetti
             raw = np.stack([result.visibility, result.flags.astype(np.float32)], axis=-1)
             per_light.append((name, light, settings, result, stats, raw))
 
+        textures = [visibility_texture(raw) for (*_, raw) in per_light]
+
         def draw_preview() -> None:
-            for index, (_, light, _, _, _, raw) in enumerate(per_light):
-                draw_shadow_composite(backend, gbuffer, raw, light.position, strength, camera.resolution,
+            for index, ((_, light, _, _, _, _), texture) in enumerate(zip(per_light, textures)):
+                draw_shadow_composite(backend, gbuffer, texture, light.position, strength, camera.resolution,
                                       draw_base=(index == 0))
 
         _write_png(out_dir / "preview.png", _offscreen_draw(camera.resolution, draw_preview))
@@ -178,8 +180,10 @@ def _report(reference: ReferenceData, per_light, gbuffer, gbuffer_ms: float, ren
     }
 
 
-def _scene_lights(scene, reference: ReferenceData, light_name: str | None) -> list[tuple[str, LightSpec, ShadowSettings]]:
-    """Lights to preview: those with OmniWarp enabled, else the reference's own light with defaults."""
+def _scene_lights(scene, reference: ReferenceData, light_name: str | None,
+                  default: ShadowSettings) -> list[tuple[str, LightSpec, ShadowSettings]]:
+    """Lights to preview: those with OmniWarp enabled, else the reference's own light
+    with `default` settings (presets carry no OmniWarp settings of their own)."""
     from . import properties
 
     chosen = []
@@ -193,7 +197,7 @@ def _scene_lights(scene, reference: ReferenceData, light_name: str | None) -> li
     if chosen:
         return chosen
     light = LightSpec(reference.emission if reference.emission in ("omni", "hemi") else "omni", reference.light_matrix)
-    return [(reference.meta.get("light", "light"), light, ShadowSettings("dpsm", 1024))]
+    return [(reference.meta.get("light", "light"), light, default)]
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -205,6 +209,8 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--light")
     parser.add_argument("--reference", required=True)
     parser.add_argument("--out", required=True)
+    parser.add_argument("--method", default="dpsm+notw")
+    parser.add_argument("--resolution", type=int, default=1024)
     args = parser.parse_args(argv)
     logging.basicConfig(level=logging.WARNING, format="%(levelname)s %(name)s: %(message)s")
     try:
@@ -230,7 +236,13 @@ def main(argv: list[str] | None = None) -> int:
             cache = SceneGeometryCache()
             cache.update(depsgraph)
             triangles = cache.world_triangles()
-            lights = _scene_lights(scene, reference, args.light)
+            from ..compare import METHODS
+
+            if args.method not in METHODS:
+                raise InputError(f"unknown method {args.method!r}; known: {', '.join(METHODS)}")
+            parameterization, warp = METHODS[args.method]
+            default = ShadowSettings(parameterization, args.resolution, warp=warp)
+            lights = _scene_lights(scene, reference, args.light, default)
             report = run(reference, lights, triangles, Path(args.out))
         finally:
             registration.unregister()

@@ -4,6 +4,8 @@ from __future__ import annotations
 
 import logging
 
+import sys
+
 import bpy
 
 from .properties import effective_emission, is_supported_light
@@ -80,6 +82,13 @@ class OMNIWARP_PT_light(bpy.types.Panel):
         layout.prop(props, "cull")
 
 
+def _preview_error() -> str:
+    """The viewport module's last failure, if that module is loaded."""
+    module = sys.modules.get(f"{__package__}.viewport")
+    getter = getattr(module, "last_error", None)
+    return getter() if getter is not None else ""
+
+
 class OMNIWARP_PT_viewport(bpy.types.Panel):
     """The viewport shadow preview: on/off, look and cost settings, and what it previews."""
 
@@ -102,6 +111,12 @@ class OMNIWARP_PT_viewport(bpy.types.Panel):
         col.prop(settings, "shadow_strength")
         col.prop(settings, "camera_resolution_scale")
         col.prop(settings, "throttle_ms")
+        error = _preview_error()
+        if error:
+            alert = layout.box()
+            alert.alert = True
+            alert.label(text="Preview paused after an error:", icon="ERROR")
+            alert.label(text=error[:120])
 
         box = layout.box()
         lights = enabled_light_objects(scene)

@@ -147,7 +147,7 @@ class SceneGeometryCache:
         # Instance sources without a plain part: key -> (local triangles, data key).
         self._sources: dict[Key, tuple[np.ndarray, Key | None]] = {}
         self._dirty = _Dirty()
-        self._identity: tuple[str, str] | None = None
+        self._identity: tuple[Key, str] | None = None
         self._world: np.ndarray | None = None
         self._layout: dict[tuple[str, Key], tuple[int, int]] = {}
         self._stale: set[tuple[str, Key]] = set()  # parts whose world triangles changed
@@ -194,7 +194,7 @@ class SceneGeometryCache:
         New objects are read; hidden or deleted ones dropped; flagged ones re-read
         only for geometry flags, otherwise only their matrix is compared and kept.
         """
-        identity = (depsgraph.scene.name_full, depsgraph.view_layer.name)
+        identity = (id_key(depsgraph.scene), depsgraph.view_layer.name)
         if identity != self._identity:
             if self._parts:
                 log.debug("depsgraph changed from %s to %s; cache cleared", self._identity, identity)

@@ -2,16 +2,18 @@
 
 Each redraw of a 3D view with the preview on:
   1. works out whether its result is stale: the view or projection changed, or a
-     light setting, geometry or transform changed (`request_update`);
+     light setting, geometry or transform changed (`request_update` bumps a version);
   2. if stale and the last recompute is older than the scene's throttle, renders
      the G-buffer at the region's size times the resolution scale, runs the
      pipeline per enabled light on Blender's `gpu` backend, and keeps the result;
-     if it is too soon, a timer asks for a redraw once the throttle has passed;
+     if it is too soon, a one-shot timer asks for a redraw once the throttle passed;
   3. draws the shadow composite (shadowed surfaces darkened) if the result belongs
      to the current view, then the map overlay in the chosen corner.
 
-GPU objects are created lazily in the draw callback (where a GL context is
-current) and freed on unregister.
+`draw_view` does all of that from explicit matrices and sizes, so tests drive it
+without a window. GPU objects are created lazily (a GL context is current in a
+draw callback), reused across redraws, and freed on unregister, file load and
+when the preview is switched off.
 """
 from __future__ import annotations
 
@@ -23,7 +25,6 @@ from typing import Any
 import bpy
 import numpy as np
 
-from ..core.errors import OmniWarpError
 from ..core.scene import camera_from_matrices
 from ..render.pipeline import ShadowPipeline, ViewSamples, count_statistics
 from . import properties
@@ -34,10 +35,14 @@ log = logging.getLogger(__name__)
 @dataclass
 class _ViewResult:
     key: tuple
-    gbuffer: Any
+    version: int
+    gbuffer: Any = None
     lights: list = field(default_factory=list)  # (name, LightSpec, settings, FrameResult, stats, raw)
+    visibility: list = field(default_factory=list)  # one RG32F texture per light, made once
+    panels: list = field(default_factory=list)  # overlay panels (they keep their textures)
+    lines: list = field(default_factory=list)
+    top: float = 1.0
     computed_at: float = 0.0
-    version: int = -1  # the update version it was computed for
 
 
 @dataclass
@@ -45,35 +50,43 @@ class _State:
     handler: Any = None
     backend: Any = None
     pipeline: ShadowPipeline | None = None
-    results: dict[int, _ViewResult] = field(default_factory=dict)  # by region pointer
+    results: dict[Any, _ViewResult] = field(default_factory=dict)  # by region
     version: int = 0  # bumped by every change that makes all views stale
     timer_pending: bool = False
     last_error: str = ""
+    reported: set[str] = field(default_factory=set)  # errors already logged once
 
 
 _STATE = _State()
 
 
-# Contract used by properties.py and scene_cache.py -------------------------------
+# Contract used by properties.py and scene_cache.py ------------------------------
 def register() -> None:
-    """Install the draw handler (idempotent)."""
+    """Install the draw handler and the file-load and undo handlers (idempotent)."""
     if _STATE.handler is None:
         _STATE.handler = bpy.types.SpaceView3D.draw_handler_add(_draw, (), "WINDOW", "POST_PIXEL")
+    for handlers, callback in _APP_HANDLERS:
+        if callback not in handlers:
+            handlers.append(callback)
     _STATE.version += 1
 
 
 def unregister() -> None:
-    """Remove the draw handler and free every GPU object (idempotent)."""
-    if _STATE.handler is not None:
-        bpy.types.SpaceView3D.draw_handler_remove(_STATE.handler, "WINDOW")
-        _STATE.handler = None
+    """Remove every handler, in mirror order, and free every GPU object (idempotent)."""
+    for handlers, callback in reversed(_APP_HANDLERS):
+        while callback in handlers:
+            handlers.remove(callback)
     if bpy.app.timers.is_registered(_throttle_elapsed):
         bpy.app.timers.unregister(_throttle_elapsed)
     _STATE.timer_pending = False
-    _free()
+    if _STATE.handler is not None:
+        bpy.types.SpaceView3D.draw_handler_remove(_STATE.handler, "WINDOW")
+        _STATE.handler = None
+    free_resources()
 
 
-def _free() -> None:
+def free_resources() -> None:
+    """Drop cached results and the backend (with all its GPU objects)."""
     _STATE.results.clear()
     _STATE.pipeline = None
     if _STATE.backend is not None:
@@ -81,11 +94,21 @@ def _free() -> None:
         _STATE.backend = None
 
 
+def live_resources() -> int:
+    """GPU objects the preview holds now: the backend's plus the textures of cached results."""
+    count = _STATE.backend.live_resources() if _STATE.backend is not None else 0
+    for result in _STATE.results.values():
+        count += len(result.visibility) + sum(p.texture is not None for p in result.panels)
+        count += len(result.gbuffer.textures) if result.gbuffer is not None else 0
+    return count
+
+
 def set_preview_enabled(context: bpy.types.Context, enabled: bool) -> None:
     """Turn the preview on or off; off frees the cached results and GPU objects."""
     if not enabled:
-        _free()
+        free_resources()
     _STATE.version += 1
+    _STATE.last_error = ""
     tag_redraw_all()
 
 
@@ -107,26 +130,48 @@ def tag_redraw_all() -> None:
                 area.tag_redraw()
 
 
+@bpy.app.handlers.persistent
+def _on_load_post(*_args) -> None:
+    # Results refer to the old file's lights and geometry: drop them with their textures.
+    free_resources()
+    _STATE.version += 1
+
+
+@bpy.app.handlers.persistent
+def _on_undo_redo(*_args) -> None:
+    _STATE.version += 1
+
+
+_APP_HANDLERS = (
+    (bpy.app.handlers.load_post, _on_load_post),
+    (bpy.app.handlers.undo_post, _on_undo_redo),
+    (bpy.app.handlers.redo_post, _on_undo_redo),
+)
+
+
 def _throttle_elapsed() -> None:
     _STATE.timer_pending = False
     tag_redraw_all()
     return None  # one-shot timer
 
 
-# Computation --------------------------------------------------------------------
-def _lights(scene: bpy.types.Scene, depsgraph) -> list:
+# Computation ----------------------------------------------------------------------
+def enabled_lights(scene: bpy.types.Scene, depsgraph) -> list:
+    """(name, LightSpec, ShadowSettings) of every visible light with OmniWarp enabled."""
     chosen = []
     for obj in scene.objects:
-        if obj.type == "LIGHT" and properties.is_supported_light(obj.data) and obj.data.omniwarp.enabled:
-            if obj.visible_get(view_layer=depsgraph.view_layer):
-                evaluated = obj.evaluated_get(depsgraph)
-                chosen.append((obj.name, properties.light_spec_for(evaluated), properties.shadow_settings_for(obj.data)))
+        light = obj.data if obj.type == "LIGHT" else None
+        if light is None or not properties.is_supported_light(light) or not light.omniwarp.enabled:
+            continue
+        if obj.visible_get(view_layer=depsgraph.view_layer):
+            evaluated = obj.evaluated_get(depsgraph)
+            chosen.append((obj.name, properties.light_spec_for(evaluated), properties.shadow_settings_for(light)))
     return chosen
 
 
 def compute_view(backend, pipeline: ShadowPipeline, triangles: np.ndarray, view_matrix: np.ndarray,
                  projection: np.ndarray, size: tuple[int, int], lights: list) -> tuple[Any, list]:
-    """G-buffer of one view and the pipeline result of every light (explicit inputs, for tests too)."""
+    """G-buffer of one view and the pipeline result of every light (explicit inputs)."""
     from ..render.blender_draw import render_gbuffer
 
     view_proj = projection @ view_matrix
@@ -152,90 +197,115 @@ def _ensure_backend() -> None:
         _STATE.pipeline = ShadowPipeline(_STATE.backend)
 
 
-def _view_key(rv3d, size: tuple[int, int]) -> tuple:
-    view = tuple(round(v, 6) for row in rv3d.view_matrix for v in row)
-    proj = tuple(round(v, 6) for row in rv3d.window_matrix for v in row)
-    return view, proj, size
+def _view_key(view_matrix: np.ndarray, projection: np.ndarray, size: tuple[int, int]) -> tuple:
+    return (tuple(np.round(np.asarray(view_matrix, float), 6).ravel()),
+            tuple(np.round(np.asarray(projection, float), 6).ravel()), size)
+
+
+def _build_result(key: tuple, gbuffer, lights: list, settings) -> _ViewResult:
+    from ..render.blender_draw import visibility_texture
+    from .headless import overlay_panels, stats_line
+
+    entry = _ViewResult(key, _STATE.version, gbuffer, lights, computed_at=time.perf_counter())
+    entry.visibility = [visibility_texture(raw) for (*_, raw) in lights]
+    for name, _, _, result, stats, _ in lights:
+        panels, top = overlay_panels(result, stats, name, set(settings.overlay_maps), settings.overlay_size)
+        entry.panels += panels
+        entry.top = max(entry.top, top)
+        entry.lines.append(stats_line(name, result, stats))
+    return entry
+
+
+def draw_view(scene: bpy.types.Scene, depsgraph, view_matrix: np.ndarray, projection: np.ndarray,
+              target_size: tuple[int, int], region_key: Any, now: float | None = None) -> bool:
+    """Recompute if stale (and allowed by the throttle), then draw into the bound target.
+
+    Returns True when a fresh or cached result for this exact view was drawn.
+    """
+    import gpu
+
+    from ..render.blender_draw import draw_overlay, draw_shadow_composite
+    from .scene_cache import CACHE
+
+    settings = scene.omniwarp
+    scale = settings.camera_resolution_scale
+    size = (max(8, int(target_size[0] * scale)), max(8, int(target_size[1] * scale)))
+    key = _view_key(view_matrix, projection, size)
+    cached = _STATE.results.get(region_key)
+    now = time.perf_counter() if now is None else now
+    if cached is None or cached.key != key or cached.version != _STATE.version:
+        last = max((r.computed_at for r in _STATE.results.values()), default=-1e9)
+        if now - last >= settings.throttle_ms / 1000.0 or cached is None:
+            viewport = gpu.state.viewport_get()
+            try:
+                _ensure_backend()
+                CACHE.update(depsgraph)
+                triangles = CACHE.world_triangles()
+                lights = enabled_lights(scene, depsgraph)
+                gbuffer, results = compute_view(_STATE.backend, _STATE.pipeline, triangles, view_matrix,
+                                                projection, size, lights)
+                cached = _build_result(key, gbuffer, results, settings)
+                _STATE.results[region_key] = cached
+                _STATE.last_error = ""
+            finally:
+                gpu.state.viewport_set(*viewport)
+        elif not _STATE.timer_pending and bpy.app.timers is not None:
+            _STATE.timer_pending = True
+            bpy.app.timers.register(_throttle_elapsed, first_interval=settings.throttle_ms / 1000.0)
+    if cached is None:
+        return False
+    current = cached.key == key
+    if current and cached.gbuffer is not None:
+        for (_, light, _, _, _, _), texture in zip(cached.lights, cached.visibility):
+            draw_shadow_composite(_STATE.backend, cached.gbuffer, texture, light.position, settings.shadow_strength,
+                                  target_size, draw_base=False)
+    if settings.overlay_enabled and cached.panels:
+        shown = {"COUNT", "IMPORTANCE"} & set(settings.overlay_maps)
+        draw_overlay(_STATE.backend, cached.panels, target_size, settings.overlay_size, settings.overlay_corner,
+                     cached.lines if settings.overlay_stats else [], cached.top if shown else None)
+    return current
+
+
+def safe_draw_view(scene: bpy.types.Scene, depsgraph, view_matrix: np.ndarray, projection: np.ndarray,
+                   target_size: tuple[int, int], region_key: Any) -> bool:
+    """`draw_view` that never raises: a failure is logged once, shown in the view and
+    the panel, and retried at most once per throttle interval or after a change."""
+    try:
+        return draw_view(scene, depsgraph, view_matrix, projection, target_size, region_key)
+    except Exception as exc:  # noqa: BLE001 - a draw handler must not raise into Blender
+        report_draw_error(exc)
+        _STATE.results[region_key] = _ViewResult(("failed",), _STATE.version, computed_at=time.perf_counter())
+        return False
 
 
 def _draw() -> None:
-    """POST_PIXEL callback of every 3D view."""
+    """POST_PIXEL callback of every 3D view. It must never take the viewport down."""
     context = bpy.context
     scene = context.scene
     settings = getattr(scene, "omniwarp", None)
     region, rv3d = context.region, context.region_data
     if settings is None or not settings.preview_enabled or region is None or rv3d is None:
         return
-    scale = settings.camera_resolution_scale
-    size = (max(8, int(region.width * scale)), max(8, int(region.height * scale)))
-    key = _view_key(rv3d, size)
-    cached = _STATE.results.get(region.as_pointer())
-    stale = cached is None or cached.key != key or cached.version != _STATE.version
-    now = time.perf_counter()
-    if stale:
-        last = max((r.computed_at for r in _STATE.results.values()), default=0.0)
-        if now - last >= settings.throttle_ms / 1000.0:
-            cached = _recompute(context, scene, region, rv3d, size, key)
-        elif not _STATE.timer_pending:
-            _STATE.timer_pending = True
-            bpy.app.timers.register(_throttle_elapsed, first_interval=settings.throttle_ms / 1000.0)
-    if cached is None:
-        return
-    import gpu
-
-    from ..render.blender_draw import draw_overlay, draw_shadow_composite
-    from .headless import overlay_panels, stats_line
-
-    target = (region.width, region.height)
-    if cached.key == key and cached.gbuffer is not None:
-        for _, light, _, _, _, raw in cached.lights:
-            draw_shadow_composite(_STATE.backend, cached.gbuffer, raw, light.position, settings.shadow_strength,
-                                  target, draw_base=False)
-    if settings.overlay_enabled and cached.lights:
-        panels, lines, top = [], [], 1.0
-        for name, _, _, result, stats, _ in cached.lights:
-            light_panels, light_top = overlay_panels(result, stats, name, set(settings.overlay_maps),
-                                                     settings.overlay_size)
-            panels += light_panels
-            top = max(top, light_top)
-            if settings.overlay_stats:
-                lines.append(stats_line(name, result, stats))
-        counts_shown = {"COUNT", "IMPORTANCE"} & set(settings.overlay_maps)
-        gpu.state.viewport_set(0, 0, region.width, region.height)
-        draw_overlay(_STATE.backend, panels, target, settings.overlay_size, settings.overlay_corner, lines,
-                     top if counts_shown else None)
+    safe_draw_view(scene, context.evaluated_depsgraph_get(), np.array(rv3d.view_matrix),
+                   np.array(rv3d.window_matrix), (region.width, region.height), region.as_pointer())
     if _STATE.last_error:
         import blf
 
-        blf.position(0, 12, region.height - 40, 0)
-        blf.draw(0, f"OmniWarp: {_STATE.last_error}")
+        blf.size(0, 12)
+        blf.color(0, 1.0, 0.45, 0.35, 1.0)
+        blf.position(0, 12, region.height - 48, 0)
+        blf.draw(0, f"OmniWarp preview: {_STATE.last_error}")
 
 
-def _recompute(context, scene, region, rv3d, size, key) -> _ViewResult | None:
-    import gpu
+def report_draw_error(exc: BaseException) -> None:
+    """Log a draw failure once (with its traceback) and keep it for the UI."""
+    message = f"{type(exc).__name__}: {exc}"
+    _STATE.last_error = message
+    if message not in _STATE.reported:
+        _STATE.reported.add(message)
+        log.error("OmniWarp preview failed and is paused until something changes: %s", message, exc_info=exc)
 
-    from .scene_cache import CACHE
 
-    depsgraph = context.evaluated_depsgraph_get()
-    viewport = gpu.state.viewport_get()
-    try:
-        _ensure_backend()
-        CACHE.update(depsgraph)
-        triangles = CACHE.world_triangles()
-        lights = _lights(scene, depsgraph)
-        gbuffer, results = compute_view(_STATE.backend, _STATE.pipeline, triangles,
-                                        np.array(rv3d.view_matrix), np.array(rv3d.window_matrix), size, lights)
-        entry = _ViewResult(key, gbuffer, results, time.perf_counter(), _STATE.version)
-        _STATE.results[region.as_pointer()] = entry
-        _STATE.last_error = ""
-        return entry
-    except OmniWarpError as exc:
-        # A named failure (bad geometry, a shader that does not build) is shown in the
-        # view and logged; drawing Blender's own viewport must go on regardless.
-        _STATE.last_error = str(exc)
-        log.error("preview failed: %s", exc)
-        # Remember the failure for this view and version, so it is not retried every redraw.
-        _STATE.results[region.as_pointer()] = _ViewResult(key, None, [], time.perf_counter(), _STATE.version)
-        return None
-    finally:
-        gpu.state.viewport_set(*viewport)
+def last_error() -> str:
+    """The last preview failure, for panels to show ("" when none)."""
+    return _STATE.last_error

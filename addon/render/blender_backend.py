@@ -26,6 +26,12 @@ from .shaders import (
 
 log = logging.getLogger(__name__)
 
+# GPU objects (textures, framebuffers, shaders) created by this module: Blender's gpu
+# types take no weak references, so ownership is explicit instead. Every backend keeps
+# its objects in its own caches, `live_resources()` counts them, and `release()` drops
+# them; the tests compare these counts across register cycles and redraws.
+CREATED = {"texture": 0, "framebuffer": 0, "shader": 0}
+
 _FULLSCREEN = [(-1.0, -1.0), (3.0, -1.0), (-1.0, 3.0)]
 _GLSL_TYPES = {
     "float": "FLOAT", "vec2": "VEC2", "vec3": "VEC3", "vec4": "VEC4", "mat3": "MAT3", "mat4": "MAT4",
@@ -107,7 +113,20 @@ def _float_texture(size: tuple[int, int], fmt: str, data: np.ndarray | None = No
     if data is not None:
         flat = np.ascontiguousarray(data, dtype=np.float32).ravel()
         buffer = gpu.types.Buffer("FLOAT", flat.size, flat)
+    CREATED["texture"] += 1
     return gpu.types.GPUTexture(size, format=fmt, data=buffer)
+
+
+def _framebuffer(**slots):
+    import gpu
+
+    CREATED["framebuffer"] += 1
+    return gpu.types.GPUFrameBuffer(**slots)
+
+
+def framebuffer(**slots):
+    """A `GPUFrameBuffer` (counted in CREATED)."""
+    return _framebuffer(**slots)
 
 
 def _components(fmt: str) -> int:
@@ -140,6 +159,7 @@ class BlenderGPUBackend(ShadowBackend):
         self._test_target = None
         self._count_targets: dict[int, tuple] = {}
         self._batches: dict[str, Any] = {}
+        self._overlay_dummy = None
         self._released = False
         self.set_warp_tables(None, None)
 
@@ -152,6 +172,7 @@ class BlenderGPUBackend(ShadowBackend):
         if shader is None:
             try:
                 shader = gpu.shader.create_from_info(create_info(iface))
+                CREATED["shader"] += 1
             except Exception as exc:  # gpu reports GLSL errors as plain Exception
                 raise BackendError(f"GLSL program {iface.name} failed to build in Blender: {exc}") from exc
             self._shaders[iface.name] = shader
@@ -218,8 +239,9 @@ class BlenderGPUBackend(ShadowBackend):
 
         if self._layout != layout:
             self._atlas = _float_texture(layout.size, "R32F")
+            CREATED["texture"] += 1
             self._atlas_depth = gpu.types.GPUTexture(layout.size, format="DEPTH_COMPONENT32F")
-            self._atlas_fb = gpu.types.GPUFrameBuffer(color_slots=(self._atlas,), depth_slot=self._atlas_depth)
+            self._atlas_fb = _framebuffer(color_slots=(self._atlas,), depth_slot=self._atlas_depth)
             self._layout = layout
             self._textures["ow_atlas"] = self._atlas
         with self._atlas_fb.bind():
@@ -258,7 +280,7 @@ class BlenderGPUBackend(ShadowBackend):
         self._textures["ow_normals"] = _float_texture((width, height), "RGBA32F", normals)
         if self._sample_size != (width, height):
             out = _float_texture((width, height), "RG32F")
-            self._test_target = (out, gpu.types.GPUFrameBuffer(color_slots=(out,)))
+            self._test_target = (out, _framebuffer(color_slots=(out,)))
             self._batches.pop("scatter", None)
             self._sample_size = (width, height)
 
@@ -276,7 +298,7 @@ class BlenderGPUBackend(ShadowBackend):
         target = self._count_targets.get(size)
         if target is None:
             tex = _float_texture((size, size), "R32F")
-            target = (tex, gpu.types.GPUFrameBuffer(color_slots=(tex,)))
+            target = (tex, _framebuffer(color_slots=(tex,)))
             self._count_targets[size] = target
         tex, fb = target
         with fb.bind():
@@ -334,6 +356,14 @@ class BlenderGPUBackend(ShadowBackend):
         else:
             gpu.state.viewport_get()
 
+    def live_resources(self) -> int:
+        """GPU objects this backend holds now (textures, framebuffers, shaders, batches)."""
+        count = len(self._shaders) + len(self._textures) + len(self._batches) + 2 * len(self._count_targets)
+        count += 2 if self._test_target is not None else 0
+        count += sum(obj is not None for obj in (self._atlas_depth, self._atlas_fb))
+        count += 1 if getattr(self, "_overlay_dummy", None) is not None else 0
+        return count
+
     def release(self) -> None:
         """Drop every GPU object; Blender frees them when the last reference goes."""
         if self._released:
@@ -345,4 +375,5 @@ class BlenderGPUBackend(ShadowBackend):
         self._atlas = self._atlas_depth = self._atlas_fb = None
         self._layout = None
         self._shaders.clear()
+        self._overlay_dummy = None
         self._released = True

@@ -14,7 +14,7 @@ from typing import Any
 
 import numpy as np
 
-from .blender_backend import BlenderGPUBackend, float_texture, read_texture
+from .blender_backend import BlenderGPUBackend, float_texture, framebuffer, read_texture
 from .shaders import GBUFFER_PROGRAM, OVERLAY_PROGRAM, PREVIEW_PROGRAM
 
 log = logging.getLogger(__name__)
@@ -50,7 +50,7 @@ def render_gbuffer(backend: BlenderGPUBackend, triangles: np.ndarray, view_proj:
     pos_tex = float_texture((width, height), "RGBA32F")
     nrm_tex = float_texture((width, height), "RGBA32F")
     depth = gpu.types.GPUTexture((width, height), format="DEPTH_COMPONENT32F")
-    framebuffer = gpu.types.GPUFrameBuffer(color_slots=(pos_tex, nrm_tex), depth_slot=depth)
+    target = framebuffer(color_slots=(pos_tex, nrm_tex), depth_slot=depth)
     tris = np.asarray(triangles, dtype=np.float64)
     tris = tris[np.all(np.isfinite(tris), axis=(1, 2))]
     normal = np.cross(tris[:, 1] - tris[:, 0], tris[:, 2] - tris[:, 0])
@@ -58,8 +58,8 @@ def render_gbuffer(backend: BlenderGPUBackend, triangles: np.ndarray, view_proj:
     keep = length[:, 0] > 0
     normal = normal[keep] / length[keep]
     tris = tris[keep]
-    with framebuffer.bind():
-        framebuffer.clear(color=(0.0, 0.0, 0.0, 0.0), depth=1.0)
+    with target.bind():
+        target.clear(color=(0.0, 0.0, 0.0, 0.0), depth=1.0)
         if len(tris):
             shader = backend.bind_program(GBUFFER_PROGRAM, {
                 "ow_view_proj": np.asarray(view_proj, dtype=np.float64),
@@ -80,19 +80,23 @@ def render_gbuffer(backend: BlenderGPUBackend, triangles: np.ndarray, view_proj:
     return GBuffer(positions, normals, {"ow_gb_position": pos_tex, "ow_gb_normal": nrm_tex})
 
 
-def draw_shadow_composite(backend: BlenderGPUBackend, gbuffer: GBuffer, test_result: np.ndarray,
-                          light_position: np.ndarray, strength: float, target_size: tuple[int, int],
-                          draw_base: bool) -> None:
+def visibility_texture(test_result: np.ndarray):
+    """The pipeline's (H, W, 2) visibility and flag (row 0 at the TOP) as an RG32F texture."""
+    result = np.asarray(test_result, np.float32)
+    return float_texture((result.shape[1], result.shape[0]), "RG32F", result[::-1])
+
+
+def draw_shadow_composite(backend: BlenderGPUBackend, gbuffer: GBuffer, visibility, light_position: np.ndarray,
+                          strength: float, target_size: tuple[int, int], draw_base: bool) -> None:
     """Draw one light's shadow into the bound framebuffer, stretched over `target_size`.
 
-    `test_result` is the pipeline's (H, W, 2) visibility and flag, row 0 at the TOP.
-    Without `draw_base`, shadowed pixels are darkened by alpha blending (viewport).
+    `visibility` comes from `visibility_texture`, made once per result so that a
+    redraw allocates nothing. Without `draw_base`, shadowed pixels are darkened by
+    alpha blending (viewport).
     """
     import gpu
     from gpu_extras.batch import batch_for_shader
 
-    width, height = gbuffer.size
-    visibility = float_texture((width, height), "RG32F", np.asarray(test_result, np.float32)[::-1])
     textures = dict(gbuffer.textures, ow_visibility=visibility)
     shader = backend.bind_program(PREVIEW_PROGRAM, {
         "ow_light_pos": np.asarray(light_position, dtype=np.float64),
@@ -127,6 +131,13 @@ class OverlayPanel:
     image: np.ndarray  # (h, w) float32
     mode: int  # 0 depth, 1 count heat (log)
     maximum: float = 1.0
+    texture: Any = None  # made on first draw, then reused
+
+    def gpu_texture(self):
+        if self.texture is None:
+            image = np.asarray(self.image, dtype=np.float32)
+            self.texture = float_texture((image.shape[1], image.shape[0]), "R32F", image)
+        return self.texture
 
 
 CORNERS = ("BOTTOM_LEFT", "BOTTOM_RIGHT", "TOP_LEFT", "TOP_RIGHT")
@@ -159,8 +170,7 @@ def draw_overlay(backend: BlenderGPUBackend, panels: list[OverlayPanel], target_
     gpu.state.blend_set("NONE")
     try:
         for panel, (x, y) in zip(panels, origins):
-            image = np.asarray(panel.image, dtype=np.float32)
-            texture = float_texture((image.shape[1], image.shape[0]), "R32F", image)
+            texture = panel.gpu_texture()
             shader = backend.bind_program(OVERLAY_PROGRAM, {
                 "ow_rect": (float(x), float(y), float(thumb), float(thumb)),
                 "ow_target_size": (float(target_size[0]), float(target_size[1])),
@@ -194,8 +204,6 @@ def draw_overlay(backend: BlenderGPUBackend, panels: list[OverlayPanel], target_
 
 def backend_dummy(backend: BlenderGPUBackend):
     """A 1x1 texture for a sampler a draw mode does not read."""
-    texture = getattr(backend, "_overlay_dummy", None)
-    if texture is None:
-        texture = float_texture((1, 1), "R32F", np.zeros((1, 1), np.float32))
-        backend._overlay_dummy = texture
-    return texture
+    if backend._overlay_dummy is None:
+        backend._overlay_dummy = float_texture((1, 1), "R32F", np.zeros((1, 1), np.float32))
+    return backend._overlay_dummy

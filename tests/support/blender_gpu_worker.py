@@ -40,8 +40,8 @@ def backends(out: str) -> None:
 
 
 def viewport(out: str) -> None:
-    """Register the extension, preview a preset light through the viewport's own
-    compute function with explicit matrices, then unregister."""
+    """Register the extension, preview a preset light through the viewport's own draw
+    path with explicit matrices into an offscreen target, then check robustness."""
     import bpy
 
     from addon.blender import registration, viewport as vp
@@ -49,38 +49,94 @@ def viewport(out: str) -> None:
     from addon.core.presets import build_preset
     from addon.reference.blender_scene import build_blender_scene
     from addon.reference.capture import evaluated_depsgraph
-    from addon.render.blender_backend import ensure_gpu
+    from addon.render.blender_backend import ensure_gpu, float_texture, framebuffer
 
     ensure_gpu()
-    handlers_before = len(bpy.app.handlers.depsgraph_update_post)
+    handlers_before = {name: len(getattr(bpy.app.handlers, name)) for name in
+                       ("depsgraph_update_post", "load_post", "undo_post", "redo_post")}
+    report: dict = {}
+    # 20 register/unregister cycles leave no handler and no GPU object behind.
+    for _ in range(20):
+        registration.register()
+        registration.unregister()
+    report["cycles_clean"] = vp._STATE.handler is None and vp.live_resources() == 0 and all(
+        len(getattr(bpy.app.handlers, name)) == count for name, count in handlers_before.items())
+
     registration.register()
     spec = build_preset("room_hemi", (96, 72))
     scene = build_blender_scene(spec)
+    scene.omniwarp.preview_enabled = True
+    scene.omniwarp.camera_resolution_scale = 1.0
+    scene.omniwarp.throttle_ms = 0
     light_obj = next(o for o in scene.objects if o.type == "LIGHT")
     light_obj.data.omniwarp.enabled = True
     light_obj.data.omniwarp.parameterization = "CUBE"
     light_obj.data.omniwarp.warp = "NOTW"
     light_obj.data.omniwarp.resolution = 256
     depsgraph = evaluated_depsgraph(scene)
-    CACHE.update(depsgraph)
-    vp._ensure_backend()
-    lights = vp._lights(scene, depsgraph)
     view = np.linalg.inv(spec.camera.matrix_world)
-    gbuffer, results = vp.compute_view(vp._STATE.backend, vp._STATE.pipeline, CACHE.world_triangles(), view,
-                                       spec.camera.projection(), spec.camera.resolution, lights)
-    name, light, settings, result, stats, raw = results[0]
-    report = {
-        "lights": len(results), "passes": result.passes, "param": settings.parameterization, "warp": settings.warp,
-        "hit_share": float(gbuffer.hit.mean()), "shadowed_share": float((raw[..., 0][gbuffer.hit] < 0.5).mean()),
+    proj = spec.camera.projection()
+    size = spec.camera.resolution
+    target = float_texture(size, "RGBA32F")
+    target_fb = framebuffer(color_slots=(target,))
+
+    def draw(view_matrix) -> bool:
+        with target_fb.bind():
+            return vp.safe_draw_view(scene, depsgraph, view_matrix, proj, size, "test-region")
+
+    report["first_draw"] = draw(view)
+    cached = vp._STATE.results["test-region"]
+    name, light, settings, result, stats, raw = cached.lights[0]
+    gbuffer = cached.gbuffer
+    report.update({
+        "lights": len(cached.lights), "passes": result.passes, "param": settings.parameterization,
+        "warp": settings.warp, "hit_share": float(gbuffer.hit.mean()),
+        "shadowed_share": float((raw[..., 0][gbuffer.hit] < 0.5).mean()),
         "finite_atlas": bool(np.isfinite(result.atlas).all()),
         "max_before": stats.max_count_before, "max_after": stats.max_count_after,
         "handler_installed": vp._STATE.handler is not None,
-    }
+    })
+    # 200 redraws: 190 of the same view (cached, nothing recomputed) and 10 moved views.
+    live_after_first = vp.live_resources()
+    computed = []
+    for i in range(200):
+        moved = view.copy()
+        if i % 20 == 19:
+            moved[0, 3] += 0.01 * (i + 1)
+        draw(moved)
+        computed.append(vp._STATE.results["test-region"].computed_at)
+    report["recomputes"] = len(set(computed))
+    report["live_first"] = live_after_first
+    report["live_after_200"] = vp.live_resources()
+    # A failure inside the draw path is caught, logged once and shown; drawing goes on.
+    original = vp.compute_view
+    logged = []
+    vp.log.error = lambda *a, **k: logged.append(a[0])
+
+    def broken(*_a, **_k):
+        raise RuntimeError("synthetic failure")
+
+    vp.compute_view = broken
+    vp.request_update("test")
+    failures = [draw(view) for _ in range(5)]
+    report["error_caught"] = failures == [False] * 5 and "synthetic failure" in vp.last_error()
+    report["error_logged_once"] = len(logged) == 1
+    vp.compute_view = original
+    vp.request_update("test fixed")
+    report["recovered"] = draw(view) and vp.last_error() == ""
+    # Deleting the light mid-preview: the next draw simply has no light to show.
+    bpy.data.objects.remove(light_obj)
+    depsgraph = evaluated_depsgraph(scene)
+    vp.request_update("light deleted")
+    draw(view)
+    report["after_delete_lights"] = len(vp._STATE.results["test-region"].lights)
     registration.unregister()
     registration.unregister()  # idempotent
-    report["handler_removed"] = vp._STATE.handler is None and vp._STATE.backend is None
-    report["depsgraph_handlers_restored"] = len(bpy.app.handlers.depsgraph_update_post) == handlers_before
+    report["handler_removed"] = vp._STATE.handler is None and vp.live_resources() == 0
+    report["handlers_restored"] = all(len(getattr(bpy.app.handlers, name)) == count
+                                      for name, count in handlers_before.items())
     report["pointer_removed"] = not hasattr(bpy.types.Light, "omniwarp")
+    CACHE.clear()
     Path(out).write_text(json.dumps(report))
 
 
