@@ -79,7 +79,7 @@ def overlay_panels(result, stats, label: str, maps: set[str], thumb: int = 256) 
         if "DEPTH" in maps and result.atlas is not None:
             x, y = result.layout.origin(result.tile_of_slot[layer.slot])
             depth = pool_image(result.atlas[y:y + res, x:x + res], 2 * thumb, np.min)
-            panels.append(OverlayPanel(f"{label} depth {layer.name}", depth, 0))
+            panels.append(OverlayPanel(f"depth {layer.name}", depth, 0))
         if "COUNT" in maps:
             panels.append(OverlayPanel(f"count {layer.name}", pool_image(stats.before[layer.slot], 2 * thumb), 1, top))
         if "IMPORTANCE" in maps:

@@ -67,8 +67,9 @@ def test_viewport_draw_path_robustness(tmp_path):
     assert r["handlers_restored"] and r["pointer_removed"]
 
 
-def test_preview_command_writes_images_and_error(tmp_path, monkeypatch, capsys):
-    """`omniwarp preview` end to end: the three files, and an error against Cycles like compare's."""
+def test_preview_command_writes_images_and_error(gl_backend, tmp_path, monkeypatch, capsys):
+    """`omniwarp preview` end to end: the three files, and an error against Cycles within
+    1.5x of the moderngl pipeline's at the same settings on the same reference."""
     monkeypatch.setenv("OMNIWARP_CACHE", str(tmp_path / "cache"))
     out = tmp_path / "preview"
     assert main(["preview", "--preset", "room_hemi", "--size", "160x120", "--out", str(out)]) == 0, \
@@ -80,7 +81,18 @@ def test_preview_command_writes_images_and_error(tmp_path, monkeypatch, capsys):
     for key, value in report["time_ms"].items():
         assert math.isfinite(value) and value >= 0.0, key
     light = report["lights"][0]
-    assert light["passes"] == 1 and light["parameterization"] == "dpsm"
+    assert light["passes"] == 1 and light["parameterization"] == "dpsm" and light["warp"] == "notw"
+    from addon.compare import light_from_reference, samples_from_reference
+    from addon.core import metrics
+    from addon.reference.cache import load_or_capture
+
+    ref = load_or_capture("room_hemi", (160, 120))
+    ours = ShadowPipeline(gl_backend).render(light_from_reference(ref), ref.triangles.astype(np.float64),
+                                             samples_from_reference(ref), ShadowSettings("dpsm", 1024, warp="notw"))
+    evaluable = metrics.evaluable_mask(ref.position, ref.normal, ref.hit, ref.unshadowed, light_from_reference(ref))
+    moderngl_error = metrics.error_figure(ours.visibility > 0.5, metrics.reference_visibility(ref.shadowed, ref.unshadowed),
+                                          evaluable).error_pct
+    assert report["error_pct"] <= 1.5 * moderngl_error + 0.05  # + one pixel's worth at this small size
     import matplotlib.image as mpimg
 
     preview = mpimg.imread(out / "preview.png")
