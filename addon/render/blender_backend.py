@@ -87,7 +87,8 @@ def create_info(iface: ProgramInterface) -> Any:
         info.vertex_out(stage)
     for slot, (glsl_type, name) in enumerate(iface.fragment_out):
         info.fragment_out(slot, _GLSL_TYPES[glsl_type], name)
-    if iface.writes_depth:
+    if iface.writes_depth and hasattr(info, "depth_write"):
+        # Declared where the API has it (newer Blender); OpenGL honours gl_FragDepth either way.
         info.depth_write("ANY")
     for key, value in iface.defines.items():
         info.define(key, value)
