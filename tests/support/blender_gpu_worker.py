@@ -17,8 +17,11 @@ sys.path.insert(0, str(REPO))
 CASES = (("dpsm", "none"), ("cube", "none"), ("dpsm", "notw"), ("cube", "rtw"))
 
 
-def backends(out: str) -> None:
-    """The pipeline on Blender's gpu backend for the seam scene, every case."""
+def backends(out: str, reference: str | None = None) -> None:
+    """The pipeline on Blender's gpu backend, every case: on the seam scene, and on a
+    cached Cycles reference when one is given."""
+    from addon.compare import light_from_reference, samples_from_reference
+    from addon.reference.data import ReferenceData
     from addon.render.blender_backend import BlenderGPUBackend, ensure_gpu
     from addon.render.pipeline import ShadowPipeline, ShadowSettings
     from tests.gl.test_pipeline_extremes import _seam_straddler
@@ -35,6 +38,12 @@ def backends(out: str) -> None:
                                  keep_atlas=True)
         arrays[f"{param}_{warp}_visibility"] = result.visibility
         arrays[f"{param}_{warp}_atlas"] = result.atlas
+    if reference:
+        ref = ReferenceData.load(reference)
+        for param, warp in CASES:
+            result = pipeline.render(light_from_reference(ref), ref.triangles.astype(np.float64),
+                                     samples_from_reference(ref), ShadowSettings(param, 512, warp=warp))
+            arrays[f"ref_{param}_{warp}_visibility"] = result.visibility
     backend.release()
     np.savez(out, **arrays)
 
@@ -124,6 +133,13 @@ def viewport(out: str) -> None:
     vp.compute_view = original
     vp.request_update("test fixed")
     report["recovered"] = draw(view) and vp.last_error() == ""
+    # File load and undo between draws: results are dropped or marked stale, never reused.
+    vp._on_load_post()
+    report["after_load_live"] = vp.live_resources()
+    report["after_load_draw"] = draw(view)
+    version = vp._STATE.version
+    vp._on_undo_redo()
+    report["undo_marks_stale"] = vp._STATE.version == version + 1 and draw(view)
     # Deleting the light mid-preview: the next draw simply has no light to show.
     bpy.data.objects.remove(light_obj)
     depsgraph = evaluated_depsgraph(scene)
@@ -141,4 +157,4 @@ def viewport(out: str) -> None:
 
 
 if __name__ == "__main__":
-    {"backends": backends, "viewport": viewport}[sys.argv[1]](sys.argv[2])
+    {"backends": backends, "viewport": viewport}[sys.argv[1]](*sys.argv[2:])
