@@ -43,6 +43,8 @@ METHODS: dict[str, tuple[str, str]] = {
     "cube+notw": ("cube", "notw"),
     "dpsm+rtw": ("dpsm", "rtw"),
     "cube+rtw": ("cube", "rtw"),
+    "ipsm": ("ipsm", "none"),
+    "ipsm+notw": ("ipsm", "notw"),
 }
 MAP_IMAGE_MAX = 512  # map images are pooled down to at most this many pixels a side
 DEFAULT_METHODS = ("dpsm", "cube")

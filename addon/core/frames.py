@@ -20,7 +20,7 @@ from .errors import InputError
 from .projection import CUBE, PARABOLOID
 from .scene import LightSpec
 
-Parameterization = Literal["dpsm", "cube"]
+Parameterization = Literal["dpsm", "cube", "ipsm"]
 
 CUBE_FACE_NAMES = ("+X", "-X", "+Y", "-Y", "+Z", "-Z")
 CUBE_FACE_AXES = np.array(
@@ -75,6 +75,11 @@ def light_layers(light: LightSpec, parameterization: Parameterization) -> list[L
     return layers
 
 
+def ipsm_layer(axis_world: np.ndarray) -> Layer:
+    """The single paraboloid of IPSM (thesis 4.1), looking along the cone axis C (world)."""
+    return Layer(0, PARABOLOID, "ipsm", _frame_from_axis(np.asarray(axis_world, dtype=np.float64)))
+
+
 def slot_count(parameterization: Parameterization) -> int:
     """Number of slots of a parameterization (2 sides or 6 faces)."""
     return 2 if parameterization == "dpsm" else 6
@@ -83,10 +88,13 @@ def slot_count(parameterization: Parameterization) -> int:
 def pick_slot(parameterization: Parameterization, light_local_dirs: np.ndarray) -> np.ndarray:
     """Slot each light-local direction (..., 3) falls in; same rule as the GLSL test.
 
+    ipsm: always slot 0.
     dpsm: local z <= 0 -> slot 0 (the axis side), else slot 1.
     cube: the major axis; ties go to X before Y before Z.
     """
     d = np.asarray(light_local_dirs, dtype=np.float64)
+    if parameterization == "ipsm":
+        return np.zeros(d.shape[:-1], dtype=np.int64)  # one layer; the cone holds every sample
     if parameterization == "dpsm":
         return np.where(d[..., 2] <= 0.0, 0, 1)
     ax, ay, az = np.abs(d[..., 0]), np.abs(d[..., 1]), np.abs(d[..., 2])

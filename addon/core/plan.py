@@ -19,12 +19,15 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from .frames import Layer, Parameterization, light_layers
+from .frames import Layer, Parameterization, ipsm_layer, light_layers
 from .projection import CUBE
 from .scene import CameraSpec, LightSpec
 
 # Relative slack: culling must be conservative, never drop a needed layer.
 _SLACK = 1e-6
+# IPSM needs the cone to stay well inside a hemisphere: beyond this half-angle the
+# paraboloid's rim samples too coarsely, and both sides are used instead.
+IPSM_MAX_HALF_ANGLE = math.radians(80.0)
 
 
 @dataclass
@@ -36,6 +39,8 @@ class Plan:
     drawn: list[Layer]
     frustum_corners: np.ndarray | None  # (8, 3) world, None for an empty view
     culled_names: list[str] = field(default_factory=list)
+    ipsm_half_angle: float | None = None  # set when one IPSM paraboloid covers the view
+    requested: str = ""  # the parameterization asked for (ipsm may fall back to dpsm)
 
     @property
     def drawn_slots(self) -> list[int]:
@@ -116,6 +121,37 @@ def layer_meets_frustum(layer: Layer, light_position: np.ndarray, corners: np.nd
     return not _separated(pyramid, local, axes)
 
 
+def ipsm_cone(light_position: np.ndarray, corners: np.ndarray) -> tuple[np.ndarray, float]:
+    """Cone axis C = normalize(sum of unit directions to the corners) and half-angle theta
+    = the largest angle between C and a corner direction (thesis 4.1.1, eq. 4.1-4.2)."""
+    d = np.asarray(corners, dtype=np.float64) - light_position
+    d /= np.linalg.norm(d, axis=1, keepdims=True)
+    axis = d.sum(axis=0)
+    norm = np.linalg.norm(axis)
+    if norm < 1e-12:
+        return np.array([0.0, 0.0, 1.0]), math.pi
+    axis /= norm
+    return axis, float(np.max(np.arccos(np.clip(d @ axis, -1.0, 1.0))))
+
+
+def point_in_frustum(point: np.ndarray, corners: np.ndarray) -> bool:
+    """True when `point` lies in the convex frustum (near quad + far quad) or on its boundary."""
+    faces, _ = _hull_axes(corners)
+    centre = corners.mean(axis=0)
+    near, far = corners[:4], corners[4:]
+    anchors = [near[i] for i in range(4)] + [near[0]]
+    normals = list(faces)
+    # The far face is parallel to the near one; test it with the opposite normal.
+    normals.append(-faces[4])
+    anchors.append(far[0])
+    for normal, anchor in zip(normals, anchors):
+        outward = normal if np.dot(normal, anchor - centre) > 0 else -normal
+        scale = np.linalg.norm(outward) * (np.abs(corners).max() + 1.0)
+        if np.dot(outward, point - anchor) > 1e-9 * scale:
+            return False
+    return True
+
+
 def plan_frame(light: LightSpec, parameterization: Parameterization, camera: CameraSpec | None,
                positions: np.ndarray, hit: np.ndarray, far: float, cull: bool = True) -> Plan:
     """Decide which layers to draw for one frame.
@@ -123,6 +159,8 @@ def plan_frame(light: LightSpec, parameterization: Parameterization, camera: Cam
     Without a perspective camera (e.g. an orthographic viewport) there is no view
     frustum to test against, so every layer is drawn.
     """
+    if parameterization == "ipsm":
+        return _plan_ipsm(light, camera, positions, hit, far, cull)
     layers = light_layers(light, parameterization)
     if camera is None:
         return Plan(parameterization, layers, list(layers), None)
@@ -135,3 +173,18 @@ def plan_frame(light: LightSpec, parameterization: Parameterization, camera: Cam
     for layer in layers:
         (drawn if layer_meets_frustum(layer, light.position, corners, far) else culled).append(layer)
     return Plan(parameterization, layers, drawn, corners, [layer.name for layer in culled])
+
+
+def _plan_ipsm(light: LightSpec, camera: CameraSpec | None, positions: np.ndarray, hit: np.ndarray,
+               far: float, cull: bool) -> Plan:
+    """IPSM (thesis 4.1): one paraboloid along the cone over the truncated view frustum when
+    the light is outside it; otherwise (or without culling) the dual paraboloid."""
+    corners = truncated_frustum(camera, positions, hit) if camera is not None else None
+    if cull and corners is not None and not point_in_frustum(light.position, corners):
+        axis, theta = ipsm_cone(light.position, corners)
+        if theta < IPSM_MAX_HALF_ANGLE:
+            layer = ipsm_layer(axis)
+            return Plan("ipsm", [layer], [layer], corners, ipsm_half_angle=theta, requested="ipsm")
+    fallback = plan_frame(light, "dpsm", camera, positions, hit, far, cull)
+    fallback.requested = "ipsm"
+    return fallback

@@ -9,6 +9,7 @@ light position in float64 keeps precision at large scene scales.
 from __future__ import annotations
 
 import logging
+import math
 import time
 from dataclasses import dataclass, field
 
@@ -32,6 +33,7 @@ CLIP_NEAR_RELATIVE = 1e-6
 
 
 WARP_KINDS = ("none", "notw", "rtw")
+_PARAM_CODES = {"dpsm": 0, "cube": 1, "ipsm": 2}  # ow_param in the GLSL (lib/layers.glsl)
 
 
 def analysis_size_for(resolution: int) -> int:
@@ -64,8 +66,8 @@ class ShadowSettings:
     analysis_size: int | None = None  # count-map side A; None = analysis_size_for(resolution)
 
     def __post_init__(self) -> None:
-        if self.parameterization not in ("dpsm", "cube"):
-            raise InputError(f"unknown parameterization {self.parameterization!r}; use 'dpsm' or 'cube'")
+        if self.parameterization not in ("dpsm", "cube", "ipsm"):
+            raise InputError(f"unknown parameterization {self.parameterization!r}; use 'dpsm', 'cube' or 'ipsm'")
         if self.warp not in WARP_KINDS:
             raise InputError(f"unknown warp {self.warp!r}; use one of {', '.join(WARP_KINDS)}")
         if not (MIN_RESOLUTION <= int(self.resolution) <= MAX_RESOLUTION):
@@ -160,7 +162,16 @@ def prepare_geometry(light: LightSpec, triangles: np.ndarray, plan: Plan, settin
     added = 0
     res = settings.resolution
     mappings = mappings or {}
-    if settings.parameterization == "dpsm":
+    if plan.parameterization == "ipsm":
+        # One paraboloid along the cone axis: only the half-space in front of it can
+        # hold an occluder of a sample inside the cone (half-angle < 90 degrees).
+        layer = plan.drawn[0]
+        front, _ = tessellate.split_at_seam(layer.to_local(centred))
+        mapping = mappings.get(layer.slot, LayerMapping.identity())
+        refined, added = tessellate.tessellate(front, _map_texels(layer.kind, mapping, res),
+                                               settings.tessellation_tolerance, window=float(res))
+        streams[layer.slot] = _vertex_stream(refined @ layer.rotation)
+    elif plan.parameterization == "dpsm":
         # Split once at the seam plane of side 0 (whose +z is the light's -Z axis).
         side0 = frames.light_layers(light, "dpsm")[0]
         front, back = tessellate.split_at_seam(side0.to_local(centred))
@@ -224,29 +235,29 @@ class ShadowPipeline:
     def __init__(self, backend: ShadowBackend) -> None:
         self.backend = backend
 
-    def _scatter_uniforms(self, light: LightSpec, settings: ShadowSettings, layer: Layer,
+    def _scatter_uniforms(self, light: LightSpec, layer: Layer, parameterization: str,
                           mapping: LayerMapping, warp_size: int, mode: int) -> dict:
         return {
             "ow_light_rot": light.rotation.T,
             "ow_layer_rot": layer.rotation,
             "ow_layer_kind": layer.kind,
             "ow_layer_slot": layer.slot,
-            "ow_param": 0 if settings.parameterization == "dpsm" else 1,
+            "ow_param": _PARAM_CODES[parameterization],
             "ow_hemi": 1 if light.emission == "hemi" else 0,
             "ow_warp_size": warp_size,
             "ow_scatter_mode": mode,
             "ow_crop": mapping.crop_vec4(),
         }
 
-    def count_map(self, light: LightSpec, settings: ShadowSettings, layer: Layer, mapping: LayerMapping,
+    def count_map(self, light: LightSpec, plan: Plan, layer: Layer, mapping: LayerMapping,
                   size: int, mode: int) -> np.ndarray:
-        """GPU count map of the uploaded samples for one layer (row 0 = v = 0).
+        """GPU count map of the uploaded samples for one layer of `plan` (row 0 = v = 0).
 
         mode 0: after the crop only; 1: through the row warps; 2: through the full warp.
         The warp tables must already be uploaded for modes 1 and 2.
         """
         warp_size = mapping.warp.size if mapping.warp is not None else 0
-        uniforms = self._scatter_uniforms(light, settings, layer, mapping, warp_size, mode)
+        uniforms = self._scatter_uniforms(light, layer, plan.parameterization, mapping, warp_size, mode)
         return self.backend.scatter_counts(size, uniforms)
 
     def _analyse(self, light: LightSpec, settings: ShadowSettings, plan: Plan) -> tuple[dict, dict]:
@@ -256,10 +267,10 @@ class ShadowPipeline:
         counts: dict[int, np.ndarray] = {}
         self.backend.set_warp_tables(None, None)
         for layer in plan.drawn:
-            whole = self.count_map(light, settings, layer, LayerMapping.identity(), size, 0)
+            whole = self.count_map(light, plan, layer, LayerMapping.identity(), size, 0)
             lo, hi = dv_crop_from_counts(whole)
             crop = LayerMapping(lo, hi, None)
-            cropped = self.count_map(light, settings, layer, crop, size, 0)
+            cropped = self.count_map(light, plan, layer, crop, size, 0)
             counts[layer.slot] = cropped
             if settings.warp == "rtw":
                 warp = rtw_from_counts(cropped)
@@ -267,7 +278,7 @@ class ShadowPipeline:
                 rows, row_window = notw_rows(cropped)
                 mappings[layer.slot] = LayerMapping(lo, hi, _warp_of(rows, None, size))
                 self.backend.set_warp_tables(*_stack_tables(mappings, size))
-                after_rows = self.count_map(light, settings, layer, mappings[layer.slot], size, 1)
+                after_rows = self.count_map(light, plan, layer, mappings[layer.slot], size, 1)
                 cols, col_window = notw_cols(after_rows)
                 warp = _warp_of(rows, cols, size, row_window, col_window)
             mappings[layer.slot] = LayerMapping(lo, hi, warp)
@@ -297,6 +308,8 @@ class ShadowPipeline:
             mappings, counts = self._analyse(light, settings, plan)
         else:
             backend.set_warp_tables(None, None)
+            if plan.ipsm_half_angle is not None:
+                mappings = {0: ipsm_mapping(plan.ipsm_half_angle, settings.resolution)}
         backend.finish()
         t3 = time.perf_counter()
         timings["analysis"] = (t3 - t2) * 1e3
@@ -362,8 +375,8 @@ class ShadowPipeline:
             "ow_layer_rot": rotations,
             "ow_layer_tile": tiles,
             "ow_layer_crop": crops,
-            "ow_param": 0 if settings.parameterization == "dpsm" else 1,
-            "ow_layer_kind": projection.PARABOLOID if settings.parameterization == "dpsm" else projection.CUBE,
+            "ow_param": _PARAM_CODES[plan.parameterization],
+            "ow_layer_kind": projection.CUBE if plan.parameterization == "cube" else projection.PARABOLOID,
             "ow_hemi": 1 if light.emission == "hemi" else 0,
             "ow_warp_size": warp_size if any(m.warp is not None for m in mappings.values()) else 0,
             "ow_resolution": float(settings.resolution),
@@ -374,6 +387,17 @@ class ShadowPipeline:
             "ow_bias_normal": settings.bias.normal,
         }
         return self.backend.shadow_test(uniforms)
+
+
+def ipsm_mapping(half_angle: float, resolution: int) -> LayerMapping:
+    """IPSM's zoom 1/tan(theta/2) as a centred crop: the cone's edge lands on the map's rim.
+
+    A paraboloid maps a ray at angle a from its axis to radius tan(a/2), so cropping
+    to [-t, t]^2 with t = tan(theta/2) scales the coordinates by 1/t. The crop grows by
+    2 % and 4 texels so the shadow test's normal offset stays inside the map.
+    """
+    t = min(1.0, math.tan(half_angle / 2.0) * 1.02 + 4.0 / resolution)
+    return LayerMapping(np.full(2, 0.5 - 0.5 * t), np.full(2, 0.5 + 0.5 * t), None)
 
 
 def _warp_of(rows: np.ndarray, cols: np.ndarray | None, size: int, row_window: int = 0, col_window: int = 0):
@@ -416,10 +440,10 @@ def count_statistics(pipeline: ShadowPipeline, light: LightSpec, settings: Shado
     res = settings.resolution
     before, after = {}, {}
     for layer in result.plan.drawn:
-        before[layer.slot] = pipeline.count_map(light, settings, layer, LayerMapping.identity(), res, 0)
+        before[layer.slot] = pipeline.count_map(light, result.plan, layer, LayerMapping.identity(), res, 0)
         mapping = result.mappings.get(layer.slot)
         if mapping is None:
             after[layer.slot] = before[layer.slot]
         else:
-            after[layer.slot] = pipeline.count_map(light, settings, layer, mapping, res, 2)
+            after[layer.slot] = pipeline.count_map(light, result.plan, layer, mapping, res, 2)
     return CountStatistics(before, after)

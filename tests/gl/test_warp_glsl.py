@@ -126,8 +126,8 @@ def test_gpu_scatter_matches_numpy_count_map(gl_backend):
     samples = ViewSamples(dirs * 2.0, -dirs, np.ones((40, 40), bool), scene.camera)
     pipe = ShadowPipeline(gl_backend)
     settings = ShadowSettings("dpsm", 16, warp="none")
-    pipe.render(scene.light, scene.world_triangles(), samples, settings)
-    gpu = pipe.count_map(scene.light, settings, layer, W.LayerMapping.identity(), 16, 0)
+    result = pipe.render(scene.light, scene.world_triangles(), samples, settings)
+    gpu = pipe.count_map(scene.light, result.plan, layer, W.LayerMapping.identity(), 16, 0)
     expected = W.scatter_counts((xy * 0.5 + 0.5).reshape(-1, 2), 16)
     assert gpu.sum() == 1600
     assert np.array_equal(gpu, expected)
