@@ -63,6 +63,12 @@ IMAGE_ICON_SCALE = 12.0  # template_icon scale of the plot and mismatch previews
 
 Report = Callable[[set[str], str], Any]
 
+# Newer Blenders accept "//" in a path property only with this option; 4.2 lacks it.
+_BLEND_RELATIVE: set[str] = (
+    {"PATH_SUPPORTS_BLEND_RELATIVE"}
+    if "is_path_supports_blend_relative" in bpy.types.Property.bl_rna.properties else set()
+)
+
 
 # ----------------------------------------------------------------------------
 # methods and presets
@@ -75,6 +81,8 @@ def method_prop(method: str) -> str:
 _PARAM_TEXT = {
     "dpsm": "dual paraboloid maps (at most two passes, curved triangles tessellated)",
     "cube": "cube maps (up to six passes, no tessellation)",
+    "ipsm": "one paraboloid map cut to the view cone when the light is outside the view, "
+            "else dual paraboloid maps",
 }
 _WARP_TEXT = {
     "none": "no warp (no analysis pass)",
@@ -137,6 +145,7 @@ class _Job:
     """One comparison run: what to measure and what has been measured."""
 
     scene_name: str
+    scene_uid: int  # Scene.session_uid: survives renames, never matches a scene of another file
     source: str  # 'PRESET' or 'CURRENT'
     preset: str  # the preset name, or the label of the current scene
     camera_size: tuple[int, int]
@@ -152,6 +161,7 @@ class _Job:
     next_task: int = 0
     started: float = field(default_factory=time.perf_counter)
     row_seconds: list[float] = field(default_factory=list)
+    timer: Any = None  # the window-manager timer of the modal run
 
     @property
     def total_steps(self) -> int:
@@ -192,6 +202,7 @@ def free_state() -> None:
     global _ACTIVE
     if _ACTIVE is not None:
         log.warning("OmniWarp comparison still running while unregistering; releasing it")
+        _remove_timer(_ACTIVE, bpy.context.window_manager)
         _ACTIVE.release()
         _ACTIVE = None
     _ROWS.clear()
@@ -268,7 +279,7 @@ class OMNIWARP_PG_result_row(bpy.types.PropertyGroup):
     test_ms: FloatProperty(name="Test ms", precision=2,
                            description="Median time of the shadow test of every view sample, milliseconds")
     passes: IntProperty(name="Passes", description="Shadow-map passes drawn (paraboloid sides or cube faces)")
-    mismatch_image: StringProperty(name="Mismatch image", subtype="FILE_PATH",
+    mismatch_image: StringProperty(name="Mismatch image", subtype="FILE_PATH", options=_BLEND_RELATIVE,
                                    description="PNG of the pixels where this row disagrees with Cycles")
 
 
@@ -360,6 +371,7 @@ class OMNIWARP_PG_comparison(bpy.types.PropertyGroup):
                     "results.json) or .csv (one line per row). // is the .blend file's folder",
         default="//omniwarp_results.json",
         subtype="FILE_PATH",
+        options=_BLEND_RELATIVE,
     )
 
     @classmethod
@@ -445,21 +457,29 @@ def start_job(context: bpy.types.Context, report_fn: Report) -> _Job | None:
     if not settings.keep_previous:
         settings.results.clear()
         settings.active_result = 0
-    job = _Job(scene_name=scene.name, source=settings.source, preset=preset,
+    job = _Job(scene_name=scene.name, scene_uid=scene.session_uid, source=settings.source, preset=preset,
                camera_size=(int(settings.camera_size[0]), int(settings.camera_size[1])), light_name=light_name,
                tasks=[(m, r) for m in methods for r in resolutions], options=options, out_dir=out_dir,
                image_dir=out_dir / "images" if images else None, keep_rows=keep)
     _ROWS[scene.session_uid] = list(keep)
     settings.progress = 0.0
-    settings.status = f"Starting: {len(job.tasks)} rows of {preset}"
+    settings.status = f"Starting: {_rows_text(len(job.tasks))} of {preset}"
     log.info("comparison of %s: %d rows into %s", preset, len(job.tasks), out_dir)
     return job
 
 
+def _find_scene(job: _Job) -> bpy.types.Scene | None:
+    """The job's scene, by session uid (a renamed scene is still found; another file's is not)."""
+    for scene in bpy.data.scenes:
+        if scene.session_uid == job.scene_uid:
+            return scene
+    return None
+
+
 def _job_scene(job: _Job) -> bpy.types.Scene:
-    scene = bpy.data.scenes.get(job.scene_name)
+    scene = _find_scene(job)
     if scene is None:
-        raise InputError(f"scene {job.scene_name!r} was removed or renamed during the comparison")
+        raise InputError(f"scene {job.scene_name!r} was removed during the comparison")
     return scene
 
 
@@ -538,7 +558,7 @@ def status_line(job: _Job) -> str:
         what = f"Cycles reference of {job.preset}" if job.source == "PRESET" else "Cycles reference of the scene"
         return f"OmniWarp: {what} ({elapsed:.0f} s elapsed)"
     if job.finished:
-        return f"OmniWarp: {len(job.tasks)} rows measured in {elapsed:.1f} s"
+        return f"OmniWarp: {_rows_text(len(job.tasks))} measured in {elapsed:.1f} s"
     method, resolution = job.tasks[job.next_task]
     left = job.seconds_left()
     eta = "estimating" if left is None else f"~{left:.0f} s left"
@@ -549,12 +569,12 @@ def status_line(job: _Job) -> str:
 def finish_job(job: _Job, report_fn: Report, outcome: str = "done", message: str = "") -> None:
     """Release the GPU, write and load the plot, set the status. `outcome`: done, cancelled, failed."""
     job.release()
-    scene = bpy.data.scenes.get(job.scene_name)
+    scene = _find_scene(job)
     settings = scene.omniwarp_compare if scene is not None else None
     rows = job.keep_rows + job.rows
     elapsed = time.perf_counter() - job.started
     if outcome == "done":
-        text = f"{len(job.rows)} rows measured in {elapsed:.1f} s"
+        text = f"{_rows_text(len(job.rows))} measured in {elapsed:.1f} s"
     elif outcome == "cancelled":
         text = f"Cancelled after {len(job.rows)} of {len(job.tasks)} rows (kept)"
     else:
@@ -566,10 +586,14 @@ def finish_job(job: _Job, report_fn: Report, outcome: str = "done", message: str
             report_fn({"WARNING"}, f"{exc} (shown as measured)")
     if rows and settings is not None and job.image_dir is not None:
         path = job.out_dir / PLOT_FILE
-        report.write_plot(rows, path)
-        settings.plot_image = load_image(PLOT_IMAGE_NAME, path)
+        try:
+            report.write_plot(rows, path)
+            settings.plot_image = load_image(PLOT_IMAGE_NAME, path)
+        except (OSError, ValueError, RuntimeError) as exc:
+            log.exception("writing or loading the plot %s failed", path)
+            report_fn({"WARNING"}, f"No plot: {exc}")
     if job.rows and settings is not None:
-        _select_first_new_row(settings, len(job.keep_rows))
+        _select_first_new_row(settings, len(settings.results) - len(job.rows))
     if settings is not None:
         settings.status = text
         if outcome == "done":
@@ -584,9 +608,13 @@ def finish_job(job: _Job, report_fn: Report, outcome: str = "done", message: str
     tag_redraw_sidebars()
 
 
+def _rows_text(count: int) -> str:
+    return f"{count} row" + ("" if count == 1 else "s")
+
+
 def _select_first_new_row(settings: OMNIWARP_PG_comparison, first: int) -> None:
     """Select the run's first row (its mismatch image is loaded by the update callback)."""
-    if first < len(settings.results):
+    if 0 <= first < len(settings.results):
         if settings.active_result == first:
             _show_mismatch(settings)
         else:
@@ -715,8 +743,6 @@ class OMNIWARP_OT_compare(bpy.types.Operator):
     bl_label = "Compare"
     bl_options = {"REGISTER"}
 
-    _timer: Any = None
-
     @classmethod
     def poll(cls, context: bpy.types.Context) -> bool:
         if getattr(context.scene, "omniwarp_compare", None) is None:
@@ -757,7 +783,7 @@ class OMNIWARP_OT_compare(bpy.types.Operator):
             return {"CANCELLED"}
         _ACTIVE = job
         wm = context.window_manager
-        self._timer = wm.event_timer_add(TIMER_STEP_S, window=context.window)
+        job.timer = wm.event_timer_add(TIMER_STEP_S, window=context.window)
         wm.modal_handler_add(self)
         wm.progress_begin(0, job.total_steps)
         _set_status_text(context, status_line(job) + " | Esc: cancel")
@@ -766,11 +792,11 @@ class OMNIWARP_OT_compare(bpy.types.Operator):
 
     def modal(self, context: bpy.types.Context, event: bpy.types.Event) -> set[str]:
         job = _ACTIVE
-        if job is None:  # freed by unregister or a file load
-            self._end_modal(context)
+        if job is None:  # freed by unregister
+            _stop_modal(None, context)
             return {"CANCELLED"}
         if event.type in {"ESC", "RIGHTMOUSE"} and event.value == "PRESS":
-            self._end_modal(context)
+            _stop_modal(job, context)
             finish_job(job, self.report, "cancelled")
             return {"CANCELLED"}
         if event.type != "TIMER":
@@ -779,12 +805,12 @@ class OMNIWARP_OT_compare(bpy.types.Operator):
             log.info(step_job(job))
         except Exception as exc:  # noqa: BLE001 - any failure must end the run cleanly (logged, reported)
             log.exception("OmniWarp comparison failed")
-            self._end_modal(context)
+            _stop_modal(job, context)
             finish_job(job, self.report, "failed", _failure(exc))
             return {"CANCELLED"}
         context.window_manager.progress_update(job.steps_done)
         if job.finished:
-            self._end_modal(context)
+            _stop_modal(job, context)
             finish_job(job, self.report)
             return {"FINISHED"}
         _set_status_text(context, status_line(job) + " | Esc: cancel")
@@ -794,20 +820,26 @@ class OMNIWARP_OT_compare(bpy.types.Operator):
     def cancel(self, context: bpy.types.Context) -> None:
         """Blender ends the modal (window closed, file loaded): clean up, keep the rows."""
         job = _ACTIVE
-        self._end_modal(context)
+        _stop_modal(job, context)
         if job is not None:
             finish_job(job, self.report, "cancelled")
 
-    def _end_modal(self, context: bpy.types.Context) -> None:
-        """Timer, progress and status text off; the job is no longer active."""
-        global _ACTIVE
-        _ACTIVE = None
-        wm = context.window_manager
-        if self._timer is not None:
-            wm.event_timer_remove(self._timer)
-            self._timer = None
-        wm.progress_end()
-        _set_status_text(context, None)
+
+def _remove_timer(job: _Job, wm: bpy.types.WindowManager | None) -> None:
+    if job.timer is not None and wm is not None:
+        wm.event_timer_remove(job.timer)
+    job.timer = None
+
+
+def _stop_modal(job: _Job | None, context: bpy.types.Context) -> None:
+    """Timer, progress and status text off; no job is active any more."""
+    global _ACTIVE
+    _ACTIVE = None
+    wm = context.window_manager
+    if job is not None:
+        _remove_timer(job, wm)
+    wm.progress_end()
+    _set_status_text(context, None)
 
 
 def _set_status_text(context: bpy.types.Context, text: str | None) -> None:
@@ -853,7 +885,7 @@ class OMNIWARP_OT_export_results(bpy.types.Operator):
         except OSError as exc:
             self.report({"ERROR"}, f"Cannot write {path}: {exc}")
             return {"CANCELLED"}
-        self.report({"INFO"}, f"Wrote {len(rows)} rows to {path}" + (" (replaced the old file)" if existed else ""))
+        self.report({"INFO"}, f"Wrote {_rows_text(len(rows))} to {path}" + (" (replaced the old file)" if existed else ""))
         return {"FINISHED"}
 
 

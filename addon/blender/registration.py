@@ -3,9 +3,11 @@
 `register()` does three steps, and `unregister()` undoes them in exactly the
 reverse order:
 
-1. the bpy classes in `CLASSES` (PropertyGroups first, then panels);
+1. the bpy classes in `CLASSES` (PropertyGroups first, then panels), then
+   those of the comparison tool in `TOOL_CLASSES`;
 2. the namespaced settings pointers `bpy.types.Light.omniwarp` and
-   `bpy.types.Scene.omniwarp` (see `POINTERS`);
+   `bpy.types.Scene.omniwarp` (see `POINTERS`), then
+   `bpy.types.Scene.omniwarp_compare` (see `TOOL_POINTERS`);
 3. the runtime modules in `RUNTIME_MODULES` (depsgraph handlers, viewport draw
    handlers and timers), each imported lazily and asked to `register()`.
 
@@ -21,7 +23,7 @@ from types import ModuleType
 
 import bpy
 
-from . import panels, properties
+from . import comparison, panels, properties
 
 log = logging.getLogger(__name__)
 
@@ -39,6 +41,24 @@ POINTERS: tuple[tuple[type, str, type], ...] = (
     (bpy.types.Scene, "omniwarp", properties.OMNIWARP_PG_scene),
 )
 
+# The comparison tool of the sidebar tab (comparison.py), registered after
+# CLASSES: its PropertyGroups (the row before the group holding the rows), its
+# operators, the UI list, then the panel that draws them.
+TOOL_CLASSES: tuple[type, ...] = (
+    comparison.OMNIWARP_PG_result_row,
+    comparison.OMNIWARP_PG_comparison,
+    comparison.OMNIWARP_OT_build_preset,
+    comparison.OMNIWARP_OT_compare,
+    comparison.OMNIWARP_OT_export_results,
+    comparison.OMNIWARP_UL_results,
+    comparison.OMNIWARP_PT_compare,
+)
+
+# Its one namespaced pointer, added after POINTERS.
+TOOL_POINTERS: tuple[tuple[type, str, type], ...] = (
+    (bpy.types.Scene, "omniwarp_compare", comparison.OMNIWARP_PG_comparison),
+)
+
 # Sibling modules with their own register()/unregister(), called in this order
 # (and in reverse on unregister). Tests may set this to () to run without them.
 RUNTIME_MODULES: tuple[str, ...] = ("scene_cache", "viewport")
@@ -49,14 +69,24 @@ def _runtime_module(name: str) -> ModuleType:
     return importlib.import_module(f".{name}", __package__)
 
 
+def _all_classes() -> tuple[type, ...]:
+    """Every class, in registration order."""
+    return CLASSES + TOOL_CLASSES
+
+
+def _all_pointers() -> tuple[tuple[type, str, type], ...]:
+    """Every settings pointer, in the order they are added."""
+    return POINTERS + TOOL_POINTERS
+
+
 def _register_classes(done: list[type]) -> None:
-    for cls in CLASSES:
+    for cls in _all_classes():
         bpy.utils.register_class(cls)
         done.append(cls)
 
 
 def _add_pointers(done: list[tuple[type, str]]) -> None:
-    for owner, attr, group in POINTERS:
+    for owner, attr, group in _all_pointers():
         setattr(owner, attr, bpy.props.PointerProperty(type=group))
         done.append((owner, attr))
 
@@ -122,14 +152,14 @@ def unregister() -> None:
         modules += 1
 
     pointers = 0
-    for owner, attr, _group in reversed(POINTERS):
+    for owner, attr, _group in reversed(_all_pointers()):
         if _remove_pointer(owner, attr):
             pointers += 1
         else:
             log.debug("%s.%s was not registered; skipping", owner.__name__, attr)
 
     count = 0
-    for cls in reversed(CLASSES):
+    for cls in reversed(_all_classes()):
         try:
             bpy.utils.unregister_class(cls)
             count += 1

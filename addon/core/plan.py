@@ -19,7 +19,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from .frames import Layer, Parameterization, ipsm_layer, light_layers
+from .frames import Layer, Parameterization, ipsm_layer, light_layers, pick_slot
 from .projection import CUBE
 from .scene import CameraSpec, LightSpec
 
@@ -28,6 +28,8 @@ _SLACK = 1e-6
 # IPSM needs the cone to stay well inside a hemisphere: beyond this half-angle the
 # paraboloid's rim samples too coarsely, and both sides are used instead.
 IPSM_MAX_HALF_ANGLE = math.radians(80.0)
+# Layer culling cuts the view frustum at these depth percentiles (docs/culling.md).
+CULL_DEPTH_PERCENTILE = 0.5
 
 
 @dataclass
@@ -41,6 +43,7 @@ class Plan:
     culled_names: list[str] = field(default_factory=list)
     ipsm_half_angle: float | None = None  # set when one IPSM paraboloid covers the view
     requested: str = ""  # the parameterization asked for (ipsm may fall back to dpsm)
+    occluder_planes: np.ndarray | None = None  # (P, 4) outward planes of conv(light, view frustum)
 
     @property
     def drawn_slots(self) -> list[int]:
@@ -65,11 +68,13 @@ def frustum_corners(camera: CameraSpec, near_depth: float, far_depth: float) -> 
 
 
 def truncated_frustum(camera: CameraSpec, positions: np.ndarray, hit: np.ndarray,
-                      margin: float = 0.02) -> np.ndarray | None:
-    """Camera frustum cut at the min/max view depth of the hit samples (with margin).
+                      margin: float = 0.02, percentile: float = 0.0) -> np.ndarray | None:
+    """Camera frustum cut at the view depths of the hit samples (with a 2 % margin).
 
-    Strict min and max are used here: the foundation's culling must never change a
-    shadow. Returns None when no sample hits geometry (nothing needs a map).
+    `percentile` p cuts at the p-th and (100 - p)-th depth percentiles instead of the
+    strict min and max, so a few stray samples (a distant sky-line object, a speck
+    near the lens) do not stretch the frustum. Returns None when no sample hits
+    geometry (nothing needs a map).
     """
     pts = np.asarray(positions, dtype=np.float64)[np.asarray(hit, dtype=bool)]
     pts = pts[np.all(np.isfinite(pts), axis=1)]
@@ -77,8 +82,10 @@ def truncated_frustum(camera: CameraSpec, positions: np.ndarray, hit: np.ndarray
         return None
     m = np.asarray(camera.matrix_world, dtype=np.float64)
     view_depth = -((pts - m[:3, 3]) @ m[:3, 2])  # camera looks along its local -Z
-    near = max(float(view_depth.min()) * (1.0 - margin), 1e-9)
-    far = float(view_depth.max()) * (1.0 + margin) + 1e-9
+    low, high = (np.percentile(view_depth, [percentile, 100.0 - percentile]) if percentile > 0
+                 else (view_depth.min(), view_depth.max()))
+    near = max(float(low) * (1.0 - margin), 1e-9)
+    far = float(high) * (1.0 + margin) + 1e-9
     return frustum_corners(camera, near, far)
 
 
@@ -164,15 +171,30 @@ def plan_frame(light: LightSpec, parameterization: Parameterization, camera: Cam
     layers = light_layers(light, parameterization)
     if camera is None:
         return Plan(parameterization, layers, list(layers), None)
-    corners = truncated_frustum(camera, positions, hit)
+    corners = truncated_frustum(camera, positions, hit, percentile=CULL_DEPTH_PERCENTILE)
     if not cull:
         return Plan(parameterization, layers, list(layers), corners)
     if corners is None:
         return Plan(parameterization, layers, [], None, [layer.name for layer in layers])
-    drawn, culled = [], []
-    for layer in layers:
-        (drawn if layer_meets_frustum(layer, light.position, corners, far) else culled).append(layer)
-    return Plan(parameterization, layers, drawn, corners, [layer.name for layer in culled])
+    meets = {layer.slot for layer in layers if layer_meets_frustum(layer, light.position, corners, far)}
+    if len(meets) < len(layers):
+        # The percentile frustum may miss a stray sample; a layer that holds any sample
+        # is always drawn, so culling never changes a shadow.
+        meets |= occupied_slots(light, parameterization, positions, hit)
+    drawn = [layer for layer in layers if layer.slot in meets]
+    return Plan(parameterization, layers, drawn, corners, [layer.name for layer in layers if layer.slot not in meets],
+                occluder_planes=occluder_region(light, camera, positions, hit))
+
+
+def occupied_slots(light: LightSpec, parameterization: Parameterization, positions: np.ndarray,
+                   hit: np.ndarray) -> set[int]:
+    """Slots that some hit view sample in the emission domain falls into."""
+    pts = np.asarray(positions, dtype=np.float64)[np.asarray(hit, dtype=bool)]
+    pts = pts[np.all(np.isfinite(pts), axis=1)] - light.position
+    local = pts @ light.rotation  # world -> light local
+    if light.emission == "hemi":
+        local = local[local[:, 2] < 0.0]
+    return set(int(s) for s in np.unique(pick_slot(parameterization, local)))
 
 
 def _plan_ipsm(light: LightSpec, camera: CameraSpec | None, positions: np.ndarray, hit: np.ndarray,
@@ -184,7 +206,60 @@ def _plan_ipsm(light: LightSpec, camera: CameraSpec | None, positions: np.ndarra
         axis, theta = ipsm_cone(light.position, corners)
         if theta < IPSM_MAX_HALF_ANGLE:
             layer = ipsm_layer(axis)
-            return Plan("ipsm", [layer], [layer], corners, ipsm_half_angle=theta, requested="ipsm")
+            return Plan("ipsm", [layer], [layer], corners, ipsm_half_angle=theta, requested="ipsm",
+                        occluder_planes=hull_planes(np.vstack([corners, light.position[None]])))
     fallback = plan_frame(light, "dpsm", camera, positions, hit, far, cull)
     fallback.requested = "ipsm"
     return fallback
+
+
+def hull_planes(points: np.ndarray) -> np.ndarray:
+    """Outward face planes (n, d) with n.x <= d inside, of the convex hull of a few points.
+
+    Brute force over point triples (fine for the 9 points of a light and a frustum):
+    a triple spans a face when every other point lies on one side of its plane.
+    """
+    pts = np.asarray(points, dtype=np.float64)
+    scale = float(np.abs(pts).max()) + 1e-30
+    planes = []
+    n = len(pts)
+    for i in range(n):
+        for j in range(i + 1, n):
+            for k in range(j + 1, n):
+                normal = np.cross(pts[j] - pts[i], pts[k] - pts[i])
+                length = np.linalg.norm(normal)
+                if length < 1e-12 * scale * scale:
+                    continue
+                normal /= length
+                side = (pts - pts[i]) @ normal
+                if np.all(side <= 1e-9 * scale):
+                    planes.append(np.append(normal, normal @ pts[i]))
+                elif np.all(side >= -1e-9 * scale):
+                    planes.append(np.append(-normal, -normal @ pts[i]))
+    return np.unique(np.round(np.asarray(planes), 12), axis=0) if planes else np.zeros((0, 4))
+
+
+def occluder_region(light: LightSpec, camera: CameraSpec | None, positions: np.ndarray,
+                    hit: np.ndarray) -> np.ndarray | None:
+    """Planes of the region that can hold an occluder of a visible receiver.
+
+    The occluder of a receiver lies on the segment from the light to it, so inside the
+    convex hull of the light and the (strictly) truncated view frustum; a triangle
+    wholly outside one of its planes can shadow nothing in view.
+    """
+    if camera is None:
+        return None
+    corners = truncated_frustum(camera, positions, hit)
+    if corners is None:
+        return None
+    return hull_planes(np.vstack([corners, light.position[None]]))
+
+
+def outside_region(triangles: np.ndarray, planes: np.ndarray | None, slack: float = 1e-6) -> np.ndarray:
+    """(T,) True where all three corners lie beyond one plane (by a relative slack)."""
+    tris = np.asarray(triangles, dtype=np.float64)
+    if planes is None or len(planes) == 0 or len(tris) == 0:
+        return np.zeros(len(tris), dtype=bool)
+    scale = float(np.abs(planes[:, 3]).max()) + 1.0
+    dist = tris @ planes[:, :3].T - planes[:, 3]  # (T, 3, P)
+    return np.any(np.all(dist > slack * scale, axis=1), axis=1)

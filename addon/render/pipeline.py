@@ -18,7 +18,7 @@ import numpy as np
 from ..core import frames, projection, tessellate
 from ..core.errors import InputError
 from ..core.frames import Layer, Parameterization
-from ..core.plan import Plan, plan_frame
+from ..core.plan import Plan, outside_region, plan_frame
 from ..core.scene import CameraSpec, LightSpec
 from ..core.warping import LayerMapping, dv_crop_from_counts, notw_cols, notw_rows, rtw_from_counts
 from .backend import AtlasLayout, ShadowBackend
@@ -157,6 +157,10 @@ def prepare_geometry(light: LightSpec, triangles: np.ndarray, plan: Plan, settin
     light_pos = light.position
     near, far = projection.depth_range(triangles, light_pos)
     tris, report = tessellate.sanitize(triangles, light_pos, scale=max(far, 1e-30))
+    if settings.cull:
+        # Object culling: only triangles inside conv(light, view frustum) can shadow
+        # something in view (docs/culling.md).
+        tris = tris[~outside_region(tris, plan.occluder_planes)]
     centred = tris - light_pos
     streams: dict[int, np.ndarray] = {}
     added = 0

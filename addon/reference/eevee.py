@@ -1,0 +1,670 @@
+"""The `eevee` method row: Blender's own EEVEE shadows, measured like the Cycles reference.
+
+EEVEE renders the same scene, camera and light twice with the reference set-up of
+`capture.py` (white diffuse override, black world, transparent film, hard light):
+once with shadows and once with the light's shadow casting off. Visibility is
+shadowed / unshadowed >= 0.5 of the Diffuse Light pass, exactly like the Cycles
+reference (`metrics.reference_visibility`).
+
+One GL owner per process (DESIGN.md section 3): EEVEE uses Blender's GL, the CLI
+uses moderngl, and after an EEVEE render moderngl reads back NaN. So EEVEE runs in
+a child process, and arrays travel through files:
+
+    python -m addon.reference.eevee --preset NAME [--size WxH] --out DIR [--settings default,fine]
+    python -m addon.reference.eevee --blend FILE [--light NAME] [--camera NAME] --out DIR
+    python -m addon.reference.eevee --scene-spec SPEC.npz --out DIR
+
+The child writes `DIR/eevee_<setting>.npz` per setting and a `DIR/eevee.json`
+summary. The parent side, `eevee_rows`, needs only numpy (and matplotlib for the
+mismatch images); it runs the child and turns its output into compare rows.
+
+EEVEE Next facts used here (verified on 5.2.3):
+- the engine id is `BLENDER_EEVEE` in 5.x and `BLENDER_EEVEE_NEXT` in 4.2-4.4;
+- `Light.shadow_maximum_resolution` is a world-space texel size in metres (RNA
+  default 0.001); it is a *cap*: the virtual shadow map picks its LOD per pixel
+  footprint and never goes finer than this;
+- EEVEE renders in background mode without `gpu.init()`;
+- the Diffuse Light pass is written as the EXR channels `<layer>.Diffuse Direct.RGB`,
+  in half precision (11 significant bits), which is ample for a 0.5 threshold.
+"""
+from __future__ import annotations
+
+import argparse
+import json
+import logging
+import math
+import os
+import subprocess
+import sys
+import tempfile
+import threading
+import time
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass
+from pathlib import Path
+from typing import TYPE_CHECKING, Any
+
+import numpy as np
+
+from ..core import metrics
+from ..core.errors import InputError, OmniWarpError, ReferenceCaptureError
+from ..core.scene import CameraSpec, LightSpec, MeshSpec, SceneSpec
+from .data import ReferenceData
+
+if TYPE_CHECKING:  # pragma: no cover - typing only
+    import bpy
+
+log = logging.getLogger(__name__)
+
+REPO_ROOT = Path(__file__).resolve().parents[2]
+SETTINGS = ("default", "fine")
+FINE_FACTOR = 4.0  # "fine" caps the texel size at default / FINE_FACTOR
+PIXEL_FILTER_WIDTH = 0.01  # px, as the Cycles reference
+# The light's influence radius (custom distance) is REACH_FACTOR x the farthest rendered
+# bounding-box corner. EEVEE also clips the shadow maps there: an unbounded radius (a tiny
+# light_threshold) lost the shadow of room_omni's lamp shade entirely. Its smooth falloff
+# near the radius scales shadowed and unshadowed alike, so the ratio is unaffected.
+REACH_FACTOR = 2.0
+SHADOW_POOL_SIZE = "1024"  # MB of shadow pages; the default 512 may overflow at fine caps
+PROGRESS_PREFIX = "omniwarp-eevee: "
+SPEC_FORMAT = 1
+DEFAULT_TIMEOUT_S = 1800.0
+# EEVEE Next shadows a point light with up to 6 cube-face tilemaps, a 180 degree spot with 5.
+TILEMAPS = {"omni": 6, "hemi": 5}
+ROW_NOTE = ("EEVEE times are whole renders (shading included); passes: EEVEE's cube-face tilemaps "
+            "per light (6 omni, 5 hemi), not counted draws; texels: virtual shadow maps are paged, not reported")
+
+Progress = Callable[[str], None]
+
+
+# ----------------------------------------------------------------------------
+# SceneSpec <-> .npz (lets a test or a caller hand any SceneSpec to the child)
+# ----------------------------------------------------------------------------
+def save_scene_spec(spec: SceneSpec, path: str | os.PathLike) -> Path:
+    """Write a SceneSpec as a plain .npz (no pickles)."""
+    path = Path(path)
+    arrays: dict[str, np.ndarray] = {}
+    for i, mesh in enumerate(spec.meshes):
+        arrays[f"mesh{i}_vertices"] = np.asarray(mesh.vertices, dtype=np.float64).reshape(-1, 3)
+        arrays[f"mesh{i}_triangles"] = np.asarray(mesh.triangles, dtype=np.int64).reshape(-1, 3)
+        arrays[f"mesh{i}_matrix"] = np.asarray(mesh.matrix_world, dtype=np.float64).reshape(4, 4)
+    arrays["light_matrix"] = np.asarray(spec.light.matrix_world, dtype=np.float64).reshape(4, 4)
+    arrays["camera_matrix"] = np.asarray(spec.camera.matrix_world, dtype=np.float64).reshape(4, 4)
+    header = {
+        "format": SPEC_FORMAT,
+        "name": spec.name,
+        "description": spec.description,
+        "stresses": spec.stresses,
+        "mesh_names": [mesh.name for mesh in spec.meshes],
+        "light": {"emission": spec.light.emission, "energy": float(spec.light.energy)},
+        "camera": {"fov_deg": float(spec.camera.fov_deg), "resolution": [int(v) for v in spec.camera.resolution],
+                   "clip_start": float(spec.camera.clip_start), "clip_end": float(spec.camera.clip_end)},
+    }
+    path.parent.mkdir(parents=True, exist_ok=True)
+    with open(path, "wb") as fh:  # a file object keeps numpy from appending ".npz"
+        np.savez_compressed(fh, header=np.array(json.dumps(header)), **arrays)
+    return path
+
+
+def load_scene_spec(path: str | os.PathLike) -> SceneSpec:
+    """Read a file written by `save_scene_spec`."""
+    path = Path(path)
+    try:
+        with np.load(path, allow_pickle=False) as npz:
+            header = json.loads(str(npz["header"]))
+            if header.get("format") != SPEC_FORMAT:
+                raise InputError(f"scene spec {path} has format {header.get('format')}, expected {SPEC_FORMAT}")
+            meshes = [MeshSpec(name, npz[f"mesh{i}_vertices"], npz[f"mesh{i}_triangles"], npz[f"mesh{i}_matrix"])
+                      for i, name in enumerate(header["mesh_names"])]
+            light = LightSpec(header["light"]["emission"], npz["light_matrix"], header["light"]["energy"])
+            cam = header["camera"]
+            camera = CameraSpec(npz["camera_matrix"], cam["fov_deg"], tuple(cam["resolution"]),
+                                cam["clip_start"], cam["clip_end"])
+    except (OSError, KeyError, ValueError) as exc:
+        raise InputError(f"cannot read scene spec {path}: {exc}") from exc
+    return SceneSpec(header["name"], meshes, light, camera, header.get("description", ""),
+                     header.get("stresses", ""))
+
+
+# ----------------------------------------------------------------------------
+# child side (bpy)
+# ----------------------------------------------------------------------------
+@dataclass(frozen=True)
+class EeveeSetting:
+    """One named shadow setting: the light's world-space texel-size cap."""
+
+    name: str
+    shadow_maximum_resolution: float  # metres per texel (a cap; smaller is finer)
+
+
+def parse_settings(text: str | Sequence[str]) -> tuple[str, ...]:
+    """Comma list (or sequence) of setting names out of `SETTINGS`."""
+    names = tuple(s.strip() for s in (text.split(",") if isinstance(text, str) else text) if s.strip())
+    if not names:
+        raise InputError(f"no EEVEE settings given; known: {', '.join(SETTINGS)}")
+    for name in names:
+        if name not in SETTINGS:
+            raise InputError(f"unknown EEVEE setting {name!r}; known: {', '.join(SETTINGS)}")
+    if len(set(names)) != len(names):
+        raise InputError(f"EEVEE settings repeat a name: {','.join(names)}")
+    return names
+
+
+def eevee_engine_id() -> str:
+    """The EEVEE (Next) engine id this Blender offers."""
+    import bpy
+
+    ids = {item.identifier for item in bpy.types.RenderSettings.bl_rna.properties["engine"].enum_items}
+    if "BLENDER_EEVEE_NEXT" in ids:  # 4.2-4.4
+        return "BLENDER_EEVEE_NEXT"
+    if "BLENDER_EEVEE" in ids and "shadow_maximum_resolution" in bpy.types.PointLight.bl_rna.properties:
+        return "BLENDER_EEVEE"  # 5.x: EEVEE Next under its old name
+    raise ReferenceCaptureError(
+        f"Blender {bpy.app.version_string} has no EEVEE Next (virtual shadow maps); the eevee row needs 4.2 or later"
+    )
+
+
+def resolve_settings(names: Sequence[str], light: "bpy.types.Light") -> list[EeveeSetting]:
+    """The texel-size cap of each named setting; "default" is the RNA default of the light's type."""
+    default = float(light.bl_rna.properties["shadow_maximum_resolution"].default)
+    values = {"default": default, "fine": default / FINE_FACTOR}
+    return [EeveeSetting(name, values[name]) for name in names]
+
+
+def _render_result_image():
+    import bpy
+
+    for image in bpy.data.images:
+        if image.type == "RENDER_RESULT":
+            return image
+    raise ReferenceCaptureError("EEVEE render left no Render Result image")
+
+
+def _render_to(scene, view_layer, path: Path) -> float:
+    """Render one still with EEVEE, then save it to `path`; return the render's wall ms (save excluded)."""
+    import bpy
+
+    start = time.perf_counter()
+    result = bpy.ops.render.render(write_still=False, scene=scene.name, layer=view_layer.name)
+    ms = 1000.0 * (time.perf_counter() - start)
+    if "FINISHED" not in result:
+        raise ReferenceCaptureError(f"EEVEE render of scene {scene.name!r} failed: {result}")
+    _render_result_image().save_render(str(path), scene=scene)
+    if not path.exists():
+        raise ReferenceCaptureError(f"EEVEE render of scene {scene.name!r} wrote no {path.name}")
+    return ms
+
+
+def _renderer_string() -> str:
+    import bpy
+    import gpu
+
+    try:
+        gl = f"{gpu.platform.renderer_get()} | {gpu.platform.version_get()}"
+    except (RuntimeError, SystemError, AttributeError) as exc:
+        log.warning("cannot query the GL renderer: %s", exc)
+        gl = "unknown GL renderer"
+    return f"{gl} (EEVEE, Blender {bpy.app.version_string})"
+
+
+def light_reach(depsgraph, light_obj, visible: set[str]) -> float:
+    """Distance from the light to the farthest bounding-box corner of the rendered geometry."""
+    from .capture import _GEOMETRY_TYPES
+
+    origin = np.array(light_obj.matrix_world.translation, dtype=np.float64)
+    reach = 0.0
+    for inst in depsgraph.object_instances:
+        obj = inst.object
+        owner = (inst.parent if inst.is_instance else obj).original
+        if obj.type not in _GEOMETRY_TYPES or owner.name_full not in visible:
+            continue
+        corners = np.array([tuple(c) for c in obj.bound_box], dtype=np.float64)
+        matrix = np.array(inst.matrix_world, dtype=np.float64)
+        world = corners @ matrix[:3, :3].T + matrix[:3, 3]
+        distances = np.linalg.norm(world - origin, axis=1)
+        if np.all(np.isfinite(distances)):
+            reach = max(reach, float(distances.max()))
+    return reach
+
+
+def _apply_eevee_settings(scene, view_layer, light_obj, visible: set[str], engine: str,
+                          filepath: str, overrides) -> dict[str, Any]:
+    """The reference set-up for EEVEE (hard light, white diffuse, black world); returns what was set."""
+    from .capture import _black_world, _override_material
+
+    s = overrides.set
+    render = scene.render
+    s(render, "engine", engine)
+    eevee = scene.eevee
+    s(eevee, "taa_render_samples", 1)
+    s(eevee, "use_shadows", True, optional=True)
+    s(eevee, "shadow_resolution_scale", 1.0, optional=True)
+    s(eevee, "shadow_pool_size", SHADOW_POOL_SIZE, optional=True)
+    s(eevee, "use_shadow_jitter_viewport", False, optional=True)
+    s(eevee, "use_raytracing", False, optional=True)
+    s(eevee, "use_fast_gi", False, optional=True)
+    s(eevee, "use_overscan", False, optional=True)
+    s(eevee, "clamp_surface_direct", 0.0, optional=True)
+    s(eevee, "direct_light_intensity", 1.0, optional=True)
+    s(eevee, "use_bloom", False, optional=True)  # 4.1 and older only
+    s(eevee, "use_gtao", False, optional=True)
+    s(eevee, "use_ssr", False, optional=True)
+    s(render, "filter_size", PIXEL_FILTER_WIDTH)
+    s(render, "film_transparent", True)
+    s(render, "use_border", False)
+    s(render, "use_compositing", False)
+    s(render, "use_sequencer", False)
+    s(render, "use_motion_blur", False)
+    s(render, "use_freestyle", False, optional=True)
+    s(render, "use_multiview", False)
+    s(render, "filepath", filepath)
+    image = render.image_settings
+    if hasattr(image, "media_type"):  # Blender 5.x: pick the media type first
+        s(image, "media_type", "MULTI_LAYER_IMAGE")
+    else:
+        s(image, "file_format", "OPEN_EXR_MULTILAYER")
+    s(image, "color_depth", "32")
+    s(image, "exr_codec", "ZIP", optional=True)
+    camera = scene.camera.data
+    if getattr(getattr(camera, "dof", None), "use_dof", False):
+        s(camera.dof, "use_dof", False)
+
+    s(scene, "world", _black_world(overrides))
+    s(view_layer, "use_pass_combined", True)
+    s(view_layer, "use_pass_diffuse_direct", True)
+    s(view_layer, "samples", 0)
+    s(view_layer, "material_override", _override_material(overrides))
+
+    light = light_obj.data
+    s(light, "shadow_soft_size", 0.0)
+    s(light, "use_shadow", True)
+    s(light, "use_shadow_jitter", False, optional=True)
+    s(light, "shadow_jitter", False, optional=True)  # an older name
+    s(light, "shadow_filter_radius", 0.0, optional=True)
+    s(light, "use_absolute_resolution", False, optional=True)
+    s(light, "use_soft_falloff", False, optional=True)
+    from .capture import evaluated_depsgraph
+
+    reach = light_reach(evaluated_depsgraph(scene, view_layer), light_obj, visible)
+    if reach <= 0.0:
+        raise ReferenceCaptureError(f"scene {scene.name!r} has no rendered geometry for EEVEE to shadow")
+    s(light, "use_custom_distance", True, optional=True)
+    s(light, "cutoff_distance", REACH_FACTOR * reach, optional=True)
+    s(light, "diffuse_factor", 1.0, optional=True)
+    for obj in scene.objects:
+        if getattr(obj, "is_holdout", False):
+            s(obj, "is_holdout", False)
+        if obj.type == "LIGHT" and obj != light_obj and obj.name_full in visible:
+            s(obj, "hide_render", True)  # only the measured light may light the scene
+    return {
+        "engine": engine,
+        "scene.eevee.taa_render_samples": 1,
+        "scene.eevee.shadow_resolution_scale": float(getattr(eevee, "shadow_resolution_scale", 1.0)),
+        "scene.eevee.shadow_pool_size": str(getattr(eevee, "shadow_pool_size", "")),
+        "scene.eevee.shadow_ray_count": int(getattr(eevee, "shadow_ray_count", 0)),
+        "scene.eevee.shadow_step_count": int(getattr(eevee, "shadow_step_count", 0)),
+        "light.use_custom_distance": bool(getattr(light, "use_custom_distance", False)),
+        "light.cutoff_distance": float(getattr(light, "cutoff_distance", 0.0)),
+        "scene.render.filter_size": float(render.filter_size),
+        "light.shadow_soft_size": float(light.shadow_soft_size),
+        "light.use_shadow_jitter": bool(getattr(light, "use_shadow_jitter", False)),
+        "light.shadow_filter_radius": float(getattr(light, "shadow_filter_radius", 0.0)),
+        "light.use_absolute_resolution": bool(getattr(light, "use_absolute_resolution", False)),
+        "light.shadow_buffer_clip_start": float(getattr(light, "shadow_buffer_clip_start", 0.0)),
+    }
+
+
+def _diffuse(channels: dict[str, np.ndarray], layer: str, hit: np.ndarray) -> np.ndarray:
+    from .capture import _stack
+
+    return np.where(hit, _stack(channels, layer, "Diffuse Direct", "RGB").mean(axis=-1), 0.0).astype(np.float32)
+
+
+def render_eevee(scene: "bpy.types.Scene", out_dir: Path, settings: Sequence[str] = SETTINGS, *,
+                 light: "bpy.types.Object | str | None" = None, view_layer: str | None = None,
+                 frames: int = 1, progress: Progress | None = None) -> dict[str, Any]:
+    """Render `scene` with EEVEE per setting into `out_dir`; the scene is left as it was.
+
+    Order: one warm-up render (shader compilation, timed as `warmup_ms`), then per
+    setting `frames` timed shadowed renders (median `render_ms`), then one
+    unshadowed render shared by every setting (the cap only affects shadows).
+    Returns the summary also written to `out_dir/eevee.json`.
+    """
+    import bpy
+
+    from .capture import (
+        _channel,
+        _emission_of,
+        _Overrides,
+        _pick_light,
+        _pick_view_layer,
+        _remove_dir,
+        _render_visible_objects,
+        evaluated_depsgraph,
+        read_exr_channels,
+    )
+
+    if frames < 1:
+        raise InputError(f"frames must be at least 1, got {frames}")
+    names = parse_settings(settings)
+    engine = eevee_engine_id()
+    cam_obj = scene.camera
+    if cam_obj is None or cam_obj.type != "CAMERA":
+        raise ReferenceCaptureError(f"scene {scene.name!r} has no active camera; the eevee row needs one")
+    layer = _pick_view_layer(scene, view_layer)
+    evaluated_depsgraph(scene, layer)  # syncs a new scene's layer collections
+    visible = _render_visible_objects(layer)
+    light_obj = _pick_light(scene, visible, light)
+    emission = _emission_of(light_obj.data)
+    chosen = resolve_settings(names, light_obj.data)
+    say = progress or (lambda message: None)
+    render = scene.render
+    width = int(render.resolution_x * render.resolution_percentage / 100)
+    height = int(render.resolution_y * render.resolution_percentage / 100)
+    out_dir.mkdir(parents=True, exist_ok=True)
+
+    tmpdir = Path(tempfile.mkdtemp(prefix="omniwarp_eevee_"))
+    overrides = _Overrides()
+    try:
+        cap_in_file = float(light_obj.data.shadow_maximum_resolution)
+        used = _apply_eevee_settings(scene, layer, light_obj, visible, engine, str(tmpdir / "pass"), overrides)
+        exr = tmpdir / "pass.exr"
+        overrides.set(light_obj.data, "shadow_maximum_resolution", chosen[0].shadow_maximum_resolution)
+        say(f"EEVEE warm-up render (shader compilation, {width}x{height})")
+        warmup_ms = _render_to(scene, layer, exr)
+        shadowed: dict[str, tuple[np.ndarray, np.ndarray, list[float]]] = {}
+        for setting in chosen:
+            light_obj.data.shadow_maximum_resolution = setting.shadow_maximum_resolution
+            times = []
+            for i in range(frames):
+                say(f"EEVEE render, setting {setting.name} (cap {setting.shadow_maximum_resolution:g} m), "
+                    f"frame {i + 1}/{frames}")
+                times.append(_render_to(scene, layer, exr))
+            channels = read_exr_channels(exr)
+            hit = _channel(channels, layer.name, "Combined.A") > 0.5
+            shadowed[setting.name] = (hit, _diffuse(channels, layer.name, hit), times)
+        overrides.set(light_obj.data, "use_shadow", False)
+        say("EEVEE render without shadows")
+        unshadowed_ms = _render_to(scene, layer, exr)
+        channels = read_exr_channels(exr)
+        free_hit = _channel(channels, layer.name, "Combined.A") > 0.5
+        unshadowed = _diffuse(channels, layer.name, free_hit)
+        renderer = _renderer_string()
+    finally:
+        try:
+            overrides.restore()
+        finally:
+            _remove_dir(tmpdir)
+
+    if unshadowed.shape != (height, width):
+        raise ReferenceCaptureError(f"EEVEE output is {unshadowed.shape[1]}x{unshadowed.shape[0]}, "
+                                    f"expected {width}x{height}")
+    summary: dict[str, Any] = {
+        "scene": scene.name,
+        "light": light_obj.name,
+        "camera": cam_obj.name,
+        "emission": emission,
+        "resolution": [width, height],
+        "blender_version": bpy.app.version_string,
+        "renderer": renderer,
+        "warmup_ms": warmup_ms,
+        "unshadowed_ms": unshadowed_ms,
+        "frames": frames,
+        "render_settings": used,
+        "light_shadow_maximum_resolution_in_file": cap_in_file,  # overridden by each setting
+        "settings": {},
+    }
+    for setting in chosen:
+        hit, lit, times = shadowed[setting.name]
+        visibility = metrics.reference_visibility(lit, unshadowed)
+        render_ms = float(np.median(times))
+        np.savez_compressed(out_dir / f"eevee_{setting.name}.npz", visibility=visibility, shadowed=lit,
+                            unshadowed=unshadowed, hit=hit, render_ms=np.asarray(times, dtype=np.float64),
+                            warmup_ms=np.float64(warmup_ms))
+        summary["settings"][setting.name] = {
+            "shadow_maximum_resolution": setting.shadow_maximum_resolution,
+            "render_ms": render_ms,
+            "render_ms_frames": times,
+            "file": f"eevee_{setting.name}.npz",
+            "lit_pct": 100.0 * float(visibility.mean()),
+        }
+        log.info("EEVEE %s: cap %g m, render %.0f ms", setting.name, setting.shadow_maximum_resolution, render_ms)
+    (out_dir / "eevee.json").write_text(json.dumps(summary, indent=1), encoding="utf-8")
+    return summary
+
+
+def _parse_size(text: str) -> tuple[int, int]:
+    try:
+        w_text, h_text = text.lower().split("x")
+        width, height = int(w_text), int(h_text)
+    except ValueError:
+        raise InputError(f"bad size {text!r}: expected WxH such as 640x480") from None
+    if not (8 <= width <= 8192 and 8 <= height <= 8192):
+        raise InputError(f"bad size {text!r}: each side must lie in [8, 8192]")
+    return width, height
+
+
+def _open_blend(path: Path, camera: str | None, light: str | None):
+    """Load a .blend (never saved back) and return its active scene."""
+    import bpy
+
+    if not path.is_file():
+        raise InputError(f"--blend file not found: {path}")
+    bpy.ops.wm.open_mainfile(filepath=str(path.resolve()), load_ui=False)
+    scene = bpy.context.scene
+    if camera:
+        cam = bpy.data.objects.get(camera)
+        if cam is None or cam.type != "CAMERA":
+            raise InputError(f"--camera {camera!r}: no camera object of that name in {path.name}")
+        scene.camera = cam
+    if light and bpy.data.objects.get(light) is None:
+        raise InputError(f"--light {light!r}: no object of that name in {path.name}")
+    return scene
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    """Entry of the EEVEE child process; exit 0 on success, 2 on bad input, 1 on failure."""
+    parser = argparse.ArgumentParser(prog="python -m addon.reference.eevee",
+                                     description="Render EEVEE's shadows for the eevee method row.")
+    source = parser.add_mutually_exclusive_group(required=True)
+    source.add_argument("--preset", help="a preset name")
+    source.add_argument("--blend", help="a .blend file (its active scene and camera)")
+    source.add_argument("--scene-spec", help="a SceneSpec written by save_scene_spec")
+    parser.add_argument("--light", help="with --blend: the light object")
+    parser.add_argument("--camera", help="with --blend: the camera object")
+    parser.add_argument("--size", default="640x480", help="with --preset: camera size WxH")
+    parser.add_argument("--out", required=True, help="folder for eevee_<setting>.npz and eevee.json")
+    parser.add_argument("--settings", default=",".join(SETTINGS), help="comma list of: " + ", ".join(SETTINGS))
+    parser.add_argument("--frames", type=int, default=1, help="timed renders per setting (median)")
+    parser.add_argument("-v", "--verbose", action="store_true")
+    args = parser.parse_args(argv)
+    logging.basicConfig(level=logging.INFO if args.verbose else logging.WARNING,
+                        format="%(levelname)s %(name)s: %(message)s")
+
+    def say(message: str) -> None:
+        print(PROGRESS_PREFIX + message, flush=True)
+
+    try:
+        if (args.light or args.camera) and not args.blend:
+            raise InputError("--light and --camera apply to --blend only")
+        settings = parse_settings(args.settings)
+        from .blender_scene import build_blender_scene, remove_blender_scene
+
+        built = None
+        if args.preset:
+            from ..core.presets import build_preset
+
+            built = scene = build_blender_scene(build_preset(args.preset, _parse_size(args.size)))
+        elif args.scene_spec:
+            built = scene = build_blender_scene(load_scene_spec(args.scene_spec))
+        else:
+            scene = _open_blend(Path(args.blend), args.camera, args.light)
+        try:
+            summary = render_eevee(scene, Path(args.out), settings, light=args.light, frames=args.frames,
+                                   progress=say)
+        finally:
+            if built is not None:
+                remove_blender_scene(built)
+        say(f"done: warm-up {summary['warmup_ms']:.0f} ms; " + ", ".join(
+            f"{name} {entry['render_ms']:.0f} ms" for name, entry in summary["settings"].items()))
+        return 0
+    except InputError as exc:
+        print(f"omniwarp eevee: error: {exc}", file=sys.stderr)
+        return 2
+    except OmniWarpError as exc:
+        print(f"omniwarp eevee: failed: {exc}", file=sys.stderr)
+        return 1
+
+
+# ----------------------------------------------------------------------------
+# parent side (numpy, matplotlib)
+# ----------------------------------------------------------------------------
+def _stderr_tail(text: str, limit: int = 2000) -> str:
+    return "\n".join(line for line in text.splitlines() if "EGL_BAD" not in line)[-limit:]
+
+
+def _forward_progress(stream, progress: Progress | None) -> None:
+    """Read the child's stdout to the end; pass our progress lines on (Blender prints there too)."""
+    for line in stream:
+        if line.startswith(PROGRESS_PREFIX) and progress is not None:
+            progress(line[len(PROGRESS_PREFIX):].rstrip())
+    stream.close()
+
+
+def run_child(args: Sequence[str], out_dir: Path, progress: Progress | None = None,
+              timeout_s: float | None = DEFAULT_TIMEOUT_S) -> dict[str, Any]:
+    """Run `python -m addon.reference.eevee ARGS --out OUT_DIR`; return its eevee.json.
+
+    Progress lines of the child go to `progress`; a failure raises
+    ReferenceCaptureError with the tail of the child's stderr.
+    """
+    out_dir.mkdir(parents=True, exist_ok=True)
+    summary_path = out_dir / "eevee.json"
+    summary_path.unlink(missing_ok=True)  # never read a stale summary
+    env = dict(os.environ)
+    env["PYTHONPATH"] = str(REPO_ROOT) + (os.pathsep + env["PYTHONPATH"] if env.get("PYTHONPATH") else "")
+    command = [sys.executable, "-m", "addon.reference.eevee", *args, "--out", str(out_dir.resolve())]
+    log.info("running %s", " ".join(command))
+    with tempfile.TemporaryFile(mode="w+", encoding="utf-8", errors="replace") as err:
+        proc = subprocess.Popen(command, cwd=REPO_ROOT, env=env, stdout=subprocess.PIPE, stderr=err,
+                                text=True, errors="replace")
+        reader = threading.Thread(target=_forward_progress, args=(proc.stdout, progress), daemon=True)
+        reader.start()
+        try:
+            proc.wait(timeout=timeout_s)
+        except subprocess.TimeoutExpired:
+            proc.kill()
+            proc.wait()
+            raise ReferenceCaptureError(f"the EEVEE process took longer than {timeout_s:.0f} s; killed") from None
+        finally:
+            reader.join(timeout=5.0)
+        err.seek(0)
+        stderr = err.read()
+    if proc.returncode != 0:
+        raise ReferenceCaptureError(f"the EEVEE process failed (exit {proc.returncode}):\n{_stderr_tail(stderr)}")
+    try:
+        return json.loads(summary_path.read_text(encoding="utf-8"))
+    except (OSError, ValueError) as exc:
+        raise ReferenceCaptureError(f"the EEVEE process left no readable {summary_path}: {exc}") from exc
+
+
+def _load_setting(out_dir: Path, entry: dict[str, Any], shape: tuple[int, int]) -> dict[str, np.ndarray]:
+    path = out_dir / entry["file"]
+    try:
+        with np.load(path, allow_pickle=False) as npz:
+            data = {k: npz[k] for k in ("visibility", "shadowed", "unshadowed", "hit")}
+    except (OSError, KeyError, ValueError) as exc:
+        raise ReferenceCaptureError(f"cannot read EEVEE output {path}: {exc}") from exc
+    for name, array in data.items():
+        if array.shape != shape:
+            raise ReferenceCaptureError(
+                f"EEVEE {name} is {array.shape[1]}x{array.shape[0]} but the reference is {shape[1]}x{shape[0]}; "
+                "the child rendered another camera size")
+    return data
+
+
+def _finite(value: float, what: str) -> float:
+    value = float(value)
+    if not math.isfinite(value):
+        raise ReferenceCaptureError(f"EEVEE {what} is not finite ({value})")
+    return value
+
+
+def eevee_rows(source_args: list[str], reference: ReferenceData, preset_label: str, out_dir: Path,
+               image_dir: Path | None, settings: Sequence[str] = SETTINGS, *, frames: int = 1,
+               progress: Progress | None = None, timeout_s: float | None = DEFAULT_TIMEOUT_S) -> list[dict]:
+    """Rows of the `eevee` method, one per setting, measured against `reference`.
+
+    `source_args` names the scene for the child: `["--preset", NAME]` (the camera
+    size is taken from the reference), `["--blend", FILE, "--light", NAME]` or
+    `["--scene-spec", FILE]`. The child's files go to `out_dir/eevee/<preset_label>/`.
+    With `image_dir`, a mismatch image `<preset>_eevee_<setting>_mismatch.png` is written.
+    """
+    names = parse_settings(settings)
+    if reference.emission not in TILEMAPS:
+        raise InputError(f"the reference light is {reference.emission!r}; the eevee row needs an omni or hemi light")
+    args = list(source_args)
+    if "--preset" in args and "--size" not in args:
+        args += ["--size", f"{reference.resolution[0]}x{reference.resolution[1]}"]
+    args += ["--settings", ",".join(names), "--frames", str(int(frames))]
+    child_dir = Path(out_dir) / "eevee" / preset_label
+    summary = run_child(args, child_dir, progress=progress, timeout_s=timeout_s)
+    if summary.get("emission") != reference.emission:
+        raise ReferenceCaptureError(f"EEVEE measured a {summary.get('emission')} light but the reference has "
+                                    f"a {reference.emission} light; the scenes differ")
+
+    light = LightSpec(reference.emission, reference.light_matrix)  # type: ignore[arg-type]
+    ref_lit = metrics.reference_visibility(reference.shadowed, reference.unshadowed)
+    evaluable = metrics.evaluable_mask(reference.position, reference.normal, reference.hit, reference.unshadowed, light)
+    width, height = reference.resolution
+    warmup_ms = _finite(summary["warmup_ms"], "warm-up time")
+    rows = []
+    for name in names:
+        entry = summary["settings"][name]
+        data = _load_setting(child_dir, entry, (height, width))
+        hit_agreement = 100.0 * float(np.mean(data["hit"] == reference.hit))
+        if hit_agreement < 99.0:
+            log.warning("EEVEE and Cycles disagree on the hit mask at %.2f %% of pixels: other camera or scene?",
+                        100.0 - hit_agreement)
+        est_lit = data["visibility"].astype(bool)
+        figure = metrics.error_figure(est_lit, ref_lit, evaluable)
+        cap = _finite(entry["shadow_maximum_resolution"], "shadow_maximum_resolution")
+        row: dict[str, Any] = {
+            "preset": preset_label,
+            "method": "eevee",
+            "emission": reference.emission,
+            "resolution": int(round(1.0 / cap)),  # texels per metre, the finest EEVEE may go
+            "error_pct": figure.error_pct,
+            "false_shadow_pct": figure.false_shadow_pct,
+            "false_lit_pct": figure.false_lit_pct,
+            "evaluated_pixels": figure.evaluated_pixels,
+            "time_ms": {"total": _finite(entry["render_ms"], "render time"), "analysis": 0.0, "shadow_maps": 0.0,
+                        "shadow_test": 0.0, "prepare": 0.0, "warmup": warmup_ms},
+            "passes": TILEMAPS[reference.emission],
+            "triangles_drawn": int(len(reference.triangles)),
+            "texels": 0,
+            "renderer": str(summary["renderer"]),
+            "backend": "eevee",
+            "eevee_setting": name,
+            "shadow_maximum_resolution": cap,
+            "unshadowed_ms": _finite(summary["unshadowed_ms"], "unshadowed render time"),
+            "hit_agreement_pct": hit_agreement,
+            "render_settings": summary["render_settings"],
+            "frames": int(summary["frames"]),
+            "camera_size": [int(width), int(height)],
+            "note": ROW_NOTE,
+        }
+        if image_dir is not None:
+            image_dir.mkdir(parents=True, exist_ok=True)
+            stem = f"{preset_label}_eevee_{name}"
+            img = metrics.mismatch_image(reference.shadowed, est_lit, ref_lit, evaluable)
+            import matplotlib.image as mpimg  # lazy: matplotlib is slow to import
+
+            mpimg.imsave(image_dir / f"{stem}_mismatch.png", img)
+            row["mismatch_image"] = f"images/{stem}_mismatch.png"
+        rows.append(row)
+    return rows
+
+
+if __name__ == "__main__":
+    sys.exit(main())
