@@ -45,7 +45,9 @@ METHODS: dict[str, tuple[str, str]] = {
     "cube+rtw": ("cube", "rtw"),
     "ipsm": ("ipsm", "none"),
     "ipsm+notw": ("ipsm", "notw"),
+    "ipsm+cut": ("ipsm", "none"),  # with the skewed cut (CUT_METHODS)
 }
+CUT_METHODS = {"ipsm+cut"}
 MAP_IMAGE_MAX = 512  # map images are pooled down to at most this many pixels a side
 DEFAULT_METHODS = ("dpsm", "cube")
 DEFAULT_RESOLUTIONS = (512, 1024, 2048)
@@ -152,7 +154,7 @@ def run_row(pipeline: ShadowPipeline, ref: ReferenceData, preset: str, method: s
     light = light_from_reference(ref)
     samples = samples_from_reference(ref)
     parameterization, warp = METHODS[method]
-    settings = ShadowSettings(parameterization, resolution, cull=options.cull, warp=warp)
+    settings = ShadowSettings(parameterization, resolution, cull=options.cull, warp=warp, cut=method in CUT_METHODS)
     triangles = ref.triangles.astype(np.float64)
     pipeline.render(light, triangles, samples, settings)  # warm-up: shader compile, allocation
     count = max(1, options.frames)

@@ -159,15 +159,39 @@ def point_in_frustum(point: np.ndarray, corners: np.ndarray) -> bool:
     return True
 
 
+def skewed_axis(light_position: np.ndarray, corners: np.ndarray, camera: CameraSpec) -> np.ndarray:
+    """Axis of the skewed cut (thesis 4.1.4): the corner directions weighted by 1 / view depth.
+
+    The near corners weigh (far / near) times more than the far ones, so the dense
+    centre of the paraboloid turns towards the part of the view close to the camera,
+    where a texel covers the most pixels.
+    """
+    d = np.asarray(corners, dtype=np.float64) - light_position
+    d /= np.linalg.norm(d, axis=1, keepdims=True)
+    m = np.asarray(camera.matrix_world, dtype=np.float64)
+    depth = np.maximum(-((corners - m[:3, 3]) @ m[:3, 2]), 1e-9)
+    axis = (d / depth[:, None]).sum(axis=0)
+    return axis / np.linalg.norm(axis)
+
+
+def frustum_edge_points(corners: np.ndarray, per_edge: int = 33) -> np.ndarray:
+    """Points along the 12 edges of a frustum (near quad, far quad, 4 side edges)."""
+    near, far = corners[:4], corners[4:]
+    edges = [(near[i], near[(i + 1) % 4]) for i in range(4)] + [(far[i], far[(i + 1) % 4]) for i in range(4)]
+    edges += [(near[i], far[i]) for i in range(4)]
+    t = np.linspace(0.0, 1.0, per_edge)[:, None]
+    return np.concatenate([a + t * (b - a) for a, b in edges])
+
+
 def plan_frame(light: LightSpec, parameterization: Parameterization, camera: CameraSpec | None,
-               positions: np.ndarray, hit: np.ndarray, far: float, cull: bool = True) -> Plan:
+               positions: np.ndarray, hit: np.ndarray, far: float, cull: bool = True, cut: bool = False) -> Plan:
     """Decide which layers to draw for one frame.
 
     Without a perspective camera (e.g. an orthographic viewport) there is no view
     frustum to test against, so every layer is drawn.
     """
     if parameterization == "ipsm":
-        return _plan_ipsm(light, camera, positions, hit, far, cull)
+        return _plan_ipsm(light, camera, positions, hit, far, cull, cut)
     layers = light_layers(light, parameterization)
     if camera is None:
         return Plan(parameterization, layers, list(layers), None)
@@ -198,16 +222,23 @@ def occupied_slots(light: LightSpec, parameterization: Parameterization, positio
 
 
 def _plan_ipsm(light: LightSpec, camera: CameraSpec | None, positions: np.ndarray, hit: np.ndarray,
-               far: float, cull: bool) -> Plan:
+               far: float, cull: bool, cut: bool = False) -> Plan:
     """IPSM (thesis 4.1): one paraboloid along the cone over the truncated view frustum when
-    the light is outside it; otherwise (or without culling) the dual paraboloid."""
+    the light is outside it; otherwise (or without culling) the dual paraboloid. With
+    `cut`, the axis is skewed towards the camera and the map cropped to the frustum."""
     corners = truncated_frustum(camera, positions, hit) if camera is not None else None
     if cull and corners is not None and not point_in_frustum(light.position, corners):
         axis, theta = ipsm_cone(light.position, corners)
         if theta < IPSM_MAX_HALF_ANGLE:
+            if cut:
+                axis = skewed_axis(light.position, corners, camera)
+                d = frustum_edge_points(corners) - light.position
+                theta = float(np.max(np.arccos(np.clip((d / np.linalg.norm(d, axis=1, keepdims=True)) @ axis,
+                                                       -1.0, 1.0))))
             layer = ipsm_layer(axis)
-            return Plan("ipsm", [layer], [layer], corners, ipsm_half_angle=theta, requested="ipsm",
-                        occluder_planes=hull_planes(np.vstack([corners, light.position[None]])))
+            if theta < IPSM_MAX_HALF_ANGLE:
+                return Plan("ipsm", [layer], [layer], corners, ipsm_half_angle=theta, requested="ipsm",
+                            occluder_planes=hull_planes(np.vstack([corners, light.position[None]])))
     fallback = plan_frame(light, "dpsm", camera, positions, hit, far, cull)
     fallback.requested = "ipsm"
     return fallback

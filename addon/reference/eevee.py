@@ -57,8 +57,10 @@ if TYPE_CHECKING:  # pragma: no cover - typing only
 log = logging.getLogger(__name__)
 
 REPO_ROOT = Path(__file__).resolve().parents[2]
-SETTINGS = ("default", "fine")
+SETTINGS = ("default", "fine")  # measured by default
+KNOWN_SETTINGS = ("default", "fine", "coarse")
 FINE_FACTOR = 4.0  # "fine" caps the texel size at default / FINE_FACTOR
+COARSE_FACTOR = 16.0  # "coarse" (on request) caps it at default x COARSE_FACTOR
 PIXEL_FILTER_WIDTH = 0.01  # px, as the Cycles reference
 # The light's influence radius (custom distance) is REACH_FACTOR x the farthest rendered
 # bounding-box corner. EEVEE also clips the shadow maps there: an unbounded radius (a tiny
@@ -138,13 +140,13 @@ class EeveeSetting:
 
 
 def parse_settings(text: str | Sequence[str]) -> tuple[str, ...]:
-    """Comma list (or sequence) of setting names out of `SETTINGS`."""
+    """Comma list (or sequence) of setting names out of `KNOWN_SETTINGS`."""
     names = tuple(s.strip() for s in (text.split(",") if isinstance(text, str) else text) if s.strip())
     if not names:
-        raise InputError(f"no EEVEE settings given; known: {', '.join(SETTINGS)}")
+        raise InputError(f"no EEVEE settings given; known: {', '.join(KNOWN_SETTINGS)}")
     for name in names:
-        if name not in SETTINGS:
-            raise InputError(f"unknown EEVEE setting {name!r}; known: {', '.join(SETTINGS)}")
+        if name not in KNOWN_SETTINGS:
+            raise InputError(f"unknown EEVEE setting {name!r}; known: {', '.join(KNOWN_SETTINGS)}")
     if len(set(names)) != len(names):
         raise InputError(f"EEVEE settings repeat a name: {','.join(names)}")
     return names
@@ -167,7 +169,7 @@ def eevee_engine_id() -> str:
 def resolve_settings(names: Sequence[str], light: "bpy.types.Light") -> list[EeveeSetting]:
     """The texel-size cap of each named setting; "default" is the RNA default of the light's type."""
     default = float(light.bl_rna.properties["shadow_maximum_resolution"].default)
-    values = {"default": default, "fine": default / FINE_FACTOR}
+    values = {"default": default, "fine": default / FINE_FACTOR, "coarse": default * COARSE_FACTOR}
     return [EeveeSetting(name, values[name]) for name in names]
 
 
@@ -474,7 +476,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     parser.add_argument("--camera", help="with --blend: the camera object")
     parser.add_argument("--size", default="640x480", help="with --preset: camera size WxH")
     parser.add_argument("--out", required=True, help="folder for eevee_<setting>.npz and eevee.json")
-    parser.add_argument("--settings", default=",".join(SETTINGS), help="comma list of: " + ", ".join(SETTINGS))
+    parser.add_argument("--settings", default=",".join(SETTINGS), help="comma list of: " + ", ".join(KNOWN_SETTINGS))
     parser.add_argument("--frames", type=int, default=1, help="timed renders per setting (median)")
     parser.add_argument("-v", "--verbose", action="store_true")
     args = parser.parse_args(argv)

@@ -18,7 +18,7 @@ import numpy as np
 from ..core import frames, projection, tessellate
 from ..core.errors import InputError
 from ..core.frames import Layer, Parameterization
-from ..core.plan import Plan, outside_region, plan_frame
+from ..core.plan import Plan, frustum_edge_points, outside_region, plan_frame
 from ..core.scene import CameraSpec, LightSpec
 from ..core.warping import LayerMapping, dv_crop_from_counts, notw_cols, notw_rows, rtw_from_counts
 from .backend import AtlasLayout, ShadowBackend
@@ -64,6 +64,7 @@ class ShadowSettings:
     tessellation_tolerance: float = 1.0  # texels of chord-to-arc bend
     warp: str = "none"  # "none", "notw" or "rtw"
     analysis_size: int | None = None  # count-map side A; None = analysis_size_for(resolution)
+    cut: bool = False  # ipsm only: skewed axis and a crop fitted to the frustum (thesis 4.1.4)
 
     def __post_init__(self) -> None:
         if self.parameterization not in ("dpsm", "cube", "ipsm"):
@@ -302,7 +303,7 @@ class ShadowPipeline:
         t1 = time.perf_counter()
         _, far_estimate = projection.depth_range(triangles, light.position)
         plan = plan_frame(light, settings.parameterization, samples.camera, samples.positions, samples.hit,
-                          far_estimate, cull=settings.cull)
+                          far_estimate, cull=settings.cull, cut=settings.cut)
         t_plan = time.perf_counter() - t1
 
         t2 = time.perf_counter()
@@ -313,7 +314,8 @@ class ShadowPipeline:
         else:
             backend.set_warp_tables(None, None)
             if plan.ipsm_half_angle is not None:
-                mappings = {0: ipsm_mapping(plan.ipsm_half_angle, settings.resolution)}
+                mappings = {0: (cut_mapping(plan, light, settings.resolution) if settings.cut
+                                else ipsm_mapping(plan.ipsm_half_angle, settings.resolution))}
         backend.finish()
         t3 = time.perf_counter()
         timings["analysis"] = (t3 - t2) * 1e3
@@ -402,6 +404,21 @@ def ipsm_mapping(half_angle: float, resolution: int) -> LayerMapping:
     """
     t = min(1.0, math.tan(half_angle / 2.0) * 1.02 + 4.0 / resolution)
     return LayerMapping(np.full(2, 0.5 - 0.5 * t), np.full(2, 0.5 + 0.5 * t), None)
+
+
+def cut_mapping(plan: Plan, light: LightSpec, resolution: int) -> LayerMapping:
+    """Cut parameters (min/max x, y) of the skewed cut: the bounding box of the truncated
+    frustum's edges projected into the skewed paraboloid, grown by 2 % and 4 texels.
+
+    The image of a convex frustum seen from outside is bounded by the images of its
+    edges, so the box holds every view sample.
+    """
+    layer = plan.drawn[0]
+    xy = projection.paraboloid_project(layer.to_local(frustum_edge_points(plan.frustum_corners) - light.position))
+    lo, hi = xy.min(axis=0) * 0.5 + 0.5, xy.max(axis=0) * 0.5 + 0.5
+    grow = (hi - lo) * 0.02 + 4.0 / resolution
+    lo, hi = np.clip(lo - grow, 0.0, 1.0), np.clip(hi + grow, 0.0, 1.0)
+    return LayerMapping(lo, hi, None)
 
 
 def _warp_of(rows: np.ndarray, cols: np.ndarray | None, size: int, row_window: int = 0, col_window: int = 0):

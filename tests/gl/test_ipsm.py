@@ -71,3 +71,27 @@ def test_no_cull_turns_ipsm_into_dpsm(gl_backend, courtyard):
     result = ShadowPipeline(gl_backend).render(scene.light, scene.world_triangles(), samples,
                                                ShadowSettings("ipsm", 256, cull=False))
     assert result.plan.parameterization == "dpsm" and result.passes == 2
+
+
+def test_skewed_cut_keeps_every_sample_in_the_map(gl_backend, courtyard):
+    """The cut's crop holds every view sample, turns towards the camera, and the
+    result stays as good as the symmetric IPSM (it usually is better)."""
+    from addon.core import frames, projection
+
+    scene, samples, lit, evaluable = courtyard
+    pipe = ShadowPipeline(gl_backend)
+    cut = pipe.render(scene.light, scene.world_triangles(), samples, ShadowSettings("ipsm", 512, cut=True))
+    plain = pipe.render(scene.light, scene.world_triangles(), samples, ShadowSettings("ipsm", 512))
+    assert cut.passes == 1
+    layer = cut.plan.drawn[0]
+    dirs = samples.positions[samples.hit] - scene.light.position
+    uv = cut.mappings[0].forward(projection.paraboloid_project(layer.to_local(dirs)))
+    assert np.all((uv > 0.0) & (uv < 1.0))
+    cam = scene.camera.matrix_world[:3, 3] - scene.light.position
+    cam /= np.linalg.norm(cam)
+    # The skewed axis leans towards the camera compared with the symmetric cone axis.
+    assert layer.rotation[2] @ cam > plain.plan.drawn[0].rotation[2] @ cam
+    e_cut = error_figure(cut.visibility > 0.5, lit, evaluable).error_pct
+    e_plain = error_figure(plain.visibility > 0.5, lit, evaluable).error_pct
+    assert e_cut <= 1.1 * e_plain + 0.05
+    assert frames.pick_slot("ipsm", np.ones((3, 3))).tolist() == [0, 0, 0]
