@@ -1,0 +1,167 @@
+"""Runs the sidebar comparison tool in its own process for the tests: it draws with
+Blender's `gpu`, and the pytest process owns moderngl (one GL owner per process).
+
+    python tests/support/comparison_worker.py OUT_DIR CAMERA_W CAMERA_H
+
+$OMNIWARP_CACHE must name the cache folder that already holds the room_omni
+reference at CAMERA_W x CAMERA_H (the parent renders it), so nothing is rendered
+here for the preset. Writes OUT_DIR/worker.json with what the tests check, and the
+exported OUT_DIR/results.json and OUT_DIR/results.csv.
+"""
+from __future__ import annotations
+
+import json
+import logging
+import math
+import sys
+from pathlib import Path
+from types import SimpleNamespace
+
+import numpy as np
+
+REPO = Path(__file__).resolve().parents[2]
+sys.path.insert(0, str(REPO))
+
+METHODS = ("dpsm", "dpsm+notw")
+
+
+class Reports:
+    """Stands in for Operator.report when an operator method is called on a fake self."""
+
+    def __init__(self) -> None:
+        self.items: list[tuple[str, str]] = []
+
+    def __call__(self, kinds: set[str], message: str) -> None:
+        self.items.extend((kind, message) for kind in kinds)
+
+
+def _image_stats(image) -> dict:
+    if image is None:
+        return {"name": None}
+    pixels = np.empty(len(image.pixels), dtype=np.float32)
+    image.pixels.foreach_get(pixels)
+    return {"name": image.name, "size": list(image.size), "pixels": int(pixels.size),
+            "std": float(pixels.std()), "filepath": image.filepath}
+
+
+def _ui_rows(settings) -> list[dict]:
+    return [{"method": r.method, "resolution": r.resolution, "error_pct": r.error_pct,
+             "false_shadow_pct": r.false_shadow_pct, "false_lit_pct": r.false_lit_pct, "total_ms": r.total_ms,
+             "analysis_ms": r.analysis_ms, "maps_ms": r.maps_ms, "test_ms": r.test_ms, "passes": r.passes,
+             "mismatch_image": r.mismatch_image, "mismatch_exists": Path(r.mismatch_image).is_file(),
+             "preset": r.preset} for r in settings.results]
+
+
+def _exec_run(bpy, comparison, out: Path, report: dict) -> None:
+    """The synchronous path (EXEC_DEFAULT), then both exports."""
+    scene = bpy.context.scene
+    settings = scene.omniwarp_compare
+    settings.source = "PRESET"
+    settings.preset = "room_omni"
+    for method in comparison.compare.METHODS:
+        setattr(settings, comparison.method_prop(method), method in METHODS)
+    settings.resolutions = "512"
+    settings.frames = 1
+    report["exec_result"] = sorted(bpy.ops.omniwarp.compare("EXEC_DEFAULT"))
+    report["ui_rows"] = _ui_rows(settings)
+    report["rows"] = comparison.rows_for_export(scene)
+    report["plot"] = _image_stats(settings.plot_image)
+    report["mismatch"] = _image_stats(settings.mismatch_preview)
+    report["status"] = settings.status
+    report["progress"] = settings.progress
+    report["running_after"] = comparison.is_running()
+    exports = {}
+    for suffix in ("json", "csv"):
+        settings.export_path = str(out / f"results.{suffix}")
+        exports[suffix] = sorted(bpy.ops.omniwarp.export_results())
+    report["exports"] = exports
+
+
+def _modal_run(bpy, comparison, report: dict) -> None:
+    """The modal path, driven by fake timer events: Esc after the first row, then a full run."""
+    context = bpy.context
+    settings = context.scene.omniwarp_compare
+    op_cls = comparison.OMNIWARP_OT_compare
+    timer = SimpleNamespace(type="TIMER", value="NOTHING")
+    esc = SimpleNamespace(type="ESC", value="PRESS")
+    mouse = SimpleNamespace(type="MOUSEMOVE", value="NOTHING")
+
+    settings.resolutions = "256,512"
+    for method in comparison.compare.METHODS:
+        setattr(settings, comparison.method_prop(method), method == "dpsm")
+    fake = SimpleNamespace(report=Reports(), _timer=None)
+    job = comparison.start_job(context, fake.report)
+    comparison._ACTIVE = job
+    cancel: dict = {"poll_while_running": op_cls.poll(context)}
+    cancel["ticks"] = [sorted(op_cls.modal(fake, context, timer)) for _ in range(2)]  # reference, row 1
+    cancel["mouse"] = sorted(op_cls.modal(fake, context, mouse))
+    cancel["esc"] = sorted(op_cls.modal(fake, context, esc))
+    cancel["rows"] = len(settings.results)
+    cancel["running_after"] = comparison.is_running()
+    cancel["backend_released"] = job.pipeline is None
+    cancel["status"] = settings.status
+    cancel["poll_after"] = op_cls.poll(context)
+    report["modal_cancel"] = cancel
+
+    settings.resolutions = "256"
+    fake = SimpleNamespace(report=Reports(), _timer=None)
+    job = comparison.start_job(context, fake.report)
+    comparison._ACTIVE = job
+    results = []
+    for _ in range(10):
+        results.append(sorted(op_cls.modal(fake, context, timer)))
+        if results[-1] != ["PASS_THROUGH"]:
+            break
+    report["modal_full"] = {"results": results, "rows": len(settings.results), "progress": settings.progress,
+                            "running_after": comparison.is_running(), "backend_released": job.pipeline is None,
+                            "reports": fake.report.items}
+
+
+def _current_scene_run(bpy, comparison, report: dict) -> None:
+    """Build the preset into a new scene, then measure it as the current scene."""
+    before = bpy.context.scene
+    settings = before.omniwarp_compare
+    report["build"] = sorted(bpy.ops.omniwarp.build_preset())
+    scene = bpy.context.scene
+    report["build_new_scene"] = scene != before
+    current = scene.omniwarp_compare
+    current.source = "CURRENT"
+    for method in comparison.compare.METHODS:
+        setattr(current, comparison.method_prop(method), method == "dpsm")
+    current.resolutions = "512"
+    current.frames = 1
+    report["current_copied_settings"] = tuple(current.camera_size) == tuple(settings.camera_size)
+    report["current_result"] = sorted(bpy.ops.omniwarp.compare("EXEC_DEFAULT"))
+    report["current_rows"] = _ui_rows(current)
+    bpy.context.window.scene = before
+
+
+def main(out_dir: str, width: str, height: str) -> None:
+    logging.basicConfig(level=logging.WARNING)
+    import bpy
+
+    from addon.blender import comparison, registration
+    from addon.render.blender_backend import ensure_gpu
+
+    out = Path(out_dir)
+    ensure_gpu()
+    registration.register()
+    bpy.context.scene.omniwarp_compare.camera_size = (int(width), int(height))
+    report: dict = {}
+    _exec_run(bpy, comparison, out, report)
+    _modal_run(bpy, comparison, report)
+    _current_scene_run(bpy, comparison, report)
+    registration.unregister()
+    report["state_freed"] = not comparison._ROWS and not comparison._PRESET_ITEMS and not comparison.is_running()
+    report["pointer_removed"] = not hasattr(bpy.types.Scene, "omniwarp_compare")
+    (out / "worker.json").write_text(json.dumps(report, indent=1, default=_json_default), encoding="utf-8")
+
+
+def _json_default(value):
+    if isinstance(value, float) and not math.isfinite(value):
+        return str(value)
+    raise TypeError(f"cannot encode {type(value).__name__}")
+
+
+if __name__ == "__main__":
+    main(*sys.argv[1:4])
