@@ -47,8 +47,8 @@ def _parser() -> argparse.ArgumentParser:
     cmp_.add_argument("--light", help="with --blend: the light object to use")
     cmp_.add_argument("--camera", help="with --blend: the camera object to use")
     cmp_.add_argument("--methods", default="dpsm,cube",
-                      help="comma list of methods: dpsm, cube, dpsm+notw, cube+notw, dpsm+rtw, cube+rtw "
-                           "(default dpsm,cube)")
+                      help="comma list of methods: dpsm, cube, dpsm+notw, cube+notw, dpsm+rtw, cube+rtw, "
+                           "ipsm, ipsm+notw, ipsm+cut, eevee (default dpsm,cube)")
     cmp_.add_argument("--resolutions", default="512,1024,2048", help="comma list of map resolutions")
     cmp_.add_argument("--no-cull", action="store_true", help="draw every layer and triangle (measure culling)")
     cmp_.add_argument("--out", default="out/compare", help="output folder (default out/compare)")
@@ -139,14 +139,18 @@ def cmd_compare(args: argparse.Namespace) -> int:
         size = parse_size(args.size)
         from .reference.cache import load_or_capture
 
-        references = {name: (lambda n=name: load_or_capture(n, size, log_progress=_say))
-                      for name in select_presets(args.preset)}
+        names = select_presets(args.preset)
+        references = {name: (lambda n=name: load_or_capture(n, size, log_progress=_say)) for name in names}
+        sources = {name: ["--preset", name, "--size", f"{size[0]}x{size[1]}"] for name in names}
     else:
         references = {Path(args.blend).stem: _blend_reference(args)}
+        sources = {Path(args.blend).stem: ["--blend", str(Path(args.blend).resolve())]
+                   + (["--light", args.light] if args.light else [])
+                   + (["--camera", args.camera] if args.camera else [])}
     options = CompareOptions(methods, resolutions, cull=not args.no_cull, frames=args.frames,
                              out_dir=Path(args.out), write_images=not args.no_images,
                              command="omniwarp " + " ".join(args.argv))
-    rows = run_compare(references, options, lambda: ShadowPipeline(ModernGLBackend()))
+    rows = run_compare(references, options, lambda: ShadowPipeline(ModernGLBackend()), sources)
     for row in rows:
         print(f"{row['preset']:12s} {row['method']:6s} {row['resolution']:5d}  error {row['error_pct']:6.3f} %  "
               f"total {row['time_ms']['total']:8.1f} ms  passes {row['passes']}")

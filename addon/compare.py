@@ -48,6 +48,9 @@ METHODS: dict[str, tuple[str, str]] = {
     "ipsm+cut": ("ipsm", "none"),  # with the skewed cut (CUT_METHODS)
 }
 CUT_METHODS = {"ipsm+cut"}
+# Rows measured outside the pipeline: Blender's own EEVEE shadows, rendered in a child
+# process at the light's default and a finer shadow resolution (--resolutions do not apply).
+EXTERNAL_METHODS = ("eevee",)
 MAP_IMAGE_MAX = 512  # map images are pooled down to at most this many pixels a side
 DEFAULT_METHODS = ("dpsm", "cube")
 DEFAULT_RESOLUTIONS = (512, 1024, 2048)
@@ -70,8 +73,9 @@ def parse_methods(text: str) -> tuple[str, ...]:
     if not names:
         raise InputError("no methods given; known: " + ", ".join(METHODS))
     for name in names:
-        if name not in METHODS:
-            raise InputError(f"unknown method {name!r}; this build implements: {', '.join(METHODS)}")
+        if name not in METHODS and name not in EXTERNAL_METHODS:
+            raise InputError(f"unknown method {name!r}; this build implements: "
+                             f"{', '.join(tuple(METHODS) + EXTERNAL_METHODS)}")
     return names
 
 
@@ -256,6 +260,21 @@ def _write_png(path: Path, rgb: np.ndarray) -> None:
     mpimg.imsave(path, rgb)
 
 
+def _eevee_rows(source: list[str], ref: ReferenceData, preset: str, out: Path, image_dir: Path | None,
+                options: CompareOptions) -> list[dict]:
+    import tempfile
+
+    from .reference.eevee import eevee_rows
+
+    with tempfile.TemporaryDirectory(prefix="omniwarp_eevee_") as tmp:
+        rows = eevee_rows(source, ref, preset, Path(tmp), image_dir, frames=max(1, options.frames))
+    for row in rows:
+        row.setdefault("cull", options.cull)
+        row.setdefault("frames", max(1, options.frames))
+        row.setdefault("camera_size", list(ref.resolution))
+    return rows
+
+
 def check_rows(rows: Sequence[dict]) -> None:
     """Every number finite; raise if not (a NaN must never reach results.json silently)."""
     for row in rows:
@@ -265,18 +284,32 @@ def check_rows(rows: Sequence[dict]) -> None:
 
 
 def run_compare(references: dict[str, Callable[[], ReferenceData]], options: CompareOptions,
-                pipeline_factory: Callable[[], ShadowPipeline]) -> list[dict]:
-    """Measure every preset x method x resolution and write the outputs."""
+                pipeline_factory: Callable[[], ShadowPipeline],
+                sources: dict[str, list[str]] | None = None) -> list[dict]:
+    """Measure every preset x method x resolution and write the outputs.
+
+    `sources` gives, per reference, the child-process arguments (`--preset NAME --size WxH`
+    or `--blend FILE ...`) that the external `eevee` rows rebuild the scene from.
+    """
     out = Path(options.out_dir)
     out.mkdir(parents=True, exist_ok=True)
     image_dir = out / "images" if options.write_images else None
-    progress = Progress(len(references) * len(options.methods) * len(options.resolutions))
+    pipeline_methods = [m for m in options.methods if m in METHODS]
+    external = [m for m in options.methods if m in EXTERNAL_METHODS]
+    if external and not sources:
+        raise InputError("the eevee rows need to know how to rebuild the scene (no source given)")
+    progress = Progress(len(references) * (len(pipeline_methods) * len(options.resolutions) + len(external)))
     rows: list[dict] = []
     pipeline = pipeline_factory()
     try:
         for preset, load in references.items():
             ref = load()
             for method in options.methods:
+                if method in EXTERNAL_METHODS:
+                    progress.step(f"{preset} {method} (EEVEE renders in a child process)")
+                    rows += _eevee_rows(sources[preset], ref, preset, out, image_dir, options)
+                    progress.advance()
+                    continue
                 for resolution in options.resolutions:
                     progress.step(f"{preset} {method} @ {resolution}")
                     rows.append(run_row(pipeline, ref, preset, method, resolution, options, image_dir))
