@@ -22,7 +22,11 @@ EEVEE Next facts used here (verified on 5.2.3):
 - the engine id is `BLENDER_EEVEE` in 5.x and `BLENDER_EEVEE_NEXT` in 4.2-4.4;
 - `Light.shadow_maximum_resolution` is a world-space texel size in metres (RNA
   default 0.001); it is a *cap*: the virtual shadow map picks its LOD per pixel
-  footprint and never goes finer than this;
+  footprint and never goes finer than this. At 640x480 the footprint is coarser
+  than 1 mm almost everywhere, so "fine" (0.25 mm) gave the same mask as "default";
+- a huge light influence radius (from a tiny `light_threshold`) lost the shadow of
+  room_omni's lamp shade entirely (most likely the radius sets the shadow maps'
+  depth range), so the radius is set from the scene instead (`light_reach`);
 - EEVEE renders in background mode without `gpu.init()`;
 - the Diffuse Light pass is written as the EXR channels `<layer>.Diffuse Direct.RGB`,
   in half precision (11 significant bits), which is ample for a 0.5 threshold.
@@ -63,11 +67,10 @@ FINE_FACTOR = 4.0  # "fine" caps the texel size at default / FINE_FACTOR
 COARSE_FACTOR = 16.0  # "coarse" (on request) caps it at default x COARSE_FACTOR
 PIXEL_FILTER_WIDTH = 0.01  # px, as the Cycles reference
 # The light's influence radius (custom distance) is REACH_FACTOR x the farthest rendered
-# bounding-box corner. EEVEE also clips the shadow maps there: an unbounded radius (a tiny
-# light_threshold) lost the shadow of room_omni's lamp shade entirely. Its smooth falloff
+# bounding-box corner. An unbounded radius (a tiny light_threshold) lost the shadow of
+# room_omni's lamp shade entirely. Its smooth falloff
 # near the radius scales shadowed and unshadowed alike, so the ratio is unaffected.
 REACH_FACTOR = 2.0
-SHADOW_POOL_SIZE = "1024"  # MB of shadow pages; the default 512 may overflow at fine caps
 PROGRESS_PREFIX = "omniwarp-eevee: "
 SPEC_FORMAT = 1
 DEFAULT_TIMEOUT_S = 1800.0
@@ -241,7 +244,8 @@ def _apply_eevee_settings(scene, view_layer, light_obj, visible: set[str], engin
     s(eevee, "taa_render_samples", 1)
     s(eevee, "use_shadows", True, optional=True)
     s(eevee, "shadow_resolution_scale", 1.0, optional=True)
-    s(eevee, "shadow_pool_size", SHADOW_POOL_SIZE, optional=True)
+    # shadow_pool_size stays as the scene has it (512 MB by default): on llvmpipe a 1024 MB
+    # pool added ~250 ms to every render; room_omni, room_hemi and courtyard fit in 512 MB.
     s(eevee, "use_shadow_jitter_viewport", False, optional=True)
     s(eevee, "use_raytracing", False, optional=True)
     s(eevee, "use_fast_gi", False, optional=True)
