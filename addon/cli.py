@@ -3,7 +3,7 @@
     omniwarp presets
     omniwarp reference --preset SEL [--size WxH] [--refresh]
     omniwarp compare --preset SEL | --blend FILE [--light NAME] [--camera NAME]
-                     [--methods m1,m2] [--resolutions 512,1024] [--no-cull] [--out DIR]
+                     [--methods m1,m2] [--resolutions 512,1024] [--no-cull | --cull-both] [--out DIR]
     omniwarp preview --preset NAME | --blend FILE [--light NAME] [--out DIR]
 
 Bad input exits with status 2 and one line naming the problem; other known
@@ -50,7 +50,10 @@ def _parser() -> argparse.ArgumentParser:
                       help="comma list of methods: dpsm, cube, dpsm+notw, cube+notw, dpsm+rtw, cube+rtw, "
                            "ipsm, ipsm+notw, ipsm+cut, eevee (default dpsm,cube)")
     cmp_.add_argument("--resolutions", default="512,1024,2048", help="comma list of map resolutions")
-    cmp_.add_argument("--no-cull", action="store_true", help="draw every layer and triangle (measure culling)")
+    culling = cmp_.add_mutually_exclusive_group()
+    culling.add_argument("--no-cull", action="store_true", help="draw every layer and triangle (measure culling)")
+    culling.add_argument("--cull-both", action="store_true",
+                         help="measure every row with and without culling, in the same run")
     cmp_.add_argument("--out", default="out/compare", help="output folder (default out/compare)")
     cmp_.add_argument("--size", default="640x480", help="camera size WxH for presets (default 640x480)")
     cmp_.add_argument("--frames", type=int, default=3, help="timed frames per row after one warm-up (default 3)")
@@ -147,7 +150,7 @@ def cmd_compare(args: argparse.Namespace) -> int:
         sources = {Path(args.blend).stem: ["--blend", str(Path(args.blend).resolve())]
                    + (["--light", args.light] if args.light else [])
                    + (["--camera", args.camera] if args.camera else [])}
-    options = CompareOptions(methods, resolutions, cull=not args.no_cull, frames=args.frames,
+    options = CompareOptions(methods, resolutions, cull=not args.no_cull, cull_both=args.cull_both, frames=args.frames,
                              out_dir=Path(args.out), write_images=not args.no_images,
                              command="omniwarp " + " ".join(args.argv))
     rows = run_compare(references, options, lambda: ShadowPipeline(ModernGLBackend()), sources)

@@ -13,7 +13,7 @@ import statistics
 import sys
 import time
 from collections.abc import Callable, Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 
 import numpy as np
@@ -61,6 +61,7 @@ class CompareOptions:
     methods: tuple[str, ...] = DEFAULT_METHODS
     resolutions: tuple[int, ...] = DEFAULT_RESOLUTIONS
     cull: bool = True
+    cull_both: bool = False  # measure every pipeline row with and without culling, in one run
     frames: int = 3  # timed frames per row, after one warm-up frame
     out_dir: Path = Path("out/compare")
     write_images: bool = True
@@ -260,6 +261,13 @@ def _write_png(path: Path, rgb: np.ndarray) -> None:
     mpimg.imsave(path, rgb)
 
 
+def _cull_variants(options: CompareOptions) -> list[CompareOptions]:
+    """The options each pipeline row is measured with: as given, or culled and unculled."""
+    if not options.cull_both:
+        return [options]
+    return [replace(options, cull=True, cull_both=False), replace(options, cull=False, cull_both=False)]
+
+
 def _eevee_rows(source: list[str], ref: ReferenceData, preset: str, out: Path, image_dir: Path | None,
                 options: CompareOptions) -> list[dict]:
     import tempfile
@@ -298,7 +306,8 @@ def run_compare(references: dict[str, Callable[[], ReferenceData]], options: Com
     external = [m for m in options.methods if m in EXTERNAL_METHODS]
     if external and not sources:
         raise InputError("the eevee rows need to know how to rebuild the scene (no source given)")
-    progress = Progress(len(references) * (len(pipeline_methods) * len(options.resolutions) + len(external)))
+    variants = len(_cull_variants(options))
+    progress = Progress(len(references) * (len(pipeline_methods) * len(options.resolutions) * variants + len(external)))
     rows: list[dict] = []
     pipeline = pipeline_factory()
     try:
@@ -311,9 +320,10 @@ def run_compare(references: dict[str, Callable[[], ReferenceData]], options: Com
                     progress.advance()
                     continue
                 for resolution in options.resolutions:
-                    progress.step(f"{preset} {method} @ {resolution}")
-                    rows.append(run_row(pipeline, ref, preset, method, resolution, options, image_dir))
-                    progress.advance()
+                    for variant in _cull_variants(options):
+                        progress.step(f"{preset} {method} @ {resolution}{'' if variant.cull else ' (no cull)'}")
+                        rows.append(run_row(pipeline, ref, preset, method, resolution, variant, image_dir))
+                        progress.advance()
     finally:
         pipeline.backend.release()
     check_rows(rows)
