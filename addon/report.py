@@ -63,7 +63,7 @@ def write_plot(rows: Sequence[dict], path: Path) -> None:
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    fig, ax = plt.subplots(figsize=(8, 5.5), dpi=110)
+    fig, ax = plt.subplots(figsize=(11, 6.5), dpi=110)
     presets = sorted({r["preset"] for r in rows})
     methods = sorted({r["method"] + ("" if r.get("cull", True) else " (no cull)") for r in rows})
     markers = "osD^v<>ph*"
@@ -91,7 +91,8 @@ def write_plot(rows: Sequence[dict], path: Path) -> None:
     ax.set_ylabel("error % of evaluated pixels vs Cycles")
     ax.set_title("Shadow error against time (lines: Pareto front per preset)")
     ax.grid(True, which="both", alpha=0.3)
-    ax.legend(fontsize=7, loc="upper right")
+    # Outside the axes: with many methods an inside legend hides the points.
+    ax.legend(fontsize=7, loc="upper left", bbox_to_anchor=(1.01, 1.0), ncol=1 if len(presets) * len(methods) <= 24 else 2)
     fig.tight_layout()
     fig.savefig(path)
     plt.close(fig)
