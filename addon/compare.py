@@ -191,6 +191,7 @@ def run_row(pipeline: ShadowPipeline, ref: ReferenceData, preset: str, method: s
         "texel_utilization": counts.texel_utilization,
         "tessellated_triangles": last.geometry.tessellated_triangles,
         "skipped_triangles": last.geometry.skipped_triangles,
+        "nonfinite_texels": nonfinite_texels(last, counts),
         "layers": [layer.name for layer in last.plan.drawn],
         "warp": _warp_summary(last),
         "cull": options.cull,
@@ -205,6 +206,21 @@ def run_row(pipeline: ShadowPipeline, ref: ReferenceData, preset: str, method: s
         row["mismatch_image"] = f"images/{stem}_mismatch.png"
         row["map_images"] = _write_map_images(image_dir, stem, last, counts)
     return row
+
+
+def nonfinite_texels(result: FrameResult, counts) -> int:
+    """NaN or inf values in the frame's maps: the depth atlas, the count maps and the warps.
+
+    Checked in code for every row; a healthy pipeline always reports 0.
+    """
+    bad = 0 if result.atlas is None else int(np.count_nonzero(~np.isfinite(result.atlas)))
+    for maps in (counts.before, counts.after, result.count_maps):
+        bad += sum(int(np.count_nonzero(~np.isfinite(m))) for m in maps.values())
+    for mapping in result.mappings.values():
+        if mapping.warp is not None:
+            bad += int(np.count_nonzero(~np.isfinite(mapping.warp.rows)))
+            bad += int(np.count_nonzero(~np.isfinite(mapping.warp.cols)))
+    return bad
 
 
 def _warp_summary(result: FrameResult) -> dict:

@@ -20,6 +20,9 @@ PARABOLOID = 0
 CUBE = 1
 
 _TINY = float(np.finfo(np.float64).tiny)
+# Coordinates beyond this are treated like inf: Blender stores an inf vertex as FLT_MAX,
+# and one such vertex would otherwise set the scene's depth range and every tolerance.
+MAX_COORDINATE = 1e15
 
 
 def unit_directions(points: np.ndarray) -> np.ndarray:
@@ -124,7 +127,7 @@ def depth_range(triangles: np.ndarray, light_position: np.ndarray, margin: float
     geometry on the box surface stays strictly inside (0, 1) depth.
     """
     pts = np.asarray(triangles, dtype=np.float64).reshape(-1, 3)
-    pts = pts[np.all(np.isfinite(pts), axis=1)]
+    pts = pts[np.all(np.isfinite(pts) & (np.abs(pts) < MAX_COORDINATE), axis=1)]
     light = np.asarray(light_position, dtype=np.float64)
     if len(pts) == 0:
         return 0.0, 1.0

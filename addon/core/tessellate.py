@@ -19,6 +19,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from .projection import MAX_COORDINATE
+
 log = logging.getLogger(__name__)
 
 MAX_LEVELS = 12
@@ -41,7 +43,8 @@ class SanitizeReport:
 def sanitize(triangles: np.ndarray, light_position: np.ndarray, scale: float) -> tuple[np.ndarray, SanitizeReport]:
     """Drop triangles that cannot cast a shadow or cannot be projected.
 
-    - non-finite corners (NaN or inf): skipped and counted;
+    - non-finite corners (NaN, inf, or beyond `projection.MAX_COORDINATE`, which is how
+      Blender stores an inf): skipped and counted;
     - zero area (relative to `scale`^2): skipped and counted;
     - planes passing through the light (e.g. a vertex exactly at the light): seen
       edge-on they cover no solid angle, so they occlude nothing, and projecting
@@ -49,7 +52,7 @@ def sanitize(triangles: np.ndarray, light_position: np.ndarray, scale: float) ->
     """
     tris = np.asarray(triangles, dtype=np.float64).reshape(-1, 3, 3)
     report = SanitizeReport()
-    finite = np.all(np.isfinite(tris), axis=(1, 2))
+    finite = np.all(np.isfinite(tris) & (np.abs(tris) < MAX_COORDINATE), axis=(1, 2))
     report.nonfinite = int(np.count_nonzero(~finite))
     tris = tris[finite]
     normal = np.cross(tris[:, 1] - tris[:, 0], tris[:, 2] - tris[:, 0])

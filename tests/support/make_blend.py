@@ -1,6 +1,6 @@
 """Writes a small .blend that was never a preset (run in a child process: it resets bpy's data).
 
-    python tests/support/make_blend.py OUT.blend [--no-light]
+    python tests/support/make_blend.py OUT.blend [--no-light] [--bad-geometry] [--light-type SUN|AREA] [--zero-energy]
 """
 from __future__ import annotations
 
@@ -10,7 +10,24 @@ from pathlib import Path
 sys.path.insert(0, str(Path(__file__).resolve().parents[2]))
 
 
-def main(out: str, with_light: bool) -> None:
+# Broken geometry added by --bad-geometry, with the triangle counts the pipeline must skip.
+BAD_NAN_TRIANGLES = 2  # a quad with a NaN vertex and one with an inf vertex: one triangle each uses it
+BAD_ZERO_AREA_TRIANGLES = 1
+
+
+def add_bad_geometry(builder) -> None:
+    """NaN / inf vertices, a zero-area triangle, a non-manifold fan and a face-less mesh."""
+    # Finite here (the scene builder refuses NaN); main() breaks vertex 2 in Blender itself.
+    builder.mesh("nan_tri", [[2.0, 2.0, 0.5], [2.5, 2.0, 0.5], [2.2, 2.2, 0.5]], [[0, 1, 2]])
+    builder.mesh("inf_tri", [[-2.0, 2.0, 0.5], [-2.5, 2.0, 0.5], [-2.2, 2.2, 0.5]], [[0, 1, 2]])
+    builder.mesh("zero_area", [[1.0, -2.0, 0.3], [2.0, -2.0, 0.3], [3.0, -2.0, 0.3]], [[0, 1, 2]])
+    # Three triangles sharing one edge: non-manifold, but perfectly drawable.
+    builder.mesh("non_manifold", [[-1, -2, 0.2], [-1, -2, 1.2], [-2, -2.5, 0.7], [-2, -1.5, 0.7], [-0.2, -2.2, 0.7]],
+                 [[0, 1, 2], [0, 1, 3], [0, 1, 4]])
+
+
+def main(out: str, with_light: bool, bad_geometry: bool = False, light_type: str | None = None,
+         zero_energy: bool = False) -> None:
     import bpy
 
     from addon.core.scene import SceneBuilder
@@ -23,7 +40,24 @@ def main(out: str, with_light: bool) -> None:
     builder.box("post", (-1.5, 1.0, 1.0), (0.3, 0.3, 2.0))
     builder.point_light((1.5, -1.0, 3.0))
     builder.camera((5.0, -5.0, 3.5), (0.0, 0.0, 0.5), fov_deg=55.0)
+    if bad_geometry:
+        add_bad_geometry(builder)
     scene = build_blender_scene(builder.finish())
+    if bad_geometry:
+        # A mesh object with vertices but no faces.
+        mesh = bpy.data.meshes.new("no_faces")
+        mesh.from_pydata([(0, 3, 0), (1, 3, 0)], [(0, 1)], [])
+        scene.collection.objects.link(bpy.data.objects.new("no_faces", mesh))
+        for obj in scene.objects:
+            if obj.name.startswith("nan_tri"):
+                obj.data.vertices[2].co = (float("nan"), 2.2, 0.5)
+            elif obj.name.startswith("inf_tri"):
+                obj.data.vertices[2].co = (-2.2, float("inf"), 0.5)
+    for obj in [o for o in scene.objects if o.type == "LIGHT"]:
+        if light_type:
+            obj.data.type = light_type
+        if zero_energy:
+            obj.data.energy = 0.0
     if not with_light:
         for obj in [o for o in scene.objects if o.type == "LIGHT"]:
             bpy.data.objects.remove(obj)
@@ -34,4 +68,5 @@ def main(out: str, with_light: bool) -> None:
 
 
 if __name__ == "__main__":
-    main(sys.argv[1], "--no-light" not in sys.argv)
+    light_type = sys.argv[sys.argv.index("--light-type") + 1] if "--light-type" in sys.argv else None
+    main(sys.argv[1], "--no-light" not in sys.argv, "--bad-geometry" in sys.argv, light_type, "--zero-energy" in sys.argv)

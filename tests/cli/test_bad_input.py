@@ -1,0 +1,72 @@
+"""Broken user scenes: each kind gets a clear error, or is skipped and counted in the row."""
+from __future__ import annotations
+
+import json
+import math
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from addon.core import tessellate
+
+pytest.importorskip("bpy", reason="--blend needs bpy (scripts/setup_env.sh installs it)")
+pytestmark = [pytest.mark.blender, pytest.mark.gl]
+
+SUPPORT = Path(__file__).resolve().parents[1] / "support"
+REPO = Path(__file__).resolve().parents[2]
+sys.path.insert(0, str(SUPPORT))
+import make_blend  # noqa: E402
+
+
+def _run(*args: str) -> subprocess.CompletedProcess:
+    return subprocess.run([sys.executable, *args], capture_output=True, text=True, timeout=600, cwd=REPO)
+
+
+def _blend(tmp_path: Path, name: str, *flags: str) -> Path:
+    path = tmp_path / f"{name}.blend"
+    proc = _run(str(SUPPORT / "make_blend.py"), str(path), *flags)
+    assert proc.returncode == 0 and path.is_file(), proc.stderr[-2000:]
+    return path
+
+
+def test_broken_geometry_is_skipped_and_counted(tmp_path):
+    """NaN and inf vertices and a zero-area triangle are skipped (3 triangles); a
+    non-manifold fan and a face-less object draw normally; no map holds NaN or inf."""
+    path = _blend(tmp_path, "broken", "--bad-geometry")
+    out = tmp_path / "out"
+    proc = _run("-m", "addon", "compare", "--blend", str(path), "--methods", "dpsm,cube,dpsm+notw",
+                "--resolutions", "512", "--frames", "1", "--no-images", "--out", str(out))
+    assert proc.returncode == 0, proc.stderr[-2000:]
+    expected = make_blend.BAD_NAN_TRIANGLES + make_blend.BAD_ZERO_AREA_TRIANGLES
+    for row in json.loads((out / "results.json").read_text()):
+        assert row["skipped_triangles"] == expected, row["method"]
+        assert row["nonfinite_texels"] == 0
+        assert all(math.isfinite(v) for v in row["time_ms"].values())
+        assert math.isfinite(row["error_pct"]) and row["error_pct"] < 2.0
+
+
+@pytest.mark.parametrize("flags,needle", [
+    (("--zero-energy",), "emits nothing"),
+    (("--light-type", "SUN"), "point or spot light"),
+    (("--light-type", "AREA"), "point or spot light"),
+    (("--no-light",), "point or spot light"),
+])
+def test_unusable_lights_are_named(tmp_path, flags, needle):
+    path = _blend(tmp_path, "light", *flags)
+    proc = _run("-m", "addon", "compare", "--blend", str(path), "--methods", "dpsm", "--resolutions", "256",
+                "--out", str(tmp_path / "out"))
+    assert proc.returncode != 0
+    assert needle in proc.stderr
+    assert not (tmp_path / "out" / "results.json").exists()
+
+
+def test_float_max_vertex_counts_as_infinite():
+    """Blender stores an inf coordinate as FLT_MAX; it must not set the scene's scale."""
+    big = float(np.finfo(np.float32).max)
+    tris = np.array([[[0, 0, -1], [1, 0, -1], [0, 1, -1]],
+                     [[0, 0, -2], [big, 0, -2], [0, 1, -2]]], dtype=np.float64)
+    kept, report = tessellate.sanitize(tris, np.zeros(3), scale=10.0)
+    assert len(kept) == 1 and report.nonfinite == 1
