@@ -91,9 +91,11 @@ def overlay_panels(result, stats, label: str, maps: set[str], thumb: int = 256) 
 def stats_line(name: str, result, stats) -> str:
     """One line per light: passes, texels, max count before/after, ms per stage."""
     t = result.time_ms
+    skipped = result.geometry.skipped_triangles
     return (f"{name}: {result.passes} passes, {result.texels / 1e6:.2f} M texels, max count "
             f"{stats.max_count_before:.0f} -> {stats.max_count_after:.0f}, ms: prepare {t['prepare']:.0f} "
-            f"analysis {t['analysis']:.0f} maps {t['shadow_maps']:.0f} test {t['shadow_test']:.0f}")
+            f"analysis {t['analysis']:.0f} maps {t['shadow_maps']:.0f} test {t['shadow_test']:.0f}"
+            + (f", {skipped} broken triangles skipped" if skipped else ""))
 
 
 def run(reference: ReferenceData, lights: list[tuple[str, LightSpec, ShadowSettings]], triangles: np.ndarray,
@@ -168,6 +170,7 @@ def _report(reference: ReferenceData, per_light, gbuffer, gbuffer_ms: float, ren
             "texels": result.texels, "triangles_drawn": result.geometry.triangles_drawn,
             "max_count_before": stats.max_count_before, "max_count_after": stats.max_count_after,
             "texel_utilization": stats.texel_utilization, "time_ms": result.time_ms,
+            "skipped_triangles": result.geometry.skipped_triangles,
         })
     return {
         "error_pct": figure.error_pct, "false_shadow_pct": figure.false_shadow_pct,

@@ -171,3 +171,15 @@ def test_mismatch_image_nan_source_pixel_is_defined_grey():
     with np.errstate(invalid="raise"):
         img = M.mismatch_image(src, same, same, same)
     assert np.all(img[0, 2] == img[0, 0])
+
+
+def test_float32_radial_depth_is_far_below_the_bias_at_every_ratio():
+    """The storage rule of docs/stability.md: float32 keeps the stored radial distance
+    within a tenth of the smallest bias even at near/far = 1e-6, while 24-bit fixed
+    point fails from 1e-4 on; that is why depth is stored as R32F."""
+    from addon.core import precision
+
+    bias = precision.constant_bias(4096)
+    for ratio in precision.RATIOS:
+        assert precision.relative_errors(ratio)["float32"] < 0.1 * bias
+    assert precision.relative_errors(1e-4)["fixed24"] > 0.1 * bias
