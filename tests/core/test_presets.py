@@ -11,7 +11,7 @@ from addon.core import presets as PR
 from addon.core.errors import InputError, PresetError
 from addon.core.scene import CameraSpec
 
-SHIPPED = sorted(p.stem for p in PR.PRESET_DIR.glob("*.py") if not p.name.startswith("_"))
+SHIPPED = PR.select_presets("all")  # the non-stress presets; stress_* have their own tests
 
 
 def _in_view(camera: CameraSpec, point: np.ndarray) -> bool:
