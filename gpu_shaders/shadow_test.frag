@@ -66,20 +66,6 @@ void main()
                            magnification);
   ivec2 texel = clamp(ivec2(floor(uv * ow_resolution)), ivec2(0), ivec2(res - 1));
   float stored = texelFetch(ow_atlas, texel + ivec2(tile.xy), 0).r;
-  if (ow_layer_kind == OW_KIND_PARABOLOID && stored >= 1.0) {
-    // Rim texels are only partly covered by the chords of tessellated edges. Only when
-    // this texel is empty, read 1.5 texels inside the disk instead: clamping every rim
-    // lookup would move grazing receivers onto themselves (false shadow).
-    float r = length(xy);
-    float r_max = 1.0 - 3.0 / (ow_resolution * magnification);
-    if (r > r_max) {
-      float m;
-      vec2 inner = ow_map_forward(ow_warp_rows, ow_warp_cols, slot, ow_warp_size, ow_layer_crop[slot],
-                                  xy * (r_max / r), m);
-      ivec2 inner_texel = clamp(ivec2(floor(inner * ow_resolution)), ivec2(0), ivec2(res - 1));
-      stored = texelFetch(ow_atlas, inner_texel + ivec2(tile.xy), 0).r;
-    }
-  }
   float t_map = ow_near + stored * (ow_far - ow_near);
   float tan_i = sqrt(max(1.0 - cos_i * cos_i, 0.0)) / max(cos_i, 0.05);
   float bias = footprint * (ow_bias_const + ow_bias_slope * min(tan_i, 20.0));

@@ -242,9 +242,12 @@ class SceneBuilder:
         """Hemispherical light at `location` whose axis points at `target`."""
         self._light = LightSpec("hemi", look_at(location, target), energy)
 
-    def camera(self, location, target, fov_deg: float = 60.0, clip_end: float = 200.0) -> None:
-        """Perspective camera looking at `target`."""
-        self._camera = CameraSpec(look_at(location, target), fov_deg, self.resolution, 0.05, clip_end)
+    def camera(self, location, target, fov_deg: float = 60.0, clip_end: float = 200.0,
+               clip_start: float = 0.05) -> None:
+        """Perspective camera looking at `target` (clip range in scene units)."""
+        if not 0.0 < clip_start < clip_end:
+            raise InputError(f"camera clip range must satisfy 0 < start < end, got {clip_start}, {clip_end}")
+        self._camera = CameraSpec(look_at(location, target), fov_deg, self.resolution, clip_start, clip_end)
 
     def finish(self, description: str = "", stresses: str = "") -> SceneSpec:
         """Return the scene; a preset must have set a light and a camera."""

@@ -189,24 +189,51 @@ def _refine_once(tris: np.ndarray, marks: np.ndarray) -> np.ndarray:
     return np.concatenate(out, axis=0)
 
 
+def _short_edges(tris: np.ndarray, min_angle: float) -> np.ndarray:
+    """(T,) True where every edge spans less than `min_angle` as seen from the origin.
+
+    From the light, the points of a segment sweep the great circle between its end
+    directions and no further, so an edge spanning less than one texel's angle has an
+    image within one texel: its bend cannot exceed the tolerance, and it need not be
+    projected at all (the saving that matters for million-triangle meshes).
+    """
+    norms = np.linalg.norm(tris, axis=2, keepdims=True)
+    unit = tris / np.maximum(norms, 1e-300)
+    cos_edges = np.einsum("tki,tki->tk", unit, np.roll(unit, -1, axis=1))
+    return np.all(cos_edges > np.cos(min_angle), axis=1)
+
+
 def tessellate(triangles: np.ndarray, project_texels: Callable[[np.ndarray], np.ndarray],
-               tolerance_texels: float = 1.0, window: float | None = None) -> tuple[np.ndarray, int]:
+               tolerance_texels: float = 1.0, window: float | None = None,
+               texel_angle_floor: float | None = None) -> tuple[np.ndarray, int]:
     """Subdivide only the triangles with an edge bending by more than the tolerance.
 
     `project_texels` maps (n, 3) points to (n, 2) texel coordinates of the map;
-    `window`, the map side in texels, lets edges wholly outside the map stay coarse.
+    `window`, the map side in texels, lets edges wholly outside the map stay coarse;
+    `texel_angle_floor`, a lower bound of one texel's angle anywhere in the map, lets
+    triangles whose edges all span less than the tolerance skip the bend test.
     Returns the new triangles and how many triangles were added.
     """
     tris = np.asarray(triangles, dtype=np.float64)
     start = len(tris)
+    done: list[np.ndarray] = []
+    if texel_angle_floor is not None and len(tris):
+        short = _short_edges(tris, tolerance_texels * texel_angle_floor)
+        done.append(tris[short])
+        tris = tris[~short]
     for level in range(MAX_LEVELS):
         if len(tris) == 0:
             break
         marks = _edge_marks(tris, project_texels, tolerance_texels, window)
         if not marks.any():
             break
-        if len(tris) + 3 * int(marks.any(axis=1).sum()) > MAX_TRIANGLES:
+        if start + 3 * int(marks.any(axis=1).sum()) + len(tris) > MAX_TRIANGLES:
             log.warning("tessellation stopped at level %d: triangle budget %d reached", level, MAX_TRIANGLES)
             break
-        tris = _refine_once(tris, marks)
-    return tris, len(tris) - start
+        # Triangles with no marked edge are final: later levels never need to see them.
+        settled = ~marks.any(axis=1)
+        done.append(tris[settled])
+        tris = _refine_once(tris[~settled], marks[~settled])
+    done.append(tris)
+    result = np.concatenate(done, axis=0) if done else np.zeros((0, 3, 3))
+    return result, len(result) - start

@@ -152,6 +152,23 @@ def _map_texels(kind: int, mapping: LayerMapping, res: int):
     return to_texels
 
 
+def texel_angle_floor(kind: int, mapping: LayerMapping, res: int) -> float:
+    """A lower bound of one texel's angle anywhere inside a (cropped, warped) map.
+
+    Plain maps: 2/res at a paraboloid's rim, (2/res)/sqrt(3) at a cube face's corner.
+    The crop and the warp shrink it by at most their largest stretch; the warp's is
+    taken at the cell centres and doubled, as its Jacobian is piecewise bilinear.
+    """
+    base = 2.0 / res if kind == projection.PARABOLOID else 2.0 / res / math.sqrt(3.0)
+    stretch = float(np.max(mapping.scale))
+    if mapping.warp is not None:
+        size = mapping.warp.size
+        centres = (np.arange(size) + 0.5) / size
+        grid = np.stack(np.meshgrid(centres, centres), axis=-1).reshape(-1, 2)
+        stretch *= 2.0 * float(np.linalg.svd(mapping.warp.jacobian(grid), compute_uv=False)[:, 0].max())
+    return base / stretch
+
+
 def prepare_geometry(light: LightSpec, triangles: np.ndarray, plan: Plan, settings: ShadowSettings,
                      mappings: dict[int, LayerMapping] | None = None) -> PreparedGeometry:
     """Sanitise, split, tessellate and cull the scene's triangles for every drawn layer."""
@@ -174,7 +191,8 @@ def prepare_geometry(light: LightSpec, triangles: np.ndarray, plan: Plan, settin
         front, _ = tessellate.split_at_seam(layer.to_local(centred))
         mapping = mappings.get(layer.slot, LayerMapping.identity())
         refined, added = tessellate.tessellate(front, _map_texels(layer.kind, mapping, res),
-                                               settings.tessellation_tolerance, window=float(res))
+                                               settings.tessellation_tolerance, window=float(res),
+                                               texel_angle_floor=texel_angle_floor(layer.kind, mapping, res))
         streams[layer.slot] = _vertex_stream(refined @ layer.rotation)
     elif plan.parameterization == "dpsm":
         # Split once at the seam plane of side 0 (whose +z is the light's -Z axis).
@@ -185,7 +203,8 @@ def prepare_geometry(light: LightSpec, triangles: np.ndarray, plan: Plan, settin
         for layer in plan.drawn:
             mapping = mappings.get(layer.slot, LayerMapping.identity())
             refined, n_added = tessellate.tessellate(pieces[layer.slot], _map_texels(layer.kind, mapping, res),
-                                                     settings.tessellation_tolerance, window=float(res))
+                                                     settings.tessellation_tolerance, window=float(res),
+                                                     texel_angle_floor=texel_angle_floor(layer.kind, mapping, res))
             added += n_added
             streams[layer.slot] = _vertex_stream(refined @ layer.rotation)  # layer local -> world
     else:
@@ -200,7 +219,8 @@ def prepare_geometry(light: LightSpec, triangles: np.ndarray, plan: Plan, settin
             # front of the face on the CPU (the GPU clips linearly) and tessellate.
             clipped = tessellate.clip_halfspace(local[keep], local[keep][..., 2] - far * CLIP_NEAR_RELATIVE)
             refined, n_added = tessellate.tessellate(clipped, _map_texels(layer.kind, mapping, res),
-                                                     settings.tessellation_tolerance, window=float(res))
+                                                     settings.tessellation_tolerance, window=float(res),
+                                                     texel_angle_floor=texel_angle_floor(layer.kind, mapping, res))
             added += n_added
             streams[layer.slot] = _vertex_stream(refined @ layer.rotation)
     return PreparedGeometry(streams, near, far, report.skipped, added)
