@@ -20,7 +20,7 @@ import numpy as np
 
 from .core import metrics
 from .core.errors import InputError
-from .core.scene import CameraSpec, LightSpec
+from .core.scene import CameraSpec, LightSpec, parse_size  # noqa: F401 - parse_size is part of this API
 from .reference.data import ReferenceData
 from .render.blender_draw import pool_image
 from .render.pipeline import (
@@ -96,18 +96,6 @@ def parse_resolutions(text: str) -> tuple[int, ...]:
     if not values:
         raise InputError("no resolutions given")
     return tuple(values)
-
-
-def parse_size(text: str) -> tuple[int, int]:
-    """'WxH' camera size."""
-    try:
-        w_text, h_text = text.lower().split("x")
-        width, height = int(w_text), int(h_text)
-    except ValueError:
-        raise InputError(f"bad size {text!r}: expected WxH such as 640x480") from None
-    if not (8 <= width <= 8192 and 8 <= height <= 8192):
-        raise InputError(f"bad size {text!r}: each side must lie in [8, 8192]")
-    return width, height
 
 
 def light_from_reference(ref: ReferenceData) -> LightSpec:

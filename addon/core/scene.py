@@ -131,6 +131,18 @@ class SceneSpec:
         return np.concatenate(parts, axis=0)
 
 
+def parse_size(text: str) -> tuple[int, int]:
+    """'WxH' camera size, each side in [8, 8192]; InputError names a bad one."""
+    try:
+        w_text, h_text = text.lower().split("x")
+        width, height = int(w_text), int(h_text)
+    except ValueError:
+        raise InputError(f"bad size {text!r}: expected WxH such as 640x480") from None
+    if not (8 <= width <= 8192 and 8 <= height <= 8192):
+        raise InputError(f"bad size {text!r}: each side must lie in [8, 8192]")
+    return width, height
+
+
 def orthonormalize(m: np.ndarray) -> np.ndarray:
     """Closest rotation to `m` (polar decomposition through SVD)."""
     u, _, vt = np.linalg.svd(np.asarray(m, dtype=np.float64))

@@ -52,7 +52,7 @@ import numpy as np
 
 from ..core import metrics
 from ..core.errors import InputError, OmniWarpError, ReferenceCaptureError
-from ..core.scene import CameraSpec, LightSpec, MeshSpec, SceneSpec
+from ..core.scene import CameraSpec, LightSpec, MeshSpec, SceneSpec, parse_size
 from .data import ReferenceData
 
 if TYPE_CHECKING:  # pragma: no cover - typing only
@@ -439,17 +439,6 @@ def render_eevee(scene: "bpy.types.Scene", out_dir: Path, settings: Sequence[str
     return summary
 
 
-def _parse_size(text: str) -> tuple[int, int]:
-    try:
-        w_text, h_text = text.lower().split("x")
-        width, height = int(w_text), int(h_text)
-    except ValueError:
-        raise InputError(f"bad size {text!r}: expected WxH such as 640x480") from None
-    if not (8 <= width <= 8192 and 8 <= height <= 8192):
-        raise InputError(f"bad size {text!r}: each side must lie in [8, 8192]")
-    return width, height
-
-
 def _open_blend(path: Path, camera: str | None, light: str | None):
     """Load a .blend (never saved back) and return its active scene."""
     import bpy
@@ -500,7 +489,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         if args.preset:
             from ..core.presets import build_preset
 
-            built = scene = build_blender_scene(build_preset(args.preset, _parse_size(args.size)))
+            built = scene = build_blender_scene(build_preset(args.preset, parse_size(args.size)))
         elif args.scene_spec:
             built = scene = build_blender_scene(load_scene_spec(args.scene_spec))
         else:
