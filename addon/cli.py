@@ -18,7 +18,7 @@ import sys
 from collections.abc import Callable, Sequence
 from pathlib import Path
 
-from .core.errors import InputError, OmniWarpError
+from .core.errors import InputError, OmniWarpError, child_stderr_tail
 from .core.presets import DEFAULT_PRESET, available_presets, select_presets
 
 log = logging.getLogger("omniwarp")
@@ -195,8 +195,7 @@ def cmd_preview(args: argparse.Namespace) -> int:
                                "--method", method, "--resolution", str(resolution)],
                               env=env, cwd=repo_root, capture_output=True, text=True)
     if proc.returncode != 0:
-        tail = "\n".join(line for line in proc.stderr.splitlines() if "EGL_BAD" not in line)[-2000:]
-        raise OmniWarpError(f"the preview process failed (exit {proc.returncode}):\n{tail}")
+        raise OmniWarpError(f"the preview process failed (exit {proc.returncode}):\n{child_stderr_tail(proc.stderr)}")
     print(f"wrote {out / 'preview.png'}, {out / 'overlay.png'}, {out / 'preview.json'}")
     report = json.loads((out / "preview.json").read_text())
     print(f"error {report['error_pct']:.3f} % of {report['evaluated_pixels']} px; "

@@ -51,6 +51,7 @@ from bpy.props import (
 from .. import compare, report
 from ..core.errors import InputError, OmniWarpError
 from ..core.presets import DEFAULT_PRESET, DEFAULT_RESOLUTION, PresetInfo, available_presets, build_preset
+from .viewport import tag_redraw_all  # the sidebar lives in the 3D views this redraws
 
 log = logging.getLogger(__name__)
 
@@ -605,7 +606,7 @@ def finish_job(job: _Job, report_fn: Report, outcome: str = "done", message: str
         report_fn({"WARNING"}, f"OmniWarp comparison: {text}")
     else:
         report_fn({"INFO"}, f"OmniWarp comparison: {text}")
-    tag_redraw_sidebars()
+    tag_redraw_all()
 
 
 def _rows_text(count: int) -> str:
@@ -619,17 +620,6 @@ def _select_first_new_row(settings: OMNIWARP_PG_comparison, first: int) -> None:
             _show_mismatch(settings)
         else:
             settings.active_result = first
-
-
-def tag_redraw_sidebars() -> None:
-    """Redraw every 3D view's sidebar (the status line and the progress bar)."""
-    wm = bpy.context.window_manager
-    if wm is None:
-        return
-    for window in wm.windows:
-        for area in window.screen.areas:
-            if area.type == "VIEW_3D":
-                area.tag_redraw()
 
 
 def _failure(exc: BaseException) -> str:
@@ -787,7 +777,7 @@ class OMNIWARP_OT_compare(bpy.types.Operator):
         wm.modal_handler_add(self)
         wm.progress_begin(0, job.total_steps)
         _set_status_text(context, status_line(job) + " | Esc: cancel")
-        tag_redraw_sidebars()
+        tag_redraw_all()
         return {"RUNNING_MODAL"}
 
     def modal(self, context: bpy.types.Context, event: bpy.types.Event) -> set[str]:
@@ -814,7 +804,7 @@ class OMNIWARP_OT_compare(bpy.types.Operator):
             finish_job(job, self.report)
             return {"FINISHED"}
         _set_status_text(context, status_line(job) + " | Esc: cancel")
-        tag_redraw_sidebars()
+        tag_redraw_all()
         return {"PASS_THROUGH"}
 
     def cancel(self, context: bpy.types.Context) -> None:

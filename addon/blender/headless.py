@@ -183,20 +183,13 @@ def _report(reference: ReferenceData, per_light, gbuffer, gbuffer_ms: float, ren
     }
 
 
-def _scene_lights(scene, reference: ReferenceData, light_name: str | None,
+def _scene_lights(scene, depsgraph, reference: ReferenceData, light_name: str | None,
                   default: ShadowSettings) -> list[tuple[str, LightSpec, ShadowSettings]]:
-    """Lights to preview: those with OmniWarp enabled, else the reference's own light
-    with `default` settings (presets carry no OmniWarp settings of their own)."""
-    from . import properties
+    """Lights to preview: the viewport's (OmniWarp enabled), else the reference's own
+    light with `default` settings (presets carry no OmniWarp settings of their own)."""
+    from .viewport import enabled_lights
 
-    chosen = []
-    for obj in scene.objects:
-        if obj.type != "LIGHT" or not properties.is_supported_light(obj.data):
-            continue
-        if light_name and obj.name != light_name:
-            continue
-        if obj.data.omniwarp.enabled:
-            chosen.append((obj.name, properties.light_spec_for(obj), properties.shadow_settings_for(obj.data)))
+    chosen = [entry for entry in enabled_lights(scene, depsgraph) if not light_name or entry[0] == light_name]
     if chosen:
         return chosen
     light = LightSpec(reference.emission if reference.emission in ("omni", "hemi") else "omni", reference.light_matrix)
@@ -245,7 +238,7 @@ def main(argv: list[str] | None = None) -> int:
                 raise InputError(f"unknown method {args.method!r}; known: {', '.join(METHODS)}")
             parameterization, warp = METHODS[args.method]
             default = ShadowSettings(parameterization, args.resolution, warp=warp)
-            lights = _scene_lights(scene, reference, args.light, default)
+            lights = _scene_lights(scene, depsgraph, reference, args.light, default)
             report = run(reference, lights, triangles, Path(args.out))
         finally:
             registration.unregister()

@@ -8,7 +8,7 @@ import sys
 
 import bpy
 
-from .properties import effective_emission, is_supported_light
+from .properties import effective_emission, enabled_light_objects, is_supported_light
 
 log = logging.getLogger(__name__)
 
@@ -22,15 +22,6 @@ def _light_summary(light: bpy.types.Light) -> str:
     props = light.omniwarp
     method = props.parameterization if props.warp == "NONE" else f"{props.parameterization} + {props.warp}"
     return f"{method}, {props.resolution} px, {effective_emission(light)}"
-
-
-def enabled_light_objects(scene: bpy.types.Scene) -> list[bpy.types.Object]:
-    """The scene's light objects of a supported type with OmniWarp enabled, by name."""
-    found = [
-        obj for obj in scene.objects
-        if obj.type == "LIGHT" and is_supported_light(obj.data) and obj.data.omniwarp.enabled
-    ]
-    return sorted(found, key=lambda obj: obj.name)
 
 
 class OMNIWARP_PT_light(bpy.types.Panel):

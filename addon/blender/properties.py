@@ -50,31 +50,28 @@ def _viewport_module() -> ModuleType | None:
     return importlib.import_module(name)
 
 
-def _request_update(self: bpy.types.PropertyGroup, context: bpy.types.Context) -> None:
-    """Property update callback: mark the viewport preview stale."""
+def _notify_viewport(action: str, *args) -> None:
+    """Call `viewport.<action>(*args)` if the viewport module is importable (tests may lack it)."""
     viewport = _viewport_module()
     if viewport is None:
-        log.debug("viewport module not available; preview update skipped")
+        log.debug("viewport module not available; %s skipped", action)
         return
-    viewport.request_update("light settings")
+    getattr(viewport, action)(*args)
+
+
+def _request_update(self: bpy.types.PropertyGroup, context: bpy.types.Context) -> None:
+    """Property update callback: mark the viewport preview stale."""
+    _notify_viewport("request_update", "light settings")
 
 
 def _request_scene_update(self: bpy.types.PropertyGroup, context: bpy.types.Context) -> None:
     """Update callback of scene-level preview settings: mark the preview stale."""
-    viewport = _viewport_module()
-    if viewport is None:
-        log.debug("viewport module not available; preview update skipped")
-        return
-    viewport.request_update("preview settings")
+    _notify_viewport("request_update", "preview settings")
 
 
 def _overlay_changed(self: bpy.types.PropertyGroup, context: bpy.types.Context) -> None:
     """Overlay settings change only the drawing, not the maps: redraw the viewports."""
-    viewport = _viewport_module()
-    if viewport is None:
-        log.debug("viewport module not available; overlay redraw skipped")
-        return
-    viewport.tag_redraw_all()
+    _notify_viewport("tag_redraw_all")
 
 
 def _preview_toggled(self: OMNIWARP_PG_scene, context: bpy.types.Context) -> None:
@@ -213,6 +210,15 @@ class OMNIWARP_PG_light(bpy.types.PropertyGroup):
 def is_supported_light(light: bpy.types.Light | None) -> bool:
     """True for the light types OmniWarp shadows: POINT and SPOT."""
     return light is not None and getattr(light, "type", None) in SUPPORTED_LIGHT_TYPES
+
+
+def enabled_light_objects(scene: bpy.types.Scene) -> list[bpy.types.Object]:
+    """The scene's light objects of a supported type with OmniWarp enabled, by name."""
+    found = [
+        obj for obj in scene.objects
+        if obj.type == "LIGHT" and is_supported_light(obj.data) and obj.data.omniwarp.enabled
+    ]
+    return sorted(found, key=lambda obj: obj.name)
 
 
 def effective_emission(light: bpy.types.Light) -> Emission:

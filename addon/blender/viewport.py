@@ -158,15 +158,8 @@ def _throttle_elapsed() -> None:
 # Computation ----------------------------------------------------------------------
 def enabled_lights(scene: bpy.types.Scene, depsgraph) -> list:
     """(name, LightSpec, ShadowSettings) of every visible light with OmniWarp enabled."""
-    chosen = []
-    for obj in scene.objects:
-        light = obj.data if obj.type == "LIGHT" else None
-        if light is None or not properties.is_supported_light(light) or not light.omniwarp.enabled:
-            continue
-        if obj.visible_get(view_layer=depsgraph.view_layer):
-            evaluated = obj.evaluated_get(depsgraph)
-            chosen.append((obj.name, properties.light_spec_for(evaluated), properties.shadow_settings_for(light)))
-    return chosen
+    return [(obj.name, properties.light_spec_for(obj.evaluated_get(depsgraph)), properties.shadow_settings_for(obj.data))
+            for obj in properties.enabled_light_objects(scene) if obj.visible_get(view_layer=depsgraph.view_layer)]
 
 
 def compute_view(backend, pipeline: ShadowPipeline, triangles: np.ndarray, view_matrix: np.ndarray,

@@ -28,3 +28,9 @@ class BackendError(OmniWarpError):
 
 class ReferenceCaptureError(OmniWarpError):
     """The Cycles reference could not be rendered, read or loaded from cache."""
+
+
+def child_stderr_tail(text: str, limit: int = 2000) -> str:
+    """The end of a child process's stderr for an error message, without Mesa's
+    harmless EGL_BAD_MATCH lines."""
+    return "\n".join(line for line in text.splitlines() if "EGL_BAD" not in line)[-limit:]

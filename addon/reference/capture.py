@@ -345,22 +345,7 @@ def _apply_render_settings(scene, view_layer, light_obj, visible: set[str], samp
     s(cycles, "use_distance_cull", False, optional=True)
     s(cycles, "use_layer_samples", "USE", optional=True)
 
-    s(render, "film_transparent", True)
-    s(render, "use_border", False)
-    s(render, "use_compositing", False)
-    s(render, "use_sequencer", False)
-    s(render, "use_motion_blur", False)
-    s(render, "use_freestyle", False, optional=True)
-    s(render, "use_multiview", False)  # stereo would rename every EXR channel per view
-    s(render, "filepath", filepath)
-    s(render, "use_file_extension", True)
-    image = render.image_settings
-    if hasattr(image, "media_type"):  # Blender 5.x: pick the media type first
-        s(image, "media_type", "MULTI_LAYER_IMAGE")
-    else:
-        s(image, "file_format", "OPEN_EXR_MULTILAYER")
-    s(image, "color_depth", "32")
-    s(image, "exr_codec", "ZIP", optional=True)
+    set_pass_output(render, filepath, overrides)
 
     s(scene, "world", _black_world(overrides))
 
@@ -401,6 +386,31 @@ def _disable_shadows(scene, light_obj, overrides: _Overrides) -> None:
 # ----------------------------------------------------------------------------
 # render and read
 # ----------------------------------------------------------------------------
+def set_pass_output(render, filepath: str, overrides: _Overrides) -> None:
+    """Plain film written as a 32-bit multilayer EXR, shared by the Cycles and EEVEE renders.
+
+    Hit mask from alpha (transparent film); no border, compositing, sequencer, motion
+    blur, Freestyle or multiview (stereo would rename every EXR channel per view).
+    """
+    s = overrides.set
+    s(render, "film_transparent", True)
+    s(render, "use_border", False)
+    s(render, "use_compositing", False)
+    s(render, "use_sequencer", False)
+    s(render, "use_motion_blur", False)
+    s(render, "use_freestyle", False, optional=True)
+    s(render, "use_multiview", False)
+    s(render, "filepath", filepath)
+    s(render, "use_file_extension", True)
+    image = render.image_settings
+    if hasattr(image, "media_type"):  # Blender 5.x: pick the media type first
+        s(image, "media_type", "MULTI_LAYER_IMAGE")
+    else:
+        s(image, "file_format", "OPEN_EXR_MULTILAYER")
+    s(image, "color_depth", "32")
+    s(image, "exr_codec", "ZIP", optional=True)
+
+
 def _render(scene, view_layer, path: Path) -> float:
     """Render one still into `path` (multilayer EXR); return wall seconds."""
     import bpy

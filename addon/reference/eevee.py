@@ -51,7 +51,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from ..core import metrics
-from ..core.errors import InputError, OmniWarpError, ReferenceCaptureError
+from ..core.errors import InputError, OmniWarpError, ReferenceCaptureError, child_stderr_tail
 from ..core.scene import CameraSpec, LightSpec, MeshSpec, SceneSpec, parse_size
 from .data import ReferenceData
 
@@ -235,7 +235,7 @@ def light_reach(depsgraph, light_obj, visible: set[str]) -> float:
 def _apply_eevee_settings(scene, view_layer, light_obj, visible: set[str], engine: str,
                           filepath: str, overrides) -> dict[str, Any]:
     """The reference set-up for EEVEE (hard light, white diffuse, black world); returns what was set."""
-    from .capture import _black_world, _override_material
+    from .capture import _black_world, _override_material, set_pass_output
 
     s = overrides.set
     render = scene.render
@@ -256,21 +256,7 @@ def _apply_eevee_settings(scene, view_layer, light_obj, visible: set[str], engin
     s(eevee, "use_gtao", False, optional=True)
     s(eevee, "use_ssr", False, optional=True)
     s(render, "filter_size", PIXEL_FILTER_WIDTH)
-    s(render, "film_transparent", True)
-    s(render, "use_border", False)
-    s(render, "use_compositing", False)
-    s(render, "use_sequencer", False)
-    s(render, "use_motion_blur", False)
-    s(render, "use_freestyle", False, optional=True)
-    s(render, "use_multiview", False)
-    s(render, "filepath", filepath)
-    image = render.image_settings
-    if hasattr(image, "media_type"):  # Blender 5.x: pick the media type first
-        s(image, "media_type", "MULTI_LAYER_IMAGE")
-    else:
-        s(image, "file_format", "OPEN_EXR_MULTILAYER")
-    s(image, "color_depth", "32")
-    s(image, "exr_codec", "ZIP", optional=True)
+    set_pass_output(render, filepath, overrides)
     camera = scene.camera.data
     if getattr(getattr(camera, "dof", None), "use_dof", False):
         s(camera.dof, "use_dof", False)
@@ -514,10 +500,6 @@ def main(argv: Sequence[str] | None = None) -> int:
 # ----------------------------------------------------------------------------
 # parent side (numpy, matplotlib)
 # ----------------------------------------------------------------------------
-def _stderr_tail(text: str, limit: int = 2000) -> str:
-    return "\n".join(line for line in text.splitlines() if "EGL_BAD" not in line)[-limit:]
-
-
 def _forward_progress(stream, progress: Progress | None) -> None:
     """Read the child's stdout to the end; pass our progress lines on (Blender prints there too)."""
     for line in stream:
@@ -556,7 +538,7 @@ def run_child(args: Sequence[str], out_dir: Path, progress: Progress | None = No
         err.seek(0)
         stderr = err.read()
     if proc.returncode != 0:
-        raise ReferenceCaptureError(f"the EEVEE process failed (exit {proc.returncode}):\n{_stderr_tail(stderr)}")
+        raise ReferenceCaptureError(f"the EEVEE process failed (exit {proc.returncode}):\n{child_stderr_tail(stderr)}")
     try:
         return json.loads(summary_path.read_text(encoding="utf-8"))
     except (OSError, ValueError) as exc:

@@ -179,6 +179,14 @@ class BlenderGPUBackend(ShadowBackend):
             self._shaders[iface.name] = shader
         return shader
 
+    def cached_batch(self, key: str):
+        """A batch kept by this backend (released with it), or None."""
+        return self._batches.get(key)
+
+    def store_batch(self, key: str, batch) -> None:
+        """Keep a batch for reuse across draws; `release` drops it."""
+        self._batches[key] = batch
+
     def bind_program(self, iface: ProgramInterface, uniforms: UniformValues, textures: dict[str, Any] | None = None):
         """Bind a program with uniforms and textures (by sampler name); return the shader.
 

@@ -80,6 +80,17 @@ def render_gbuffer(backend: BlenderGPUBackend, triangles: np.ndarray, view_proj:
     return GBuffer(positions, normals, {"ow_gb_position": pos_tex, "ow_gb_normal": nrm_tex})
 
 
+def _static_batch(backend: BlenderGPUBackend, key: str, shader, corners: list[tuple[float, float]]):
+    """A screen-corner batch built once per backend: redraws must not allocate."""
+    batch = backend.cached_batch(key)
+    if batch is None:
+        from gpu_extras.batch import batch_for_shader
+
+        batch = batch_for_shader(shader, "TRIS", {"ow_corner": corners})
+        backend.store_batch(key, batch)
+    return batch
+
+
 def visibility_texture(test_result: np.ndarray):
     """The pipeline's (H, W, 2) visibility and flag (row 0 at the TOP) as an RG32F texture."""
     result = np.asarray(test_result, np.float32)
@@ -95,7 +106,6 @@ def draw_shadow_composite(backend: BlenderGPUBackend, gbuffer: GBuffer, visibili
     alpha blending (viewport).
     """
     import gpu
-    from gpu_extras.batch import batch_for_shader
 
     textures = dict(gbuffer.textures, ow_visibility=visibility)
     shader = backend.bind_program(PREVIEW_PROGRAM, {
@@ -103,7 +113,7 @@ def draw_shadow_composite(backend: BlenderGPUBackend, gbuffer: GBuffer, visibili
         "ow_strength": float(strength),
         "ow_draw_base": 1 if draw_base else 0,
         "ow_target_size": (float(target_size[0]), float(target_size[1]))}, textures)
-    batch = batch_for_shader(shader, "TRIS", {"ow_corner": _FULLSCREEN})
+    batch = _static_batch(backend, "preview_fullscreen", shader, _FULLSCREEN)
     previous = gpu.state.blend_get()
     gpu.state.blend_set("NONE" if draw_base else "ALPHA")
     try:
@@ -161,7 +171,6 @@ def draw_overlay(backend: BlenderGPUBackend, panels: list[OverlayPanel], target_
     """Thumbnails with labels, a heat legend for count maps, and stats lines, in pixels."""
     import blf
     import gpu
-    from gpu_extras.batch import batch_for_shader
 
     if corner not in CORNERS:
         raise ValueError(f"overlay corner must be one of {CORNERS}, got {corner!r}")
@@ -175,14 +184,14 @@ def draw_overlay(backend: BlenderGPUBackend, panels: list[OverlayPanel], target_
                 "ow_rect": (float(x), float(y), float(thumb), float(thumb)),
                 "ow_target_size": (float(target_size[0]), float(target_size[1])),
                 "ow_mode": panel.mode, "ow_max": float(panel.maximum)}, {"ow_image": texture})
-            batch_for_shader(shader, "TRIS", {"ow_corner": _QUAD}).draw(shader)
+            _static_batch(backend, "overlay_quad", shader, _QUAD).draw(shader)
         if legend_max is not None and origins:
             x, y = origins[0]
             shader = backend.bind_program(OVERLAY_PROGRAM, {
                 "ow_rect": (float(x), float(y - 14), float(thumb), 6.0),
                 "ow_target_size": (float(target_size[0]), float(target_size[1])),
                 "ow_mode": 2, "ow_max": float(legend_max)}, {"ow_image": backend_dummy(backend)})
-            batch_for_shader(shader, "TRIS", {"ow_corner": _QUAD}).draw(shader)
+            _static_batch(backend, "overlay_quad", shader, _QUAD).draw(shader)
     finally:
         gpu.state.blend_set(previous)
     font = 0

@@ -20,7 +20,17 @@ from ..core.errors import InputError
 from ..core.frames import Layer, Parameterization
 from ..core.plan import Plan, frustum_edge_points, outside_region, plan_frame
 from ..core.scene import CameraSpec, LightSpec
-from ..core.warping import LayerMapping, dv_crop_from_counts, notw_cols, notw_rows, rtw_from_counts
+from ..core.warping import (
+    FLOOR_SHARE,
+    MAX_SLOPE,
+    LayerMapping,
+    Warp,
+    WarpParams,
+    dv_crop_from_counts,
+    notw_cols,
+    notw_rows,
+    rtw_from_counts,
+)
 from .backend import AtlasLayout, ShadowBackend
 
 log = logging.getLogger(__name__)
@@ -170,10 +180,14 @@ def texel_angle_floor(kind: int, mapping: LayerMapping, res: int) -> float:
 
 
 def prepare_geometry(light: LightSpec, triangles: np.ndarray, plan: Plan, settings: ShadowSettings,
-                     mappings: dict[int, LayerMapping] | None = None) -> PreparedGeometry:
-    """Sanitise, split, tessellate and cull the scene's triangles for every drawn layer."""
+                     mappings: dict[int, LayerMapping] | None = None,
+                     depth_range: tuple[float, float] | None = None) -> PreparedGeometry:
+    """Sanitise, split, tessellate and cull the scene's triangles for every drawn layer.
+
+    `depth_range` is the (near, far) of `projection.depth_range`, when the caller has it.
+    """
     light_pos = light.position
-    near, far = projection.depth_range(triangles, light_pos)
+    near, far = depth_range if depth_range is not None else projection.depth_range(triangles, light_pos)
     tris, report = tessellate.sanitize(triangles, light_pos, scale=max(far, 1e-30))
     if settings.cull:
         # Object culling: only triangles inside conv(light, view frustum) can shadow
@@ -321,7 +335,8 @@ class ShadowPipeline:
         t_upload = time.perf_counter() - t0
 
         t1 = time.perf_counter()
-        _, far_estimate = projection.depth_range(triangles, light.position)
+        near_far = projection.depth_range(triangles, light.position)
+        far_estimate = near_far[1]
         plan = plan_frame(light, settings.parameterization, samples.camera, samples.positions, samples.hit,
                           far_estimate, cull=settings.cull, cut=settings.cut)
         t_plan = time.perf_counter() - t1
@@ -340,7 +355,7 @@ class ShadowPipeline:
         t3 = time.perf_counter()
         timings["analysis"] = (t3 - t2) * 1e3
 
-        geometry = prepare_geometry(light, triangles, plan, settings, mappings)
+        geometry = prepare_geometry(light, triangles, plan, settings, mappings, near_far)
         t4 = time.perf_counter()
         timings["prepare"] = (t4 - t3 + t_plan) * 1e3
 
@@ -441,9 +456,8 @@ def cut_mapping(plan: Plan, light: LightSpec, resolution: int) -> LayerMapping:
     return LayerMapping(lo, hi, None)
 
 
-def _warp_of(rows: np.ndarray, cols: np.ndarray | None, size: int, row_window: int = 0, col_window: int = 0):
-    from ..core.warping import FLOOR_SHARE, MAX_SLOPE, Warp, WarpParams
-
+def _warp_of(rows: np.ndarray, cols: np.ndarray | None, size: int, row_window: int = 0, col_window: int = 0) -> Warp:
+    """A NoTW warp from its tables; no column warps yet means identity columns."""
     return Warp(rows, np.zeros((size, size + 1)) if cols is None else cols,
                 WarpParams(FLOOR_SHARE, MAX_SLOPE, row_window, col_window), "notw")
 
