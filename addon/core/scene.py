@@ -18,7 +18,13 @@ import numpy as np
 
 from .errors import InputError
 
-Emission = Literal["omni", "hemi"]
+Emission = Literal["omni", "hemi", "spot", "sun"]
+# Point-light emissions (a position, every direction or a half space) take the
+# omnidirectional methods; a narrower spot cone and the sun take the projective ones.
+POINT_EMISSIONS = ("omni", "hemi")
+PROJECTIVE_EMISSIONS = ("spot", "sun")
+# Blender caps a spot cone below 180 degrees; anything this close is the hemispherical light.
+MAX_SPOT_SIZE = math.radians(179.0)
 
 
 @dataclass
@@ -40,11 +46,24 @@ class MeshSpec:
 
 @dataclass
 class LightSpec:
-    """A point light: omni (POINT) or hemispherical (180 degree SPOT along local -Z)."""
+    """One light.
+
+    omni: a POINT; hemi: a 180 degree SPOT along local -Z; spot: a SPOT whose full
+    cone angle `spot_size` (radians) is below 180 degrees, with blend 0; sun: a SUN
+    (angle 0) whose light travels along local -Z. A sun's position only fixes the
+    origin the pipeline centres coordinates on.
+    """
 
     emission: Emission
     matrix_world: np.ndarray
-    energy: float = 1000.0
+    energy: float = 1000.0  # W for point and spot lights, W/m^2 (strength) for the sun
+    spot_size: float = math.pi
+
+    def __post_init__(self) -> None:
+        if self.emission not in ("omni", "hemi", "spot", "sun"):
+            raise InputError(f"unknown light emission {self.emission!r}; use omni, hemi, spot or sun")
+        if self.emission == "spot" and not (0.0 < float(self.spot_size) <= MAX_SPOT_SIZE):
+            raise InputError(f"spot cone {math.degrees(self.spot_size):.3g} degrees is outside (0, 179]")
 
     @property
     def position(self) -> np.ndarray:
@@ -58,8 +77,14 @@ class LightSpec:
 
     @property
     def axis(self) -> np.ndarray:
-        """World direction of the light's local -Z (the hemisphere axis)."""
+        """World direction of the light's local -Z: the hemisphere or cone axis, or the
+        direction a sun's light travels."""
         return -self.rotation[:, 2]
+
+    @property
+    def is_point(self) -> bool:
+        """True for the lights the omnidirectional methods take (omni, hemi)."""
+        return self.emission in POINT_EMISSIONS
 
 
 @dataclass
@@ -253,6 +278,18 @@ class SceneBuilder:
     def hemi_light(self, location, target, energy: float = 1000.0) -> None:
         """Hemispherical light at `location` whose axis points at `target`."""
         self._light = LightSpec("hemi", look_at(location, target), energy)
+
+    def spot_light(self, location, target, spot_size_deg: float, energy: float = 1000.0) -> None:
+        """Spot light at `location` aimed at `target`, full cone `spot_size_deg`, blend 0."""
+        self._light = LightSpec("spot", look_at(location, target), energy, math.radians(spot_size_deg))
+
+    def sun_light(self, direction, strength: float = 3.0, origin=(0.0, 0.0, 0.0)) -> None:
+        """Sun (angle 0) whose light travels along `direction`; `origin` only places the lamp."""
+        d = np.asarray(direction, dtype=np.float64)
+        if not np.all(np.isfinite(d)) or np.linalg.norm(d) == 0.0:
+            raise InputError(f"sun direction {tuple(d)} must be a finite non-zero vector")
+        origin = np.asarray(origin, dtype=np.float64)
+        self._light = LightSpec("sun", look_at(origin, origin + d), strength)
 
     def camera(self, location, target, fov_deg: float = 60.0, clip_end: float = 200.0,
                clip_start: float = 0.05) -> None:
