@@ -46,6 +46,7 @@ METHODS: dict[str, tuple[str, str]] = {
     "ipsm": ("ipsm", "none"),
     "ipsm+notw": ("ipsm", "notw"),
     "ipsm+cut": ("ipsm", "none"),  # with the skewed cut (CUT_METHODS)
+    "unfold": ("unfold", "none"),
 }
 CUT_METHODS = {"ipsm+cut"}
 # Rows measured outside the pipeline: Blender's own EEVEE shadows, rendered in a child

@@ -8,8 +8,13 @@
 void main()
 {
   vec2 uv = (gl_FragCoord.xy - ow_tile_origin) / ow_resolution;
+  mat3 rot = ow_layer_rot;
+  if (ow_unfold_split >= 0 && uv.x >= 1.0) {
+    uv.x -= 1.0;  // the second unfold half, whose frame has y and z negated
+    rot = mat3(1.0, 0.0, 0.0, 0.0, -1.0, 0.0, 0.0, 0.0, -1.0) * rot;
+  }
   vec2 xy = ow_map_inverse(ow_warp_rows, ow_warp_cols, ow_layer_slot, ow_warp_size, ow_crop, uv);
-  vec3 dir = transpose(ow_layer_rot) * ow_unproject(ow_layer_kind, xy);
+  vec3 dir = transpose(rot) * ow_unproject(ow_layer_kind, xy);
   float t = v_plane.w / dot(v_plane.xyz, dir);
   if (!(t > 0.0) || isinf(t)) {
     t = v_distance;  // grazing ray: fall back to the interpolated distance

@@ -8,7 +8,19 @@ void main()
   v_distance = length(ow_position);
   v_plane = ow_plane;
   v_range = ow_range;
-  if (ow_layer_kind == OW_KIND_PARABOLOID || ow_mapped != 0) {
+  if (ow_unfold_split >= 0) {
+    // Dual sphere-unfolding: half 0's triangles come first in the stream, half 1's
+    // after `ow_unfold_split`. Half 1's frame is half 0's with y and z negated. The
+    // viewport spans the `ow_unfold_halves` tiles, half 0 on the left.
+    float half_index = (gl_VertexID >= ow_unfold_split) ? 1.0 : 0.0;
+    if (half_index > 0.5) {
+      local_pos = vec3(local_pos.x, -local_pos.y, -local_pos.z);
+    }
+    vec2 uv = ow_unfold_project(local_pos) * 0.5 + 0.5;
+    float x = (uv.x + half_index) / float(ow_unfold_halves);
+    gl_Position = vec4(x * 2.0 - 1.0, uv.y * 2.0 - 1.0, 0.0, 1.0);
+  }
+  else if (ow_layer_kind == OW_KIND_PARABOLOID || ow_mapped != 0) {
     // Paraboloid pieces were split at the seam on the CPU (1 + v.z >= 1); cube
     // pieces of a cropped or warped face were clipped to z > 0 on the CPU. Either
     // way the map position is final here, so w = 1 and depth comes from the

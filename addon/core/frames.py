@@ -8,6 +8,9 @@ Slots:
         of a hemispherical light), 1 = the side looking along local +Z.
   cube: 0..5 = faces looking along local +X, -X, +Y, -Y, +Z, -Z. A hemispherical
         light drops face 4 (+Z), which looks away from its axis: at most 5 faces.
+  unfold: the two halves of one sphere-unfolding map, centred on the same poles as
+        the dpsm sides (0 = local -Z, 1 = local +Z), drawn in one pass. A
+        hemispherical light uses half 0 only.
 """
 from __future__ import annotations
 
@@ -17,16 +20,20 @@ from typing import Literal
 import numpy as np
 
 from .errors import InputError
-from .projection import CUBE, PARABOLOID
+from .projection import CUBE, PARABOLOID, UNFOLD
 from .scene import LightSpec
 
-Parameterization = Literal["dpsm", "cube", "ipsm"]
+Parameterization = Literal["dpsm", "cube", "ipsm", "unfold"]
 
 CUBE_FACE_NAMES = ("+X", "-X", "+Y", "-Y", "+Z", "-Z")
 CUBE_FACE_AXES = np.array(
     [[1, 0, 0], [-1, 0, 0], [0, 1, 0], [0, -1, 0], [0, 0, 1], [0, 0, -1]], dtype=np.float64
 )
 PARABOLOID_SIDE_NAMES = ("axis(-Z)", "back(+Z)")
+UNFOLD_HALF_NAMES = ("unfold(-Z)", "unfold(+Z)")
+# Side 0's frame in light space: x = +X_l, y = -Y_l, z = -Z_l (right-handed); side 1's
+# is the identity. So side 1 = FLIP_YZ @ side 0 (the depth pass and seam split use this).
+FLIP_YZ = np.diag([1.0, -1.0, -1.0])
 HEMI_DROPPED_CUBE_FACE = 4
 
 
@@ -59,19 +66,19 @@ def light_layers(light: LightSpec, parameterization: Parameterization) -> list[L
     light_rot = light.rotation  # light local -> world
     world_to_light = light_rot.T
     layers: list[Layer] = []
-    if parameterization == "dpsm":
-        # Side 0: axis along local -Z. Rows x = +X_l, y = -Y_l, z = -Z_l (right-handed).
-        side_frames = [np.diag([1.0, -1.0, -1.0]), np.eye(3)]
+    if parameterization in ("dpsm", "unfold"):
+        side_frames = [FLIP_YZ, np.eye(3)]
         count = 1 if light.emission == "hemi" else 2
+        kind, names = (PARABOLOID, PARABOLOID_SIDE_NAMES) if parameterization == "dpsm" else (UNFOLD, UNFOLD_HALF_NAMES)
         for slot in range(count):
-            layers.append(Layer(slot, PARABOLOID, PARABOLOID_SIDE_NAMES[slot], side_frames[slot] @ world_to_light))
+            layers.append(Layer(slot, kind, names[slot], side_frames[slot] @ world_to_light))
     elif parameterization == "cube":
         for slot, axis in enumerate(CUBE_FACE_AXES):
             if light.emission == "hemi" and slot == HEMI_DROPPED_CUBE_FACE:
                 continue
             layers.append(Layer(slot, CUBE, CUBE_FACE_NAMES[slot], _frame_from_axis(axis) @ world_to_light))
     else:
-        raise InputError(f"unknown parameterization {parameterization!r}; use 'dpsm' or 'cube'")
+        raise InputError(f"unknown parameterization {parameterization!r}; use 'dpsm', 'cube' or 'unfold'")
     return layers
 
 
@@ -81,21 +88,21 @@ def ipsm_layer(axis_world: np.ndarray) -> Layer:
 
 
 def slot_count(parameterization: Parameterization) -> int:
-    """Number of slots of a parameterization (2 sides or 6 faces)."""
-    return 2 if parameterization == "dpsm" else 6
+    """Number of slots of a parameterization (2 sides or halves, or 6 faces)."""
+    return 2 if parameterization in ("dpsm", "unfold") else 6
 
 
 def pick_slot(parameterization: Parameterization, light_local_dirs: np.ndarray) -> np.ndarray:
     """Slot each light-local direction (..., 3) falls in; same rule as the GLSL test.
 
     ipsm: always slot 0.
-    dpsm: local z <= 0 -> slot 0 (the axis side), else slot 1.
+    dpsm, unfold: local z <= 0 -> slot 0 (the axis side, or the nearer pole), else slot 1.
     cube: the major axis; ties go to X before Y before Z.
     """
     d = np.asarray(light_local_dirs, dtype=np.float64)
     if parameterization == "ipsm":
         return np.zeros(d.shape[:-1], dtype=np.int64)  # one layer; the cone holds every sample
-    if parameterization == "dpsm":
+    if parameterization in ("dpsm", "unfold"):
         return np.where(d[..., 2] <= 0.0, 0, 1)
     ax, ay, az = np.abs(d[..., 0]), np.abs(d[..., 1]), np.abs(d[..., 2])
     use_x = (ax >= ay) & (ax >= az)

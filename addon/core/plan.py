@@ -49,6 +49,13 @@ class Plan:
     def drawn_slots(self) -> list[int]:
         return [layer.slot for layer in self.drawn]
 
+    @property
+    def passes(self) -> int:
+        """Render passes: one per drawn layer, but the halves of an unfold map share one."""
+        if self.parameterization == "unfold":
+            return min(1, len(self.drawn))
+        return len(self.drawn)
+
 
 def frustum_corners(camera: CameraSpec, near_depth: float, far_depth: float) -> np.ndarray:
     """World-space corners (8, 3) of the camera frustum between two view depths."""
@@ -195,6 +202,13 @@ def plan_frame(light: LightSpec, parameterization: Parameterization, camera: Cam
     layers = light_layers(light, parameterization)
     if camera is None:
         return Plan(parameterization, layers, list(layers), None)
+    if parameterization == "unfold":
+        # Each half holds the whole sphere and both go out in one draw, so there is no
+        # layer to leave out; only objects are culled.
+        corners = truncated_frustum(camera, positions, hit, percentile=CULL_DEPTH_PERCENTILE)
+        planes = occluder_region(light, camera, positions, hit) if cull else None
+        return Plan(parameterization, layers, list(layers) if corners is not None or not cull else [], corners,
+                    occluder_planes=planes)
     corners = truncated_frustum(camera, positions, hit, percentile=CULL_DEPTH_PERCENTILE)
     if not cull:
         return Plan(parameterization, layers, list(layers), corners)

@@ -11,6 +11,12 @@ hemisphere fills the unit disk. It is singular only at v_z = -1, which a side
 never sees because triangles are split at the seam plane first.
 
 Cube face: a 90 degree perspective view, (x, y) = (p_x, p_y) / p_z.
+
+Sphere unfolding (Stockli Contreras et al., eq. 1): the azimuthal equidistant
+projection about the layer's +Z pole, (x, y) = (theta / pi) (v_x, v_y) / |v_xy| with
+theta the angle from the pole. The whole sphere fills the unit disk; the opposite
+pole is singular (it becomes the rim circle). Eq. 1 writes the same map about the
+y- pole: theta = arcsin(y) + pi/2, so its y is our -z.
 """
 from __future__ import annotations
 
@@ -18,6 +24,7 @@ import numpy as np
 
 PARABOLOID = 0
 CUBE = 1
+UNFOLD = 2
 
 _TINY = float(np.finfo(np.float64).tiny)
 # Coordinates beyond this are treated like inf: Blender stores an inf vertex as FLT_MAX,
@@ -75,14 +82,46 @@ def cube_unproject(xy: np.ndarray) -> np.ndarray:
     return d / np.linalg.norm(d, axis=-1, keepdims=True)
 
 
+def unfold_project(local: np.ndarray) -> np.ndarray:
+    """Map layer-local points (..., 3) to sphere-unfolding coordinates (..., 2) in the unit disk.
+
+    The angle from the pole comes from atan2, which stays accurate at both poles
+    (arccos(v_z) loses half its digits there). The pole itself maps to the centre;
+    the opposite pole, whose azimuth is undefined, to (1, 0) on the rim.
+    """
+    v = unit_directions(local)
+    rho = np.hypot(v[..., 0], v[..., 1])
+    theta = np.arctan2(rho, v[..., 2])
+    # theta / (pi rho) -> 1/pi as rho -> 0 on the near side (theta ~ rho there).
+    near_pole = rho <= 1e-300
+    scale = np.where(near_pole, 1.0 / np.pi, theta / (np.pi * np.where(near_pole, 1.0, rho)))
+    xy = v[..., :2] * scale[..., None]
+    far_pole = near_pole & (v[..., 2] < 0.0)
+    return np.where(far_pole[..., None], np.array([1.0, 0.0]), xy)
+
+
+def unfold_unproject(xy: np.ndarray) -> np.ndarray:
+    """Inverse of `unfold_project`: unit directions for points (..., 2) of the unit disk."""
+    q = np.asarray(xy, dtype=np.float64)
+    r = np.linalg.norm(q, axis=-1, keepdims=True)
+    theta = np.pi * r
+    # sin(pi r) / r -> pi at the centre.
+    ratio = np.where(r > 1e-300, np.sin(theta) / np.where(r > 1e-300, r, 1.0), np.pi)
+    return np.concatenate([q * ratio, np.cos(theta)], axis=-1)
+
+
 def project(kind: int, local: np.ndarray) -> np.ndarray:
-    """Project with the layer kind (PARABOLOID or CUBE)."""
-    return paraboloid_project(local) if kind == PARABOLOID else cube_project(local)
+    """Project with the layer kind (PARABOLOID, CUBE or UNFOLD)."""
+    if kind == PARABOLOID:
+        return paraboloid_project(local)
+    return unfold_project(local) if kind == UNFOLD else cube_project(local)
 
 
 def unproject(kind: int, xy: np.ndarray) -> np.ndarray:
     """Inverse projection with the layer kind."""
-    return paraboloid_unproject(xy) if kind == PARABOLOID else cube_unproject(xy)
+    if kind == PARABOLOID:
+        return paraboloid_unproject(xy)
+    return unfold_unproject(xy) if kind == UNFOLD else cube_unproject(xy)
 
 
 def xy_to_texel(xy: np.ndarray, resolution: int) -> np.ndarray:
@@ -104,11 +143,14 @@ def texel_angle(kind: int, xy: np.ndarray, resolution: int) -> np.ndarray:
 
     Paraboloid: r = tan(theta/2), so d(theta)/dr = 2 / (1 + r^2); one texel spans
     2/res in r. Cube: a step dx on the plane z = 1 at distance rho = sqrt(1 + r^2)
-    turns the ray by at most dx / rho (the tangential direction).
+    turns the ray by at most dx / rho (the tangential direction). Unfold: theta = pi r,
+    so radially pi per unit of r; tangentially sin(pi r) / r <= pi: pi * step bounds both.
     """
     q = np.asarray(xy, dtype=np.float64)
     r2 = np.sum(q * q, axis=-1)
     step = 2.0 / resolution
+    if kind == UNFOLD:
+        return np.full(r2.shape, np.pi * step)
     if kind == PARABOLOID:
         return step * 2.0 / (1.0 + r2)
     return step / np.sqrt(1.0 + r2)

@@ -33,6 +33,14 @@ class AtlasLayout:
     def origin(self, tile: int) -> tuple[int, int]:
         return (tile % self.columns) * self.resolution, (tile // self.columns) * self.resolution
 
+    def span_viewport(self, tile: int, span: int) -> tuple[int, int, int, int]:
+        """Viewport (x, y, w, h) over `span` tiles side by side from `tile`, which must share a row."""
+        if span < 1 or tile % self.columns + span > self.columns or tile + span > self.tiles:
+            raise ValueError(f"tiles {tile}..{tile + span - 1} do not lie side by side in a "
+                             f"{self.columns}-column atlas")
+        x, y = self.origin(tile)
+        return x, y, self.resolution * span, self.resolution
+
     @staticmethod
     def for_tiles(resolution: int, tiles: int, max_texture: int) -> "AtlasLayout":
         """Widest layout (at most 3 columns) that fits the GPU's texture size limit."""
@@ -65,8 +73,8 @@ class ShadowBackend(ABC):
         """Make the atlas exist at this layout and clear it to depth 1 (empty)."""
 
     @abstractmethod
-    def draw_layer(self, tile: int, vertices: np.ndarray, uniforms: UniformValues) -> None:
-        """Draw triangles into one tile with the depth program.
+    def draw_layer(self, tile: int, vertices: np.ndarray, uniforms: UniformValues, span: int = 1) -> None:
+        """Draw triangles into one tile (or `span` tiles side by side) with the depth program.
 
         `vertices` is (n, 9) float32, three rows per triangle: light-centred
         position (3), plane (4) and distance range (2), matching DEPTH_PROGRAM.

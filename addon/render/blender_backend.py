@@ -256,22 +256,24 @@ class BlenderGPUBackend(ShadowBackend):
         with self._atlas_fb.bind():
             self._atlas_fb.clear(color=(1.0, 1.0, 1.0, 1.0), depth=1.0)
 
-    def draw_layer(self, tile: int, vertices: np.ndarray, uniforms: UniformValues) -> None:
+    def draw_layer(self, tile: int, vertices: np.ndarray, uniforms: UniformValues, span: int = 1) -> None:
         import gpu
         from gpu_extras.batch import batch_for_shader
 
         if self._layout is None:
             raise BackendError("draw_layer called before begin_atlas")
+        try:
+            viewport = self._layout.span_viewport(tile, span)
+        except ValueError as exc:
+            raise BackendError(str(exc)) from None
         if len(vertices) == 0:
             return
         data = np.ascontiguousarray(vertices, dtype=np.float32)
-        x, y = self._layout.origin(tile)
-        res = self._layout.resolution
         with self._atlas_fb.bind():
             shader = self._bind(DEPTH_PROGRAM, uniforms)
             batch = batch_for_shader(shader, "TRIS", {
                 "ow_position": data[:, 0:3], "ow_plane": data[:, 3:7], "ow_range": data[:, 7:9]})
-            gpu.state.viewport_set(x, y, res, res)
+            gpu.state.viewport_set(*viewport)
             gpu.state.depth_test_set("LESS")
             gpu.state.depth_mask_set(True)
             gpu.state.face_culling_set("NONE")  # both windings cast shadows

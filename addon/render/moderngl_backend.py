@@ -172,9 +172,13 @@ class ModernGLBackend(ShadowBackend):
         self._atlas_fbo.clear(1.0, 1.0, 1.0, 1.0, depth=1.0)
 
     @_current
-    def draw_layer(self, tile: int, vertices: np.ndarray, uniforms: UniformValues) -> None:
+    def draw_layer(self, tile: int, vertices: np.ndarray, uniforms: UniformValues, span: int = 1) -> None:
         if self._atlas_layout is None:
             raise BackendError("draw_layer called before begin_atlas")
+        try:
+            viewport = self._atlas_layout.span_viewport(tile, span)
+        except ValueError as exc:
+            raise BackendError(str(exc)) from None
         if len(vertices) == 0:
             return
         prog = self._use(DEPTH_PROGRAM, uniforms)
@@ -183,10 +187,8 @@ class ModernGLBackend(ShadowBackend):
         try:
             vao = self.ctx.vertex_array(prog, [(vbo, "3f 4f 2f", "ow_position", "ow_plane", "ow_range")])
             try:
-                x, y = self._atlas_layout.origin(tile)
-                res = self._atlas_layout.resolution
                 self._atlas_fbo.use()
-                self._atlas_fbo.viewport = (x, y, res, res)
+                self._atlas_fbo.viewport = viewport
                 self.ctx.enable(self._mgl.DEPTH_TEST)
                 self.ctx.disable(self._mgl.CULL_FACE)  # both windings cast shadows
                 self.ctx.depth_func = "<"

@@ -43,7 +43,13 @@ CLIP_NEAR_RELATIVE = 1e-6
 
 
 WARP_KINDS = ("none", "notw", "rtw")
-_PARAM_CODES = {"dpsm": 0, "cube": 1, "ipsm": 2}  # ow_param in the GLSL (lib/layers.glsl)
+_PARAM_CODES = {"dpsm": 0, "cube": 1, "ipsm": 2, "unfold": 3}  # ow_param in the GLSL (lib/layers.glsl)
+_SHADOW_TEST_KIND = {"cube": projection.CUBE, "unfold": projection.UNFOLD}  # others: paraboloid
+# A triangle drawn whole into the unfold half of its nearer pole must keep clear of
+# the opposite pole, where the projection is singular (the pole becomes the rim).
+# Beyond this angle from the pole, or covering the opposite pole, it is split at the
+# seam instead (docs/methods.md).
+UNFOLD_WHOLE_MAX_ANGLE = math.radians(120.0)
 
 
 def analysis_size_for(resolution: int) -> int:
@@ -77,8 +83,11 @@ class ShadowSettings:
     cut: bool = False  # ipsm only: skewed axis and a crop fitted to the frustum (thesis 4.1.4)
 
     def __post_init__(self) -> None:
-        if self.parameterization not in ("dpsm", "cube", "ipsm"):
-            raise InputError(f"unknown parameterization {self.parameterization!r}; use 'dpsm', 'cube' or 'ipsm'")
+        if self.parameterization not in ("dpsm", "cube", "ipsm", "unfold"):
+            raise InputError(f"unknown parameterization {self.parameterization!r}; "
+                             "use 'dpsm', 'cube', 'ipsm' or 'unfold'")
+        if self.parameterization == "unfold" and self.warp != "none":
+            raise InputError("unfold takes no warp: its two halves share one pass and one projection")
         if self.warp not in WARP_KINDS:
             raise InputError(f"unknown warp {self.warp!r}; use one of {', '.join(WARP_KINDS)}")
         if not (MIN_RESOLUTION <= int(self.resolution) <= MAX_RESOLUTION):
@@ -99,11 +108,12 @@ class ViewSamples:
 class PreparedGeometry:
     """Per-layer float32 vertex streams and counts, ready to draw."""
 
-    streams: dict[int, np.ndarray]  # slot -> (n, 9) float32
+    streams: dict[int, np.ndarray]  # slot -> (n, 9) float32 (unfold: both halves under slot 0)
     near: float
     far: float
     skipped_triangles: int
     tessellated_triangles: int  # triangles added by tessellation
+    unfold_split: int = -1  # unfold: the first vertex of half 1 in the one stream; -1 otherwise
 
     @property
     def triangles_drawn(self) -> int:
@@ -126,7 +136,7 @@ class FrameResult:
 
     @property
     def passes(self) -> int:
-        return len(self.plan.drawn)
+        return self.plan.passes
 
 
 def _vertex_stream(tris_centred: np.ndarray) -> np.ndarray:
@@ -169,7 +179,13 @@ def texel_angle_floor(kind: int, mapping: LayerMapping, res: int) -> float:
     The crop and the warp shrink it by at most their largest stretch; the warp's is
     taken at the cell centres and doubled, as its Jacobian is piecewise bilinear.
     """
-    base = 2.0 / res if kind == projection.PARABOLOID else 2.0 / res / math.sqrt(3.0)
+    if kind == projection.UNFOLD:
+        # Tangentially pi sin(theta)/theta per unit of map radius, smallest at the widest
+        # angle a drawn triangle reaches (UNFOLD_WHOLE_MAX_ANGLE; split pieces stay within 90).
+        theta = UNFOLD_WHOLE_MAX_ANGLE
+        base = 2.0 / res * math.pi * math.sin(theta) / theta
+    else:
+        base = 2.0 / res if kind == projection.PARABOLOID else 2.0 / res / math.sqrt(3.0)
     stretch = float(np.max(mapping.scale))
     if mapping.warp is not None:
         size = mapping.warp.size
@@ -198,6 +214,9 @@ def prepare_geometry(light: LightSpec, triangles: np.ndarray, plan: Plan, settin
     added = 0
     res = settings.resolution
     mappings = mappings or {}
+    if plan.parameterization == "unfold":
+        stream, split, added = _unfold_stream(centred, plan, settings)
+        return PreparedGeometry({0: stream} if plan.drawn else {}, near, far, report.skipped, added, split)
     if plan.parameterization == "ipsm":
         # One paraboloid along the cone axis: only the half-space in front of it can
         # hold an occluder of a sample inside the cone (half-angle < 90 degrees).
@@ -240,6 +259,66 @@ def prepare_geometry(light: LightSpec, triangles: np.ndarray, plan: Plan, settin
     return PreparedGeometry(streams, near, far, report.skipped, added)
 
 
+def _contains_ray(tris: np.ndarray, direction: np.ndarray) -> np.ndarray:
+    """(T,) True where the ray from the origin along `direction` meets the triangle
+    (Moller-Trumbore with the origin as ray start; edges count as inside)."""
+    a, b, c = tris[:, 0], tris[:, 1], tris[:, 2]
+    e1, e2 = b - a, c - a
+    pvec = np.cross(direction, e2)
+    det = np.einsum("ij,ij->i", e1, pvec)
+    ok = np.abs(det) > 1e-300
+    inv = 1.0 / np.where(ok, det, 1.0)
+    tvec = -a
+    u = np.einsum("ij,ij->i", tvec, pvec) * inv
+    qvec = np.cross(tvec, e1)
+    v = (qvec @ direction) * inv
+    t = np.einsum("ij,ij->i", e2, qvec) * inv
+    return ok & (u >= 0.0) & (v >= 0.0) & (u + v <= 1.0) & (t > 0.0)
+
+
+def _unfold_stream(centred: np.ndarray, plan: Plan, settings: ShadowSettings) -> tuple[np.ndarray, int, int]:
+    """One vertex stream for both unfold halves: half 0's triangles, then half 1's.
+
+    Dual sphere-unfolding draws each triangle whole into the half of its nearer pole
+    (by the mean of its corner directions). Alone that leaves pinholes along the
+    edges shared by triangles of different halves: a direction on such an edge is
+    looked up in one half, whose texel centre may fall on the neighbour's side,
+    which that half never drew. So each half also gets the pieces, cut at the seam,
+    of the triangles on its side that went to the other half; a lookup in the half of
+    the direction's own hemisphere then sees every occluder. Triangles reaching past
+    UNFOLD_WHOLE_MAX_ANGLE from their pole, or covering the opposite pole, are cut at
+    the seam instead of drawn whole. All of it is still one draw call.
+    """
+    res = settings.resolution
+    local = plan.all_layers[0].to_local(centred)  # half 0's frame: +z is its pole
+    if len(plan.drawn) == 1:
+        # Hemispherical light: only half 0; nothing behind the light plane can shadow.
+        halves = [tessellate.split_at_seam(local)[0]]
+    else:
+        z = projection.unit_directions(local)[..., 2]
+        nearer0 = z.mean(axis=1) >= 0.0
+        limit = math.cos(UNFOLD_WHOLE_MAX_ANGLE)
+        reach = np.where(nearer0, z.min(axis=1) < limit, -z.max(axis=1) < limit)
+        reach |= np.where(nearer0, _contains_ray(local, np.array([0.0, 0.0, -1.0])),
+                          _contains_ray(local, np.array([0.0, 0.0, 1.0])))
+        straddle = (z.max(axis=1) > 0.0) & (z.min(axis=1) < 0.0)
+        whole0, whole1 = nearer0 & ~reach, ~nearer0 & ~reach
+        front_of_1, _ = tessellate.split_at_seam(local[(whole1 & straddle) | reach])
+        _, back_of_0 = tessellate.split_at_seam(local[(whole0 & straddle) | reach])
+        halves = [np.concatenate([local[whole0], front_of_1]),
+                  np.concatenate([local[whole1], back_of_0]) * np.array([1.0, -1.0, -1.0])]
+    streams, added = [], 0
+    mapping = LayerMapping.identity()
+    for layer, tris in zip(plan.drawn, halves):
+        refined, n_added = tessellate.tessellate(tris, _map_texels(layer.kind, mapping, res),
+                                                 settings.tessellation_tolerance, window=float(res),
+                                                 texel_angle_floor=texel_angle_floor(layer.kind, mapping, res))
+        added += n_added
+        streams.append(_vertex_stream(refined @ layer.rotation))
+    split = len(streams[0]) if streams else 0
+    return (np.concatenate(streams) if streams else np.zeros((0, 9), np.float32)), split, added
+
+
 def _layer_uniforms(layer: Layer, geometry: PreparedGeometry, res: int, origin: tuple[int, int],
                     mapping: LayerMapping, warp_size: int) -> dict:
     return {
@@ -254,6 +333,8 @@ def _layer_uniforms(layer: Layer, geometry: PreparedGeometry, res: int, origin: 
         "ow_clip_near": geometry.far * CLIP_NEAR_RELATIVE,
         "ow_resolution": float(res),
         "ow_tile_origin": (float(origin[0]), float(origin[1])),
+        "ow_unfold_split": -1,
+        "ow_unfold_halves": 1,
     }
 
 
@@ -364,7 +445,15 @@ class ShadowPipeline:
         layout = AtlasLayout.for_tiles(res, len(plan.drawn), backend.max_texture_size())
         backend.begin_atlas(layout)
         size = settings.analysis_size or analysis_size_for(res)
-        for layer in plan.drawn:
+        if plan.parameterization == "unfold" and plan.drawn:
+            # Both halves in one draw over two side-by-side tiles; the vertex stage
+            # picks the half from the vertex index (Stockli Contreras et al.).
+            uniforms = _layer_uniforms(plan.drawn[0], geometry, res, layout.origin(0), LayerMapping.identity(), 0)
+            uniforms["ow_unfold_split"] = geometry.unfold_split
+            uniforms["ow_unfold_halves"] = len(plan.drawn)
+            backend.draw_layer(0, geometry.streams.get(0, np.zeros((0, 9), np.float32)), uniforms,
+                               span=len(plan.drawn))
+        for layer in plan.drawn if plan.parameterization != "unfold" else ():
             origin = layout.origin(tile_of_slot[layer.slot])
             mapping = mappings.get(layer.slot, LayerMapping.identity())
             backend.draw_layer(tile_of_slot[layer.slot], geometry.streams[layer.slot],
@@ -417,7 +506,7 @@ class ShadowPipeline:
             "ow_layer_tile": tiles,
             "ow_layer_crop": crops,
             "ow_param": _PARAM_CODES[plan.parameterization],
-            "ow_layer_kind": projection.CUBE if plan.parameterization == "cube" else projection.PARABOLOID,
+            "ow_layer_kind": _SHADOW_TEST_KIND.get(plan.parameterization, projection.PARABOLOID),
             "ow_hemi": 1 if light.emission == "hemi" else 0,
             "ow_warp_size": warp_size if any(m.warp is not None for m in mappings.values()) else 0,
             "ow_resolution": float(settings.resolution),

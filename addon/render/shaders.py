@@ -102,6 +102,8 @@ DEPTH_PROGRAM = ProgramInterface(
         Uniform("float", "ow_clip_near"),
         Uniform("float", "ow_resolution"),
         Uniform("vec2", "ow_tile_origin"),
+        Uniform("int", "ow_unfold_split"),
+        Uniform("int", "ow_unfold_halves"),
     ),
     samplers=_WARP_SAMPLERS,
     varyings=(

@@ -3,13 +3,14 @@
 #define OW_PARAM_DPSM 0
 #define OW_PARAM_CUBE 1
 #define OW_PARAM_IPSM 2
+#define OW_PARAM_UNFOLD 3
 
 int ow_pick_slot(int parameterization, vec3 d)
 {
   if (parameterization == OW_PARAM_IPSM) {
     return 0;  // one paraboloid along the cone axis holds every sample
   }
-  if (parameterization == OW_PARAM_DPSM) {
+  if (parameterization == OW_PARAM_DPSM || parameterization == OW_PARAM_UNFOLD) {
     return (d.z <= 0.0) ? 0 : 1;
   }
   vec3 a = abs(d);
