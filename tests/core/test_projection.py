@@ -378,3 +378,61 @@ def test_depth_range_point_geometry_is_non_empty(light):
 def test_normalized_depth_maps_range_to_unit_interval():
     """(L - near) / (far - near): near -> 0, far -> 1, linear in between."""
     assert np.allclose(P.normalized_depth(np.array([2.0, 5.0, 3.5]), 2.0, 5.0), [0.0, 1.0, 0.5])
+
+
+# Sphere unfolding (Stockli Contreras et al., eq. 1) ---------------------------------
+
+@pytest.mark.parametrize("theta_deg", [0.0, 1e-9, 30.0, 90.0, 135.0, 179.0])
+@pytest.mark.parametrize("phi_deg", [0.0, 77.0, 200.0])
+def test_unfold_radius_is_angle_from_pole_over_pi(theta_deg, phi_deg):
+    """Eq. 1 with y = -z: the map radius is the angle from the pole over pi, along the azimuth."""
+    theta, phi = math.radians(theta_deg), math.radians(phi_deg)
+    d = np.array([math.sin(theta) * math.cos(phi), math.sin(theta) * math.sin(phi), math.cos(theta)])
+    xy = P.unfold_project(d * 3.7)
+    assert np.linalg.norm(xy) == pytest.approx(theta / math.pi, abs=1e-12)
+    if theta_deg > 1e-6:
+        assert math.atan2(xy[1], xy[0]) % (2 * math.pi) == pytest.approx(phi % (2 * math.pi), abs=1e-9)
+    # eq. 1 verbatim, with its y axis being our -z and its (x, z) our (x, y)
+    y = -d[2]
+    expected = (math.asin(y) + math.pi * 0.5) / (math.pi * math.hypot(d[0], d[1]) + 1e-300) * d[:2]
+    if theta_deg > 1e-6:
+        assert np.allclose(xy, expected, atol=1e-9)
+
+
+def test_unfold_poles_are_finite():
+    """The pole maps to the centre, the opposite pole to the rim, tiny and huge points by direction."""
+    got = P.unfold_project(np.array([[0.0, 0.0, 2.0], [0.0, 0.0, -5.0], [0.0, 0.0, 0.0], [1e-300, 0.0, 1e-300],
+                                     [1e300, 1e300, -1e300]]))
+    assert np.all(np.isfinite(got))
+    assert np.allclose(got[0], 0.0) and np.allclose(got[1], [1.0, 0.0]) and np.allclose(got[2], 0.0)
+    assert np.linalg.norm(got[3]) == pytest.approx(0.25)
+    assert np.all(np.isfinite(P.unfold_unproject(np.array([[0.0, 0.0], [1.0, 0.0], [0.0, -1.0]]))))
+
+
+@given(st.floats(-1.0, 1.0), st.floats(-1.0, 1.0), st.floats(-1.0, 1.0), st.floats(1e-6, 1e6))
+@settings(max_examples=300, deadline=None)
+def test_unfold_round_trip(x, y, z, length):
+    """unproject(project(p)) is p's direction, everywhere but at the opposite pole itself."""
+    p = np.array([x, y, z])
+    if np.linalg.norm(p) < 1e-6 or np.hypot(x, y) < 1e-6 * np.linalg.norm(p):
+        return
+    p = p / np.linalg.norm(p)
+    xy = P.unfold_project(p * length)
+    assert np.linalg.norm(xy) <= 1.0 + 1e-12
+    back = P.unfold_unproject(xy)
+    # Near the opposite pole the map squeezes a whole circle of azimuths into the rim,
+    # so the round trip loses precision there as 1/sin(theta).
+    tol = 1e-12 / max(np.hypot(x, y) / np.linalg.norm([x, y, z]), 1e-12) + 1e-12
+    assert np.allclose(back, p, atol=max(tol, 1e-11))
+
+
+@pytest.mark.parametrize("res", [64, 512])
+def test_unfold_texel_angle_bounds_local_angle(res):
+    """pi * step bounds the angle of one texel everywhere in the disk (radially it is
+    exact) and stays within 2x of it on the near hemisphere (r <= 1/2)."""
+    xy = _map_points(P.PARABOLOID)
+    bound = P.texel_angle(P.UNFOLD, xy, res)
+    measured = _measured_texel_angles(P.UNFOLD, xy, res, h=1e-7)
+    assert np.all(bound >= measured.max(axis=1) * (1.0 - 1e-6))
+    near = np.linalg.norm(xy, axis=1) <= 0.5
+    assert np.all(bound[near] <= 2.0 * measured[near].min(axis=1))

@@ -103,3 +103,27 @@ def test_layer_choice_matches_numpy(gl_backend, tmp_path, param):
     code = 0 if param == "dpsm" else 1
     got = _run(gl_backend, f"outp.x = float(ow_pick_slot({code}, inp.xyz));", dirs, tmp_path)
     assert np.array_equal(got[:, 0].astype(int), frames.pick_slot(param, dirs))
+
+
+def test_unfold_projection_matches_numpy(gl_backend, tmp_path):
+    """ow_unfold_project/_unproject and the unfold texel angle agree with the numpy core,
+    over the whole sphere (both hemispheres) and both poles."""
+    rng = np.random.default_rng(4)
+    dirs = np.concatenate([_random_dirs(rng, 300), [[0.0, 0.0, 1.0], [0.0, 0.0, -1.0], [1.0, 0.0, 0.0]]])
+    pts = dirs * rng.uniform(0.01, 100.0, size=(len(dirs), 1))
+    got = _run(gl_backend, "outp.xy = ow_unfold_project(inp.xyz);", pts, tmp_path)
+    assert np.allclose(got[:, :2], projection.unfold_project(pts), atol=3e-6)
+    xy = projection.unfold_project(dirs[:-3])
+    got = _run(gl_backend, "outp.xyz = ow_unfold_unproject(inp.xy);", xy, tmp_path)
+    assert np.allclose(got[:, :3], projection.unfold_unproject(xy), atol=3e-6)
+    got = _run(gl_backend, f"outp.x = ow_texel_angle({projection.UNFOLD}, inp.xy, 512.0); outp.y = inp.x;", xy,
+               tmp_path)  # (outp.y keeps the input sampler alive: the unfold bound is constant)
+    assert np.allclose(got[:, 0], projection.texel_angle(projection.UNFOLD, xy, 512), rtol=1e-5)
+
+
+def test_unfold_layer_choice_is_the_nearer_pole(gl_backend, tmp_path):
+    """ow_pick_slot for unfold (code 3) is the nearer pole, as frames.pick_slot says."""
+    rng = np.random.default_rng(5)
+    dirs = np.concatenate([_random_dirs(rng, 300), np.eye(3), -np.eye(3)])
+    got = _run(gl_backend, "outp.x = float(ow_pick_slot(3, inp.xyz));", dirs, tmp_path)
+    assert np.array_equal(got[:, 0].astype(int), frames.pick_slot("unfold", dirs))

@@ -57,7 +57,7 @@ def case(request):
 
 
 @pytest.mark.parametrize("param,warp", [("dpsm", "none"), ("cube", "none"), ("dpsm", "notw"), ("cube", "notw"),
-                                        ("dpsm", "rtw"), ("cube", "rtw")])
+                                        ("dpsm", "rtw"), ("cube", "rtw"), ("unfold", "none")])
 def test_extreme_case_matches_ray_caster(gl_backend, case, param, warp):
     """Finite maps, and visibility within 1 % of exact at 1024 (mostly edge texels),
     with and without warping."""
