@@ -232,6 +232,12 @@ def clean_counts(counts: np.ndarray) -> np.ndarray:
     if c.ndim == 2 and c.size:
         peak = c.max(axis=1, keepdims=True)
         c = np.where(peak > 1e100, c / np.where(peak > 0, peak, 1.0), c)
+        # The warp depends only on relative counts; lifting a map of subnormal counts
+        # keeps the smoothing prior (a share of the mean count) from underflowing to 0,
+        # which made 0 / (0 + 0) in empty rows (found by hypothesis: a single 5e-324).
+        top = float(c.max())
+        if 0.0 < top < 1e-100:
+            c = c / top
     return c
 
 

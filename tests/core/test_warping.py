@@ -187,3 +187,12 @@ def test_notw_and_rtw_families_from_any_count_map(counts):
     rtw = W.rtw_from_counts(counts)
     _check_family(rtw.rows, W.FLOOR_SHARE, W.MAX_SLOPE)
     _check_family(rtw.cols, W.FLOOR_SHARE, W.MAX_SLOPE)
+
+
+def test_subnormal_counts_give_a_finite_warp():
+    """Regression (hypothesis found it): one subnormal count made the smoothing prior
+    underflow to 0 and empty rows 0 / 0."""
+    counts = np.array([[0.0, 0.0], [0.0, 5e-324]])
+    rows, _ = W.notw_rows(counts)
+    _check_family(rows, W.FLOOR_SHARE, W.MAX_SLOPE)
+    assert np.all(np.isfinite(W.rtw_from_counts(counts).rows))
