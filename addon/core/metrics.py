@@ -20,14 +20,28 @@ def reference_visibility(shadowed: np.ndarray, unshadowed: np.ndarray, eps: floa
 
 def evaluable_mask(position: np.ndarray, normal: np.ndarray, hit: np.ndarray, unshadowed: np.ndarray,
                    light: LightSpec, eps: float = UNSHADOWED_EPS) -> np.ndarray:
-    """Pixels that count: hit geometry, face the light, lie in the emission domain and get light."""
+    """Pixels that count: hit geometry, face the light, lie in the emission domain and get light.
+
+    The domain is every direction for omni, the half space in front of the axis for
+    hemi, the cone of full angle `light.spot_size` around the axis for spot, and all
+    of space for a sun, whose light arrives along `light.axis` everywhere.
+    """
     pos = np.asarray(position, dtype=np.float64)
-    to_light = light.position - pos
+    if light.emission == "sun":
+        # A sun has a direction only: the way to the light is -axis at every receiver.
+        to_light = np.broadcast_to(-light.axis, pos.shape)
+    else:
+        to_light = light.position - pos
     facing = np.einsum("...i,...i->...", np.asarray(normal, dtype=np.float64), to_light) > 0.0
     mask = np.asarray(hit, dtype=bool) & facing & (np.asarray(unshadowed) > eps)
     mask &= np.all(np.isfinite(pos), axis=-1)
     if light.emission == "hemi":
         mask &= (-to_light) @ light.axis > 0.0
+    elif light.emission == "spot":
+        # angle(axis, pos - light) < spot_size / 2, without dividing by the distance;
+        # the boundary itself is out, as for hemi (Cycles gives it no light either).
+        cos_half = np.cos(0.5 * float(light.spot_size))
+        mask &= (-to_light) @ light.axis > cos_half * np.linalg.norm(to_light, axis=-1)
     return mask
 
 

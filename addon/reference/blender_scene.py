@@ -64,10 +64,29 @@ def build_mesh(spec: MeshSpec) -> "bpy.types.Mesh":
     return mesh
 
 
+def _check_light(spec: SceneSpec) -> None:
+    """Refuse a light Blender cannot hold as specified, before anything is created."""
+    import bpy
+
+    light_spec = spec.light
+    if light_spec.emission not in ("omni", "hemi", "spot", "sun"):
+        raise InputError(f"scene {spec.name!r}: unknown light emission {light_spec.emission!r}")
+    if light_spec.emission == "spot":
+        # RNA clamps spot_size silently (at least 1 degree); a clamped cone would light
+        # another domain than the spec (and the pipeline) describes.
+        rna = bpy.types.SpotLight.bl_rna.properties["spot_size"]
+        if not rna.hard_min - 1e-7 <= float(light_spec.spot_size) <= rna.hard_max + 1e-7:  # float32 RNA
+            raise InputError(
+                f"scene {spec.name!r}: spot cone {math.degrees(light_spec.spot_size):.4g} degrees is outside "
+                f"Blender's range [{math.degrees(rna.hard_min):.4g}, {math.degrees(rna.hard_max):.4g}]"
+            )
+
+
 def build_blender_scene(spec: SceneSpec) -> "bpy.types.Scene":
     """Create a NEW scene holding the spec's meshes, light and camera; other scenes are untouched."""
     import bpy
 
+    _check_light(spec)
     scene = bpy.data.scenes.new(_unique_scene_name(f"OmniWarp {spec.name}"))
     scene[TAG] = scene.name
     collection = scene.collection
@@ -90,9 +109,16 @@ def build_blender_scene(spec: SceneSpec) -> "bpy.types.Scene":
         light = bpy.data.lights.new(f"{spec.name}_light", "SPOT")
         light.spot_size = math.pi  # 180 degree cone: the half space in front of local -Z
         light.spot_blend = 0.0
+    elif light_spec.emission == "spot":
+        light = bpy.data.lights.new(f"{spec.name}_light", "SPOT")
+        light.spot_size = float(light_spec.spot_size)  # full cone angle, radians
+        light.spot_blend = 0.0  # a hard cone edge, as the projective maps assume
+    elif light_spec.emission == "sun":
+        light = bpy.data.lights.new(f"{spec.name}_light", "SUN")
+        light.angle = 0.0  # a hard sun (Blender's default 0.526 degrees gives penumbrae)
     else:
         raise InputError(f"scene {spec.name!r}: unknown light emission {light_spec.emission!r}")
-    light.energy = float(light_spec.energy)
+    light.energy = float(light_spec.energy)  # W, or W/m^2 (strength) for a sun
     light.shadow_soft_size = 0.0  # a hard point light, as the shadow maps assume
     light_obj = bpy.data.objects.new(f"{spec.name}_light", light)
     light_obj.matrix_world = _matrix(light_spec.matrix_world)

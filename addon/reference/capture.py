@@ -1,13 +1,15 @@
 """Render the Cycles ground truth of a Blender scene into a `ReferenceData`.
 
-`capture(scene)` works on any scene with a perspective camera and one point or spot
-light (the presets, and user .blend files). It temporarily switches the scene to the
-reference set-up of DESIGN.md section 5 and restores every setting it touched:
+`capture(scene)` works on any scene with a perspective camera and one point, spot or
+sun light (the presets, and user .blend files). It temporarily switches the scene to
+the reference set-up of DESIGN.md section 5 and restores every setting it touched:
 
 - Cycles on the CPU, by default 1 sample at the pixel centre (no pixel jitter,
   Gaussian filter 0.01 px: Cycles ignores the width of a box filter), no denoising,
   no adaptive sampling, light threshold 0, no bounces (direct light only);
-- the light is hard (radius 0); other lights are hidden from the render;
+- the light is hard (radius 0; a sun's angle 0, logged when it was not); a spot's
+  blend is kept but logged, since it fades the light towards the cone's edge; other
+  lights are hidden from the render;
 - every material is replaced by a white diffuse one (view-layer material override),
   which also writes the Geometry node's True Normal into a shader AOV;
 - a black world and a transparent film (its alpha is the hit mask).
@@ -28,7 +30,7 @@ from typing import TYPE_CHECKING, Any, Callable
 import numpy as np
 
 from ..core.errors import ReferenceCaptureError
-from ..core.scene import orthonormalize
+from ..core.scene import MAX_SPOT_SIZE, orthonormalize
 from .data import ReferenceData
 
 if TYPE_CHECKING:  # pragma: no cover - typing only
@@ -47,8 +49,14 @@ AOV_NORMAL = "OmniWarpTrueNormal"
 PIXEL_FILTER_WIDTH = 0.01  # px; effectively no filter (Blender's minimum)
 # Object types whose evaluated geometry becomes triangles (to_mesh understands them).
 _GEOMETRY_TYPES = {"MESH", "CURVE", "SURFACE", "META", "FONT"}
-# A spot this close to 180 degrees with no blend is the hemispherical light.
-_HEMI_TOLERANCE = 1e-3
+# Light types the reference accepts. A SUN has a direction only: nothing in the capture
+# depends on its position (Cycles' culling is off, and there is no near/far to fit).
+_LIGHT_TYPES = {"POINT", "SPOT", "SUN"}
+# A spot wider than LightSpec's widest cone (179 degrees) is the hemispherical light, so
+# every LightSpec spot round-trips; spot_size is a float32, so allow its rounding.
+_SPOT_SIZE_TOLERANCE = 1e-6
+# A sun angle or spot blend at or below this counts as hard.
+_SOFT_TOLERANCE = 1e-6
 
 Progress = Callable[[str], None]
 
@@ -125,38 +133,60 @@ def _pick_view_layer(scene: "bpy.types.Scene", name: str | None) -> "bpy.types.V
 
 
 def _pick_light(scene: "bpy.types.Scene", visible: set[str], light: "bpy.types.Object | str | None"):
-    """The point/spot light object to capture; the scene must hold exactly one unless named."""
+    """The point, spot or sun light object to capture; the scene must hold exactly one unless named."""
     import bpy
 
+    # The messages keep the phrase "point or spot light" that callers and tests match.
     if light is not None:
         obj = bpy.data.objects.get(light) if isinstance(light, str) else light
-        if obj is None or obj.type != "LIGHT" or obj.data.type not in {"POINT", "SPOT"}:
-            raise ReferenceCaptureError(f"{light!r} is not a point or spot light object")
+        if obj is None or obj.type != "LIGHT" or obj.data.type not in _LIGHT_TYPES:
+            raise ReferenceCaptureError(f"{light!r} is not a point or spot light, or a sun")
         if obj.name not in scene.objects:
             raise ReferenceCaptureError(f"light {obj.name!r} is not in scene {scene.name!r}")
         return obj
     candidates = [
         o for o in scene.objects
-        if o.type == "LIGHT" and o.data.type in {"POINT", "SPOT"} and o.name_full in visible
+        if o.type == "LIGHT" and o.data.type in _LIGHT_TYPES and o.name_full in visible
     ]
     if not candidates:
         raise ReferenceCaptureError(
-            f"scene {scene.name!r} has no rendered point or spot light; the reference needs one"
+            f"scene {scene.name!r} has no rendered point or spot light, or sun; the reference needs one"
         )
     if len(candidates) > 1:
         names = ", ".join(sorted(o.name for o in candidates))
         raise ReferenceCaptureError(
-            f"scene {scene.name!r} has several point/spot lights ({names}); name the one to capture"
+            f"scene {scene.name!r} has several point/spot/sun lights ({names}); name the one to capture"
         )
     return candidates[0]
 
 
 def _emission_of(light: "bpy.types.Light") -> str:
+    """"omni" (POINT), "hemi" (SPOT wider than 179 degrees), "spot" or "sun".
+
+    A blend does not change the emission: it fades the light inside the cone, whose
+    edge stays where spot_size puts it.
+    """
     if light.type == "POINT":
         return "omni"
-    if light.spot_size >= math.pi - _HEMI_TOLERANCE and light.spot_blend <= _HEMI_TOLERANCE:
+    if light.type == "SUN":
+        return "sun"
+    if light.spot_size > MAX_SPOT_SIZE + _SPOT_SIZE_TOLERANCE:
         return "hemi"
     return "spot"
+
+
+def _warn_soft_light(light_obj: "bpy.types.Object") -> None:
+    """Log what makes the captured light differ from the hard light the shadow maps assume."""
+    light = light_obj.data
+    if light.type == "SUN" and light.angle > _SOFT_TOLERANCE:
+        # One sample of a soft sun gives a random binary penumbra, no reference at all;
+        # the angle is set to 0 for the capture like a point light's radius.
+        log.warning("sun %r has angle %.3g degrees: the scene's shadows are soft; the reference captures "
+                    "it hard (angle 0)", light_obj.name, math.degrees(light.angle))
+    if light.type == "SPOT" and light.spot_blend > _SOFT_TOLERANCE:
+        log.warning("spot light %r has blend %.3g: the reference's cone edge is soft (light fades towards "
+                    "it); visibility (shadowed/unshadowed) is unaffected, but pixels near the edge get "
+                    "little light", light_obj.name, light.spot_blend)
 
 
 def _camera_fov_deg(camera: "bpy.types.Camera", width: int, height: int) -> float:
@@ -359,6 +389,8 @@ def _apply_render_settings(scene, view_layer, light_obj, visible: set[str], samp
 
     light = light_obj.data
     s(light, "shadow_soft_size", 0.0)
+    if light.type == "SUN":
+        s(light, "angle", 0.0)  # a sun's softness is its angle, not its radius
     s(light, "use_shadow", True, optional=True)
     s(light, "use_soft_falloff", False, optional=True)
     s(light_obj, "visible_diffuse", True, optional=True)
@@ -465,8 +497,9 @@ def capture(scene: "bpy.types.Scene", samples: int = DEFAULT_SAMPLES, *, light: 
             view_layer: str | None = None, progress: Progress | None = None) -> ReferenceData:
     """Render the Cycles reference of `scene` from its camera; the scene is left as it was.
 
-    `light` picks the point/spot light when the scene has several (else exactly one
-    rendered point/spot light must exist); every other light is hidden from the render.
+    `light` picks the point, spot or sun light when the scene has several (else exactly
+    one rendered light of those types must exist); every other light is hidden from the
+    render.
     """
     import bpy
 
@@ -488,7 +521,10 @@ def capture(scene: "bpy.types.Scene", samples: int = DEFAULT_SAMPLES, *, light: 
     if light_obj.name_full not in visible:
         raise ReferenceCaptureError(f"light {light_obj.name!r} is disabled for rendering")
     if light_obj.data.energy <= 0.0 or max(light_obj.data.color) <= 0.0:
+        # For a sun the energy is its strength (W/m^2); zero is equally useless.
         raise ReferenceCaptureError(f"light {light_obj.name!r} emits nothing (energy or colour is zero)")
+    emission = _emission_of(light_obj.data)
+    _warn_soft_light(light_obj)
     say = progress or (lambda message: None)
 
     render = scene.render
@@ -566,6 +602,8 @@ def capture(scene: "bpy.types.Scene", samples: int = DEFAULT_SAMPLES, *, light: 
     if light_obj.data.type == "SPOT":
         meta["spot_size_deg"] = math.degrees(light_obj.data.spot_size)
         meta["spot_blend"] = float(light_obj.data.spot_blend)
+    if light_obj.data.type == "SUN":
+        meta["sun_angle_deg"] = math.degrees(light_obj.data.angle)  # as authored; captured at 0
     log.info("captured %r %dx%d: %d triangles, %.1f%% hit, renders %.2f s + %.2f s",
              scene.name, width, height, len(triangles), 100.0 * hit.mean(), t_shadowed, t_unshadowed)
     return ReferenceData(
@@ -576,9 +614,11 @@ def capture(scene: "bpy.types.Scene", samples: int = DEFAULT_SAMPLES, *, light: 
         unshadowed=unshadowed,
         triangles=triangles,
         light_matrix=light_matrix,
-        emission=_emission_of(light_obj.data),
+        emission=emission,
         camera_matrix=camera_matrix,
         camera_fov_deg=_camera_fov_deg(cam_obj.data, width, height),
         resolution=(width, height),
         meta=meta,
+        # Only a narrower cone restricts the domain; hemi, omni and sun keep pi.
+        spot_size=float(light_obj.data.spot_size) if emission == "spot" else math.pi,
     )

@@ -12,11 +12,15 @@ Conventions (verified in tests/blender/test_reference.py):
 - `meta` holds: preset ("custom" for a user scene), scene/light/camera names,
   blender_version, samples, mixed_pixels, capture_version, render_seconds
   {"shadowed", "unshadowed"} and, from the cache, cache_key and key_fields.
+- `spot_size` is the full cone angle (radians) of a "spot" light; pi for every other
+  emission. Files written before the field existed load with pi (or, for a spot, the
+  cone recorded in meta["spot_size_deg"]), so the field needs no format bump.
 """
 from __future__ import annotations
 
 import json
 import logging
+import math
 import os
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -45,11 +49,14 @@ class ReferenceData:
     unshadowed: np.ndarray  # (H, W) float32, the same with shadow casting disabled
     triangles: np.ndarray  # (T, 3, 3) float32, world space, evaluated scene
     light_matrix: np.ndarray  # (4, 4) float64, light to world, rotation orthonormal (scale dropped)
-    emission: str  # "omni" | "hemi" | "spot"
+    emission: str  # "omni" | "hemi" | "spot" | "sun"
     camera_matrix: np.ndarray  # (4, 4) float64, camera to world (looks along local -Z), no scale
     camera_fov_deg: float  # field of view along the larger image side
     resolution: tuple[int, int]  # (W, H)
     meta: dict[str, Any] = field(default_factory=dict)
+    # Full cone angle in radians; only a "spot" narrows the domain below pi. Kept last so
+    # positional construction of the older fields is unchanged.
+    spot_size: float = math.pi
 
     def __post_init__(self) -> None:
         self.position = np.asarray(self.position, dtype=np.float32)
@@ -63,6 +70,9 @@ class ReferenceData:
         self.camera_fov_deg = float(self.camera_fov_deg)
         self.resolution = (int(self.resolution[0]), int(self.resolution[1]))
         self.emission = str(self.emission)
+        self.spot_size = float(self.spot_size)
+        if not (0.0 < self.spot_size <= math.pi):
+            raise ReferenceCaptureError(f"reference spot_size {self.spot_size!r} rad is outside (0, pi]")
         self._check_shapes()
 
     def _check_shapes(self) -> None:
@@ -134,6 +144,7 @@ class ReferenceData:
                     camera_matrix=self.camera_matrix,
                     camera_fov_deg=np.array(self.camera_fov_deg, dtype=np.float64),
                     resolution=np.array(self.resolution, dtype=np.int64),
+                    spot_size=np.array(self.spot_size, dtype=np.float64),
                     meta=np.array(json.dumps(meta, sort_keys=True)),
                 )
             os.replace(tmp, path)
@@ -168,10 +179,21 @@ class ReferenceData:
                     camera_fov_deg=float(npz["camera_fov_deg"]),
                     resolution=tuple(int(v) for v in npz["resolution"]),
                     meta=meta,
+                    spot_size=_stored_spot_size(npz, meta),
                 )
         except (OSError, KeyError, ValueError) as exc:
             # ValueError covers a truncated zip and bad JSON alike.
             raise ReferenceCaptureError(f"cannot read reference file {path}: {exc}") from exc
+
+
+def _stored_spot_size(npz, meta: dict[str, Any]) -> float:
+    """The spot cone of a loaded file; older files lack the field (still format 1)."""
+    if "spot_size" in npz.files:
+        return float(npz["spot_size"])
+    # A spot captured before the field existed still recorded its cone in meta.
+    if str(npz["emission"]) == "spot" and "spot_size_deg" in meta:
+        return math.radians(float(meta["spot_size_deg"]))
+    return math.pi
 
 
 def read_meta(path: str | os.PathLike) -> dict[str, Any]:

@@ -348,6 +348,9 @@ def render_eevee(scene: "bpy.types.Scene", out_dir: Path, settings: Sequence[str
     visible = _render_visible_objects(layer)
     light_obj = _pick_light(scene, visible, light)
     emission = _emission_of(light_obj.data)
+    if emission not in TILEMAPS:
+        # The reference accepts spots and suns; this row (and its tilemap count) does not.
+        raise InputError(f"light {light_obj.name!r} is a {emission} light; the eevee row needs an omni or hemi light")
     chosen = resolve_settings(names, light_obj.data)
     say = progress or (lambda message: None)
     render = scene.render

@@ -7,6 +7,8 @@ against the SceneSpec, not from Blender.
 from __future__ import annotations
 
 import json
+import logging
+import math
 import os
 import subprocess
 import sys
@@ -17,8 +19,9 @@ import pytest
 
 bpy = pytest.importorskip("bpy")
 
-from addon.core.errors import ReferenceCaptureError  # noqa: E402
-from addon.core.scene import SceneBuilder, SceneSpec  # noqa: E402
+from addon.core import metrics  # noqa: E402
+from addon.core.errors import InputError, ReferenceCaptureError  # noqa: E402
+from addon.core.scene import LightSpec, SceneBuilder, SceneSpec  # noqa: E402
 from addon.reference import cache  # noqa: E402
 from addon.reference.blender_scene import build_blender_scene, remove_blender_scene  # noqa: E402
 from addon.reference.capture import capture  # noqa: E402
@@ -117,13 +120,34 @@ def signed_distance_inside(hull: np.ndarray, xy: np.ndarray) -> np.ndarray:
     return dist
 
 
+def box_corners() -> np.ndarray:
+    half = BOX_SIZE / 2.0
+    return np.array([[sx, sy, sz] for sx in (-1, 1) for sy in (-1, 1) for sz in (-1, 1)]) * half + BOX_CENTER
+
+
 def shadow_footprint(light: np.ndarray) -> np.ndarray:
     """Hull of the box's corners projected from the light onto z = 0."""
-    half = BOX_SIZE / 2.0
-    corners = np.array([[sx, sy, sz] for sx in (-1, 1) for sy in (-1, 1) for sz in (-1, 1)]) * half + BOX_CENTER
+    corners = box_corners()
     t = light[2] / (light[2] - corners[:, 2])
     projected = light[:2] + (corners[:, :2] - light[:2]) * t[:, None]
     return convex_hull(np.vstack([projected, corners[:, :2]]))
+
+
+def sun_footprint(direction: np.ndarray) -> np.ndarray:
+    """Hull of the box's corners projected along a sun's direction onto z = 0 (the box
+    floats 0.5 m up, so its own footprint is lit from the side and not part of it)."""
+    corners = box_corners()
+    projected = corners[:, :2] - direction[:2] * (corners[:, 2] / direction[2])[:, None]
+    return convex_hull(projected)
+
+
+def light_spec_of(ref: ReferenceData) -> LightSpec:
+    """The LightSpec a reference describes (spot_size only matters for a spot)."""
+    return LightSpec(ref.emission, ref.light_matrix, spot_size=ref.spot_size)  # type: ignore[arg-type]
+
+
+def floor_mask(ref: ReferenceData) -> np.ndarray:
+    return ref.hit & (np.abs(ref.position[..., 2]) < 1e-4)
 
 
 # ----------------------------------------------------------------------------
@@ -292,6 +316,222 @@ def test_hemi_light_leaves_the_back_half_space_dark():
     np.testing.assert_allclose(ref.light_matrix, spec.light.matrix_world, atol=1e-5)
 
 
+# ----------------------------------------------------------------------------
+# spot and sun lights
+# ----------------------------------------------------------------------------
+SUN_DIRECTION = np.array([0.5, -1.0, -1.2]) / np.linalg.norm([0.5, -1.0, -1.2])  # towards the camera
+SPOT_APEX, SPOT_DEG = np.array([0.0, 0.0, 4.0]), 50.0
+
+
+def sun_scene(name: str = "sun") -> SceneSpec:
+    b = SceneBuilder(name, SIZE)
+    b.plane("floor", (0.0, 0.0, 0.0), 10.0, 10.0)
+    b.box("box", BOX_CENTER, BOX_SIZE)
+    b.sun_light(SUN_DIRECTION, strength=3.0, origin=(-3.0, 2.0, 6.0))
+    b.camera((0.0, -7.0, 5.0), (0.0, 0.0, 0.0), fov_deg=60.0)
+    return b.finish()
+
+
+def spot_scene(name: str = "spot") -> SceneSpec:
+    b = SceneBuilder(name, SIZE)
+    b.plane("floor", (0.0, 0.0, 0.0), 10.0, 10.0)
+    b.box("box", BOX_CENTER, BOX_SIZE)
+    b.spot_light(SPOT_APEX, (0.0, 0.0, 0.0), spot_size_deg=SPOT_DEG, energy=500.0)
+    b.camera((0.0, -7.0, 5.0), (0.0, 0.0, 0.0), fov_deg=60.0)
+    return b.finish()
+
+
+@pytest.fixture(scope="module")
+def sun() -> tuple[SceneSpec, ReferenceData]:
+    spec = sun_scene()
+    return spec, render(spec)
+
+
+@pytest.fixture(scope="module")
+def spot() -> tuple[SceneSpec, ReferenceData]:
+    spec = spot_scene()
+    return spec, render(spec)
+
+
+def test_sun_reference_captures_emission_sun_and_finite_data(sun):
+    """A SUN is captured as emission "sun": finite passes, its direction in the light matrix,
+    spot_size pi, the same light on every floor pixel (no falloff) and the box's shadow
+    where the parallel projection of its corners puts it."""
+    spec, ref = sun
+    assert ref.emission == "sun" and ref.spot_size == math.pi
+    for name in ("position", "normal", "shadowed", "unshadowed"):
+        assert np.all(np.isfinite(getattr(ref, name))), name
+    np.testing.assert_allclose(ref.light_matrix, spec.light.matrix_world, atol=1e-5)
+    np.testing.assert_allclose(light_spec_of(ref).axis, SUN_DIRECTION, atol=1e-6)
+    assert ref.meta["sun_angle_deg"] == 0.0 and ref.meta["light_energy"] == pytest.approx(3.0)
+    floor = floor_mask(ref)
+    assert floor.sum() > 1000 and np.all(ref.unshadowed[floor] > 0.0)
+    assert ref.unshadowed[floor].std() / ref.unshadowed[floor].mean() < 1e-3
+    vis = ref.visibility()
+    hull = sun_footprint(SUN_DIRECTION)
+    inside = signed_distance_inside(hull, ref.position[..., :2].reshape(-1, 2).astype(np.float64)).reshape(vis.shape)
+    dark = floor & ~vis
+    assert dark.sum() >= 10
+    assert np.all(inside[dark] > -1e-3), "shadowed floor pixels lie in the footprint"
+    assert np.all(vis[floor & (inside < -0.05)]) and not np.any(vis[floor & (inside > 0.05)])
+    # Every floor pixel faces the sun, and the evaluable mask agrees with the lit domain.
+    evaluable = metrics.evaluable_mask(ref.position, ref.normal, ref.hit, ref.unshadowed, light_spec_of(ref))
+    assert np.all(evaluable[floor])
+    assert np.array_equal(evaluable, ref.lit_domain() & evaluable)
+
+
+def test_sun_faces_turned_away_get_no_light(sun):
+    """Box faces whose normal points along the sun's travel are dark and never evaluable."""
+    _, ref = sun
+    away = ref.hit & (np.einsum("...i,i->...", ref.normal, SUN_DIRECTION) > 0.05)
+    assert away.sum() > 5
+    assert np.all(ref.unshadowed[away] == 0.0)
+    evaluable = metrics.evaluable_mask(ref.position, ref.normal, ref.hit, ref.unshadowed, light_spec_of(ref))
+    assert not evaluable[away].any()
+
+
+def test_spot_reference_stores_emission_and_cone(spot, tmp_path):
+    """A SPOT narrower than 179 degrees is emission "spot" with its cone in spot_size
+    (radians, Blender's float32), also in meta, and both survive save/load."""
+    spec, ref = spot
+    assert ref.emission == "spot"
+    assert ref.spot_size == pytest.approx(math.radians(SPOT_DEG), abs=1e-6)
+    assert ref.meta["spot_size_deg"] == pytest.approx(SPOT_DEG, abs=1e-4) and ref.meta["spot_blend"] == 0.0
+    np.testing.assert_allclose(ref.light_matrix, spec.light.matrix_world, atol=1e-5)
+    back = ReferenceData.load(ref.save(tmp_path / "spot.npz"))
+    assert back.emission == "spot" and back.spot_size == ref.spot_size
+
+
+def test_pixels_outside_the_spot_cone_are_not_evaluable(spot):
+    """Floor outside the cone gets no light and is not evaluable; inside (away from the rim)
+    it is lit and evaluable; the mask never counts a pixel Cycles left unlit."""
+    _, ref = spot
+    light = light_spec_of(ref)
+    d = ref.position.astype(np.float64) - SPOT_APEX
+    angle = np.degrees(np.arccos(np.clip((d @ light.axis) / np.linalg.norm(d, axis=-1), -1.0, 1.0)))
+    floor = floor_mask(ref)
+    outside, inside = floor & (angle > SPOT_DEG / 2 + 0.5), floor & (angle < SPOT_DEG / 2 - 0.5)
+    assert outside.sum() > 300 and inside.sum() > 100
+    assert np.all(ref.unshadowed[outside] == 0.0) and np.all(ref.unshadowed[inside] > 0.0)
+    evaluable = metrics.evaluable_mask(ref.position, ref.normal, ref.hit, ref.unshadowed, light)
+    assert not evaluable[outside].any() and evaluable[inside].all()
+    assert not (evaluable & ~ref.lit_domain()).any()
+    # The cone test alone excludes the outside too, even where light leaked (unshadowed > 0).
+    leaked = np.where(ref.hit, 1.0, 0.0)
+    assert not metrics.evaluable_mask(ref.position, ref.normal, ref.hit, leaked, light)[outside].any()
+    # The box under the light still casts its shadow inside the cone.
+    assert (inside & ~ref.visibility()).sum() >= 10
+
+
+def test_soft_sun_is_captured_hard_with_a_warning(sun, caplog):
+    """A sun with a non-zero angle is not refused: the capture warns, renders it hard (the
+    same visibility as angle 0) and puts the angle back."""
+    _, hard = sun
+    scene = build_blender_scene(sun_scene("soft_sun"))
+    try:
+        light = next(o for o in scene.objects if o.type == "LIGHT")
+        light.data.angle = math.radians(10.0)
+        with caplog.at_level(logging.WARNING, logger="addon.reference.capture"):
+            ref = capture(scene, samples=1)
+        assert light.data.angle == pytest.approx(math.radians(10.0))
+    finally:
+        remove_blender_scene(scene)
+    assert any("angle" in r.getMessage() and "soft" in r.getMessage() for r in caplog.records)
+    assert ref.emission == "sun" and ref.meta["sun_angle_deg"] == pytest.approx(10.0, abs=1e-4)
+    assert np.array_equal(ref.visibility(), hard.visibility())
+
+
+def test_blended_spot_is_captured_with_a_warning(spot, caplog):
+    """A spot with blend > 0 is not refused: the capture warns that its cone edge is soft;
+    it stays a spot, and visibility (a ratio) matches the hard cone's wherever both are lit."""
+    _, hard = spot
+    scene = build_blender_scene(spot_scene("blended_spot"))
+    try:
+        light = next(o for o in scene.objects if o.type == "LIGHT")
+        light.data.spot_blend = 0.4
+        with caplog.at_level(logging.WARNING, logger="addon.reference.capture"):
+            ref = capture(scene, samples=1)
+    finally:
+        remove_blender_scene(scene)
+    assert any("blend" in r.getMessage() and "soft" in r.getMessage() for r in caplog.records)
+    assert ref.emission == "spot" and ref.meta["spot_blend"] == pytest.approx(0.4)
+    both = ref.lit_domain() & hard.lit_domain()
+    assert both.sum() > 100
+    assert np.array_equal(ref.visibility()[both], hard.visibility()[both])
+
+
+def test_named_sun_is_picked_among_several_lights():
+    """With a point light and a sun in the scene, naming the sun captures the sun."""
+    scene = build_blender_scene(sun_scene("two_lights"))
+    extra = bpy.data.objects.new("extra_point", bpy.data.lights.new("extra_point", "POINT"))
+    scene.collection.objects.link(extra)
+    try:
+        with pytest.raises(ReferenceCaptureError, match="several"):
+            capture(scene)
+        sun_obj = next(o for o in scene.objects if o.type == "LIGHT" and o.data.type == "SUN")
+        ref = capture(scene, light=sun_obj.name)
+        assert ref.emission == "sun"
+    finally:
+        remove_blender_scene(scene)
+        light_data = extra.data
+        bpy.data.objects.remove(extra)
+        bpy.data.lights.remove(light_data)
+
+
+@pytest.mark.parametrize(("kind", "size_deg", "blend", "expected"), [
+    ("POINT", None, 0.0, "omni"),
+    ("SUN", None, 0.0, "sun"),
+    ("SPOT", 45.0, 0.0, "spot"),
+    ("SPOT", 179.0, 0.0, "spot"),  # LightSpec's widest spot round-trips as a spot
+    ("SPOT", 179.5, 0.0, "hemi"),
+    ("SPOT", 180.0, 0.0, "hemi"),
+    ("SPOT", 180.0, 0.3, "hemi"),  # a blend fades the light but keeps the half space
+    ("SPOT", 60.0, 0.3, "spot"),
+])
+def test_emission_of_blender_lights(kind, size_deg, blend, expected):
+    from addon.reference.capture import _emission_of
+
+    light = bpy.data.lights.new("emission_probe", kind)
+    try:
+        if size_deg is not None:
+            light.spot_size = math.radians(size_deg)
+            light.spot_blend = blend
+        assert _emission_of(light) == expected
+    finally:
+        bpy.data.lights.remove(light)
+
+
+def test_spot_cone_below_blenders_minimum_is_refused():
+    """Blender clamps spot_size to 1 degree; building a narrower spot is an InputError."""
+    b = SceneBuilder("needle", (16, 12))
+    b.plane("floor", (0.0, 0.0, 0.0), 4.0, 4.0)
+    b.spot_light((0.0, 0.0, 3.0), (0.0, 0.0, 0.0), spot_size_deg=0.5)
+    b.camera((0.0, -3.0, 3.0), (0.0, 0.0, 0.0))
+    scenes = len(bpy.data.scenes)
+    with pytest.raises(InputError, match="spot cone 0.5 degrees"):
+        build_blender_scene(b.finish())
+    assert len(bpy.data.scenes) == scenes, "nothing is created before the check"
+
+
+def test_eevee_row_refuses_spot_and_sun_references(spot, sun, tmp_path):
+    """The eevee row supports omni and hemi only: a spot or sun reference is an InputError
+    naming the light type, raised before any EEVEE process starts."""
+    from addon.reference import eevee
+
+    for _, ref in (spot, sun):
+        with pytest.raises(InputError, match=f"'{ref.emission}'"):
+            eevee.eevee_rows(["--preset", "none"], ref, "label", tmp_path, None)
+    assert not (tmp_path / "eevee").exists()
+    # The child side says the same for a scene built in this process.
+    scene = build_blender_scene(sun_scene("eevee_sun"))
+    try:
+        with pytest.raises(InputError, match="is a sun light"):
+            eevee.render_eevee(scene, tmp_path / "child")
+    finally:
+        remove_blender_scene(scene)
+    assert not (tmp_path / "child").exists()
+
+
 def test_capture_restores_the_scene_and_leaves_no_datablocks():
     spec = floor_box_scene("restore")
     counts = {k: len(getattr(bpy.data, k)) for k in ("scenes", "objects", "meshes", "lights", "cameras",
@@ -337,8 +577,8 @@ def test_capture_errors_are_named():
     scene = build_blender_scene(b.finish())
     try:
         light = next(o for o in scene.objects if o.type == "LIGHT")
-        light.data.type = "SUN"  # a sun is not a point light
-        with pytest.raises(ReferenceCaptureError, match="point or spot light"):
+        light.data.type = "AREA"  # an area light is neither a point, a spot nor a sun
+        with pytest.raises(ReferenceCaptureError, match="point or spot light, or sun"):
             capture(scene)
     finally:
         remove_blender_scene(scene)
@@ -358,6 +598,34 @@ def test_save_load_round_trip(omni, tmp_path):
     assert back.camera_fov_deg == ref.camera_fov_deg
     assert back.meta["render_seconds"] == ref.meta["render_seconds"]
     assert np.array_equal(back.visibility(), ref.visibility())
+
+
+def test_old_file_without_spot_size_loads_with_pi(omni, spot, tmp_path):
+    """Files written before the spot_size field load with pi; an old spot file falls back
+    to the cone its meta recorded. No format bump: both are still format 1."""
+    for (_, ref), expected in ((omni, math.pi), (spot, spot[1].spot_size)):
+        path = ref.save(tmp_path / f"{ref.emission}.npz")
+        with np.load(path, allow_pickle=False) as npz:
+            arrays = {k: npz[k] for k in npz.files if k != "spot_size"}
+        old = tmp_path / f"old_{ref.emission}.npz"
+        with open(old, "wb") as fh:
+            np.savez_compressed(fh, **arrays)
+        back = ReferenceData.load(old)
+        assert back.spot_size == pytest.approx(expected, abs=1e-6)
+    meta = json.loads(str(arrays["meta"]))
+    meta.pop("spot_size_deg")
+    arrays["meta"] = np.array(json.dumps(meta))
+    with open(old, "wb") as fh:
+        np.savez_compressed(fh, **arrays)
+    assert ReferenceData.load(old).spot_size == math.pi
+
+
+def test_spot_size_outside_its_range_is_refused():
+    with pytest.raises(ReferenceCaptureError, match="spot_size"):
+        ReferenceData(position=np.zeros((1, 1, 3)), normal=np.zeros((1, 1, 3)), hit=np.ones((1, 1), bool),
+                      shadowed=np.zeros((1, 1)), unshadowed=np.zeros((1, 1)), triangles=np.zeros((0, 3, 3)),
+                      light_matrix=np.eye(4), emission="spot", camera_matrix=np.eye(4), camera_fov_deg=60.0,
+                      resolution=(1, 1), spot_size=0.0)
 
 
 def test_visibility_threshold():

@@ -1,6 +1,8 @@
 """The error figure against the reference (addon/core/metrics.py, DESIGN.md section 5)."""
 from __future__ import annotations
 
+import math
+
 import numpy as np
 import pytest
 
@@ -84,6 +86,90 @@ def test_evaluable_mask_grazing_normal_is_out():
     got = M.evaluable_mask(np.array([[1.0, 0.0, 2.0]]), np.array([[0.0, 0.0, 1.0]]), np.array([True]),
                            np.array([1.0]), light)
     assert got.tolist() == [False]
+
+
+def _ring(light_pos, angles_deg, distance: float = 5.0):
+    """Receivers `distance` from the light at `angles_deg` from world -Z (in the x-z plane), facing it."""
+    pos = []
+    for a in np.radians(angles_deg):
+        direction = np.array([math.sin(a), 0.0, -math.cos(a)])  # angle a from the -Z axis
+        pos.append(np.asarray(light_pos, dtype=float) + distance * direction)
+    pos = np.array(pos)
+    normal = np.asarray(light_pos, dtype=float) - pos
+    normal /= np.linalg.norm(normal, axis=-1, keepdims=True)
+    return pos, normal
+
+
+def test_evaluable_mask_spot_keeps_only_the_cone():
+    """A 60 degree spot pointing down: receivers within 30 degrees of the axis count, those
+    beyond do not, though each faces the light and gets light."""
+    light = LightSpec("spot", look_at((0.0, 0.0, 4.0), (0.0, 0.0, 0.0)), spot_size=math.radians(60.0))
+    angles = [0.0, 10.0, 29.99, 30.01, 31.0, 60.0, 100.0]
+    pos, normal = _ring((0.0, 0.0, 4.0), angles)
+    got = M.evaluable_mask(pos, normal, np.ones(len(pos), bool), np.ones(len(pos)), light)
+    assert got.tolist() == [True, True, True, False, False, False, False]
+    # The same receivers under a hemi light: everything in front of the light counts.
+    hemi = LightSpec("hemi", light.matrix_world)
+    assert M.evaluable_mask(pos, normal, np.ones(len(pos), bool), np.ones(len(pos)), hemi).tolist() == \
+        [True, True, True, True, True, True, False]
+
+
+def test_evaluable_mask_spot_cone_follows_its_axis_and_keeps_other_rules():
+    """A tilted spot: the cone test uses the light's axis, not world -Z; hit, facing and
+    unshadowed still apply inside the cone; a receiver at the apex is out."""
+    apex = np.array([1.0, 2.0, 3.0])
+    light = LightSpec("spot", look_at(apex, apex + np.array([1.0, 0.0, 0.0])), spot_size=math.radians(40.0))
+    on_axis = apex + np.array([3.0, 0.0, 0.0])
+    off_axis = apex + 3.0 * np.array([math.cos(math.radians(25.0)), math.sin(math.radians(25.0)), 0.0])
+    pos = np.array([on_axis, on_axis, on_axis, on_axis, off_axis, apex])
+    normal = np.array([[-1.0, 0, 0], [-1.0, 0, 0], [1.0, 0, 0], [-1.0, 0, 0], [-1.0, 0, 0], [-1.0, 0, 0]])
+    hit = np.array([True, False, True, True, True, True])
+    unshadowed = np.array([1.0, 1.0, 1.0, 0.0, 1.0, 1.0])
+    got = M.evaluable_mask(pos, normal, hit, unshadowed, light)
+    assert got.tolist() == [True, False, False, False, False, False]
+
+
+def test_evaluable_mask_spot_image_shape():
+    """(H, W, 3) positions give an (H, W) mask; the cone cuts a disc out of a floor."""
+    light = LightSpec("spot", look_at((0.0, 0.0, 2.0), (0.0, 0.0, 0.0)), spot_size=math.radians(90.0))
+    xs = np.linspace(-4.0, 4.0, 9)
+    gx, gy = np.meshgrid(xs, xs)
+    pos = np.stack([gx, gy, np.zeros_like(gx)], axis=-1)
+    normal = np.broadcast_to([0.0, 0.0, 1.0], pos.shape)
+    got = M.evaluable_mask(pos, normal, np.ones(gx.shape, bool), np.ones(gx.shape), light)
+    assert got.shape == (9, 9)
+    # 45 degree half angle from 2 m up: the lit disc has radius 2 m (its rim excluded).
+    assert np.array_equal(got, np.hypot(gx, gy) < 2.0 - 1e-9)
+
+
+def test_evaluable_mask_sun_uses_its_direction_everywhere():
+    """A sun travelling along (1, 0, -1): a receiver faces it when its normal points
+    against that direction, wherever it is (the lamp's position plays no part)."""
+    sun = LightSpec("sun", look_at((0.0, 0.0, 0.0), (1.0, 0.0, -1.0)))
+    np.testing.assert_allclose(sun.axis, np.array([1.0, 0.0, -1.0]) / math.sqrt(2.0), atol=1e-12)
+    pos = np.array([[0.0, 0.0, 0.0], [50.0, 0.0, 80.0], [-3.0, 9.0, 40.0], [0.0, 0.0, 0.0], [5.0, 5.0, 5.0],
+                    [0.0, 0.0, 0.0]])
+    normal = np.array([[0.0, 0.0, 1.0],  # a floor: lit from above
+                       [0.0, 0.0, 1.0],  # a floor far above the lamp: still faces the sun
+                       [-1.0, 0.0, 0.0],  # a wall facing -x, the way the light comes from
+                       [1.0, 0.0, 0.0],  # a wall facing +x: away from the sun
+                       [0.0, 0.0, -1.0],  # a ceiling: away
+                       [0.0, 1.0, 0.0]])  # a wall parallel to the light: grazing, out
+    n = len(pos)
+    got = M.evaluable_mask(pos, normal, np.ones(n, bool), np.ones(n), sun)
+    assert got.tolist() == [True, True, True, False, False, False]
+    # An omni light at the lamp's origin lies below that floor: judged by position, it is out.
+    omni = LightSpec("omni", sun.matrix_world)
+    assert M.evaluable_mask(pos, normal, np.ones(n, bool), np.ones(n), omni)[1] == False  # noqa: E712
+
+
+def test_evaluable_mask_sun_keeps_hit_unshadowed_and_finite_rules():
+    """Misses, unlit and non-finite pixels never count under a sun either."""
+    sun = LightSpec("sun", look_at((0.0, 0.0, 10.0), (0.0, 0.0, 0.0)))
+    pos = np.array([[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [2.0, 0.0, 0.0], [np.nan, 0.0, 0.0]])
+    normal = np.tile([0.0, 0.0, 1.0], (4, 1))
+    got = M.evaluable_mask(pos, normal, np.array([True, False, True, True]), np.array([1.0, 1.0, 0.0, 1.0]), sun)
+    assert got.tolist() == [True, False, False, False]
 
 
 # ---------------------------------------------------------------- error figure

@@ -1,6 +1,7 @@
 """Preset registry and the shipped presets (addon/core/presets.py, presets/*.py)."""
 from __future__ import annotations
 
+import math
 import shutil
 from pathlib import Path
 
@@ -25,8 +26,8 @@ def _in_view(camera: CameraSpec, point: np.ndarray) -> bool:
 
 
 def test_shipped_presets_exist():
-    """The three design presets ship with the repository."""
-    assert {"room_omni", "room_hemi", "courtyard"} <= set(SHIPPED)
+    """The three design presets and the spot and sun scenes ship with the repository."""
+    assert {"room_omni", "room_hemi", "courtyard", "spot_street", "sun_field"} <= set(SHIPPED)
     assert PR.DEFAULT_PRESET in SHIPPED
 
 
@@ -41,6 +42,7 @@ def test_preset_builds_deterministically(name):
     assert [m.name for m in a.meshes] == [m.name for m in b.meshes]
     assert np.array_equal(a.light.matrix_world, b.light.matrix_world)
     assert a.light.emission == b.light.emission and a.light.energy == b.light.energy
+    assert a.light.spot_size == b.light.spot_size
     assert np.array_equal(a.camera.matrix_world, b.camera.matrix_world)
     assert a.camera.fov_deg == b.camera.fov_deg
 
@@ -51,7 +53,8 @@ def test_preset_contract(name):
     and non-empty DESCRIPTION and STRESSES, also listed by available_presets."""
     scene = PR.build_preset(name, (80, 60))
     assert scene.name == name
-    assert scene.light.emission in ("omni", "hemi")
+    assert scene.light.emission in ("omni", "hemi", "spot", "sun")
+    assert len(scene.world_triangles()) < 50_000  # shipped scenes stay quick to capture and draw
     assert scene.camera.resolution == (80, 60)
     assert np.all(np.isfinite(scene.world_triangles()))
     assert scene.description.strip() and scene.stresses.strip()
@@ -91,6 +94,62 @@ def test_room_lights_are_inside_the_room_box():
         room = next(m for m in scene.meshes if m.name == "room").world_triangles().reshape(-1, 3)
         lo, hi = room.min(axis=0), room.max(axis=0)
         assert np.all(scene.light.position > lo) and np.all(scene.light.position < hi)
+
+
+def _view_direction(camera: CameraSpec) -> np.ndarray:
+    return -np.asarray(camera.matrix_world)[:3, 2]
+
+
+def _ground_points_in_view(scene, depths) -> list[np.ndarray]:
+    """Points on the ground (z = 0) straight ahead of the camera at the given horizontal distances."""
+    cam = np.asarray(scene.camera.matrix_world)[:3, 3]
+    ahead = _view_direction(scene.camera).copy()
+    ahead[2] = 0.0
+    ahead /= np.linalg.norm(ahead)
+    return [np.array([cam[0], cam[1], 0.0]) + d * ahead for d in depths]
+
+
+def test_spot_street_is_a_deep_spot_lit_street():
+    """spot_street: a spot cone (60-90 degrees) from high up behind the camera, reaching both
+    the ground 5 m ahead of the low camera and 70 m down the street; the camera looks along it."""
+    scene = PR.build_preset("spot_street")
+    light, camera = scene.light, scene.camera
+    assert light.emission == "spot"
+    assert 60.0 <= math.degrees(light.spot_size) <= 90.0
+    cam = np.asarray(camera.matrix_world)[:3, 3]
+    assert cam[2] < 2.0 and 50.0 <= camera.fov_deg <= 70.0
+    assert abs(_view_direction(camera)[2]) < 0.2  # looks along the street, not down at it
+    assert light.position[2] > 15.0 and not _in_view(camera, light.position)
+    half = light.spot_size / 2.0
+    for point in _ground_points_in_view(scene, (6.0, 20.0, 45.0, 70.0)):
+        assert _in_view(camera, point)
+        d = point - light.position
+        assert math.acos(float(d @ light.axis) / np.linalg.norm(d)) < half, point
+    # The street is tens of metres deep: the ground reaches past 70 m along the view.
+    ground = next(m for m in scene.meshes if m.name == "ground").world_triangles().reshape(-1, 3)
+    assert ground[:, 1].max() - cam[1] > 70.0
+
+
+def test_sun_field_sun_is_low_and_across_the_view():
+    """sun_field: a sun 25-45 degrees high whose horizontal direction is within 20 degrees of
+    perpendicular to the view; a low camera over a field at least 150 m wide; occluders both
+    within 15 m of the camera and over 100 m away."""
+    scene = PR.build_preset("sun_field")
+    light, camera = scene.light, scene.camera
+    assert light.emission == "sun"
+    elevation = math.degrees(math.asin(-light.axis[2]))
+    assert 25.0 <= elevation <= 45.0
+    view = _view_direction(camera)
+    horizontal = light.axis[:2] / np.linalg.norm(light.axis[:2])
+    view_h = view[:2] / np.linalg.norm(view[:2])
+    assert abs(math.degrees(math.acos(abs(float(horizontal @ view_h)))) - 90.0) < 20.0
+    cam = np.asarray(camera.matrix_world)[:3, 3]
+    assert cam[2] < 2.0
+    ground = next(m for m in scene.meshes if m.name == "ground").world_triangles().reshape(-1, 3)
+    assert np.ptp(ground[:, 0]) >= 150.0 and np.ptp(ground[:, 1]) >= 150.0
+    distances = [np.linalg.norm(m.world_triangles().reshape(-1, 3).mean(axis=0) - cam)
+                 for m in scene.meshes if m.name != "ground"]
+    assert min(distances) < 15.0 and max(distances) > 100.0
 
 
 # ---------------------------------------------------------------- selection
