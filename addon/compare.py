@@ -22,6 +22,7 @@ from .core import metrics
 from .core.errors import InputError
 from .core.scene import CameraSpec, LightSpec, parse_size  # noqa: F401 - parse_size is part of this API
 from .reference.data import ReferenceData
+from .core.frames import PROJECTIVE_PARAMETERIZATIONS
 from .render.blender_draw import pool_image
 from .render.pipeline import (
     MAX_RESOLUTION,
@@ -47,8 +48,12 @@ METHODS: dict[str, tuple[str, str]] = {
     "ipsm+notw": ("ipsm", "notw"),
     "ipsm+cut": ("ipsm", "none"),  # with the skewed cut (CUT_METHODS)
     "unfold": ("unfold", "none"),
+    "unfold+aa": ("unfold", "none"),  # with edge-distance antialiasing (AA_METHODS)
+    "sm": ("sm", "none"),
+    "psm": ("psm", "none"),
 }
 CUT_METHODS = {"ipsm+cut"}
+AA_METHODS = {"unfold+aa"}
 # Rows measured outside the pipeline: Blender's own EEVEE shadows, rendered in a child
 # process at the light's default and a finer shadow resolution (--resolutions do not apply).
 EXTERNAL_METHODS = ("eevee",)
@@ -67,6 +72,25 @@ class CompareOptions:
     out_dir: Path = Path("out/compare")
     write_images: bool = True
     command: str = ""  # the command line, recorded in report.md for provenance
+
+
+def method_fits(method: str, emission: str) -> bool:
+    """True when a method can shadow this kind of light (see pipeline.check_light_fits)."""
+    if method in EXTERNAL_METHODS:
+        return emission in ("omni", "hemi")
+    parameterization = METHODS[method][0]
+    return (parameterization in PROJECTIVE_PARAMETERIZATIONS) == (emission in ("spot", "sun"))
+
+
+def _projective(method: str) -> bool:
+    return METHODS[method][0] in PROJECTIVE_PARAMETERIZATIONS
+
+
+def fits_text(emission: str) -> str:
+    """Which methods a light of this emission takes, for messages."""
+    if emission in ("spot", "sun"):
+        return "spot and sun lights take " + ", ".join(m for m in METHODS if _projective(m))
+    return "point lights take " + ", ".join([m for m in METHODS if not _projective(m)] + list(EXTERNAL_METHODS))
 
 
 def parse_methods(text: str) -> tuple[str, ...]:
@@ -100,9 +124,9 @@ def parse_resolutions(text: str) -> tuple[int, ...]:
 
 
 def light_from_reference(ref: ReferenceData) -> LightSpec:
-    if ref.emission not in ("omni", "hemi"):
-        raise InputError(f"the reference light is {ref.emission!r}; dpsm and cube need an omni or hemi light")
-    return LightSpec(ref.emission, ref.light_matrix)  # type: ignore[arg-type]
+    if ref.emission not in ("omni", "hemi", "spot", "sun"):
+        raise InputError(f"the reference light is {ref.emission!r}; expected omni, hemi, spot or sun")
+    return LightSpec(ref.emission, ref.light_matrix, spot_size=float(getattr(ref, "spot_size", math.pi)))  # type: ignore[arg-type]
 
 
 def camera_from_reference(ref: ReferenceData) -> CameraSpec:
@@ -148,13 +172,14 @@ def run_row(pipeline: ShadowPipeline, ref: ReferenceData, preset: str, method: s
     light = light_from_reference(ref)
     samples = samples_from_reference(ref)
     parameterization, warp = METHODS[method]
-    settings = ShadowSettings(parameterization, resolution, cull=options.cull, warp=warp, cut=method in CUT_METHODS)
+    settings = ShadowSettings(parameterization, resolution, cull=options.cull, warp=warp, cut=method in CUT_METHODS,
+                              edge_aa=method in AA_METHODS)
     triangles = ref.triangles.astype(np.float64)
     pipeline.render(light, triangles, samples, settings)  # warm-up: shader compile, allocation
     count = max(1, options.frames)
     frames = [pipeline.render(light, triangles, samples, settings, keep_atlas=(i == count - 1)) for i in range(count)]
     last = frames[-1]
-    counts = count_statistics(pipeline, light, settings, last)  # measurement, not timed
+    counts = count_statistics(pipeline, light, settings, last, samples)  # measurement, not timed
     ref_lit = metrics.reference_visibility(ref.shadowed, ref.unshadowed)
     evaluable = metrics.evaluable_mask(ref.position, ref.normal, ref.hit, ref.unshadowed, light)
     est_lit = last.visibility > 0.5
@@ -168,6 +193,9 @@ def run_row(pipeline: ShadowPipeline, ref: ReferenceData, preset: str, method: s
         "error_pct": figure.error_pct,
         "false_shadow_pct": figure.false_shadow_pct,
         "false_lit_pct": figure.false_lit_pct,
+        # Mean |visibility - reference| in %: equal to error_pct for binary methods; the
+        # antialiased rows' fractional visibility shows here.
+        "soft_error_pct": metrics.soft_error_pct(last.visibility, ref_lit, evaluable),
         "evaluated_pixels": figure.evaluated_pixels,
         "time_ms": times,
         "passes": last.passes,
@@ -314,11 +342,19 @@ def run_compare(references: dict[str, Callable[[], ReferenceData]], options: Com
     variants = len(_cull_variants(options))
     progress = Progress(len(references) * (len(pipeline_methods) * len(options.resolutions) * variants + len(external)))
     rows: list[dict] = []
+    skipped: list[str] = []
     pipeline = pipeline_factory()
     try:
         for preset, load in references.items():
             ref = load()
             for method in options.methods:
+                if not method_fits(method, ref.emission):
+                    # e.g. `--preset all --methods dpsm,psm`: each light gets the methods it fits.
+                    skipped.append(f"{preset} {method}")
+                    print(f"skipped {preset} {method}: it does not fit a {ref.emission} light ({fits_text(ref.emission)})",
+                          file=sys.stderr)
+                    progress.done += 1 if method in EXTERNAL_METHODS else len(options.resolutions) * variants
+                    continue
                 if method in EXTERNAL_METHODS:
                     progress.step(f"{preset} {method} (EEVEE renders in a child process)")
                     rows += _eevee_rows(sources[preset], ref, preset, out, image_dir, options)
@@ -331,6 +367,9 @@ def run_compare(references: dict[str, Callable[[], ReferenceData]], options: Com
                         progress.advance()
     finally:
         pipeline.backend.release()
+    if not rows and skipped:
+        presets = ", ".join(sorted({entry.split()[0] for entry in skipped}))
+        raise InputError(f"no requested method fits the light of {presets}; {fits_text('omni')}; {fits_text('sun')}")
     check_rows(rows)
     stamp = _dt.datetime.now(_dt.timezone.utc).strftime("%Y-%m-%d %H:%M UTC")
     (out / "results.json").write_text(json.dumps(rows, indent=1), encoding="utf-8")

@@ -17,7 +17,7 @@ def _pareto(points: list[tuple[float, float]]) -> list[tuple[float, float]]:
 
 def markdown_table(rows: Sequence[dict]) -> str:
     """One line per row: the fields a reader compares."""
-    head = ("| preset | method | res | error % | false shadow % | false lit % | evaluated px | total ms | "
+    head = ("| preset | method | res | error % | false shadow % | false lit % | soft error % | evaluated px | total ms | "
             "prepare ms | analysis ms | maps ms | test ms | passes | triangles | tess. added | texels | "
             "max count before | max count after | texel use |")
     lines = [head, "|" + "|".join(["---"] * (head.count("|") - 1)) + "|"]
@@ -26,7 +26,7 @@ def markdown_table(rows: Sequence[dict]) -> str:
         lines.append(
             f"| {r['preset']} | {r['method']}{'' if r.get('cull', True) else ' (no cull)'} | {r['resolution']} "
             f"| {r['error_pct']:.3f} | {r['false_shadow_pct']:.3f} | {r['false_lit_pct']:.3f} "
-            f"| {r['evaluated_pixels']} | {t['total']:.1f} | {t.get('prepare', 0.0):.1f} | {t['analysis']:.1f} "
+            f"| {r.get('soft_error_pct', r['error_pct']):.3f} | {r['evaluated_pixels']} | {t['total']:.1f} | {t.get('prepare', 0.0):.1f} | {t['analysis']:.1f} "
             f"| {t['shadow_maps']:.1f} | {t['shadow_test']:.1f} | {r['passes']} | {r['triangles_drawn']} "
             f"| {r.get('tessellated_triangles', 0)} | {r['texels']} | {r.get('max_count_before', 0):.0f} "
             f"| {r.get('max_count_after', 0):.0f} | {r.get('texel_utilization', 0.0):.3f} |"
@@ -48,8 +48,9 @@ def write_markdown(rows: Sequence[dict], path: Path, stamp: str, command: str = 
         f"- backend: {', '.join(backends)}",
         f"- camera size: {', '.join(sizes)}; times are medians of {rows[0]['frames'] if rows else 0} frames "
         "after one warm-up frame",
-        "- error % = mismatching evaluated pixels against the Cycles visibility; times on a software "
-        "rasteriser mean little in absolute terms, compare them as ratios within this table",
+        "- error % = mismatching evaluated pixels against the Cycles visibility; soft error % = mean "
+        "|visibility - Cycles| (equal to error % for binary methods; antialiased rows differ); times on a "
+        "software rasteriser mean little in absolute terms, compare them as ratios within this table",
         "",
         markdown_table(rows),
     ]
@@ -66,7 +67,7 @@ def write_plot(rows: Sequence[dict], path: Path) -> None:
     fig, ax = plt.subplots(figsize=(11, 6.5), dpi=110)
     presets = sorted({r["preset"] for r in rows})
     methods = sorted({r["method"] + ("" if r.get("cull", True) else " (no cull)") for r in rows})
-    markers = "osD^v<>ph*"
+    markers = "osD^v<>ph*XP8dH"
     colours = plt.rcParams["axes.prop_cycle"].by_key()["color"]
     for pi, preset in enumerate(presets):
         colour = colours[pi % len(colours)]
@@ -87,6 +88,9 @@ def write_plot(rows: Sequence[dict], path: Path) -> None:
         if len(front) > 1:
             ax.plot(*zip(*front), color=colour, linewidth=1, alpha=0.6)
     ax.set_xscale("log")
+    errors = [r["error_pct"] for r in rows if r["error_pct"] > 0]
+    if errors and max(errors) / min(errors) > 30.0:
+        ax.set_yscale("log")  # e.g. a uniform sun map at several % next to warped maps at 0.02 %
     ax.set_xlabel("time per frame, ms (log; median, all stages)")
     ax.set_ylabel("error % of evaluated pixels vs Cycles")
     ax.set_title("Shadow error against time (lines: Pareto front per preset)")

@@ -7,6 +7,15 @@
 
 void main()
 {
+  if (ow_projective != 0) {
+    // The map's own depth z01 = gl_FragCoord.z. An inverted light (PSM: a point light
+    // behind the camera plane, seen in post-perspective space) keeps the FARTHEST
+    // fragment, so it stores 1 - z01 under the same LESS test.
+    float z01 = (ow_map_inverted != 0) ? 1.0 - gl_FragCoord.z : gl_FragCoord.z;
+    gl_FragDepth = z01;
+    ow_depth = z01;
+    return;
+  }
   vec2 uv = (gl_FragCoord.xy - ow_tile_origin) / ow_resolution;
   mat3 rot = ow_layer_rot;
   if (ow_unfold_split >= 0 && uv.x >= 1.0) {

@@ -8,7 +8,12 @@ void main()
   v_distance = length(ow_position);
   v_plane = ow_plane;
   v_range = ow_range;
-  if (ow_unfold_split >= 0) {
+  if (ow_projective != 0) {
+    // Spot or sun map (sm, psm): one 4x4 projective matrix; the GPU clips linearly,
+    // which is exact for a projective map.
+    gl_Position = ow_map_matrix * vec4(ow_position, 1.0);
+  }
+  else if (ow_unfold_split >= 0) {
     // Dual sphere-unfolding: half 0's triangles come first in the stream, half 1's
     // after `ow_unfold_split`. Half 1's frame is half 0's with y and z negated. The
     // viewport spans the `ow_unfold_halves` tiles, half 0 on the left.

@@ -8,6 +8,39 @@
 #include "lib/projection.glsl"
 #include "lib/layers.glsl"
 #include "lib/mapping.glsl"
+#include "lib/projective.glsl"
+
+// Spot and sun maps (sm, psm). Same bias rule as the point-light maps, in world
+// space: a normal offset and a move towards the light, in texel footprints; then the
+// constant depth offset of the map (perspective.py).
+vec2 ow_projective_test(vec3 p, vec3 n)
+{
+  float dist = length(p);
+  vec3 dir = p / max(dist, 1e-30);
+  if (ow_sun == 0 && !(dot(dir, ow_light_axis) >= ow_spot_cos)) {
+    return vec2(0.0, 2.0);  // outside the spot cone (or at the light)
+  }
+  vec3 to_light = (ow_sun != 0) ? -ow_light_axis : -dir;
+  float cos_i = dot(n, to_light);
+  if (cos_i < 0.0) {
+    n = -n;
+    cos_i = -cos_i;
+  }
+  float footprint = ow_projective_footprint(ow_map_matrix, p, ow_resolution);
+  float tan_i = sqrt(max(1.0 - cos_i * cos_i, 0.0)) / max(cos_i, 0.05);
+  vec3 q = p + n * (ow_bias_normal * footprint)
+           + to_light * (footprint * (ow_bias_const + ow_bias_slope * min(tan_i, 20.0)));
+  float w;
+  vec3 uvz = ow_projective_uvz(ow_map_matrix, q, w);
+  if (!(w > 0.0) || any(lessThan(uvz.xy, vec2(0.0))) || any(greaterThan(uvz.xy, vec2(1.0)))) {
+    return vec2(1.0, 3.0);  // outside the map: the plan fits the map to every view sample
+  }
+  int res = int(ow_resolution);
+  ivec2 texel = clamp(ivec2(floor(uvz.xy * ow_resolution)), ivec2(0), ivec2(res - 1));
+  float stored = texelFetch(ow_atlas, texel + ivec2(ow_layer_tile[0].xy), 0).r;
+  float z01 = (ow_map_inverted != 0) ? 1.0 - uvz.z : uvz.z;
+  return vec2((z01 - ow_depth_offset <= stored) ? 1.0 : 0.0, 0.0);
+}
 
 void main()
 {
@@ -19,6 +52,10 @@ void main()
   }
   vec3 p = pw.xyz;
   vec3 n = texelFetch(ow_normals, pix, 0).xyz;
+  if (ow_projective != 0) {
+    ow_result = ow_projective_test(p, n);
+    return;
+  }
   float dist = length(p);
   if (!(dist > 0.0)) {
     ow_result = vec2(1.0, 2.0);
@@ -69,5 +106,13 @@ void main()
   float t_map = ow_near + stored * (ow_far - ow_near);
   float tan_i = sqrt(max(1.0 - cos_i * cos_i, 0.0)) / max(cos_i, 0.05);
   float bias = footprint * (ow_bias_const + ow_bias_slope * min(tan_i, 20.0));
-  ow_result = vec2((qdist - bias <= t_map) ? 1.0 : 0.0, 0.0);
+  float visibility = (qdist - bias <= t_map) ? 1.0 : 0.0;
+  if (ow_edge_radius > 0 && visibility > 0.5) {
+    // Edge-distance antialiasing (dual sphere-unfolding paper): a lit sample z texels
+    // (Manhattan) from a nearer occluder's edge is dimmed, down to just above one half
+    // next to it, so the binary lit/shadowed call never changes, only its softness.
+    float z = texelFetch(ow_edges, texel + ivec2(tile.xy), 0).r;
+    visibility = 0.5 + 0.5 * z / float(ow_edge_radius + 1);
+  }
+  ow_result = vec2(visibility, 0.0);
 }

@@ -1,13 +1,14 @@
 """A street seen along its length, lit by a spot light high up to one side and aimed down it."""
 
 DESCRIPTION = ("A 100 m street between two rows of buildings with lamp posts, parked cars, bollards, a bench and a "
-               "bin; a 68 degree spot light 28 m up over the back of the right-hand roofs, behind the camera, aims "
-               "down the street; the camera stands 1.6 m up in the street and looks along it.")
-STRESSES = ("the depth range of a spot light: the lit region runs from 4 m in front of the camera to about 95 m "
-            "away, so near shadows (bollards, bench, the first building's roof shadow) are large on screen and "
-            "far ones (lamp posts, roof shadows across the street and on the facades) small; a uniform shadow map "
-            "spends most texels far away, which a perspective shadow map (PSM) redistributes towards the camera; "
-            "the cone's edge crosses the near ground, and the right-hand facades face away from the light")
+               "bin; a 125 degree spot light 35 m up over the middle of the street, 36 m ahead of the camera, aims "
+               "straight down; the camera stands 1.6 m up in the street and looks along it.")
+STRESSES = ("the depth range of a spot light: the lit street runs from 4 m in front of the camera to about 95 m "
+            "away, so near shadows (bollards, bench, bin, cars) are large on screen and far ones (lamp posts, "
+            "kerbs) small; a uniform shadow map spreads its texels evenly over the whole cone, which a perspective "
+            "shadow map (PSM) redistributes towards the camera. The light lies in front of the camera plane, "
+            "so in post-perspective space it stays a point light; its rays run roughly across the view "
+            "direction, PSM's good case (Stamminger and Drettakis 2002, 3.3)")
 
 # Buildings per side: (start y, length, height) in metres; the gaps are side streets.
 _LEFT = [(-10.0, 9.0, 11.0), (2.0, 10.0, 15.0), (15.0, 7.0, 9.0), (25.0, 12.0, 17.0),
@@ -50,5 +51,5 @@ def build(b) -> None:
     for i, y in enumerate((-0.8, 0.8)):
         b.box(f"bench_leg_{i}", (-5.4, y, 0.2), (0.5, 0.1, 0.4))
     b.box("bin", (2.8, 0.5, 0.5), (0.5, 0.5, 1.0), rotate_z_deg=20.0)
-    b.spot_light((16.0, -10.0, 28.0), (-1.0, 27.0, 0.0), spot_size_deg=68.0, energy=60000.0)
+    b.spot_light((3.0, 30.0, 35.0), (0.0, 27.0, 0.0), spot_size_deg=125.0, energy=60000.0)
     b.camera((1.0, -6.0, 1.6), (0.0, 60.0, 2.5), fov_deg=60.0, clip_end=250.0)

@@ -192,7 +192,7 @@ def _scene_lights(scene, depsgraph, reference: ReferenceData, light_name: str | 
     chosen = [entry for entry in enabled_lights(scene, depsgraph) if not light_name or entry[0] == light_name]
     if chosen:
         return chosen
-    light = LightSpec(reference.emission if reference.emission in ("omni", "hemi") else "omni", reference.light_matrix)
+    light = LightSpec(reference.emission, reference.light_matrix, spot_size=reference.spot_size)  # type: ignore[arg-type]
     return [(reference.meta.get("light", "light"), light, default)]
 
 

@@ -20,10 +20,12 @@ from typing import Literal
 import numpy as np
 
 from .errors import InputError
-from .projection import CUBE, PARABOLOID, UNFOLD
+from .projection import CUBE, PARABOLOID, PROJECTIVE, UNFOLD
 from .scene import LightSpec
 
-Parameterization = Literal["dpsm", "cube", "ipsm", "unfold"]
+Parameterization = Literal["dpsm", "cube", "ipsm", "unfold", "sm", "psm"]
+POINT_PARAMETERIZATIONS = ("dpsm", "cube", "ipsm", "unfold")  # omni and hemi lights
+PROJECTIVE_PARAMETERIZATIONS = ("sm", "psm")  # spot (cone below 180 degrees) and sun lights
 
 CUBE_FACE_NAMES = ("+X", "-X", "+Y", "-Y", "+Z", "-Z")
 CUBE_FACE_AXES = np.array(
@@ -85,6 +87,11 @@ def light_layers(light: LightSpec, parameterization: Parameterization) -> list[L
 def ipsm_layer(axis_world: np.ndarray) -> Layer:
     """The single paraboloid of IPSM (thesis 4.1), looking along the cone axis C (world)."""
     return Layer(0, PARABOLOID, "ipsm", _frame_from_axis(np.asarray(axis_world, dtype=np.float64)))
+
+
+def projective_layer(parameterization: Parameterization) -> Layer:
+    """The one layer of a spot or sun map; its matrix lives in the plan, not in the frame."""
+    return Layer(0, PROJECTIVE, parameterization, np.eye(3))
 
 
 def slot_count(parameterization: Parameterization) -> int:

@@ -66,6 +66,19 @@ def error_figure(estimate_lit: np.ndarray, reference_lit: np.ndarray, evaluable:
     return ErrorFigure(100.0 * (false_shadow + false_lit) / n, 100.0 * false_shadow / n, 100.0 * false_lit / n, n)
 
 
+def soft_error_pct(visibility: np.ndarray, reference_lit: np.ndarray, evaluable: np.ndarray) -> float:
+    """Mean |visibility - reference| over evaluated pixels, in %; for a binary estimate
+    it equals the mismatch share. Non-finite visibility counts as fully wrong."""
+    ev = np.asarray(evaluable, dtype=bool)
+    if not ev.any():
+        return 0.0
+    vis = np.clip(np.nan_to_num(np.asarray(visibility, dtype=np.float64)[ev], nan=-1.0), 0.0, 1.0)
+    ref = np.asarray(reference_lit, dtype=np.float64)[ev]
+    bad = ~np.isfinite(np.asarray(visibility, dtype=np.float64)[ev])
+    diff = np.where(bad, 1.0, np.abs(vis - ref))
+    return float(100.0 * diff.mean())
+
+
 def mismatch_image(grey_source: np.ndarray, estimate_lit: np.ndarray, reference_lit: np.ndarray,
                    evaluable: np.ndarray) -> np.ndarray:
     """RGB uint8 image: the reference rendering in grey, mismatches painted red.

@@ -19,7 +19,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from .frames import Layer, Parameterization, ipsm_layer, light_layers, pick_slot
+from . import perspective
+from .frames import Layer, Parameterization, ipsm_layer, light_layers, pick_slot, projective_layer
 from .projection import CUBE
 from .scene import CameraSpec, LightSpec
 
@@ -44,6 +45,7 @@ class Plan:
     ipsm_half_angle: float | None = None  # set when one IPSM paraboloid covers the view
     requested: str = ""  # the parameterization asked for (ipsm may fall back to dpsm)
     occluder_planes: np.ndarray | None = None  # (P, 4) outward planes of conv(light, view frustum)
+    projective: "perspective.ProjectiveMap | None" = None  # sm and psm: the map's matrix
 
     @property
     def drawn_slots(self) -> list[int]:
@@ -222,6 +224,39 @@ def plan_frame(light: LightSpec, parameterization: Parameterization, camera: Cam
     drawn = [layer for layer in layers if layer.slot in meets]
     return Plan(parameterization, layers, drawn, corners, [layer.name for layer in layers if layer.slot not in meets],
                 occluder_planes=occluder_region(light, camera, positions, hit))
+
+
+def plan_projective(light: LightSpec, parameterization: Parameterization, camera: CameraSpec | None,
+                    positions: np.ndarray, hit: np.ndarray, scene_lo: np.ndarray, scene_hi: np.ndarray,
+                    resolution: int, cull: bool = True) -> Plan:
+    """The one map of a spot or sun light: `sm` (uniform) or `psm` (Stamminger and
+    Drettakis 2002, in the camera's post-perspective space).
+
+    PSM needs the view: it is fitted to the strictly truncated view frustum (every
+    sample must land in the map, so no percentile here). With no camera or no sample
+    it falls back to the uniform map, and the plan says so in `requested`.
+    """
+    corners = truncated_frustum(camera, positions, hit) if camera is not None else None
+    layer = projective_layer(parameterization)
+    if parameterization == "psm" and corners is not None:
+        m = np.asarray(camera.matrix_world, dtype=np.float64)
+        depths = -((corners - m[:3, 3]) @ m[:3, 2])
+        near, far = float(depths.min()), float(depths.max())
+        projective = perspective.psm_map(light, camera, near, far, corners, scene_lo, scene_hi, resolution)
+        used = "psm"
+    else:
+        projective = perspective.sm_map(light, scene_lo, scene_hi, resolution, corners)
+        used = "sm"
+    planes = None
+    if cull and corners is not None:
+        # Object culling: an occluder of a visible receiver lies between it and the light.
+        if light.emission == "sun":
+            reach = 2.0 * float(np.linalg.norm(np.asarray(scene_hi) - np.asarray(scene_lo))) + 1.0
+            planes = hull_planes(np.vstack([corners, corners - reach * light.axis]))
+        else:
+            planes = hull_planes(np.vstack([corners, light.position[None]]))
+    return Plan(used, [layer], [layer], corners, requested=parameterization, occluder_planes=planes,
+                projective=projective)
 
 
 def occupied_slots(light: LightSpec, parameterization: Parameterization, positions: np.ndarray,

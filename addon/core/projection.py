@@ -25,6 +25,7 @@ import numpy as np
 PARABOLOID = 0
 CUBE = 1
 UNFOLD = 2
+PROJECTIVE = 3  # a spot or sun map: one 4x4 matrix (addon/core/perspective.py), no function here
 
 _TINY = float(np.finfo(np.float64).tiny)
 # Coordinates beyond this are treated like inf: Blender stores an inf vertex as FLT_MAX,

@@ -103,6 +103,12 @@ class ShadowBackend(ABC):
         """
 
     @abstractmethod
+    def edge_distance(self, radius: int, eps: float) -> None:
+        """Edge-distance map of the atlas (EDGE_PROGRAM, two passes) bound as `ow_edges` for
+        the next shadow test: per texel, the Manhattan distance (in texels, up to radius + 1)
+        to the nearest texel of its tile whose depth is at least `eps` nearer."""
+
+    @abstractmethod
     def read_atlas(self) -> np.ndarray:
         """The atlas as (rows*res, columns*res) float32, row 0 at the bottom."""
 

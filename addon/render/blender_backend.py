@@ -18,6 +18,7 @@ from ..core.errors import BackendError
 from .backend import AtlasLayout, ShadowBackend, UniformValues
 from .shaders import (
     DEPTH_PROGRAM,
+    EDGE_PROGRAM,
     SCATTER_PROGRAM,
     SHADOW_TEST_PROGRAM,
     ProgramInterface,
@@ -161,6 +162,8 @@ class BlenderGPUBackend(ShadowBackend):
         self._count_targets: dict[int, tuple] = {}
         self._batches: dict[str, Any] = {}
         self._overlay_dummy = None
+        self._edge_fbs: tuple = ()
+        self._edge_size: tuple[int, int] | None = None
         self._released = False
         self.set_warp_tables(None, None)
 
@@ -341,6 +344,9 @@ class BlenderGPUBackend(ShadowBackend):
             raise BackendError("shadow_test needs an atlas and uploaded samples")
         out, fb = self._test_target
         width, height = self._sample_size
+        if "ow_edges" not in self._textures:
+            # Bound even when no antialiasing runs (ow_edge_radius = 0 never reads it).
+            self._textures["ow_edges"] = _float_texture((1, 1), "R32F", np.zeros(1, np.float32))
         with fb.bind():
             shader = self._bind(SHADOW_TEST_PROGRAM, uniforms)
             batch = self._batches.get("fullscreen")
@@ -351,6 +357,34 @@ class BlenderGPUBackend(ShadowBackend):
             gpu.state.depth_test_set("NONE")
             batch.draw(shader)
         return _read(out, "RG32F")
+
+    def edge_distance(self, radius: int, eps: float) -> None:
+        import gpu
+        from gpu_extras.batch import batch_for_shader
+
+        if self._atlas is None or self._layout is None:
+            raise BackendError("edge_distance needs a drawn atlas")
+        size = self._layout.size
+        if self._edge_size != size:
+            # Keep the framebuffers with their textures: both passes write a fresh target.
+            for name in ("ow_edge_x", "ow_edges"):
+                self._textures[name] = _float_texture(size, "R32F")
+            self._edge_fbs = tuple(_framebuffer(color_slots=(self._textures[n],)) for n in ("ow_edge_x", "ow_edges"))
+            self._edge_size = size
+        for edge_pass, fb in enumerate(self._edge_fbs):
+            with fb.bind():
+                uniforms = {"ow_edge_pass": edge_pass, "ow_edge_radius": int(radius), "ow_edge_eps": float(eps),
+                            "ow_edge_tile_size": float(self._layout.resolution)}
+                # Pass 0 writes ow_edge_x: sample the other target there (no feedback loop).
+                override = {"ow_edge_x": self._textures["ow_edges"]} if edge_pass == 0 else None
+                shader = self._bind(EDGE_PROGRAM, uniforms, override)
+                batch = self._batches.get("edge")
+                if batch is None:
+                    batch = batch_for_shader(shader, "TRIS", {"ow_corner": _FULLSCREEN})
+                    self._batches["edge"] = batch
+                gpu.state.viewport_set(0, 0, size[0], size[1])
+                gpu.state.depth_test_set("NONE")
+                batch.draw(shader)
 
     def read_atlas(self) -> np.ndarray:
         if self._atlas is None:
@@ -373,6 +407,7 @@ class BlenderGPUBackend(ShadowBackend):
         count += 2 if self._test_target is not None else 0
         count += sum(obj is not None for obj in (self._atlas_depth, self._atlas_fb))
         count += 1 if getattr(self, "_overlay_dummy", None) is not None else 0
+        count += len(self._edge_fbs)
         return count
 
     def release(self) -> None:
@@ -387,4 +422,6 @@ class BlenderGPUBackend(ShadowBackend):
         self._layout = None
         self._shaders.clear()
         self._overlay_dummy = None
+        self._edge_fbs = ()
+        self._edge_size = None
         self._released = True

@@ -14,6 +14,7 @@ from ..core.errors import BackendError
 from .backend import AtlasLayout, ShadowBackend, UniformValues
 from .shaders import (
     DEPTH_PROGRAM,
+    EDGE_PROGRAM,
     SCATTER_PROGRAM,
     SHADOW_TEST_PROGRAM,
     ProgramInterface,
@@ -25,10 +26,10 @@ log = logging.getLogger(__name__)
 _FULLSCREEN = np.array([[-1.0, -1.0], [3.0, -1.0], [-1.0, 3.0]], dtype="f4")
 
 
-def _uniform_bytes(value: object) -> bytes | None:
-    """Raw bytes for matrix and array uniforms (column-major, as GLSL expects)."""
+def _uniform_bytes(value: object, glsl_type: str = "") -> bytes | None:
+    """Raw bytes for matrix and array uniforms (matrices column-major, as GLSL expects)."""
     arr = np.asarray(value)
-    if arr.ndim >= 2 and arr.shape[-2:] == (3, 3):
+    if glsl_type.startswith("mat") or (arr.ndim >= 2 and arr.shape[-2:] == (3, 3)):
         return np.ascontiguousarray(np.swapaxes(arr, -1, -2), dtype="f4").tobytes()
     if arr.ndim == 2:
         return np.ascontiguousarray(arr, dtype="f4").tobytes()
@@ -93,6 +94,7 @@ class ModernGLBackend(ShadowBackend):
             self._set_table("ow_warp_rows", None)
             self._set_table("ow_warp_cols", None)
         self._vaos: dict[str, object] = {}
+        self._edge_fbos: tuple | None = None
 
     # programs ---------------------------------------------------------------
     @_current
@@ -113,10 +115,11 @@ class ModernGLBackend(ShadowBackend):
 
     def _use(self, iface: ProgramInterface, uniforms: UniformValues):
         prog = self.program(iface)
+        types = {u.name: u.glsl_type for u in iface.uniforms}
         for name, value in uniforms.items():
             if name not in prog:
                 continue  # optimised away by the GLSL compiler
-            raw = _uniform_bytes(value)
+            raw = _uniform_bytes(value, types.get(name, ""))
             if raw is not None:
                 prog[name].write(raw)
             elif isinstance(value, (tuple, list, np.ndarray)):
@@ -264,6 +267,9 @@ class ModernGLBackend(ShadowBackend):
         if self._atlas is None or self._sample_size is None:
             raise BackendError("shadow_test needs an atlas and uploaded samples")
         width, height = self._sample_size
+        if "ow_edges" not in self._textures:
+            # Bound even when no antialiasing runs (ow_edge_radius = 0 never reads it).
+            self._textures["ow_edges"] = self._float_texture((1, 1), 1, np.zeros(1, "f4").tobytes())
         prog = self._use(SHADOW_TEST_PROGRAM, uniforms)
         vao = self._vaos.get("fullscreen")
         if vao is None:
@@ -275,6 +281,40 @@ class ModernGLBackend(ShadowBackend):
         self.ctx.disable(self._mgl.DEPTH_TEST)
         vao.render(self._mgl.TRIANGLES)
         return np.frombuffer(out.read(), dtype="f4").reshape(height, width, 2).copy()
+
+    @_current
+    def edge_distance(self, radius: int, eps: float) -> None:
+        if self._atlas is None or self._atlas_layout is None:
+            raise BackendError("edge_distance needs a drawn atlas")
+        size = self._atlas_layout.size
+        for name in ("ow_edge_x", "ow_edges"):
+            old = self._textures.get(name)
+            if old is None or old.size != size:
+                if old is not None:
+                    old.release()
+                self._textures[name] = self._float_texture(size, 1)
+        fbos = self._edge_fbos
+        if fbos is None or fbos[0].size != size:
+            for fbo in fbos or ():
+                fbo.release()
+            fbos = tuple(self.ctx.framebuffer(color_attachments=[self._textures[n]]) for n in ("ow_edge_x", "ow_edges"))
+            self._edge_fbos = fbos
+        self.ctx.disable(self._mgl.DEPTH_TEST)
+        for edge_pass, fbo in enumerate(fbos):
+            uniforms = {"ow_edge_pass": edge_pass, "ow_edge_radius": int(radius), "ow_edge_eps": float(eps),
+                        "ow_edge_tile_size": float(self._atlas_layout.resolution)}
+            prog = self._use(EDGE_PROGRAM, uniforms)
+            if edge_pass == 0:
+                # Pass 0 writes ow_edge_x: sample the other target there, so no texture
+                # is both read and written (a GL feedback loop), even statically.
+                self._textures["ow_edges"].use(EDGE_PROGRAM.samplers.index("ow_edge_x"))
+            vao = self._vaos.get("edge")
+            if vao is None:
+                vao = self.ctx.vertex_array(prog, [(self._fullscreen_vbo, "2f", "ow_corner")])
+                self._vaos["edge"] = vao
+            fbo.use()
+            fbo.viewport = (0, 0) + size
+            vao.render(self._mgl.TRIANGLES)
 
     @_current
     def read_atlas(self) -> np.ndarray:
@@ -307,6 +347,9 @@ class ModernGLBackend(ShadowBackend):
                 fbo.release()
                 tex.release()
             self._count_targets.clear()
+            for fbo in self._edge_fbos or ():
+                fbo.release()
+            self._edge_fbos = None
             if self._test_target is not None:
                 for obj in reversed(self._test_target):
                     obj.release()

@@ -17,8 +17,8 @@ import numpy as np
 
 from ..core import frames, projection, tessellate
 from ..core.errors import InputError
-from ..core.frames import Layer, Parameterization
-from ..core.plan import Plan, frustum_edge_points, outside_region, plan_frame
+from ..core.frames import POINT_PARAMETERIZATIONS, PROJECTIVE_PARAMETERIZATIONS, Layer, Parameterization
+from ..core.plan import Plan, frustum_edge_points, outside_region, plan_frame, plan_projective
 from ..core.scene import CameraSpec, LightSpec
 from ..core.warping import (
     FLOOR_SHARE,
@@ -43,7 +43,7 @@ CLIP_NEAR_RELATIVE = 1e-6
 
 
 WARP_KINDS = ("none", "notw", "rtw")
-_PARAM_CODES = {"dpsm": 0, "cube": 1, "ipsm": 2, "unfold": 3}  # ow_param in the GLSL (lib/layers.glsl)
+_PARAM_CODES = {"dpsm": 0, "cube": 1, "ipsm": 2, "unfold": 3, "sm": 4, "psm": 5}  # ow_param (lib/layers.glsl)
 _SHADOW_TEST_KIND = {"cube": projection.CUBE, "unfold": projection.UNFOLD}  # others: paraboloid
 # A triangle drawn whole into the unfold half of its nearer pole must keep clear of
 # the opposite pole, where the projection is singular (the pole becomes the rim).
@@ -81,13 +81,18 @@ class ShadowSettings:
     warp: str = "none"  # "none", "notw" or "rtw"
     analysis_size: int | None = None  # count-map side A; None = analysis_size_for(resolution)
     cut: bool = False  # ipsm only: skewed axis and a crop fitted to the frustum (thesis 4.1.4)
+    edge_aa: bool = False  # unfold only: the paper's edge-distance antialiasing (edge_aa_parameters)
 
     def __post_init__(self) -> None:
-        if self.parameterization not in ("dpsm", "cube", "ipsm", "unfold"):
-            raise InputError(f"unknown parameterization {self.parameterization!r}; "
-                             "use 'dpsm', 'cube', 'ipsm' or 'unfold'")
+        known = POINT_PARAMETERIZATIONS + PROJECTIVE_PARAMETERIZATIONS
+        if self.parameterization not in known:
+            raise InputError(f"unknown parameterization {self.parameterization!r}; use one of {', '.join(known)}")
         if self.parameterization == "unfold" and self.warp != "none":
             raise InputError("unfold takes no warp: its two halves share one pass and one projection")
+        if self.edge_aa and self.parameterization != "unfold":
+            raise InputError("edge-distance antialiasing is the unfold method's option (unfold+aa)")
+        if self.parameterization in PROJECTIVE_PARAMETERIZATIONS and self.warp != "none":
+            raise InputError(f"{self.parameterization} takes no warp (PSM is itself the global warp)")
         if self.warp not in WARP_KINDS:
             raise InputError(f"unknown warp {self.warp!r}; use one of {', '.join(WARP_KINDS)}")
         if not (MIN_RESOLUTION <= int(self.resolution) <= MAX_RESOLUTION):
@@ -214,6 +219,11 @@ def prepare_geometry(light: LightSpec, triangles: np.ndarray, plan: Plan, settin
     added = 0
     res = settings.resolution
     mappings = mappings or {}
+    if plan.projective is not None:
+        # A projective map is linear in homogeneous space: the GPU clips and
+        # interpolates it exactly, so nothing is split or tessellated.
+        stream = _vertex_stream(centred)
+        return PreparedGeometry({0: stream}, near, far, report.skipped, 0)
     if plan.parameterization == "unfold":
         stream, split, added = _unfold_stream(centred, plan, settings)
         return PreparedGeometry({0: stream} if plan.drawn else {}, near, far, report.skipped, added, split)
@@ -335,6 +345,9 @@ def _layer_uniforms(layer: Layer, geometry: PreparedGeometry, res: int, origin: 
         "ow_tile_origin": (float(origin[0]), float(origin[1])),
         "ow_unfold_split": -1,
         "ow_unfold_halves": 1,
+        "ow_projective": 0,
+        "ow_map_inverted": 0,
+        "ow_map_matrix": np.eye(4),
     }
 
 
@@ -416,10 +429,16 @@ class ShadowPipeline:
         t_upload = time.perf_counter() - t0
 
         t1 = time.perf_counter()
+        check_light_fits(light, settings.parameterization)
         near_far = projection.depth_range(triangles, light.position)
         far_estimate = near_far[1]
-        plan = plan_frame(light, settings.parameterization, samples.camera, samples.positions, samples.hit,
-                          far_estimate, cull=settings.cull, cut=settings.cut)
+        if settings.parameterization in PROJECTIVE_PARAMETERIZATIONS:
+            scene_lo, scene_hi = scene_bounds(triangles, light.position)
+            plan = plan_projective(light, settings.parameterization, samples.camera, samples.positions,
+                                   samples.hit, scene_lo, scene_hi, settings.resolution, cull=settings.cull)
+        else:
+            plan = plan_frame(light, settings.parameterization, samples.camera, samples.positions, samples.hit,
+                              far_estimate, cull=settings.cull, cut=settings.cut)
         t_plan = time.perf_counter() - t1
 
         t2 = time.perf_counter()
@@ -453,16 +472,27 @@ class ShadowPipeline:
             uniforms["ow_unfold_halves"] = len(plan.drawn)
             backend.draw_layer(0, geometry.streams.get(0, np.zeros((0, 9), np.float32)), uniforms,
                                span=len(plan.drawn))
-        for layer in plan.drawn if plan.parameterization != "unfold" else ():
-            origin = layout.origin(tile_of_slot[layer.slot])
-            mapping = mappings.get(layer.slot, LayerMapping.identity())
-            backend.draw_layer(tile_of_slot[layer.slot], geometry.streams[layer.slot],
-                               _layer_uniforms(layer, geometry, res, origin, mapping, size))
+        elif plan.projective is not None:
+            uniforms = _layer_uniforms(plan.drawn[0], geometry, res, layout.origin(0), LayerMapping.identity(), 0)
+            uniforms.update(ow_projective=1, ow_map_inverted=int(plan.projective.inverted),
+                            ow_map_matrix=plan.projective.matrix)
+            backend.draw_layer(0, geometry.streams[0], uniforms)
+        else:
+            for layer in plan.drawn:
+                origin = layout.origin(tile_of_slot[layer.slot])
+                mapping = mappings.get(layer.slot, LayerMapping.identity())
+                backend.draw_layer(tile_of_slot[layer.slot], geometry.streams[layer.slot],
+                                   _layer_uniforms(layer, geometry, res, origin, mapping, size))
+        edge_radius = 0
+        if settings.edge_aa and plan.drawn:
+            edge_radius, edge_eps = edge_aa_parameters(res, geometry.near, geometry.far)
+            backend.edge_distance(edge_radius, edge_eps)
         backend.finish()
         t5 = time.perf_counter()
         timings["shadow_maps"] = (t5 - t4) * 1e3
 
-        result = self._shadow_test(light, settings, plan, geometry, layout, tile_of_slot, mappings, size)
+        result = self._shadow_test(light, settings, plan, geometry, layout, tile_of_slot, mappings, size,
+                                   edge_radius)
         backend.finish()
         t6 = time.perf_counter()
         timings["shadow_test"] = (t6 - t5 + t_upload) * 1e3
@@ -488,7 +518,7 @@ class ShadowPipeline:
 
     def _shadow_test(self, light: LightSpec, settings: ShadowSettings, plan: Plan, geometry: PreparedGeometry,
                      layout: AtlasLayout, tile_of_slot: dict[int, int], mappings: dict[int, LayerMapping],
-                     warp_size: int) -> np.ndarray:
+                     warp_size: int, edge_radius: int = 0) -> np.ndarray:
         n_slots = 6
         rotations = np.tile(np.eye(3), (n_slots, 1, 1))
         tiles = np.zeros((n_slots, 4))
@@ -515,8 +545,59 @@ class ShadowPipeline:
             "ow_bias_const": settings.bias.constant,
             "ow_bias_slope": settings.bias.slope,
             "ow_bias_normal": settings.bias.normal,
+            "ow_projective": 0,
+            "ow_map_inverted": 0,
+            "ow_map_matrix": np.eye(4),
+            "ow_depth_offset": 0.0,
+            "ow_sun": 1 if light.emission == "sun" else 0,
+            "ow_light_axis": light.axis,
+            "ow_spot_cos": math.cos(light.spot_size / 2.0) if light.emission == "spot" else -2.0,
+            "ow_edge_radius": int(edge_radius),
         }
+        if plan.projective is not None:
+            uniforms.update(ow_projective=1, ow_map_inverted=int(plan.projective.inverted),
+                            ow_map_matrix=plan.projective.matrix, ow_depth_offset=plan.projective.depth_offset)
         return self.backend.shadow_test(uniforms)
+
+
+# Edge-distance antialiasing (unfold+aa): the steepest receiver whose own depth change
+# must not read as an edge, as the tangent of its angle to the light ray (80 degrees).
+EDGE_AA_MAX_TAN = math.tan(math.radians(80.0))
+
+
+def edge_aa_parameters(resolution: int, near: float, far: float) -> tuple[int, float]:
+    """R (texels) and eps (normalised depth) of the unfold map's edge-distance antialiasing.
+
+    R = max(2, res / 256): the soft band keeps the same angular width (about 4 texels
+    at 1024) at every resolution. eps: within R texels a smooth surface tilted up to 80
+    degrees from the light ray changes its distance by at most R tan(80) (pi 2/res) L;
+    with L <= far that is below eps, so only true steps towards a nearer occluder count.
+    """
+    radius = max(2, int(resolution) // 256)
+    texel_angle = math.pi * 2.0 / resolution  # the unfold map's bound (projection.texel_angle)
+    eps = radius * EDGE_AA_MAX_TAN * texel_angle * far / max(far - near, 1e-30)
+    return radius, float(eps)
+
+
+def check_light_fits(light: LightSpec, parameterization: str) -> None:
+    """InputError unless the method suits the light: the omnidirectional methods take a
+    point light (omni or hemi), sm and psm a spot (cone below 180 degrees) or a sun."""
+    if parameterization in PROJECTIVE_PARAMETERIZATIONS and light.is_point:
+        raise InputError(f"{parameterization} needs a spot (cone below 180 degrees) or sun light; "
+                         f"an {light.emission} light takes {', '.join(POINT_PARAMETERIZATIONS)}")
+    if parameterization in POINT_PARAMETERIZATIONS and not light.is_point:
+        raise InputError(f"{parameterization} needs a point light (omni or 180 degree spot); "
+                         f"a {light.emission} light takes {', '.join(PROJECTIVE_PARAMETERIZATIONS)}")
+
+
+def scene_bounds(triangles: np.ndarray, light_position: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """World bounding box of the finite corners (Blender's inf is FLT_MAX, see projection)."""
+    pts = np.asarray(triangles, dtype=np.float64).reshape(-1, 3)
+    pts = pts[np.all(np.isfinite(pts) & (np.abs(pts) < projection.MAX_COORDINATE), axis=1)]
+    if len(pts) == 0:
+        origin = np.asarray(light_position, dtype=np.float64)
+        return origin - 1.0, origin + 1.0
+    return pts.min(axis=0), pts.max(axis=0)
 
 
 def ipsm_mapping(half_angle: float, resolution: int) -> LayerMapping:
@@ -574,14 +655,33 @@ class CountStatistics:
         return used / total if total else 0.0
 
 
+def projective_counts(projective, light: LightSpec, samples: ViewSamples, resolution: int) -> np.ndarray:
+    """Count map (row 0 = v = 0) of the view samples through a spot or sun map, in numpy."""
+    from ..core import perspective
+
+    pts = np.asarray(samples.positions, dtype=np.float64)[np.asarray(samples.hit, dtype=bool)]
+    pts = pts[np.all(np.isfinite(pts), axis=1)] - light.position
+    uv, _, w = perspective.project(projective, pts)
+    inside = (w > 0.0) & np.all((uv >= 0.0) & (uv < 1.0), axis=1)
+    texel = np.floor(uv[inside] * resolution).astype(np.int64)
+    flat = np.bincount(texel[:, 1] * resolution + texel[:, 0], minlength=resolution * resolution)
+    return flat.reshape(resolution, resolution).astype(np.float32)
+
+
 def count_statistics(pipeline: ShadowPipeline, light: LightSpec, settings: ShadowSettings,
-                     result: FrameResult) -> CountStatistics:
+                     result: FrameResult, samples: ViewSamples | None = None) -> CountStatistics:
     """Scatter the samples (still uploaded from the last frame) at the map resolution.
 
     Not part of the timed frame: this is measurement. The warp tables of the frame
-    must still be bound, which holds right after `render`.
+    must still be bound, which holds right after `render`. Spot and sun maps count
+    in numpy and need `samples`.
     """
     res = settings.resolution
+    if result.plan.projective is not None:
+        if samples is None:
+            raise InputError("count statistics of a spot or sun map need the view samples")
+        counts = projective_counts(result.plan.projective, light, samples, res)
+        return CountStatistics({0: counts}, {0: counts})
     before, after = {}, {}
     for layer in result.plan.drawn:
         before[layer.slot] = pipeline.count_map(light, result.plan, layer, LayerMapping.identity(), res, 0)

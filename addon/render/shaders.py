@@ -104,6 +104,9 @@ DEPTH_PROGRAM = ProgramInterface(
         Uniform("vec2", "ow_tile_origin"),
         Uniform("int", "ow_unfold_split"),
         Uniform("int", "ow_unfold_halves"),
+        Uniform("int", "ow_projective"),
+        Uniform("int", "ow_map_inverted"),
+        Uniform("mat4", "ow_map_matrix"),
     ),
     samplers=_WARP_SAMPLERS,
     varyings=(
@@ -135,8 +138,16 @@ SHADOW_TEST_PROGRAM = ProgramInterface(
         Uniform("float", "ow_bias_const"),
         Uniform("float", "ow_bias_slope"),
         Uniform("float", "ow_bias_normal"),
+        Uniform("int", "ow_projective"),
+        Uniform("int", "ow_map_inverted"),
+        Uniform("mat4", "ow_map_matrix"),
+        Uniform("float", "ow_depth_offset"),
+        Uniform("int", "ow_sun"),
+        Uniform("vec3", "ow_light_axis"),
+        Uniform("float", "ow_spot_cos"),
+        Uniform("int", "ow_edge_radius"),
     ),
-    samplers=("ow_positions", "ow_normals", "ow_atlas") + _WARP_SAMPLERS,
+    samplers=("ow_positions", "ow_normals", "ow_atlas") + _WARP_SAMPLERS + ("ow_edges",),
 )
 
 SCATTER_PROGRAM = ProgramInterface(
@@ -192,7 +203,19 @@ OVERLAY_PROGRAM = ProgramInterface(
     varyings=(Varying("vec2", "v_uv"),),
 )
 
-PROGRAMS = (DEPTH_PROGRAM, SHADOW_TEST_PROGRAM, SCATTER_PROGRAM, GBUFFER_PROGRAM, PREVIEW_PROGRAM, OVERLAY_PROGRAM)
+EDGE_PROGRAM = ProgramInterface(
+    name="omniwarp_edge_distance",
+    vertex_file="fullscreen.vert",
+    fragment_file="edge_distance.frag",
+    vertex_in=(("vec2", "ow_corner"),),
+    fragment_out=(("float", "ow_edge"),),
+    uniforms=(Uniform("int", "ow_edge_pass"), Uniform("int", "ow_edge_radius"), Uniform("float", "ow_edge_eps"),
+              Uniform("float", "ow_edge_tile_size")),
+    samplers=("ow_atlas", "ow_edge_x"),
+)
+
+PROGRAMS = (DEPTH_PROGRAM, SHADOW_TEST_PROGRAM, SCATTER_PROGRAM, GBUFFER_PROGRAM, PREVIEW_PROGRAM, OVERLAY_PROGRAM,
+            EDGE_PROGRAM)
 
 
 def _decl_uniform(u: Uniform) -> str:

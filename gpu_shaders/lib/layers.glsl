@@ -4,6 +4,8 @@
 #define OW_PARAM_CUBE 1
 #define OW_PARAM_IPSM 2
 #define OW_PARAM_UNFOLD 3
+#define OW_PARAM_SM 4  // spot and sun maps never pick a slot: one projective layer
+#define OW_PARAM_PSM 5
 
 int ow_pick_slot(int parameterization, vec3 d)
 {

@@ -19,6 +19,8 @@ pytest.importorskip("bpy", reason="the Blender gpu backend needs bpy (scripts/se
 from addon.cli import main  # noqa: E402
 from addon.render.pipeline import ShadowPipeline, ShadowSettings  # noqa: E402
 from tests.gl.test_pipeline_extremes import _seam_straddler  # noqa: E402
+from tests.gl.test_projective import _street  # noqa: E402
+from tests.support.blender_gpu_worker import CASES, PROJECTIVE_CASES, case_key  # noqa: E402
 from tests.support.oracle import view_samples  # noqa: E402
 
 pytestmark = [pytest.mark.blender, pytest.mark.gl]
@@ -45,19 +47,29 @@ def test_blender_backend_matches_moderngl(gl_backend, tmp_path, monkeypatch):
     _worker("backends", out, str(ref_path))
     theirs = np.load(out)
     evaluable = metrics.evaluable_mask(ref.position, ref.normal, ref.hit, ref.unshadowed, light_from_reference(ref))
-    for param, warp in (("dpsm", "none"), ("cube", "none"), ("dpsm", "notw"), ("cube", "rtw")):
+    for param, warp, aa in CASES:
+        key = case_key(param, warp, aa)
         ours = ShadowPipeline(gl_backend).render(light_from_reference(ref), ref.triangles.astype(np.float64),
-                                                 samples_from_reference(ref), ShadowSettings(param, 512, warp=warp))
-        agree = (ours.visibility == theirs[f"ref_{param}_{warp}_visibility"])[evaluable].mean()
-        assert agree >= 0.999, (param, warp, agree)
+                                                 samples_from_reference(ref),
+                                                 ShadowSettings(param, 512, warp=warp, edge_aa=aa))
+        agree = (ours.visibility == theirs[f"ref_{key}_visibility"])[evaluable].mean()
+        assert agree >= 0.999, (key, agree)
     scene = _seam_straddler()
     samples, _, _ = view_samples(scene)
     pipeline = ShadowPipeline(gl_backend)
-    for param, warp in (("dpsm", "none"), ("cube", "none"), ("dpsm", "notw"), ("cube", "rtw")):
-        ours = pipeline.render(scene.light, scene.world_triangles(), samples, ShadowSettings(param, 256, warp=warp),
+    for param, warp, aa in CASES:
+        key = case_key(param, warp, aa)
+        ours = pipeline.render(scene.light, scene.world_triangles(), samples,
+                               ShadowSettings(param, 256, warp=warp, edge_aa=aa), keep_atlas=True)
+        assert np.array_equal(ours.visibility, theirs[f"{key}_visibility"]), key
+        assert np.allclose(ours.atlas, theirs[f"{key}_atlas"], atol=1e-6), key
+    for light, method in PROJECTIVE_CASES:
+        street = _street(light)
+        street_samples, _, _ = view_samples(street)
+        ours = pipeline.render(street.light, street.world_triangles(), street_samples, ShadowSettings(method, 256),
                                keep_atlas=True)
-        assert np.array_equal(ours.visibility, theirs[f"{param}_{warp}_visibility"]), (param, warp)
-        assert np.allclose(ours.atlas, theirs[f"{param}_{warp}_atlas"], atol=1e-6), (param, warp)
+        assert np.array_equal(ours.visibility, theirs[f"{light}_{method}_visibility"]), (light, method)
+        assert np.allclose(ours.atlas, theirs[f"{light}_{method}_atlas"], atol=1e-6), (light, method)
 
 
 def test_viewport_draw_path_robustness(tmp_path):

@@ -50,7 +50,7 @@ def test_broken_geometry_is_skipped_and_counted(tmp_path):
 
 @pytest.mark.parametrize("flags,needle", [
     (("--zero-energy",), "emits nothing"),
-    (("--light-type", "SUN"), "point or spot light"),
+    (("--light-type", "SUN"), "no requested method fits the light"),  # a sun takes sm and psm, not dpsm
     (("--light-type", "AREA"), "point or spot light"),
     (("--no-light",), "point or spot light"),
 ])

@@ -110,16 +110,18 @@ def _ground_points_in_view(scene, depths) -> list[np.ndarray]:
 
 
 def test_spot_street_is_a_deep_spot_lit_street():
-    """spot_street: a spot cone (60-90 degrees) from high up behind the camera, reaching both
-    the ground 5 m ahead of the low camera and 70 m down the street; the camera looks along it."""
+    """spot_street: a wide spot cone (100-140 degrees) from high up over the street, in front
+    of the camera plane but out of view, reaching both the ground 6 m ahead of the low camera
+    and 70 m down the street; the camera looks along it."""
     scene = PR.build_preset("spot_street")
     light, camera = scene.light, scene.camera
     assert light.emission == "spot"
-    assert 60.0 <= math.degrees(light.spot_size) <= 90.0
+    assert 100.0 <= math.degrees(light.spot_size) <= 140.0
     cam = np.asarray(camera.matrix_world)[:3, 3]
     assert cam[2] < 2.0 and 50.0 <= camera.fov_deg <= 70.0
     assert abs(_view_direction(camera)[2]) < 0.2  # looks along the street, not down at it
     assert light.position[2] > 15.0 and not _in_view(camera, light.position)
+    assert (light.position - cam) @ _view_direction(camera) > 10.0  # a PPS point light, not inverted
     half = light.spot_size / 2.0
     for point in _ground_points_in_view(scene, (6.0, 20.0, 45.0, 70.0)):
         assert _in_view(camera, point)

@@ -14,7 +14,15 @@ import numpy as np
 REPO = Path(__file__).resolve().parents[2]
 sys.path.insert(0, str(REPO))
 
-CASES = (("dpsm", "none"), ("cube", "none"), ("dpsm", "notw"), ("cube", "rtw"))
+# (parameterization, warp, edge antialiasing) on the seam scene and the cached reference.
+CASES = (("dpsm", "none", False), ("cube", "none", False), ("dpsm", "notw", False), ("cube", "rtw", False),
+         ("unfold", "none", False), ("unfold", "none", True))
+# Spot and sun maps on the small street of tests/gl/test_projective.py.
+PROJECTIVE_CASES = (("spot", "sm"), ("spot", "psm"), ("sun", "psm"))
+
+
+def case_key(param: str, warp: str, aa: bool) -> str:
+    return f"{param}_{warp}{'_aa' if aa else ''}"
 
 
 def backends(out: str, reference: str | None = None) -> None:
@@ -25,6 +33,7 @@ def backends(out: str, reference: str | None = None) -> None:
     from addon.render.blender_backend import BlenderGPUBackend, ensure_gpu
     from addon.render.pipeline import ShadowPipeline, ShadowSettings
     from tests.gl.test_pipeline_extremes import _seam_straddler
+    from tests.gl.test_projective import _street
     from tests.support.oracle import view_samples
 
     ensure_gpu()
@@ -33,17 +42,24 @@ def backends(out: str, reference: str | None = None) -> None:
     backend = BlenderGPUBackend()
     pipeline = ShadowPipeline(backend)
     arrays = {}
-    for param, warp in CASES:
-        result = pipeline.render(scene.light, scene.world_triangles(), samples, ShadowSettings(param, 256, warp=warp),
+    for param, warp, aa in CASES:
+        result = pipeline.render(scene.light, scene.world_triangles(), samples,
+                                 ShadowSettings(param, 256, warp=warp, edge_aa=aa), keep_atlas=True)
+        arrays[f"{case_key(param, warp, aa)}_visibility"] = result.visibility
+        arrays[f"{case_key(param, warp, aa)}_atlas"] = result.atlas
+    for light, method in PROJECTIVE_CASES:
+        street = _street(light)
+        street_samples, _, _ = view_samples(street)
+        result = pipeline.render(street.light, street.world_triangles(), street_samples, ShadowSettings(method, 256),
                                  keep_atlas=True)
-        arrays[f"{param}_{warp}_visibility"] = result.visibility
-        arrays[f"{param}_{warp}_atlas"] = result.atlas
+        arrays[f"{light}_{method}_visibility"] = result.visibility
+        arrays[f"{light}_{method}_atlas"] = result.atlas
     if reference:
         ref = ReferenceData.load(reference)
-        for param, warp in CASES:
+        for param, warp, aa in CASES:
             result = pipeline.render(light_from_reference(ref), ref.triangles.astype(np.float64),
-                                     samples_from_reference(ref), ShadowSettings(param, 512, warp=warp))
-            arrays[f"ref_{param}_{warp}_visibility"] = result.visibility
+                                     samples_from_reference(ref), ShadowSettings(param, 512, warp=warp, edge_aa=aa))
+            arrays[f"ref_{case_key(param, warp, aa)}_visibility"] = result.visibility
     backend.release()
     np.savez(out, **arrays)
 

@@ -70,19 +70,27 @@ def view_samples(scene: SceneSpec):
     flip = np.einsum("ij,ij->i", nrm, dirs) > 0  # face the camera, as Cycles does
     nrm[flip] *= -1
     light = scene.light.position
-    to_light = light - pos
-    dist = np.linalg.norm(to_light, axis=1)
-    ldir = to_light / np.maximum(dist, 1e-300)[:, None]
-    facing = np.einsum("ij,ij->i", nrm, ldir) > 0
-    # Cast from the light towards the receiver and stop just short of it: a ray that
-    # starts exactly at the light meets a triangle touching the light at t = 0 only,
-    # which `ray_hits` excludes, so edge-on geometry at the light casts no shadow.
     scale = max(1.0, float(np.abs(tris).max()))
-    ts, _ = ray_hits(np.repeat(light[None], len(pos), axis=0), -ldir, tris, t_max=dist - 1e-7 * scale)
+    if scene.light.emission == "sun":
+        # Parallel light along the axis: cast from just off the receiver towards the sun.
+        ldir = np.broadcast_to(-scene.light.axis, pos.shape)
+        facing = np.einsum("ij,ij->i", nrm, ldir) > 0
+        ts, _ = ray_hits(pos + ldir * (1e-6 * scale), ldir, tris)
+    else:
+        to_light = light - pos
+        dist = np.linalg.norm(to_light, axis=1)
+        ldir = to_light / np.maximum(dist, 1e-300)[:, None]
+        facing = np.einsum("ij,ij->i", nrm, ldir) > 0
+        # Cast from the light towards the receiver and stop just short of it: a ray that
+        # starts exactly at the light meets a triangle touching the light at t = 0 only,
+        # which `ray_hits` excludes, so edge-on geometry at the light casts no shadow.
+        ts, _ = ray_hits(np.repeat(light[None], len(pos), axis=0), -ldir, tris, t_max=dist - 1e-7 * scale)
     lit = ~np.isfinite(ts)
     evaluable = hit & facing
     if scene.light.emission == "hemi":
         evaluable &= (pos - light) @ scene.light.axis > 0
+    if scene.light.emission == "spot":
+        evaluable &= -ldir @ scene.light.axis > np.cos(scene.light.spot_size / 2.0)
     shape = (height, width)
     samples = ViewSamples(pos.reshape(height, width, 3), nrm.reshape(height, width, 3), hit.reshape(shape), camera)
     return samples, lit.reshape(shape), evaluable.reshape(shape)
