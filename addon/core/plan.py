@@ -20,6 +20,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from . import perspective
+from .perspective import hull_planes  # one convex-hull routine for culling and PSM
 from .frames import Layer, Parameterization, ipsm_layer, light_layers, pick_slot, projective_layer
 from .projection import CUBE
 from .scene import CameraSpec, LightSpec
@@ -291,32 +292,6 @@ def _plan_ipsm(light: LightSpec, camera: CameraSpec | None, positions: np.ndarra
     fallback = plan_frame(light, "dpsm", camera, positions, hit, far, cull)
     fallback.requested = "ipsm"
     return fallback
-
-
-def hull_planes(points: np.ndarray) -> np.ndarray:
-    """Outward face planes (n, d) with n.x <= d inside, of the convex hull of a few points.
-
-    Brute force over point triples (fine for the 9 points of a light and a frustum):
-    a triple spans a face when every other point lies on one side of its plane.
-    """
-    pts = np.asarray(points, dtype=np.float64)
-    scale = float(np.abs(pts).max()) + 1e-30
-    planes = []
-    n = len(pts)
-    for i in range(n):
-        for j in range(i + 1, n):
-            for k in range(j + 1, n):
-                normal = np.cross(pts[j] - pts[i], pts[k] - pts[i])
-                length = np.linalg.norm(normal)
-                if length < 1e-12 * scale * scale:
-                    continue
-                normal /= length
-                side = (pts - pts[i]) @ normal
-                if np.all(side <= 1e-9 * scale):
-                    planes.append(np.append(normal, normal @ pts[i]))
-                elif np.all(side >= -1e-9 * scale):
-                    planes.append(np.append(-normal, -normal @ pts[i]))
-    return np.unique(np.round(np.asarray(planes), 12), axis=0) if planes else np.zeros((0, 4))
 
 
 def occluder_region(light: LightSpec, camera: CameraSpec | None, positions: np.ndarray,
