@@ -66,8 +66,9 @@ def _parser() -> argparse.ArgumentParser:
     prev.add_argument("--light", help="with --blend: the light object to preview")
     prev.add_argument("--out", default="out/preview", help="output folder (default out/preview)")
     prev.add_argument("--size", default="640x480", help="camera size WxH for presets (default 640x480)")
-    prev.add_argument("--method", default="dpsm+notw",
-                      help="method for lights without OmniWarp settings, e.g. a preset's (default dpsm+notw)")
+    prev.add_argument("--method", default=None,
+                      help="method for lights without OmniWarp settings, e.g. a preset's (default dpsm+notw "
+                           "for point lights, psm for spot and sun lights)")
     prev.add_argument("--resolution", type=int, default=1024, help="map resolution for those lights (default 1024)")
     return parser
 
@@ -168,7 +169,7 @@ def cmd_preview(args: argparse.Namespace) -> int:
 
     from .compare import parse_methods, parse_resolutions, parse_size
 
-    method = parse_methods(args.method)[0]
+    method = parse_methods(args.method)[0] if args.method else None  # None: chosen by the light (worker)
     resolution = parse_resolutions(str(args.resolution))[0]
     if args.preset is not None:
         if "," in args.preset or args.preset in ("all", "stress_all"):
@@ -192,7 +193,7 @@ def cmd_preview(args: argparse.Namespace) -> int:
         # One GL owner per process: Blender's gpu runs in a child (DESIGN.md section 3).
         proc = subprocess.run([sys.executable, "-m", "addon.blender.headless", *source,
                                "--reference", str(ref_path), "--out", str(out.resolve()),
-                               "--method", method, "--resolution", str(resolution)],
+                               *(["--method", method] if method else []), "--resolution", str(resolution)],
                               env=env, cwd=repo_root, capture_output=True, text=True)
     if proc.returncode != 0:
         raise OmniWarpError(f"the preview process failed (exit {proc.returncode}):\n{child_stderr_tail(proc.stderr)}")

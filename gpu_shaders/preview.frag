@@ -12,8 +12,12 @@ void main()
     ow_color = (ow_draw_base != 0) ? vec4(0.05, 0.05, 0.06, 1.0) : vec4(0.0);
     return;
   }
-  vec3 to_light = ow_light_pos - p.xyz;
+  // A sun lights along one direction; a point or spot light from its position.
+  vec3 to_light = (ow_sun != 0) ? ow_light_dir : ow_light_pos - p.xyz;
   float diffuse = max(dot(n, normalize(to_light)), 0.0);
+  if (result.y == 2.0) {
+    diffuse = 0.0;  // outside the emission (behind a hemispherical light, outside a spot cone)
+  }
   bool shadowed = result.y == 0.0 && result.x < 0.5 && diffuse > 0.0;
   float darken = shadowed ? ow_strength : 0.0;
   if (ow_draw_base != 0) {

@@ -84,6 +84,9 @@ _PARAM_TEXT = {
     "cube": "cube maps (up to six passes, no tessellation)",
     "ipsm": "one paraboloid map cut to the view cone when the light is outside the view, "
             "else dual paraboloid maps",
+    "unfold": "dual sphere-unfolding (one pass for both halves, for point lights)",
+    "sm": "one uniform shadow map (spot and sun lights only)",
+    "psm": "a perspective shadow map in the camera's post-perspective space (spot and sun lights only)",
 }
 _WARP_TEXT = {
     "none": "no warp (no analysis pass)",
@@ -404,9 +407,9 @@ def _safe_label(name: str) -> str:
 
 
 def _scene_light(context: bpy.types.Context, scene: bpy.types.Scene) -> str | None:
-    """The active object when it is a point or spot light of the scene (else capture picks the only one)."""
+    """The active object when it is a point, spot or sun light of the scene (else capture picks the only one)."""
     obj = getattr(context, "active_object", None)
-    if (obj is not None and obj.type == "LIGHT" and obj.data.type in {"POINT", "SPOT"}
+    if (obj is not None and obj.type == "LIGHT" and obj.data.type in {"POINT", "SPOT", "SUN"}
             and obj.name in scene.objects):
         return obj.name
     return None

@@ -22,7 +22,7 @@ import numpy as np
 
 from ..core import metrics
 from ..core.errors import InputError, OmniWarpError
-from ..core.scene import CameraSpec, LightSpec
+from ..core.scene import PROJECTIVE_EMISSIONS, CameraSpec, LightSpec
 from ..reference.data import ReferenceData
 from ..render.pipeline import ShadowPipeline, ShadowSettings, ViewSamples, count_statistics
 
@@ -122,7 +122,7 @@ def run(reference: ReferenceData, lights: list[tuple[str, LightSpec, ShadowSetti
         for name, light, settings in lights:
             pipeline.render(light, triangles, samples, settings)  # warm-up (shader compile)
             result = pipeline.render(light, triangles, samples, settings, keep_atlas=True)
-            stats = count_statistics(pipeline, light, settings, result)
+            stats = count_statistics(pipeline, light, settings, result, samples)
             raw = np.stack([result.visibility, result.flags.astype(np.float32)], axis=-1)
             per_light.append((name, light, settings, result, stats, raw))
 
@@ -130,7 +130,7 @@ def run(reference: ReferenceData, lights: list[tuple[str, LightSpec, ShadowSetti
 
         def draw_preview() -> None:
             for index, ((_, light, _, _, _, _), texture) in enumerate(zip(per_light, textures)):
-                draw_shadow_composite(backend, gbuffer, texture, light.position, strength, camera.resolution,
+                draw_shadow_composite(backend, gbuffer, texture, light, strength, camera.resolution,
                                       draw_base=(index == 0))
 
         _write_png(out_dir / "preview.png", _offscreen_draw(camera.resolution, draw_preview))
@@ -205,7 +205,7 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--light")
     parser.add_argument("--reference", required=True)
     parser.add_argument("--out", required=True)
-    parser.add_argument("--method", default="dpsm+notw")
+    parser.add_argument("--method", default=None)  # None: dpsm+notw, or psm for a spot or sun reference
     parser.add_argument("--resolution", type=int, default=1024)
     args = parser.parse_args(argv)
     logging.basicConfig(level=logging.WARNING, format="%(levelname)s %(name)s: %(message)s")
@@ -234,9 +234,10 @@ def main(argv: list[str] | None = None) -> int:
             triangles = cache.world_triangles()
             from ..compare import METHODS
 
-            if args.method not in METHODS:
-                raise InputError(f"unknown method {args.method!r}; known: {', '.join(METHODS)}")
-            parameterization, warp = METHODS[args.method]
+            method = args.method or ("psm" if reference.emission in PROJECTIVE_EMISSIONS else "dpsm+notw")
+            if method not in METHODS:
+                raise InputError(f"unknown method {method!r}; known: {', '.join(METHODS)}")
+            parameterization, warp = METHODS[method]
             default = ShadowSettings(parameterization, args.resolution, warp=warp)
             lights = _scene_lights(scene, depsgraph, reference, args.light, default)
             report = run(reference, lights, triangles, Path(args.out))

@@ -8,20 +8,50 @@ import sys
 
 import bpy
 
-from .properties import effective_emission, enabled_light_objects, is_supported_light
+from .properties import (
+    effective_emission,
+    effective_parameterization,
+    effective_warp,
+    enabled_light_objects,
+    is_narrow_spot,
+    is_supported_light,
+    stored_parameterization,
+    takes_warp,
+    valid_parameterizations,
+)
 
 log = logging.getLogger(__name__)
 
 SIDEBAR_CATEGORY = "OmniWarp"
 
-_EMISSION_LABELS = {"omni": "Omnidirectional", "hemi": "Hemispherical"}
+_EMISSION_LABELS = {
+    "omni": "Omnidirectional",
+    "hemi": "Hemispherical",
+    "spot": "Spot cone",
+    "sun": "Sun (parallel)",
+}
+# Light types whose emission the user may choose (a sun's light is always parallel).
+_EMISSION_CHOICE_TYPES = ("POINT", "SPOT")
 
 
 def _light_summary(light: bpy.types.Light) -> str:
-    """One line describing what is previewed for a light, e.g. 'DPSM + NOTW, 1024 px, hemi'."""
-    props = light.omniwarp
-    method = props.parameterization if props.warp == "NONE" else f"{props.parameterization} + {props.warp}"
-    return f"{method}, {props.resolution} px, {effective_emission(light)}"
+    """One line describing what is previewed for a light, e.g. 'DPSM + NOTW, 1024 px, hemi'.
+
+    It names what the pipeline gets (the effective method and warp), not what is stored.
+    """
+    parameterization = effective_parameterization(light)
+    method = parameterization.upper()
+    warp = effective_warp(light, parameterization).upper()
+    if warp != "NONE":
+        method = f"{method} + {warp}"
+    return f"{method}, {light.omniwarp.resolution} px, {effective_emission(light)}"
+
+
+def _note(layout: bpy.types.UILayout, text: str) -> None:
+    """A right-aligned info line under the setting it explains."""
+    row = layout.row()
+    row.alignment = "RIGHT"
+    row.label(text=text, icon="INFO")
 
 
 class OMNIWARP_PT_light(bpy.types.Panel):
@@ -49,18 +79,29 @@ class OMNIWARP_PT_light(bpy.types.Panel):
         layout.use_property_decorate = False
         layout.active = props.enabled
 
-        layout.prop(props, "emission")
-        if props.emission == "AUTO":
+        emission = effective_emission(light)
+        if light.type in _EMISSION_CHOICE_TYPES:
+            layout.prop(props, "emission")
+        if props.emission == "AUTO" or light.type not in _EMISSION_CHOICE_TYPES:
             row = layout.row()
             row.alignment = "RIGHT"
-            row.label(text=f"Treated as: {_EMISSION_LABELS[effective_emission(light)]}")
-            if light.type == "SPOT" and effective_emission(light) == "omni":
-                note = layout.row()
-                note.alignment = "RIGHT"
-                note.label(text="Spot narrower than 179°: shadowed in all directions", icon="INFO")
+            row.label(text=f"Treated as: {_EMISSION_LABELS[emission]}")
+        if props.emission == "OMNI" and is_narrow_spot(light):
+            _note(layout, "Spot narrower than 179°: shadowed in all directions")
 
         layout.prop(props, "parameterization")
-        layout.prop(props, "warp")
+        parameterization = effective_parameterization(light)
+        if stored_parameterization(light) not in valid_parameterizations(light):
+            # Only before Blender 5.0: there the field shows a stale choice as blank.
+            _note(layout, f"Stored method does not fit this light: using {parameterization.upper()}")
+
+        # Greyed out rather than hidden, so the stored warp is still visible for
+        # when the light goes back to a method that takes one.
+        row = layout.row()
+        row.active = takes_warp(parameterization)
+        row.prop(props, "warp")
+        if not takes_warp(parameterization):
+            _note(layout, f"{parameterization.upper()} takes no warp")
         layout.prop(props, "resolution")
 
         box = layout.box()
@@ -113,7 +154,7 @@ class OMNIWARP_PT_viewport(bpy.types.Panel):
         lights = enabled_light_objects(scene)
         if not lights:
             box.label(text="No light has OmniWarp enabled", icon="INFO")
-            box.label(text="Enable it in a point or spot light's properties")
+            box.label(text="Enable it in a point, spot or sun light's properties")
             return
         box.label(text=f"Previewed lights ({len(lights)})")
         for obj in lights:

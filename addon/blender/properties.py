@@ -3,6 +3,11 @@ pipeline inputs.
 
 * `OMNIWARP_PG_light` hangs on every light as `bpy.types.Light.omniwarp`: the
   per-light shadow method (parameterization, warp, resolution, bias, culling).
+  Its parameterization list depends on the light: point lights and spots of
+  179° or more take dpsm, cube, ipsm and unfold; narrower spots and suns take
+  sm and psm. A stored choice that no longer fits (the light changed type) is
+  never an error: `shadow_settings_for` falls back (see
+  `effective_parameterization`).
 * `OMNIWARP_PG_scene` hangs on every scene as `bpy.types.Scene.omniwarp`: the
   viewport preview and its map overlay.
 
@@ -16,23 +21,19 @@ from __future__ import annotations
 import importlib
 import importlib.util
 import logging
-import math
 from types import ModuleType
 
 import bpy
 import numpy as np
 from bpy.props import BoolProperty, EnumProperty, FloatProperty, IntProperty
 
-from ..core.scene import Emission, LightSpec
+from ..core.frames import POINT_PARAMETERIZATIONS, PROJECTIVE_PARAMETERIZATIONS
+from ..core.scene import PROJECTIVE_EMISSIONS, Emission, LightSpec, spot_emission
 from ..render.pipeline import BiasSettings, ShadowSettings
 
 log = logging.getLogger(__name__)
 
-SUPPORTED_LIGHT_TYPES: tuple[str, ...] = ("POINT", "SPOT")
-# A spot this wide (or wider) is a hemispherical light. spot_size is stored as a
-# float32, so allow its rounding error below the threshold.
-HEMI_SPOT_SIZE = math.radians(179.0)
-_SPOT_SIZE_TOLERANCE = 1e-6
+SUPPORTED_LIGHT_TYPES: tuple[str, ...] = ("POINT", "SPOT", "SUN")
 
 RESOLUTION_MIN = 256
 RESOLUTION_MAX = 4096
@@ -89,16 +90,18 @@ def _preview_toggled(self: OMNIWARP_PG_scene, context: bpy.types.Context) -> Non
 EMISSION_ITEMS = (
     ("AUTO", "From light type",
      "Point light: omnidirectional. Spot light with a cone of 179° or more: hemispherical. "
-     "Narrower spots are treated as omnidirectional (all directions are shadowed; the cone only "
-     "shapes the light), which costs as much as a point light", 0),
+     "Narrower spot: only its own cone, with a uniform or perspective shadow map (one pass). "
+     "Sun: parallel light, with a uniform or perspective shadow map (one pass)", 0),
     ("OMNI", "Omnidirectional",
-     "Shadows in every direction around the light. Cost: both paraboloid sides or all six cube faces "
-     "(fewer when culling skips what the view never touches)", 1),
+     "Shadows in every direction around the light, also for a narrow spot (its cone then only "
+     "shapes the light). Cost: both paraboloid sides or all six cube faces (fewer when culling "
+     "skips what the view never touches)", 1),
     ("HEMI", "Hemispherical",
      "Shadows only in the half space along the light's local -Z. Cost: one paraboloid side, "
      "at most five cube faces", 2),
 )
 
+# Stable numbers: they are what .blend files store, so never renumber an item.
 PARAMETERIZATION_ITEMS = (
     ("DPSM", "Dual paraboloid",
      "Two paraboloid maps, one per hemisphere. Cost: at most two passes, but triangles that the "
@@ -106,7 +109,44 @@ PARAMETERIZATION_ITEMS = (
     ("CUBE", "Cube",
      "Six 90° perspective faces. Cost: up to six passes (each redraws the geometry it sees), "
      "no tessellation", 1),
+    ("IPSM", "Single paraboloid (IPSM)",
+     "One paraboloid map aimed at the view and zoomed to the cone that holds it, when the light is "
+     "outside the view; otherwise (or with Cull off) it falls back to the dual paraboloid. Cost: one "
+     "pass, with tessellation of the bent triangles", 2),
+    ("UNFOLD", "Sphere unfolding",
+     "Dual sphere-unfolding: both hemispheres side by side in one map, drawn in a single pass. "
+     "Cost: one pass, with tessellation, and seam triangles drawn into both halves; takes no warp", 3),
+    ("SM", "Uniform",
+     "One plain shadow map: the spot's cone, or for a sun a parallel box fitted to what the view "
+     "needs. Cost: one pass, no tessellation; takes no warp", 4),
+    ("PSM", "Perspective (PSM)",
+     "Perspective shadow map (Stamminger & Drettakis 2002): one map taken after the camera's "
+     "perspective, so texels gather near the camera. Cost: one pass, no tessellation; it is "
+     "itself a global warp, so it takes no other", 5),
 )
+_PARAMETERIZATION_ITEM = {item[0]: item for item in PARAMETERIZATION_ITEMS}
+_PARAMETERIZATION_NUMBER = {item[0]: item[3] for item in PARAMETERIZATION_ITEMS}
+_PARAMETERIZATION_BY_NUMBER = {item[3]: item[0] for item in PARAMETERIZATION_ITEMS}
+
+# The item lists the dynamic enum hands to Blender, built once and kept here for the
+# life of the module: Blender keeps pointers to the strings of what a dynamic
+# enum's callback returns, and misbehaves or crashes once Python frees them.
+_PARAMETERIZATION_ITEM_CACHE: dict[str, list[tuple[str, str, str, int]]] = {
+    "point": [_PARAMETERIZATION_ITEM[name.upper()] for name in POINT_PARAMETERIZATIONS],
+    "projective": [_PARAMETERIZATION_ITEM[name.upper()] for name in PROJECTIVE_PARAMETERIZATIONS],
+    "all": list(PARAMETERIZATION_ITEMS),
+}
+# What a light uses when its stored choice does not fit it (e.g. a POINT set to CUBE
+# that became a SUN): the classic method of each family.
+FALLBACK_PARAMETERIZATION = {"point": "dpsm", "projective": "psm"}
+# The pipeline refuses a warp for these (ShadowSettings): one shared projection, or
+# a map that is already a global warp.
+NO_WARP_PARAMETERIZATIONS: tuple[str, ...] = ("unfold",) + PROJECTIVE_PARAMETERIZATIONS
+
+# bpy.props gained get_transform in Blender 5.0: it rewrites a stale stored value on
+# every read, so Python and the UI both see the method actually used. Blender 4.2-4.5
+# refuse the keyword, so there the stale value stays and is resolved in Python.
+_HAS_GET_TRANSFORM = bpy.app.version >= (5, 0, 0)
 
 WARP_ITEMS = (
     ("NONE", "None",
@@ -121,6 +161,48 @@ WARP_ITEMS = (
 )
 
 
+def _method_family(light: bpy.types.Light) -> str:
+    """'projective' for a light the spot/sun maps take (narrow spot cone, sun), else 'point'."""
+    return "projective" if effective_emission(light) in PROJECTIVE_EMISSIONS else "point"
+
+
+def parameterization_items(self: bpy.types.PropertyGroup,
+                            context: bpy.types.Context | None) -> list[tuple[str, str, str, int]]:
+    """Items callback of `parameterization`: only the methods that fit the owning light.
+
+    The list comes from `_PARAMETERIZATION_ITEM_CACHE` (never built here; see there).
+    Without a light to ask (the owner is not a Light), every item is offered.
+    """
+    light = getattr(self, "id_data", None)
+    if not isinstance(light, bpy.types.Light):
+        return _PARAMETERIZATION_ITEM_CACHE["all"]
+    return _PARAMETERIZATION_ITEM_CACHE[_method_family(light)]
+
+
+def _fallback_parameterization(light: bpy.types.Light, stored: str, was_set: bool) -> str:
+    """The method (lower case) used when the stored one (`stored`, for the log) does not fit the light."""
+    fallback = FALLBACK_PARAMETERIZATION[_method_family(light)]
+    if was_set:  # unset is the default (DPSM), which a spot cone or sun simply does not use
+        log.debug("light %r: stored parameterization %s does not fit its %s emission; using %s",
+                  light.name, stored or "(unknown)", effective_emission(light), fallback)
+    return fallback
+
+
+def _parameterization_read(self: bpy.types.PropertyGroup, value: int, is_set: bool) -> int:
+    """get_transform of `parameterization` (Blender 5.0+): a stale stored number reads as the fallback."""
+    light = getattr(self, "id_data", None)
+    if not isinstance(light, bpy.types.Light):
+        return value
+    stored = _PARAMETERIZATION_BY_NUMBER.get(value, "").lower()
+    if stored in valid_parameterizations(light):
+        return value
+    return _PARAMETERIZATION_NUMBER[_fallback_parameterization(light, stored or str(value), is_set).upper()]
+
+
+# Keywords of `parameterization` that only some Blender versions accept.
+_PARAMETERIZATION_EXTRA: dict = {"get_transform": _parameterization_read} if _HAS_GET_TRANSFORM else {}
+
+
 class OMNIWARP_PG_light(bpy.types.PropertyGroup):
     """OmniWarp shadow settings of one light (`light.omniwarp`)."""
 
@@ -133,24 +215,30 @@ class OMNIWARP_PG_light(bpy.types.PropertyGroup):
     )
     emission: EnumProperty(
         name="Emission",
-        description="Which directions receive light (and so need shadow maps). "
-                    "Hemispherical needs about half the passes of omnidirectional",
+        description="Which directions of a point or spot light receive light (and so need shadow maps). "
+                    "Hemispherical needs about half the passes of omnidirectional. A sun ignores it",
         items=EMISSION_ITEMS,
         default="AUTO",
         update=_request_update,
     )
+    # A dynamic enum: the items depend on the light (its type, cone and emission).
+    # Blender only takes an integer default for those; 0 (DPSM) does not fit a spot
+    # cone or a sun, which then fall back to PSM (see `effective_parameterization`).
     parameterization: EnumProperty(
         name="Parameterization",
-        description="How directions around the light map onto shadow-map texels. "
-                    "Dual paraboloid: two passes and tessellation. Cube: up to six passes",
-        items=PARAMETERIZATION_ITEMS,
-        default="DPSM",
+        description="How the light's directions map onto shadow-map texels; only the methods that fit "
+                    "this light are listed. Point and wide spot lights: dual paraboloid, cube, IPSM, "
+                    "sphere unfolding. Narrower spots and suns: uniform or perspective map",
+        items=parameterization_items,
+        default=0,
         update=_request_update,
+        **_PARAMETERIZATION_EXTRA,
     )
     warp: EnumProperty(
         name="Warp",
         description="Redistribute shadow-map resolution toward what the camera sees. "
-                    "Any warp costs an analysis pass and extra triangles",
+                    "Any warp costs an analysis pass and extra triangles. Only dual paraboloid, cube "
+                    "and IPSM take a warp; the other methods ignore it",
         items=WARP_ITEMS,
         default="NONE",
         update=_request_update,
@@ -158,7 +246,8 @@ class OMNIWARP_PG_light(bpy.types.PropertyGroup):
     resolution: IntProperty(
         name="Resolution",
         description="Side of each shadow map in texels: sharper shadows, but memory and fill time grow "
-                    "with its square (cube: 6 × resolution² floats, dual paraboloid: 2 × resolution² floats)",
+                    "with its square (cube: 6 × resolution² floats, dual paraboloid and sphere unfolding: "
+                    "2 × resolution² floats, IPSM, uniform and perspective maps: 1 × resolution² floats)",
         default=RESOLUTION_DEFAULT,
         min=RESOLUTION_MIN,
         max=RESOLUTION_MAX,
@@ -200,15 +289,16 @@ class OMNIWARP_PG_light(bpy.types.PropertyGroup):
     )
     cull: BoolProperty(
         name="Cull",
-        description="Skip paraboloid sides and cube faces the view never touches, and objects outside "
-                    "them. Saves passes and triangles; turn off only to measure the unculled cost",
+        description="Skip paraboloid sides and cube faces the view never touches, and objects that cannot "
+                    "shadow anything in view. Saves passes and triangles; IPSM needs it (without it, IPSM "
+                    "falls back to the dual paraboloid). Turn off only to measure the unculled cost",
         default=True,
         update=_request_update,
     )
 
 
 def is_supported_light(light: bpy.types.Light | None) -> bool:
-    """True for the light types OmniWarp shadows: POINT and SPOT."""
+    """True for the light types OmniWarp shadows: POINT, SPOT and SUN."""
     return light is not None and getattr(light, "type", None) in SUPPORTED_LIGHT_TYPES
 
 
@@ -221,20 +311,76 @@ def enabled_light_objects(scene: bpy.types.Scene) -> list[bpy.types.Object]:
     return sorted(found, key=lambda obj: obj.name)
 
 
-def effective_emission(light: bpy.types.Light) -> Emission:
-    """'omni' or 'hemi' for a light, resolving AUTO by its type.
+def is_narrow_spot(light: bpy.types.Light) -> bool:
+    """True for a SPOT whose cone (spot_size, radians) is below 179° (float32 tolerance included)."""
+    return light.type == "SPOT" and spot_emission(light.spot_size) == "spot"
 
-    AUTO: a POINT is omni; a SPOT whose spot_size (radians) is at least 179° is
-    hemi; narrower spots are treated as omni.
+
+def effective_emission(light: bpy.types.Light) -> Emission:
+    """'omni', 'hemi', 'spot' or 'sun' for a light, resolving AUTO by its type.
+
+    A SUN is always 'sun' (the emission choice does not apply). An explicit OMNI or
+    HEMI gives the point-light treatment, even to a narrow spot. AUTO: a POINT is
+    omni; a SPOT whose spot_size is at least 179° is hemi; a narrower SPOT is 'spot'
+    (its own cone, shadowed with sm or psm).
     """
+    if light.type == "SUN":
+        return "sun"
     choice = light.omniwarp.emission
     if choice == "OMNI":
         return "omni"
     if choice == "HEMI":
         return "hemi"
-    if light.type == "SPOT" and float(light.spot_size) >= HEMI_SPOT_SIZE - _SPOT_SIZE_TOLERANCE:
-        return "hemi"
+    if light.type == "SPOT":
+        return "spot" if is_narrow_spot(light) else "hemi"
     return "omni"
+
+
+def valid_parameterizations(light: bpy.types.Light) -> tuple[str, ...]:
+    """The parameterizations (lower case, pipeline names) that fit the light's effective emission."""
+    return POINT_PARAMETERIZATIONS if _method_family(light) == "point" else PROJECTIVE_PARAMETERIZATIONS
+
+
+def stored_parameterization(light: bpy.types.Light) -> str:
+    """The light's stored parameterization (lower case), or '' when no item has its number.
+
+    On Blender 5.0+ the get_transform already replaced a stale value, so this equals
+    `effective_parameterization`. On 4.2-4.5 the raw stored number is read: reading the
+    enum itself would print "current value matches no enum" on every stale read.
+    """
+    props = light.omniwarp
+    if _HAS_GET_TRANSFORM:
+        return props.parameterization.lower()
+    number = props.get("parameterization", 0)  # unset: the default, item 0
+    return _PARAMETERIZATION_BY_NUMBER.get(number, "").lower()
+
+
+def effective_parameterization(light: bpy.types.Light) -> str:
+    """The parameterization the pipeline gets for a light (lower case).
+
+    The stored choice when it fits the light's effective emission; otherwise (the
+    light changed type or cone, or the number is unknown) 'dpsm' for point lights
+    and 'psm' for spot cones and suns, logged at debug level.
+    """
+    stored = stored_parameterization(light)
+    if stored in valid_parameterizations(light):
+        return stored
+    return _fallback_parameterization(light, stored, light.omniwarp.is_property_set("parameterization"))
+
+
+def takes_warp(parameterization: str) -> bool:
+    """False for the methods the pipeline refuses a warp for (unfold, sm, psm)."""
+    return parameterization not in NO_WARP_PARAMETERIZATIONS
+
+
+def effective_warp(light: bpy.types.Light, parameterization: str | None = None) -> str:
+    """The warp the pipeline gets (lower case): the stored one, or 'none' where the method takes none."""
+    parameterization = parameterization or effective_parameterization(light)
+    warp = light.omniwarp.warp.lower()
+    if warp != "none" and not takes_warp(parameterization):
+        log.debug("light %r: %s takes no warp; %s ignored", light.name, parameterization, warp)
+        return "none"
+    return warp
 
 
 def _ui_float(value: float) -> float:
@@ -247,10 +393,15 @@ def _ui_float(value: float) -> float:
 
 
 def shadow_settings_for(light: bpy.types.Light) -> ShadowSettings:
-    """The pipeline's `ShadowSettings` for a light's OmniWarp properties."""
+    """The pipeline's `ShadowSettings` for a light's OmniWarp properties.
+
+    Never fails on a stored method that no longer fits the light: see
+    `effective_parameterization` and `effective_warp`.
+    """
     props = light.omniwarp
+    parameterization = effective_parameterization(light)
     return ShadowSettings(
-        parameterization=props.parameterization.lower(),
+        parameterization=parameterization,
         resolution=int(props.resolution),
         bias=BiasSettings(
             constant=_ui_float(props.bias_constant),
@@ -258,21 +409,21 @@ def shadow_settings_for(light: bpy.types.Light) -> ShadowSettings:
             normal=_ui_float(props.bias_normal),
         ),
         cull=bool(props.cull),
-        warp=props.warp.lower(),
+        warp=effective_warp(light, parameterization),
     )
 
 
 def light_spec_for(obj: bpy.types.Object) -> LightSpec:
-    """A `LightSpec` for an (evaluated) light object: its world matrix and effective emission."""
+    """A `LightSpec` for an (evaluated) light object: its world matrix, effective emission
+    and, for a spot cone, its full cone angle."""
     light = obj.data
     if not isinstance(light, bpy.types.Light):
         raise TypeError(f"object {obj.name!r} is not a light")
     matrix = np.array([list(row) for row in obj.matrix_world], dtype=np.float64)
-    return LightSpec(
-        emission=effective_emission(light),
-        matrix_world=matrix,
-        energy=float(light.energy),
-    )
+    emission = effective_emission(light)
+    # Only a spot cone has a cone angle; the other emissions keep LightSpec's default.
+    cone = {"spot_size": float(light.spot_size)} if emission == "spot" else {}
+    return LightSpec(emission=emission, matrix_world=matrix, energy=float(light.energy), **cone)
 
 
 # ----------------------------------------------------------------------------
@@ -280,7 +431,8 @@ def light_spec_for(obj: bpy.types.Object) -> LightSpec:
 # ----------------------------------------------------------------------------
 OVERLAY_MAP_ITEMS = (
     ("DEPTH", "Depth",
-     "The shadow maps' depth (paraboloid sides or cube faces). Cost: one read-back per map", 1),
+     "The shadow maps' depth (paraboloid sides, cube faces, unfold halves, or the one map of a spot "
+     "cone or sun). Cost: one read-back per map", 1),
     ("COUNT", "Count",
      "View samples per shadow texel: where the map lacks or wastes resolution. "
      "Cost: the analysis pass when the light is not warped", 2),

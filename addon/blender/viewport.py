@@ -176,7 +176,7 @@ def compute_view(backend, pipeline: ShadowPipeline, triangles: np.ndarray, view_
     results = []
     for name, light, settings in lights:
         result = pipeline.render(light, triangles, samples, settings, keep_atlas=True)
-        stats = count_statistics(pipeline, light, settings, result)
+        stats = count_statistics(pipeline, light, settings, result, samples)
         raw = np.stack([result.visibility, result.flags.astype(np.float32)], axis=-1)
         results.append((name, light, settings, result, stats, raw))
     return gbuffer, results
@@ -250,7 +250,7 @@ def draw_view(scene: bpy.types.Scene, depsgraph, view_matrix: np.ndarray, projec
     current = cached.key == key
     if current and cached.gbuffer is not None:
         for (_, light, _, _, _, _), texture in zip(cached.lights, cached.visibility):
-            draw_shadow_composite(_STATE.backend, cached.gbuffer, texture, light.position, settings.shadow_strength,
+            draw_shadow_composite(_STATE.backend, cached.gbuffer, texture, light, settings.shadow_strength,
                                   target_size, draw_base=False)
     if settings.overlay_enabled and cached.panels:
         shown = {"COUNT", "IMPORTANCE"} & set(settings.overlay_maps)

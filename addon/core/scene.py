@@ -23,8 +23,16 @@ Emission = Literal["omni", "hemi", "spot", "sun"]
 # omnidirectional methods; a narrower spot cone and the sun take the projective ones.
 POINT_EMISSIONS = ("omni", "hemi")
 PROJECTIVE_EMISSIONS = ("spot", "sun")
-# Blender caps a spot cone below 180 degrees; anything this close is the hemispherical light.
+# A spot cone of 179 degrees or more is the hemispherical light (Blender stops at 180).
 MAX_SPOT_SIZE = math.radians(179.0)
+# spot_size is stored as a float32 in Blender: allow its rounding below the threshold.
+SPOT_SIZE_TOLERANCE = 1e-6
+
+
+def spot_emission(spot_size: float) -> Emission:
+    """'hemi' for a spot cone of 179 degrees or more, else 'spot'; the one rule the
+    reference capture and the UI share."""
+    return "hemi" if float(spot_size) >= MAX_SPOT_SIZE - SPOT_SIZE_TOLERANCE else "spot"
 
 
 @dataclass
@@ -62,8 +70,9 @@ class LightSpec:
     def __post_init__(self) -> None:
         if self.emission not in ("omni", "hemi", "spot", "sun"):
             raise InputError(f"unknown light emission {self.emission!r}; use omni, hemi, spot or sun")
-        if self.emission == "spot" and not (0.0 < float(self.spot_size) <= MAX_SPOT_SIZE):
-            raise InputError(f"spot cone {math.degrees(self.spot_size):.3g} degrees is outside (0, 179]")
+        if self.emission == "spot" and not (float(self.spot_size) > 0.0 and spot_emission(self.spot_size) == "spot"):
+            raise InputError(f"spot cone {math.degrees(self.spot_size):.4g} degrees is outside (0, 179): "
+                             "a cone of 179 degrees or more is the hemispherical light")
 
     @property
     def position(self) -> np.ndarray:

@@ -30,7 +30,7 @@ from typing import TYPE_CHECKING, Any, Callable
 import numpy as np
 
 from ..core.errors import ReferenceCaptureError
-from ..core.scene import MAX_SPOT_SIZE, orthonormalize
+from ..core.scene import orthonormalize, spot_emission
 from .data import ReferenceData
 
 if TYPE_CHECKING:  # pragma: no cover - typing only
@@ -52,9 +52,6 @@ _GEOMETRY_TYPES = {"MESH", "CURVE", "SURFACE", "META", "FONT"}
 # Light types the reference accepts. A SUN has a direction only: nothing in the capture
 # depends on its position (Cycles' culling is off, and there is no near/far to fit).
 _LIGHT_TYPES = {"POINT", "SPOT", "SUN"}
-# A spot wider than LightSpec's widest cone (179 degrees) is the hemispherical light, so
-# every LightSpec spot round-trips; spot_size is a float32, so allow its rounding.
-_SPOT_SIZE_TOLERANCE = 1e-6
 # A sun angle or spot blend at or below this counts as hard.
 _SOFT_TOLERANCE = 1e-6
 
@@ -170,9 +167,7 @@ def _emission_of(light: "bpy.types.Light") -> str:
         return "omni"
     if light.type == "SUN":
         return "sun"
-    if light.spot_size > MAX_SPOT_SIZE + _SPOT_SIZE_TOLERANCE:
-        return "hemi"
-    return "spot"
+    return spot_emission(light.spot_size)
 
 
 def _warn_soft_light(light_obj: "bpy.types.Object") -> None:

@@ -14,6 +14,8 @@ from typing import Any
 
 import numpy as np
 
+from ..core.scene import LightSpec
+
 from .blender_backend import BlenderGPUBackend, float_texture, framebuffer, read_texture
 from .shaders import GBUFFER_PROGRAM, OVERLAY_PROGRAM, PREVIEW_PROGRAM
 
@@ -97,19 +99,21 @@ def visibility_texture(test_result: np.ndarray):
     return float_texture((result.shape[1], result.shape[0]), "RG32F", result[::-1])
 
 
-def draw_shadow_composite(backend: BlenderGPUBackend, gbuffer: GBuffer, visibility, light_position: np.ndarray,
+def draw_shadow_composite(backend: BlenderGPUBackend, gbuffer: GBuffer, visibility, light: LightSpec,
                           strength: float, target_size: tuple[int, int], draw_base: bool) -> None:
     """Draw one light's shadow into the bound framebuffer, stretched over `target_size`.
 
     `visibility` comes from `visibility_texture`, made once per result so that a
     redraw allocates nothing. Without `draw_base`, shadowed pixels are darkened by
-    alpha blending (viewport).
+    alpha blending (viewport). A sun shades by its direction, not its lamp position.
     """
     import gpu
 
     textures = dict(gbuffer.textures, ow_visibility=visibility)
     shader = backend.bind_program(PREVIEW_PROGRAM, {
-        "ow_light_pos": np.asarray(light_position, dtype=np.float64),
+        "ow_light_pos": np.asarray(light.position, dtype=np.float64),
+        "ow_sun": 1 if light.emission == "sun" else 0,
+        "ow_light_dir": -light.axis,
         "ow_strength": float(strength),
         "ow_draw_base": 1 if draw_base else 0,
         "ow_target_size": (float(target_size[0]), float(target_size[1]))}, textures)

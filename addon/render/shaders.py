@@ -187,7 +187,7 @@ PREVIEW_PROGRAM = ProgramInterface(
     vertex_in=(("vec2", "ow_corner"),),
     fragment_out=(("vec4", "ow_color"),),
     uniforms=(Uniform("vec3", "ow_light_pos"), Uniform("float", "ow_strength"), Uniform("int", "ow_draw_base"),
-              Uniform("vec2", "ow_target_size")),
+              Uniform("vec2", "ow_target_size"), Uniform("int", "ow_sun"), Uniform("vec3", "ow_light_dir")),
     samplers=("ow_gb_position", "ow_gb_normal", "ow_visibility"),
 )
 

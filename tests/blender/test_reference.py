@@ -482,7 +482,8 @@ def test_named_sun_is_picked_among_several_lights():
     ("POINT", None, 0.0, "omni"),
     ("SUN", None, 0.0, "sun"),
     ("SPOT", 45.0, 0.0, "spot"),
-    ("SPOT", 179.0, 0.0, "spot"),  # LightSpec's widest spot round-trips as a spot
+    ("SPOT", 178.9, 0.0, "spot"),
+    ("SPOT", 179.0, 0.0, "hemi"),  # the rule the UI shares (core.scene.spot_emission)
     ("SPOT", 179.5, 0.0, "hemi"),
     ("SPOT", 180.0, 0.0, "hemi"),
     ("SPOT", 180.0, 0.3, "hemi"),  # a blend fades the light but keeps the half space

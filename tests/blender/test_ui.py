@@ -7,6 +7,7 @@ property callbacks call is replaced by a recorder.
 """
 from __future__ import annotations
 
+import logging
 import math
 import re
 import sys
@@ -59,7 +60,7 @@ class FakeLayout:
     def prop(self, data, attr: str, **kwargs) -> None:
         assert attr in data.bl_rna.properties, f"{type(data).__name__} has no property {attr!r}"
         getattr(data, attr)
-        self.record.append(("prop", attr))
+        self.record.append(("prop", attr, self))  # the layout, to check its active/enabled
 
     def label(self, text: str = "", icon: str = "NONE", **kwargs) -> None:
         self.record.append(("label", text))
@@ -85,6 +86,10 @@ class FakeLayout:
 
     def labels(self) -> list[str]:
         return [r[1] for r in self.record if r[0] == "label"]
+
+    def layout_of(self, attr: str) -> FakeLayout:
+        """The (sub)layout that drew property `attr`."""
+        return next(r[2] for r in self.record if r[:2] == ("prop", attr))
 
 
 def draw_panel(panel_cls: type, context, header: bool = False) -> FakeLayout:
@@ -283,8 +288,12 @@ def test_light_ranges(make_light) -> None:
         assert rna[name].hard_min == 0.0
         assert (rna[name].soft_min, rna[name].soft_max) == (0.0, 4.0)
     assert [i.identifier for i in rna["emission"].enum_items] == ["AUTO", "OMNI", "HEMI"]
-    assert [i.identifier for i in rna["parameterization"].enum_items] == ["DPSM", "CUBE"]
     assert [i.identifier for i in rna["warp"].enum_items] == ["NONE", "NOTW", "RTW"]
+    # A dynamic enum: the class's RNA lists no items, the light's callback does.
+    assert list(rna["parameterization"].enum_items_static) == []
+    # Stable numbers: .blend files store them.
+    assert [(item[0], item[3]) for item in properties.PARAMETERIZATION_ITEMS] == [
+        ("DPSM", 0), ("CUBE", 1), ("IPSM", 2), ("UNFOLD", 3), ("SM", 4), ("PSM", 5)]
 
 
 def test_scene_defaults_and_ranges(registered) -> None:
@@ -329,13 +338,25 @@ def test_every_property_has_a_description(registered, group: str) -> None:
         if prop.type == "ENUM":
             for item in prop.enum_items:
                 assert item.description, f"{group}.{prop.identifier}: item {item.identifier} needs a tooltip"
+    if group == "OMNIWARP_PG_light":  # the dynamic enum's items are not in the class's RNA
+        for identifier, name, description, _number in properties.PARAMETERIZATION_ITEMS:
+            assert name and len(description) > 40, f"parameterization item {identifier} needs a tooltip"
 
 
-def test_cost_is_in_the_tooltips(registered) -> None:
+def test_cost_is_in_the_tooltips(make_light) -> None:
     rna = properties.OMNIWARP_PG_light.bl_rna.properties
     assert "6 × resolution²" in rna["resolution"].description
-    items = {i.identifier: i.description for i in rna["parameterization"].enum_items}
+    items = {identifier: description for identifier, _, description, _ in properties.PARAMETERIZATION_ITEMS}
     assert "tessellat" in items["DPSM"] and "six passes" in items["CUBE"]
+    assert "one pass" in items["IPSM"] and "tessellat" in items["IPSM"] and "falls back" in items["IPSM"]
+    assert "single pass" in items["UNFOLD"] and "tessellat" in items["UNFOLD"] and "no warp" in items["UNFOLD"]
+    for name in ("SM", "PSM"):
+        assert "one pass" in items[name] and "no tessellation" in items[name], name
+    assert "Stamminger" in items["PSM"]
+    # Blender shows the callback's tooltips for the light's own items only.
+    sun = make_light("SUN").omniwarp
+    assert bpy.types.UILayout.enum_item_description(sun, "parameterization", "PSM") == items["PSM"]
+    assert bpy.types.UILayout.enum_item_name(sun, "parameterization", "DPSM") == ""
     warps = {i.identifier: i.description for i in rna["warp"].enum_items}
     assert "analysis" in warps["NOTW"] and "triangles" in warps["NOTW"]
     assert "comparison" in warps["RTW"]
@@ -392,8 +413,9 @@ def test_viewport_lookup_is_package_relative() -> None:
     ("POINT", None, "omni"),
     ("SPOT", 180.0, "hemi"),
     ("SPOT", 179.0, "hemi"),
-    ("SPOT", 178.0, "omni"),
-    ("SPOT", 45.0, "omni"),
+    ("SPOT", 178.0, "spot"),
+    ("SPOT", 45.0, "spot"),
+    ("SUN", None, "sun"),
 ])
 def test_effective_emission_auto(make_light, kind: str, spot_deg: float | None, expected: str) -> None:
     assert properties.effective_emission(make_light(kind, spot_deg)) == expected
@@ -401,18 +423,143 @@ def test_effective_emission_auto(make_light, kind: str, spot_deg: float | None, 
 
 def test_effective_emission_explicit(make_light) -> None:
     point, wide = make_light("POINT"), make_light("SPOT", 180.0)
+    narrow, sun = make_light("SPOT", 60.0), make_light("SUN")
     point.omniwarp.emission = "HEMI"
     wide.omniwarp.emission = "OMNI"
     assert properties.effective_emission(point) == "hemi"
     assert properties.effective_emission(wide) == "omni"
+    # An explicit choice on a narrow spot still means the point-light treatment.
+    narrow.omniwarp.emission = "OMNI"
+    assert properties.effective_emission(narrow) == "omni"
+    narrow.omniwarp.emission = "HEMI"
+    assert properties.effective_emission(narrow) == "hemi"
+    # A sun's light is parallel whatever was chosen.
+    sun.omniwarp.emission = "OMNI"
+    assert properties.effective_emission(sun) == "sun"
 
 
 def test_is_supported_light(make_light) -> None:
     assert properties.is_supported_light(make_light("POINT"))
     assert properties.is_supported_light(make_light("SPOT"))
-    assert not properties.is_supported_light(make_light("SUN"))
+    assert properties.is_supported_light(make_light("SUN"))
     assert not properties.is_supported_light(make_light("AREA"))
     assert not properties.is_supported_light(None)
+
+
+POINT_ITEMS = ["DPSM", "CUBE", "IPSM", "UNFOLD"]
+PROJECTIVE_ITEMS = ["SM", "PSM"]
+
+
+def _item_ids(light) -> list[str]:
+    return [item[0] for item in properties.parameterization_items(light.omniwarp, bpy.context)]
+
+
+@pytest.mark.parametrize(("kind", "spot_deg", "emission", "expected"), [
+    ("POINT", None, "AUTO", POINT_ITEMS),
+    ("POINT", None, "HEMI", POINT_ITEMS),
+    ("SPOT", 180.0, "AUTO", POINT_ITEMS),
+    ("SPOT", 60.0, "AUTO", PROJECTIVE_ITEMS),
+    ("SPOT", 60.0, "OMNI", POINT_ITEMS),
+    ("SPOT", 60.0, "HEMI", POINT_ITEMS),
+    ("SUN", None, "AUTO", PROJECTIVE_ITEMS),
+    ("SUN", None, "OMNI", PROJECTIVE_ITEMS),
+])
+def test_parameterization_items_fit_the_light(make_light, kind: str, spot_deg: float | None, emission: str,
+                                              expected: list[str]) -> None:
+    light = make_light(kind, spot_deg)
+    light.omniwarp.emission = emission
+    assert _item_ids(light) == expected
+    assert [name.upper() for name in properties.valid_parameterizations(light)] == expected
+    # Blender takes exactly these: the others are refused with a TypeError.
+    for identifier, *_ in properties.PARAMETERIZATION_ITEMS:
+        if identifier in expected:
+            light.omniwarp.parameterization = identifier
+            assert light.omniwarp.parameterization == identifier
+        else:
+            with pytest.raises(TypeError):
+                light.omniwarp.parameterization = identifier
+
+
+def test_parameterization_items_are_cached(make_light) -> None:
+    """The callback hands out the module's lists, never fresh ones (Blender keeps their strings)."""
+    point, sun = make_light("POINT"), make_light("SUN")
+    first = properties.parameterization_items(point.omniwarp, None)
+    assert properties.parameterization_items(point.omniwarp, None) is first
+    assert properties.parameterization_items(sun.omniwarp, None) is properties.parameterization_items(sun.omniwarp,
+                                                                                                      None)
+    assert first in properties._PARAMETERIZATION_ITEM_CACHE.values()
+
+
+def test_switching_point_to_sun_falls_back_to_psm(make_light, caplog: pytest.LogCaptureFixture) -> None:
+    light = make_light("POINT")
+    props = light.omniwarp
+    props.parameterization = "CUBE"
+    props.warp = "NOTW"
+    light.type = "SUN"
+    light = bpy.data.lights[light.name]  # the same ID, now a SunLight
+    with caplog.at_level(logging.DEBUG, logger=properties.__name__):
+        settings = properties.shadow_settings_for(light)  # must not raise
+    assert (settings.parameterization, settings.warp) == ("psm", "none")
+    assert "does not fit its sun emission; using psm" in caplog.text
+    caplog.clear()
+    with caplog.at_level(logging.DEBUG, logger=properties.__name__):
+        properties.shadow_settings_for(make_light("SUN"))  # a fresh sun: nothing stored, nothing to report
+    assert "does not fit" not in caplog.text
+    assert properties.effective_parameterization(light) == "psm"
+    if properties._HAS_GET_TRANSFORM:
+        assert light.omniwarp.parameterization == "PSM"  # Blender 5.0+: the field shows what is used
+    else:
+        assert properties.stored_parameterization(light) == "cube"  # kept; the panel notes the fallback
+    light.type = "POINT"  # the stored choice comes back with a type it fits
+    light = bpy.data.lights[light.name]
+    settings = properties.shadow_settings_for(light)
+    assert (settings.parameterization, settings.warp) == ("cube", "notw")
+
+
+def test_narrowing_a_spot_falls_back_to_psm(make_light) -> None:
+    light = make_light("SPOT", 180.0)
+    light.omniwarp.parameterization = "IPSM"
+    assert properties.shadow_settings_for(light).parameterization == "ipsm"
+    light.spot_size = math.radians(60.0)
+    assert properties.shadow_settings_for(light).parameterization == "psm"
+    light.omniwarp.parameterization = "SM"
+    light.spot_size = math.radians(180.0)  # wide again: sm does not fit a hemispherical light
+    assert properties.shadow_settings_for(light).parameterization == "dpsm"
+
+
+def test_unknown_stored_number_falls_back(make_light, capfd: pytest.CaptureFixture[str]) -> None:
+    point, sun = make_light("POINT"), make_light("SUN")
+    for light in (point, sun):
+        light.omniwarp["parameterization"] = 42  # e.g. written by a newer version of the extension
+    capfd.readouterr()
+    assert properties.shadow_settings_for(point).parameterization == "dpsm"
+    assert properties.shadow_settings_for(sun).parameterization == "psm"
+    assert panels._light_summary(sun) == "PSM, 1024 px, sun"
+    # Resolving a stale value must not make Blender print "matches no enum" on every read
+    # (its log goes to stdout or stderr, depending on the version).
+    captured = capfd.readouterr()
+    assert "matches no enum" not in captured.out + captured.err
+
+
+@pytest.mark.parametrize(("kind", "spot_deg", "parameterization", "warp", "expected_warp"), [
+    ("POINT", None, "DPSM", "NOTW", "notw"),
+    ("POINT", None, "CUBE", "RTW", "rtw"),
+    ("POINT", None, "IPSM", "NOTW", "notw"),
+    ("POINT", None, "UNFOLD", "NOTW", "none"),
+    ("POINT", None, "UNFOLD", "RTW", "none"),
+    ("SPOT", 60.0, "SM", "RTW", "none"),
+    ("SPOT", 60.0, "PSM", "NOTW", "none"),
+    ("SUN", None, "SM", "NOTW", "none"),
+    ("SUN", None, "PSM", "RTW", "none"),
+])
+def test_shadow_settings_for_forces_no_warp(make_light, kind: str, spot_deg: float | None, parameterization: str,
+                                           warp: str, expected_warp: str) -> None:
+    light = make_light(kind, spot_deg)
+    light.omniwarp.parameterization = parameterization
+    light.omniwarp.warp = warp
+    settings = properties.shadow_settings_for(light)  # ShadowSettings refuses a warp it cannot take
+    assert (settings.parameterization, settings.warp) == (parameterization.lower(), expected_warp)
+    assert light.omniwarp.warp == warp  # the stored warp is kept for a method that takes one
 
 
 @pytest.mark.parametrize("parameterization", ["DPSM", "CUBE"])
@@ -434,9 +581,15 @@ def test_shadow_settings_for(make_light, parameterization: str, warp: str) -> No
     assert settings.cull is False
 
 
-def test_shadow_settings_for_defaults(make_light) -> None:
-    settings = properties.shadow_settings_for(make_light("SPOT"))
-    assert settings == ShadowSettings(parameterization="dpsm", resolution=1024, bias=BiasSettings(), cull=True,
+@pytest.mark.parametrize(("kind", "spot_deg", "expected"), [
+    ("POINT", None, "dpsm"),
+    ("SPOT", 180.0, "dpsm"),
+    ("SPOT", 45.0, "psm"),  # the default item (DPSM) does not fit a spot cone
+    ("SUN", None, "psm"),
+])
+def test_shadow_settings_for_defaults(make_light, kind: str, spot_deg: float | None, expected: str) -> None:
+    settings = properties.shadow_settings_for(make_light(kind, spot_deg))
+    assert settings == ShadowSettings(parameterization=expected, resolution=1024, bias=BiasSettings(), cull=True,
                                       warp="none")
 
 
@@ -454,10 +607,29 @@ def test_light_spec_for(make_light) -> None:
         assert spec.matrix_world.shape == (4, 4) and spec.matrix_world.dtype == np.float64
         np.testing.assert_allclose(spec.position, [1.0, -2.0, 3.0])
         np.testing.assert_allclose(spec.axis, [0.0, 0.0, 1.0], atol=1e-6)  # local -Z turned upward
+        assert spec.spot_size == pytest.approx(math.pi)  # a hemispherical light keeps the default
         light.omniwarp.emission = "OMNI"
         assert properties.light_spec_for(obj).emission == "omni"
     finally:
         bpy.data.objects.remove(obj)
+
+
+def test_light_spec_for_spot_and_sun(make_light) -> None:
+    spot, sun = make_light("SPOT", 60.0), make_light("SUN")
+    sun.energy = 3.0
+    objects = [bpy.data.objects.new(f"omniwarp_test_{light.type.lower()}", light) for light in (spot, sun)]
+    try:
+        spec = properties.light_spec_for(objects[0])
+        assert spec.emission == "spot"
+        assert spec.spot_size == pytest.approx(math.radians(60.0), abs=1e-6)  # float32 in Blender
+        assert spec.spot_size == float(spot.spot_size)
+        spot.omniwarp.emission = "OMNI"  # the point-light treatment: no cone
+        assert properties.light_spec_for(objects[0]).emission == "omni"
+        spec = properties.light_spec_for(objects[1])
+        assert (spec.emission, spec.energy) == ("sun", pytest.approx(3.0))
+    finally:
+        for obj in objects:
+            bpy.data.objects.remove(obj)
 
 
 def test_light_spec_for_rejects_non_lights(registered) -> None:
@@ -478,7 +650,8 @@ def test_light_panel_poll(make_light) -> None:
     poll = panels.OMNIWARP_PT_light.poll
     assert poll(SimpleNamespace(light=make_light("POINT")))
     assert poll(SimpleNamespace(light=make_light("SPOT")))
-    assert not poll(SimpleNamespace(light=make_light("SUN")))
+    assert poll(SimpleNamespace(light=make_light("SUN")))
+    assert not poll(SimpleNamespace(light=make_light("AREA")))
     assert not poll(SimpleNamespace(light=None))  # e.g. a mesh is active
     assert not poll(SimpleNamespace())
 
@@ -507,17 +680,28 @@ def test_light_panel_poll_with_active_object(make_light) -> None:
         bpy.data.meshes.remove(mesh)
 
 
+LIGHT_PANEL_PROPS = ["emission", "parameterization", "warp", "resolution",
+                     "bias_constant", "bias_slope", "bias_normal", "cull"]
+
+
 def test_light_panel_draw(make_light) -> None:
     light = make_light("SPOT", 45.0)
     ctx = SimpleNamespace(light=light, scene=bpy.context.scene)
     assert draw_panel(panels.OMNIWARP_PT_light, ctx, header=True).props() == ["enabled"]
     layout = draw_panel(panels.OMNIWARP_PT_light, ctx)
     assert layout.use_property_split
-    assert layout.props() == ["emission", "parameterization", "warp", "resolution",
-                              "bias_constant", "bias_slope", "bias_normal", "cull"]
+    assert layout.props() == LIGHT_PANEL_PROPS
     labels = " | ".join(layout.labels())
-    assert "Omnidirectional" in labels and "179" in labels and "Bias" in labels
+    assert "Treated as: Spot cone" in labels and "Bias" in labels
+    assert "179" not in labels  # AUTO on a narrow spot shadows its cone only
+    assert layout.layout_of("warp").active is False and "PSM takes no warp" in labels
     assert ("box",) in layout.record
+
+    light.omniwarp.emission = "OMNI"  # explicitly all directions: the note says so
+    layout = draw_panel(panels.OMNIWARP_PT_light, ctx)
+    labels = " | ".join(layout.labels())
+    assert "179" in labels and "Treated as" not in labels
+    assert layout.layout_of("warp").active is True and "takes no warp" not in labels
 
     wide = make_light("SPOT", 180.0)
     labels = draw_panel(panels.OMNIWARP_PT_light, SimpleNamespace(light=wide)).labels()
@@ -525,6 +709,31 @@ def test_light_panel_draw(make_light) -> None:
     wide.omniwarp.emission = "OMNI"
     labels = draw_panel(panels.OMNIWARP_PT_light, SimpleNamespace(light=wide)).labels()
     assert not any("Treated as" in text for text in labels)
+    assert not any("179" in text for text in labels)  # a wide spot is no narrow one
+
+
+@pytest.mark.parametrize(("parameterization", "greyed"), [
+    ("DPSM", False), ("CUBE", False), ("IPSM", False), ("UNFOLD", True)])
+def test_light_panel_greys_out_warp(make_light, parameterization: str, greyed: bool) -> None:
+    light = make_light("POINT")
+    light.omniwarp.parameterization = parameterization
+    layout = draw_panel(panels.OMNIWARP_PT_light, SimpleNamespace(light=light))
+    assert layout.layout_of("warp").active is not greyed
+    assert any("takes no warp" in text for text in layout.labels()) is greyed
+
+
+def test_light_panel_draw_sun(make_light) -> None:
+    sun = make_light("SUN")
+    layout = draw_panel(panels.OMNIWARP_PT_light, SimpleNamespace(light=sun))
+    assert layout.props() == LIGHT_PANEL_PROPS[1:]  # no emission choice for a sun
+    labels = " | ".join(layout.labels())
+    assert "Treated as: Sun (parallel)" in labels
+    assert layout.layout_of("warp").active is False
+    # Only before Blender 5.0 does the field show the unfitting default (DPSM) as blank.
+    assert ("Stored method does not fit this light: using PSM" in labels) is not properties._HAS_GET_TRANSFORM
+    sun.omniwarp.parameterization = "SM"
+    labels = " | ".join(draw_panel(panels.OMNIWARP_PT_light, SimpleNamespace(light=sun)).labels())
+    assert "Stored method" not in labels and "SM takes no warp" in labels
 
 
 def test_viewport_panel_draw_without_lights(registered) -> None:
@@ -545,12 +754,15 @@ def test_viewport_panel_lists_enabled_lights(light_object) -> None:
     shown.data.omniwarp.warp = "NOTW"
     shown.data.omniwarp.resolution = 512
     light_object("omniwarp_test_hidden", enabled=False)
-    light_object("omniwarp_test_sun", kind="SUN")  # enabled but unsupported
-    assert [o.name for o in panels.enabled_light_objects(scene)] == ["omniwarp_test_shown"]
+    light_object("omniwarp_test_area", kind="AREA")  # enabled but unsupported
+    sun = light_object("omniwarp_test_sun", kind="SUN")
+    sun.data.omniwarp.warp = "NOTW"  # stored, but psm takes no warp
+    assert [o.name for o in panels.enabled_light_objects(scene)] == ["omniwarp_test_shown", "omniwarp_test_sun"]
     labels = draw_panel(panels.OMNIWARP_PT_viewport, SimpleNamespace(scene=scene)).labels()
-    assert "omniwarp_test_shown" in labels
+    assert "omniwarp_test_shown" in labels and "omniwarp_test_sun" in labels
     assert "CUBE + NOTW, 512 px, omni" in labels
-    assert not any("hidden" in text or "sun" in text for text in labels)
+    assert "PSM, 1024 px, sun" in labels
+    assert not any("hidden" in text or "area" in text for text in labels)
     assert not any("No light" in text for text in labels)
 
 
@@ -562,6 +774,27 @@ def test_overlay_panel_draw(registered) -> None:
     assert draw_panel(panels.OMNIWARP_PT_overlay, ctx, header=True).props() == ["overlay_enabled"]
     layout = draw_panel(panels.OMNIWARP_PT_overlay, ctx)
     assert layout.props() == ["overlay_maps", "overlay_size", "overlay_corner", "overlay_stats"]
+
+
+def test_light_settings_survive_unregister_and_register(no_runtime, recorder: ViewportRecorder) -> None:
+    """The stored choices live in the .blend data, so re-registering (an extension update) finds them."""
+    registration.unregister()
+    registration.register()
+    point, sun = bpy.data.lights.new("omniwarp_keep_point", "POINT"), bpy.data.lights.new("omniwarp_keep_sun", "SUN")
+    try:
+        point.omniwarp.parameterization, point.omniwarp.warp = "UNFOLD", "RTW"
+        sun.omniwarp.parameterization, sun.omniwarp.resolution = "SM", 2048
+        registration.unregister()
+        assert not hasattr(point, "omniwarp")
+        registration.register()
+        assert (point.omniwarp.parameterization, point.omniwarp.warp) == ("UNFOLD", "RTW")
+        assert (sun.omniwarp.parameterization, sun.omniwarp.resolution) == ("SM", 2048)
+        assert properties.shadow_settings_for(point).warp == "none"
+        assert properties.shadow_settings_for(sun).parameterization == "sm"
+    finally:
+        bpy.data.lights.remove(point)
+        bpy.data.lights.remove(sun)
+        registration.unregister()
 
 
 def test_unregister_removes_pointers(no_runtime) -> None:

@@ -45,7 +45,9 @@ LIGHT_VALUES: dict[str, Any] = {
     "cull": False,
 }
 # A second light covers the other enum items.
-SPOT_VALUES: dict[str, Any] = {"emission": "OMNI", "warp": "RTW", "resolution": 512}
+# parameterization is a dynamic enum (items per light type), so the worker cannot pick a
+# non-default value from the class; name one a point-treated spot takes.
+SPOT_VALUES: dict[str, Any] = {"emission": "OMNI", "parameterization": "IPSM", "warp": "RTW", "resolution": 512}
 SCENE_VALUES: dict[str, Any] = {
     "preview_enabled": True,
     "shadow_strength": 0.25,
