@@ -19,9 +19,9 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from . import perspective
-from .perspective import hull_planes  # one convex-hull routine for culling and PSM
+from . import perspective, projection
 from .frames import Layer, Parameterization, ipsm_layer, light_layers, pick_slot, projective_layer
+from .perspective import hull_planes  # one convex-hull routine for culling and PSM
 from .projection import CUBE
 from .scene import CameraSpec, LightSpec
 
@@ -47,6 +47,7 @@ class Plan:
     requested: str = ""  # the parameterization asked for (ipsm may fall back to dpsm)
     occluder_planes: np.ndarray | None = None  # (P, 4) outward planes of conv(light, view frustum)
     projective: "perspective.ProjectiveMap | None" = None  # sm and psm: the map's matrix
+    sample_corners: np.ndarray | None = None  # (8, 3) strictly truncated frustum: holds every sample
 
     @property
     def drawn_slots(self) -> list[int]:
@@ -223,8 +224,9 @@ def plan_frame(light: LightSpec, parameterization: Parameterization, camera: Cam
         # is always drawn, so culling never changes a shadow.
         meets |= occupied_slots(light, parameterization, positions, hit)
     drawn = [layer for layer in layers if layer.slot in meets]
+    strict = truncated_frustum(camera, positions, hit)
     return Plan(parameterization, layers, drawn, corners, [layer.name for layer in layers if layer.slot not in meets],
-                occluder_planes=occluder_region(light, camera, positions, hit))
+                occluder_planes=hull_planes(np.vstack([strict, light.position[None]])), sample_corners=strict)
 
 
 def plan_projective(light: LightSpec, parameterization: Parameterization, camera: CameraSpec | None,
@@ -258,6 +260,40 @@ def plan_projective(light: LightSpec, parameterization: Parameterization, camera
             planes = hull_planes(np.vstack([corners, light.position[None]]))
     return Plan(used, [layer], [layer], corners, requested=parameterization, occluder_planes=planes,
                 projective=projective)
+
+
+# Map-space culling (layer_scissor): the box of the frustum's image grows by this share
+# of its size plus SCISSOR_MARGIN_TEXELS, for the shadow test's normal offset and for
+# the curve of an edge's image between its sampled points.
+SCISSOR_GROW = 0.02
+SCISSOR_MARGIN_TEXELS = 4
+SCISSOR_EDGE_POINTS = 64
+
+
+def layer_scissor(layer: Layer, light_position: np.ndarray, sample_corners: np.ndarray | None,
+                  resolution: int) -> tuple[int, int, int, int] | None:
+    """Texel box (x0, y0, x1, y1) of a plain layer that can be looked up, or None (all of it).
+
+    Every view sample lies in the strictly truncated frustum, so the shadow test reads
+    only texels in that frustum's image (plus the normal offset). Seen from a light
+    outside it, the image of a convex frustum is bounded by the images of its edges.
+    Conservative: None when the light is inside the frustum, when part of the frustum
+    lies behind the layer's plane (its image is unbounded there), or with no samples.
+    """
+    if sample_corners is None or point_in_frustum(light_position, sample_corners):
+        return None
+    local = layer.to_local(frustum_edge_points(sample_corners, SCISSOR_EDGE_POINTS) - light_position)
+    if np.any(local[:, 2] <= 1e-9 * (float(np.abs(local).max()) + 1e-30)):
+        return None
+    xy = projection.project(layer.kind, local)
+    lo, hi = xy.min(axis=0) * 0.5 + 0.5, xy.max(axis=0) * 0.5 + 0.5
+    grow = (hi - lo) * SCISSOR_GROW
+    margin = SCISSOR_MARGIN_TEXELS / resolution
+    lo = np.clip(lo - grow - margin, 0.0, 1.0)
+    hi = np.clip(hi + grow + margin, 0.0, 1.0)
+    x0, y0 = (int(v) for v in np.floor(lo * resolution))
+    x1, y1 = (int(v) for v in np.ceil(hi * resolution))
+    return x0, y0, x1, y1
 
 
 def occupied_slots(light: LightSpec, parameterization: Parameterization, positions: np.ndarray,

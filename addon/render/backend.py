@@ -41,6 +41,13 @@ class AtlasLayout:
         x, y = self.origin(tile)
         return x, y, self.resolution * span, self.resolution
 
+    def scissor_rect(self, tile: int, box: tuple[int, int, int, int]) -> tuple[int, int, int, int]:
+        """Atlas rectangle (x, y, w, h) of a tile-local texel box (x0, y0, x1, y1), clipped to the tile."""
+        res = self.resolution
+        x0, y0, x1, y1 = (min(max(int(v), 0), res) for v in box)
+        x, y = self.origin(tile)
+        return x + x0, y + y0, max(x1 - x0, 0), max(y1 - y0, 0)
+
     @staticmethod
     def for_tiles(resolution: int, tiles: int, max_texture: int) -> "AtlasLayout":
         """Widest layout (at most 3 columns) that fits the GPU's texture size limit."""
@@ -73,8 +80,12 @@ class ShadowBackend(ABC):
         """Make the atlas exist at this layout and clear it to depth 1 (empty)."""
 
     @abstractmethod
-    def draw_layer(self, tile: int, vertices: np.ndarray, uniforms: UniformValues, span: int = 1) -> None:
+    def draw_layer(self, tile: int, vertices: np.ndarray, uniforms: UniformValues, span: int = 1,
+                   scissor: tuple[int, int, int, int] | None = None) -> None:
         """Draw triangles into one tile (or `span` tiles side by side) with the depth program.
+
+        `scissor` (x0, y0, x1, y1), in texels of the tile, limits the fragments drawn to
+        the part of the map the shadow test can read (plan.layer_scissor).
 
         `vertices` is (n, 9) float32, three rows per triangle: light-centred
         position (3), plane (4) and distance range (2), matching DEPTH_PROGRAM.

@@ -259,7 +259,8 @@ class BlenderGPUBackend(ShadowBackend):
         with self._atlas_fb.bind():
             self._atlas_fb.clear(color=(1.0, 1.0, 1.0, 1.0), depth=1.0)
 
-    def draw_layer(self, tile: int, vertices: np.ndarray, uniforms: UniformValues, span: int = 1) -> None:
+    def draw_layer(self, tile: int, vertices: np.ndarray, uniforms: UniformValues, span: int = 1,
+                   scissor: tuple[int, int, int, int] | None = None) -> None:
         import gpu
         from gpu_extras.batch import batch_for_shader
 
@@ -277,6 +278,10 @@ class BlenderGPUBackend(ShadowBackend):
             batch = batch_for_shader(shader, "TRIS", {
                 "ow_position": data[:, 0:3], "ow_plane": data[:, 3:7], "ow_range": data[:, 7:9]})
             gpu.state.viewport_set(*viewport)
+            if scissor is not None:
+                # Fragments outside the readable box are never looked up (map-space culling).
+                gpu.state.scissor_set(*self._layout.scissor_rect(tile, scissor))
+                gpu.state.scissor_test_set(True)
             gpu.state.depth_test_set("LESS")
             gpu.state.depth_mask_set(True)
             gpu.state.face_culling_set("NONE")  # both windings cast shadows
@@ -285,6 +290,8 @@ class BlenderGPUBackend(ShadowBackend):
             finally:
                 gpu.state.depth_test_set("NONE")
                 gpu.state.depth_mask_set(False)
+                if scissor is not None:
+                    gpu.state.scissor_test_set(False)
 
     def upload_samples(self, positions: np.ndarray, normals: np.ndarray) -> None:
         import gpu

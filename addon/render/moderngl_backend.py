@@ -175,7 +175,8 @@ class ModernGLBackend(ShadowBackend):
         self._atlas_fbo.clear(1.0, 1.0, 1.0, 1.0, depth=1.0)
 
     @_current
-    def draw_layer(self, tile: int, vertices: np.ndarray, uniforms: UniformValues, span: int = 1) -> None:
+    def draw_layer(self, tile: int, vertices: np.ndarray, uniforms: UniformValues, span: int = 1,
+                   scissor: tuple[int, int, int, int] | None = None) -> None:
         if self._atlas_layout is None:
             raise BackendError("draw_layer called before begin_atlas")
         try:
@@ -192,6 +193,9 @@ class ModernGLBackend(ShadowBackend):
             try:
                 self._atlas_fbo.use()
                 self._atlas_fbo.viewport = viewport
+                # Fragments outside the readable box are never looked up (map-space culling).
+                self._atlas_fbo.scissor = (viewport if scissor is None
+                                           else self._atlas_layout.scissor_rect(tile, scissor))
                 self.ctx.enable(self._mgl.DEPTH_TEST)
                 self.ctx.disable(self._mgl.CULL_FACE)  # both windings cast shadows
                 self.ctx.depth_func = "<"
@@ -201,6 +205,7 @@ class ModernGLBackend(ShadowBackend):
         finally:
             vbo.release()
             self.ctx.disable(self._mgl.DEPTH_TEST)
+            self._atlas_fbo.scissor = None  # whole framebuffer again
 
     @_current
     def upload_samples(self, positions: np.ndarray, normals: np.ndarray) -> None:

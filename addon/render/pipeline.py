@@ -18,7 +18,7 @@ import numpy as np
 from ..core import frames, projection, tessellate
 from ..core.errors import InputError
 from ..core.frames import POINT_PARAMETERIZATIONS, PROJECTIVE_PARAMETERIZATIONS, Layer, Parameterization
-from ..core.plan import Plan, frustum_edge_points, outside_region, plan_frame, plan_projective
+from ..core.plan import Plan, frustum_edge_points, layer_scissor, outside_region, plan_frame, plan_projective
 from ..core.scene import CameraSpec, LightSpec
 from ..core.warping import (
     FLOOR_SHARE,
@@ -481,8 +481,12 @@ class ShadowPipeline:
             for layer in plan.drawn:
                 origin = layout.origin(tile_of_slot[layer.slot])
                 mapping = mappings.get(layer.slot, LayerMapping.identity())
+                # A crop or warp already fits the map to the samples; a plain layer is
+                # scissored to the part the test can read (culling, so not with --no-cull).
+                scissor = (layer_scissor(layer, light.position, plan.sample_corners, res)
+                           if settings.cull and mapping.is_identity else None)
                 backend.draw_layer(tile_of_slot[layer.slot], geometry.streams[layer.slot],
-                                   _layer_uniforms(layer, geometry, res, origin, mapping, size))
+                                   _layer_uniforms(layer, geometry, res, origin, mapping, size), scissor=scissor)
         edge_radius = 0
         if settings.edge_aa and plan.drawn:
             edge_radius, edge_eps = edge_aa_parameters(res, geometry.near, geometry.far)
