@@ -325,3 +325,34 @@ def test_courtyard_preset_needs_one_side_and_three_faces():
     assert dpsm.drawn_slots == [0]
     assert len(cube.drawn) <= 3 and 4 not in cube.drawn_slots
     assert _slots_needed(scene.light, "cube", pos[hit]) <= set(cube.drawn_slots)
+
+
+@settings(max_examples=60, deadline=None)
+@given(st.integers(0, 10_000), st.sampled_from(["dpsm", "cube"]))
+def test_layer_scissor_holds_every_sample(seed, par):
+    """Map-space culling is conservative: every sample in the frustum, moved by up to a
+    texel (the normal offset), projects inside its layer's scissor box; a light inside
+    the frustum gets no box."""
+    from addon.core import projection
+
+    rng = np.random.default_rng(seed)
+    camera = CameraSpec(look_at(rng.uniform(-5, 5, 3), rng.uniform(-1, 1, 3) + [0.0, 0.0, 0.01]), 60.0, (64, 48))
+    samples = _random_frustum_samples(camera, rng, 400, 0.5, 20.0)
+    corners = PL.frustum_corners(camera, 0.5, 20.0)
+    light = LightSpec("omni", translation(rng.uniform(-30, 30, 3)))
+    res = 256
+    for layer in F.light_layers(light, par):
+        box = PL.layer_scissor(layer, light.position, corners, res)
+        if PL.point_in_frustum(light.position, corners):
+            assert box is None
+        if box is None:
+            continue
+        local = layer.to_local(samples - light.position)
+        mine = F.pick_slot(par, (samples - light.position) @ light.rotation) == layer.slot
+        if not np.any(mine):
+            continue
+        texel = (projection.project(layer.kind, local[mine]) * 0.5 + 0.5) * res
+        # A texel of slack inside the box, except where the box meets the map's border.
+        lo = np.array([box[0] + 1 if box[0] > 0 else 0, box[1] + 1 if box[1] > 0 else 0])
+        hi = np.array([box[2] - 1 if box[2] < res else res, box[3] - 1 if box[3] < res else res])
+        assert np.all(texel >= lo) and np.all(texel <= hi), (box, texel.min(axis=0), texel.max(axis=0))
