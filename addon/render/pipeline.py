@@ -48,7 +48,7 @@ _SHADOW_TEST_KIND = {"cube": projection.CUBE, "unfold": projection.UNFOLD}  # ot
 # A triangle drawn whole into the unfold half of its nearer pole must keep clear of
 # the opposite pole, where the projection is singular (the pole becomes the rim).
 # Beyond this angle from the pole, or covering the opposite pole, it is split at the
-# seam instead (docs/methods.md).
+# seam instead (docs/unfold_psm.md).
 UNFOLD_WHOLE_MAX_ANGLE = math.radians(120.0)
 
 
