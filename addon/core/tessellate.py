@@ -14,6 +14,7 @@ always agree and no T-junction (a pinhole leak in a shadow map) can appear.
 from __future__ import annotations
 
 import logging
+import math
 from collections.abc import Callable
 from dataclasses import dataclass
 
@@ -112,17 +113,34 @@ def clip_halfspace(triangles: np.ndarray, signed: np.ndarray) -> np.ndarray:
     return pieces[area2 > 0.0]
 
 
-def split_at_seam(local_triangles: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+def split_at_seam(local_triangles: np.ndarray, overlap: float = 0.0) -> tuple[np.ndarray, np.ndarray]:
     """Split light-centred triangles (in a frame whose z is the seam normal) at z = 0.
 
     Returns (front, back): the parts with z >= 0 and with z <= 0. Triangles lying
     in the plane itself subtend no solid angle and are dropped from both.
+
+    With `overlap` (radians), the parts of a triangle that crosses the seam reach at
+    least that angle past it: front keeps z >= -sin(overlap) |p|. A cut edge is drawn
+    as a straight chord, and texels whose centre lies just past the rim would
+    otherwise stay empty, so lookups right at the seam found no occluder (light
+    leaking along grazing floors). Triangles wholly on one side are not extended: a
+    receiver would then meet itself in the other side's map. The cut interpolates |p|
+    linearly, which overestimates it (|p| is convex along an edge), so the reach is
+    never less than asked.
     """
     tris = np.asarray(local_triangles, dtype=np.float64)
     z = tris[..., 2]
     flat = np.all(z == 0.0, axis=1)
     tris, z = tris[~flat], z[~flat]
-    return clip_halfspace(tris, z), clip_halfspace(tris, -z)
+    if overlap <= 0.0:
+        return clip_halfspace(tris, z), clip_halfspace(tris, -z)
+    crossing = (z.max(axis=1) > 0.0) & (z.min(axis=1) < 0.0)
+    reach = math.sin(overlap) * np.linalg.norm(tris[crossing], axis=2)
+    front = np.concatenate([clip_halfspace(tris[~crossing], z[~crossing]),
+                            clip_halfspace(tris[crossing], z[crossing] + reach)])
+    back = np.concatenate([clip_halfspace(tris[~crossing], -z[~crossing]),
+                           clip_halfspace(tris[crossing], reach - z[crossing])])
+    return front, back
 
 
 def _edge_marks(tris: np.ndarray, project_texels: Callable[[np.ndarray], np.ndarray], tolerance: float,

@@ -177,6 +177,19 @@ def _map_texels(kind: int, mapping: LayerMapping, res: int):
     return to_texels
 
 
+# Seam-cut pieces reach this many texels past the seam (tessellate.split_at_seam):
+# one for the texel ring straddling the rim, one for the chord's sag (the bend
+# tolerance), half for the normal offset.
+SEAM_OVERLAP_TEXELS = 2.5
+
+
+def seam_overlap(kind: int, res: int) -> float:
+    """Angle (radians) that a side's seam-cut pieces reach past the seam: SEAM_OVERLAP_TEXELS
+    texels of that map at the seam (a paraboloid's rim, an unfold half's equator)."""
+    at_seam = np.array([[1.0, 0.0]]) if kind == projection.PARABOLOID else np.array([[0.5, 0.0]])
+    return SEAM_OVERLAP_TEXELS * float(projection.texel_angle(kind, at_seam, res)[0])
+
+
 def texel_angle_floor(kind: int, mapping: LayerMapping, res: int) -> float:
     """A lower bound of one texel's angle anywhere inside a (cropped, warped) map.
 
@@ -240,7 +253,7 @@ def prepare_geometry(light: LightSpec, triangles: np.ndarray, plan: Plan, settin
     elif plan.parameterization == "dpsm":
         # Split once at the seam plane of side 0 (whose +z is the light's -Z axis).
         side0 = frames.light_layers(light, "dpsm")[0]
-        front, back = tessellate.split_at_seam(side0.to_local(centred))
+        front, back = tessellate.split_at_seam(side0.to_local(centred), seam_overlap(projection.PARABOLOID, res))
         # Side 1's frame is diag(1, -1, -1) times side 0's, so flip y and z of the back pieces.
         pieces = {0: front, 1: back * np.array([1.0, -1.0, -1.0])}
         for layer in plan.drawn:
@@ -303,7 +316,7 @@ def _unfold_stream(centred: np.ndarray, plan: Plan, settings: ShadowSettings) ->
     local = plan.all_layers[0].to_local(centred)  # half 0's frame: +z is its pole
     if len(plan.drawn) == 1:
         # Hemispherical light: only half 0; nothing behind the light plane can shadow.
-        halves = [tessellate.split_at_seam(local)[0]]
+        halves = [tessellate.split_at_seam(local, seam_overlap(projection.UNFOLD, res))[0]]
     else:
         z = projection.unit_directions(local)[..., 2]
         nearer0 = z.mean(axis=1) >= 0.0
@@ -313,8 +326,9 @@ def _unfold_stream(centred: np.ndarray, plan: Plan, settings: ShadowSettings) ->
                           _contains_ray(local, np.array([0.0, 0.0, 1.0])))
         straddle = (z.max(axis=1) > 0.0) & (z.min(axis=1) < 0.0)
         whole0, whole1 = nearer0 & ~reach, ~nearer0 & ~reach
-        front_of_1, _ = tessellate.split_at_seam(local[(whole1 & straddle) | reach])
-        _, back_of_0 = tessellate.split_at_seam(local[(whole0 & straddle) | reach])
+        overlap = seam_overlap(projection.UNFOLD, res)
+        front_of_1, _ = tessellate.split_at_seam(local[(whole1 & straddle) | reach], overlap)
+        _, back_of_0 = tessellate.split_at_seam(local[(whole0 & straddle) | reach], overlap)
         halves = [np.concatenate([local[whole0], front_of_1]),
                   np.concatenate([local[whole1], back_of_0]) * np.array([1.0, -1.0, -1.0])]
     streams, added = [], 0

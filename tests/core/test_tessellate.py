@@ -272,3 +272,43 @@ def test_tessellate_monotone_in_resolution(mesh):
     assert counts == sorted(counts), counts
     assert counts[-1] > counts[0]
 
+
+
+@settings(max_examples=100, deadline=None)
+@given(st.integers(0, 100_000), st.floats(1e-4, 0.05))
+def test_split_at_seam_overlap_reaches_past_the_seam(seed, overlap):
+    """With an overlap, the pieces of a crossing triangle cover it up to the angle
+    `overlap` past the seam on each side (never less), and triangles wholly on one side
+    stay on that side only."""
+    rng = np.random.default_rng(seed)
+    tris = rng.normal(size=(20, 3, 3)) * rng.uniform(0.1, 50.0)
+    front, back = T.split_at_seam(tris, overlap)
+    z = tris[..., 2]
+    one_sided = ~((z.max(axis=1) > 0) & (z.min(axis=1) < 0))
+    whole_front, whole_back = T.split_at_seam(tris[one_sided])
+    assert len(front) >= len(whole_front) and len(back) >= len(whole_back)
+    # Probe points on the crossing triangles within the overlap band past the seam.
+    crossing = tris[~one_sided]
+    if len(crossing) == 0:
+        return
+    w = rng.dirichlet(np.ones(3), size=(len(crossing), 200))
+    points = np.einsum("tkc,tci->tki", w, crossing).reshape(-1, 3)
+    elevation = np.arcsin(np.clip(points[:, 2] / np.linalg.norm(points, axis=1), -1, 1))
+    for pieces, band in ((front, (elevation < 0) & (elevation > -overlap * 0.999)),
+                         (back, (elevation > 0) & (elevation < overlap * 0.999))):
+        probe = points[band]
+        if len(probe) == 0 or len(pieces) == 0:
+            continue
+        # Each probe point lies in some piece: barycentric inside test on the piece planes.
+        a, b, c = pieces[:, 0], pieces[:, 1], pieces[:, 2]
+        n = np.cross(b - a, c - a)
+        inside = np.zeros(len(probe), dtype=bool)
+        for k in range(len(pieces)):
+            d = (probe - a[k]) @ n[k]
+            on_plane = np.abs(d) <= 1e-7 * (np.linalg.norm(n[k]) * (np.abs(probe).max() + 1.0))
+            e0 = np.cross(b[k] - a[k], probe - a[k]) @ n[k]
+            e1 = np.cross(c[k] - b[k], probe - b[k]) @ n[k]
+            e2 = np.cross(a[k] - c[k], probe - c[k]) @ n[k]
+            tol = -1e-9 * np.linalg.norm(n[k]) ** 2
+            inside |= on_plane & (e0 >= tol) & (e1 >= tol) & (e2 >= tol)
+        assert inside.all()

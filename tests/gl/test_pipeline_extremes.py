@@ -49,9 +49,25 @@ def _huge_floor():
     return b.finish()
 
 
-@pytest.fixture(scope="module", params=["vertex_at_light", "seam", "huge_floor"])
+def _grazing_floor():
+    """A light 2 cm above a long floor: receivers at 89+ degrees, right at the dpsm seam,
+    with blocks 5-30 cm tall whose shadows run to the floor's end."""
+    b = SceneBuilder("grazing", SIZE)
+    b.plane("floor", (9.0, 0.0, 0.0), 20.0, 8.0)
+    for i, (x, y, h) in enumerate([(2.0, -0.6, 0.05), (4.0, 1.0, 0.1), (7.0, -1.5, 0.2), (11.0, 0.5, 0.3)]):
+        b.box(f"block_{i}", (x, y, h / 2.0), (0.4, 0.4, h), rotate_z_deg=15.0 * i)
+    b.point_light((0.0, 0.0, 0.02))
+    b.camera((-1.0, -3.0, 1.2), (8.0, 0.5, 0.0), fov_deg=60)
+    return b.finish()
+
+
+CASES = {"vertex_at_light": _vertex_at_light, "seam": _seam_straddler, "huge_floor": _huge_floor,
+         "grazing": _grazing_floor}
+
+
+@pytest.fixture(scope="module", params=list(CASES))
 def case(request):
-    scene = {"vertex_at_light": _vertex_at_light, "seam": _seam_straddler, "huge_floor": _huge_floor}[request.param]()
+    scene = CASES[request.param]()
     samples, lit, evaluable = view_samples(scene)
     return scene, samples, lit, evaluable
 
