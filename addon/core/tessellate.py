@@ -119,14 +119,17 @@ def split_at_seam(local_triangles: np.ndarray, overlap: float = 0.0) -> tuple[np
     Returns (front, back): the parts with z >= 0 and with z <= 0. Triangles lying
     in the plane itself subtend no solid angle and are dropped from both.
 
-    With `overlap` (radians), the parts of a triangle that crosses the seam reach at
-    least that angle past it: front keeps z >= -sin(overlap) |p|. A cut edge is drawn
-    as a straight chord, and texels whose centre lies just past the rim would
-    otherwise stay empty, so lookups right at the seam found no occluder (light
-    leaking along grazing floors). Triangles wholly on one side are not extended: a
-    receiver would then meet itself in the other side's map. The cut interpolates |p|
-    linearly, which overestimates it (|p| is convex along an edge), so the reach is
-    never less than asked.
+    With `overlap` (radians), each part of a triangle that crosses the seam reaches
+    past it: a cut edge is drawn as a straight chord, and texels whose centre lies just
+    past the rim would otherwise stay empty, so lookups right at the seam found no
+    occluder (light leaking along grazing floors). The cut is the plane z = -c (front)
+    or z = c (back), exact and affine, with c = sin(overlap) times the farthest point
+    where the triangle meets the seam: the reach is at least `overlap` along the whole
+    cut. c is capped at sin(2 overlap) times the distance from the light to the
+    triangle's plane, so no piece reaches more than twice the overlap past the seam
+    (a piece must never approach the opposite pole, where the projections are
+    singular); a crossing triangle nearly edge-on to the light gets less reach. Triangles wholly
+    on one side are not extended: a receiver would then meet itself in the other map.
     """
     tris = np.asarray(local_triangles, dtype=np.float64)
     z = tris[..., 2]
@@ -135,12 +138,31 @@ def split_at_seam(local_triangles: np.ndarray, overlap: float = 0.0) -> tuple[np
     if overlap <= 0.0:
         return clip_halfspace(tris, z), clip_halfspace(tris, -z)
     crossing = (z.max(axis=1) > 0.0) & (z.min(axis=1) < 0.0)
-    reach = math.sin(overlap) * np.linalg.norm(tris[crossing], axis=2)
+    reach = _seam_reach(tris[crossing], overlap)[:, None]
     front = np.concatenate([clip_halfspace(tris[~crossing], z[~crossing]),
                             clip_halfspace(tris[crossing], z[crossing] + reach)])
     back = np.concatenate([clip_halfspace(tris[~crossing], -z[~crossing]),
                            clip_halfspace(tris[crossing], reach - z[crossing])])
     return front, back
+
+
+def _seam_reach(tris: np.ndarray, overlap: float) -> np.ndarray:
+    """Per crossing triangle, the plane offset c of `split_at_seam`'s overlap."""
+    if len(tris) == 0:
+        return np.zeros(0)
+    a, b = tris, np.roll(tris, -1, axis=1)
+    za, zb = a[..., 2], b[..., 2]
+    cuts = (za > 0.0) != (zb > 0.0)  # each crossing triangle has two such edges
+    t = np.where(cuts, za / np.where(za != zb, za - zb, 1.0), 0.0)
+    points = a + t[..., None] * (b - a)  # (T, 3, 3): where each edge meets z = 0
+    dist = np.where(cuts, np.linalg.norm(points, axis=2), 0.0)
+    farthest = dist.max(axis=1)
+    # Every point of the triangle is at least its plane's distance from the light, so
+    # capping c there bounds the reach everywhere, not only along the cut.
+    normal = np.cross(tris[:, 1] - tris[:, 0], tris[:, 2] - tris[:, 0])
+    normal /= np.maximum(np.linalg.norm(normal, axis=1, keepdims=True), 1e-300)
+    nearest = np.abs(np.einsum("ij,ij->i", normal, tris[:, 0]))
+    return np.minimum(math.sin(overlap) * farthest, math.sin(2.0 * overlap) * nearest)
 
 
 def _edge_marks(tris: np.ndarray, project_texels: Callable[[np.ndarray], np.ndarray], tolerance: float,
