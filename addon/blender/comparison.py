@@ -531,6 +531,20 @@ def _store_row(settings: OMNIWARP_PG_comparison, row: dict) -> None:
     item.mismatch_image = row.get("mismatch_image", "")
 
 
+def _drop_unfit_tasks(job: _Job) -> str:
+    """Drop the ticked methods the reference's light does not take (as `compare` skips
+    them); an InputError when none is left. Returns a note for the step's message."""
+    emission = job.reference.emission
+    unfit = sorted({method for method, _ in job.tasks if not compare.method_fits(method, emission)})
+    if not unfit:
+        return ""
+    job.tasks = [(method, res) for method, res in job.tasks if compare.method_fits(method, emission)]
+    if not job.tasks:
+        raise InputError(f"none of the ticked methods fits the {emission} light of {job.preset}: "
+                         f"{compare.fits_text(emission)}")
+    return f"; skipped {', '.join(unfit)}: they do not fit a {emission} light"
+
+
 def step_job(job: _Job) -> str:
     """Do the next step (the reference, or one row); returns what it did."""
     scene = _job_scene(job)
@@ -539,6 +553,7 @@ def step_job(job: _Job) -> str:
         start = time.perf_counter()
         _load_reference(job)
         done = f"reference of {job.preset} ready in {time.perf_counter() - start:.1f} s"
+        done += _drop_unfit_tasks(job)
     else:
         method, resolution = job.tasks[job.next_task]
         start = time.perf_counter()

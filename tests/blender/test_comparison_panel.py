@@ -403,3 +403,18 @@ def test_results_list_draws_a_row(registered) -> None:
     comparison.OMNIWARP_UL_results.draw_item(SimpleNamespace(layout_type="DEFAULT"), bpy.context, layout, settings,
                                              item, 0, settings, "active_result", 0)
     assert layout.of("label") == ["cube+notw", "1024", "0.125 %", "33.3 ms", "5 p"]
+
+
+def test_unfit_methods_are_dropped_after_the_reference(registered) -> None:
+    """Like `compare`, the panel skips ticked methods the reference's light does not take,
+    and stops with a named error when none is left."""
+    from addon.core.errors import InputError
+
+    job = SimpleNamespace(reference=SimpleNamespace(emission="sun"), preset="sun_field",
+                          tasks=[("dpsm", 512), ("psm", 512), ("unfold", 1024), ("sm", 1024)])
+    note = comparison._drop_unfit_tasks(job)
+    assert job.tasks == [("psm", 512), ("sm", 1024)]
+    assert "dpsm" in note and "unfold" in note
+    job = SimpleNamespace(reference=SimpleNamespace(emission="omni"), preset="room_omni", tasks=[("psm", 512)])
+    with pytest.raises(InputError, match="none of the ticked methods fits the omni light"):
+        comparison._drop_unfit_tasks(job)
