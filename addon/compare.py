@@ -20,9 +20,10 @@ import numpy as np
 
 from .core import metrics
 from .core.errors import InputError
-from .core.scene import CameraSpec, LightSpec, parse_size  # noqa: F401 - parse_size is part of this API
-from .reference.data import ReferenceData
 from .core.frames import PROJECTIVE_PARAMETERIZATIONS
+from .core.scene import POINT_EMISSIONS, PROJECTIVE_EMISSIONS, CameraSpec, LightSpec
+from .core.scene import parse_size  # noqa: F401 - parse_size is part of this API
+from .reference.data import ReferenceData
 from .render.blender_draw import pool_image
 from .render.pipeline import (
     MAX_RESOLUTION,
@@ -77,9 +78,8 @@ class CompareOptions:
 def method_fits(method: str, emission: str) -> bool:
     """True when a method can shadow this kind of light (see pipeline.check_light_fits)."""
     if method in EXTERNAL_METHODS:
-        return emission in ("omni", "hemi")
-    parameterization = METHODS[method][0]
-    return (parameterization in PROJECTIVE_PARAMETERIZATIONS) == (emission in ("spot", "sun"))
+        return emission in POINT_EMISSIONS
+    return _projective(method) == (emission in PROJECTIVE_EMISSIONS)
 
 
 def _projective(method: str) -> bool:
@@ -88,7 +88,7 @@ def _projective(method: str) -> bool:
 
 def fits_text(emission: str) -> str:
     """Which methods a light of this emission takes, for messages."""
-    if emission in ("spot", "sun"):
+    if emission in PROJECTIVE_EMISSIONS:
         return "spot and sun lights take " + ", ".join(m for m in METHODS if _projective(m))
     return "point lights take " + ", ".join([m for m in METHODS if not _projective(m)] + list(EXTERNAL_METHODS))
 
@@ -124,9 +124,9 @@ def parse_resolutions(text: str) -> tuple[int, ...]:
 
 
 def light_from_reference(ref: ReferenceData) -> LightSpec:
-    if ref.emission not in ("omni", "hemi", "spot", "sun"):
+    if ref.emission not in POINT_EMISSIONS + PROJECTIVE_EMISSIONS:
         raise InputError(f"the reference light is {ref.emission!r}; expected omni, hemi, spot or sun")
-    return LightSpec(ref.emission, ref.light_matrix, spot_size=float(getattr(ref, "spot_size", math.pi)))  # type: ignore[arg-type]
+    return LightSpec(ref.emission, ref.light_matrix, spot_size=ref.spot_size)  # type: ignore[arg-type]
 
 
 def camera_from_reference(ref: ReferenceData) -> CameraSpec:
@@ -351,8 +351,8 @@ def run_compare(references: dict[str, Callable[[], ReferenceData]], options: Com
                 if not method_fits(method, ref.emission):
                     # e.g. `--preset all --methods dpsm,psm`: each light gets the methods it fits.
                     skipped.append(f"{preset} {method}")
-                    print(f"skipped {preset} {method}: it does not fit a {ref.emission} light ({fits_text(ref.emission)})",
-                          file=sys.stderr)
+                    print(f"skipped {preset} {method}: it does not fit a {ref.emission} light "
+                          f"({fits_text(ref.emission)})", file=sys.stderr)
                     progress.done += 1 if method in EXTERNAL_METHODS else len(options.resolutions) * variants
                     continue
                 if method in EXTERNAL_METHODS:

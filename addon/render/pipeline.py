@@ -15,7 +15,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from ..core import frames, projection, tessellate
+from ..core import frames, perspective, projection, tessellate
 from ..core.errors import InputError
 from ..core.frames import POINT_PARAMETERIZATIONS, PROJECTIVE_PARAMETERIZATIONS, Layer, Parameterization
 from ..core.plan import Plan, frustum_edge_points, layer_scissor, outside_region, plan_frame, plan_projective
@@ -306,8 +306,9 @@ def _unfold_stream(centred: np.ndarray, plan: Plan, settings: ShadowSettings) ->
     (by the mean of its corner directions). Alone that leaves pinholes along the
     edges shared by triangles of different halves: a direction on such an edge is
     looked up in one half, whose texel centre may fall on the neighbour's side,
-    which that half never drew. So each half also gets the pieces, cut at the seam,
-    of the triangles on its side that went to the other half; a lookup in the half of
+    which that half never drew. So each half also gets the pieces, cut at the seam
+    (reaching a little past it, see `seam_overlap`), of the triangles on its side that
+    went to the other half; a lookup in the half of
     the direction's own hemisphere then sees every occluder. Triangles reaching past
     UNFOLD_WHOLE_MAX_ANGLE from their pole, or covering the opposite pole, are cut at
     the seam instead of drawn whole. All of it is still one draw call.
@@ -673,10 +674,9 @@ class CountStatistics:
         return used / total if total else 0.0
 
 
-def projective_counts(projective, light: LightSpec, samples: ViewSamples, resolution: int) -> np.ndarray:
+def projective_counts(projective: perspective.ProjectiveMap, light: LightSpec, samples: ViewSamples,
+                      resolution: int) -> np.ndarray:
     """Count map (row 0 = v = 0) of the view samples through a spot or sun map, in numpy."""
-    from ..core import perspective
-
     pts = np.asarray(samples.positions, dtype=np.float64)[np.asarray(samples.hit, dtype=bool)]
     pts = pts[np.all(np.isfinite(pts), axis=1)] - light.position
     uv, _, w = perspective.project(projective, pts)
