@@ -281,12 +281,21 @@ def smooth_offsets(offsets: np.ndarray, totals: np.ndarray, window: int,
     totals = np.asarray(totals, dtype=np.float64).reshape(-1)
     if window <= 0:
         return offsets.copy()
+    # The mix depends only on relative totals (and a prior in the same units), so scale
+    # them to a peak of 1: subnormal totals lose their digits in offsets * totals, which
+    # broke monotonicity (hypothesis found a single 5e-324).
+    top = float(totals.max()) if totals.size else 0.0
+    scale = top if top > 0.0 else 1.0
+    totals = totals / scale
     if prior is None:
         populated = totals[totals > 0]
         prior = IDENTITY_PRIOR * float(populated.mean()) if populated.size else 1.0
+    else:
+        prior = prior / scale
     num = tent_filter(offsets * totals[:, None], window)
-    den = tent_filter(totals[:, None], window)
-    return num / (den + prior)
+    den = tent_filter(totals[:, None], window) + prior
+    # Where no row nearby holds a count and the prior is 0, the row stays the identity.
+    return np.divide(num, den, out=np.zeros_like(num), where=den > 0.0)
 
 
 def _window_sum(values: np.ndarray, first: int, last: int) -> np.ndarray:
