@@ -18,13 +18,11 @@ import sys
 from collections.abc import Callable, Sequence
 from pathlib import Path
 
-from .core.errors import InputError, OmniWarpError, child_stderr_tail
+from .core.errors import InputError, OmniWarpError, child_stderr_tail, report_error
 from .core.presets import DEFAULT_PRESET, available_presets, select_presets
+from .core.scene import parse_size
 
 log = logging.getLogger("omniwarp")
-
-EXIT_BAD_INPUT = 2
-EXIT_FAILURE = 1
 
 
 def _parser() -> argparse.ArgumentParser:
@@ -84,7 +82,6 @@ def cmd_presets(_: argparse.Namespace) -> int:
 
 
 def cmd_reference(args: argparse.Namespace) -> int:
-    from .compare import parse_size
     from .reference.cache import load_or_capture
 
     size = parse_size(args.size)
@@ -129,7 +126,7 @@ def _blend_reference(args: argparse.Namespace) -> Callable[[], object]:
 
 
 def cmd_compare(args: argparse.Namespace) -> int:
-    from .compare import CompareOptions, parse_methods, parse_resolutions, parse_size, run_compare
+    from .compare import CompareOptions, parse_methods, parse_resolutions, run_compare
     from .render.moderngl_backend import ModernGLBackend
     from .render.pipeline import ShadowPipeline
 
@@ -167,7 +164,7 @@ def cmd_preview(args: argparse.Namespace) -> int:
     import subprocess
     import tempfile
 
-    from .compare import parse_methods, parse_resolutions, parse_size
+    from .compare import parse_methods, parse_resolutions
 
     method = parse_methods(args.method)[0] if args.method else None  # None: chosen by the light (worker)
     resolution = parse_resolutions(str(args.resolution))[0]
@@ -216,12 +213,8 @@ def main(argv: Sequence[str] | None = None) -> int:
                         format="%(levelname)s %(name)s: %(message)s")
     try:
         return COMMANDS[args.command](args)
-    except InputError as exc:
-        print(f"omniwarp: error: {exc}", file=sys.stderr)
-        return EXIT_BAD_INPUT
     except OmniWarpError as exc:
-        print(f"omniwarp: failed: {exc}", file=sys.stderr)
-        return EXIT_FAILURE
+        return report_error("omniwarp", exc)
 
 
 if __name__ == "__main__":

@@ -20,9 +20,8 @@ import numpy as np
 
 from .core import metrics
 from .core.errors import InputError
-from .core.frames import PROJECTIVE_PARAMETERIZATIONS
+from .core.frames import PROJECTIVE_PARAMETERIZATIONS, parameterizations_for
 from .core.scene import POINT_EMISSIONS, PROJECTIVE_EMISSIONS, CameraSpec, LightSpec
-from .core.scene import parse_size  # noqa: F401 - parse_size is part of this API
 from .reference.data import ReferenceData
 from .render.blender_draw import pool_image
 from .render.pipeline import (
@@ -79,7 +78,7 @@ def method_fits(method: str, emission: str) -> bool:
     """True when a method can shadow this kind of light (see pipeline.check_light_fits)."""
     if method in EXTERNAL_METHODS:
         return emission in POINT_EMISSIONS
-    return _projective(method) == (emission in PROJECTIVE_EMISSIONS)
+    return METHODS[method][0] in parameterizations_for(emission)
 
 
 def _projective(method: str) -> bool:

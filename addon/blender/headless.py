@@ -21,7 +21,7 @@ from pathlib import Path
 import numpy as np
 
 from ..core import metrics
-from ..core.errors import InputError, OmniWarpError
+from ..core.errors import InputError, OmniWarpError, report_error
 from ..core.scene import PROJECTIVE_EMISSIONS, CameraSpec, LightSpec
 from ..reference.data import ReferenceData
 from ..render.pipeline import ShadowPipeline, ShadowSettings, ViewSamples, count_statistics
@@ -245,12 +245,8 @@ def main(argv: list[str] | None = None) -> int:
             registration.unregister()
         print(json.dumps({k: report[k] for k in ("error_pct", "evaluated_pixels")}))
         return 0
-    except InputError as exc:
-        print(f"omniwarp preview: error: {exc}", file=sys.stderr)
-        return 2
     except OmniWarpError as exc:
-        print(f"omniwarp preview: failed: {exc}", file=sys.stderr)
-        return 1
+        return report_error("omniwarp preview", exc)
 
 
 if __name__ == "__main__":

@@ -27,6 +27,7 @@ import bpy
 import numpy as np
 from bpy.props import BoolProperty, EnumProperty, FloatProperty, IntProperty
 
+from ..core import frames
 from ..core.frames import POINT_PARAMETERIZATIONS, PROJECTIVE_PARAMETERIZATIONS
 from ..core.scene import PROJECTIVE_EMISSIONS, Emission, LightSpec, spot_emission
 from ..render.pipeline import BiasSettings, ShadowSettings
@@ -141,7 +142,6 @@ _PARAMETERIZATION_ITEM_CACHE: dict[str, list[tuple[str, str, str, int]]] = {
 FALLBACK_PARAMETERIZATION = {"point": "dpsm", "projective": "psm"}
 # The pipeline refuses a warp for these (ShadowSettings): one shared projection, or
 # a map that is already a global warp.
-NO_WARP_PARAMETERIZATIONS: tuple[str, ...] = ("unfold",) + PROJECTIVE_PARAMETERIZATIONS
 
 # bpy.props gained get_transform in Blender 5.0: it rewrites a stale stored value on
 # every read, so Python and the UI both see the method actually used. Blender 4.2-4.5
@@ -338,7 +338,7 @@ def effective_emission(light: bpy.types.Light) -> Emission:
 
 def valid_parameterizations(light: bpy.types.Light) -> tuple[str, ...]:
     """The parameterizations (lower case, pipeline names) that fit the light's effective emission."""
-    return POINT_PARAMETERIZATIONS if _method_family(light) == "point" else PROJECTIVE_PARAMETERIZATIONS
+    return frames.parameterizations_for(effective_emission(light))
 
 
 def stored_parameterization(light: bpy.types.Light) -> str:
@@ -370,7 +370,7 @@ def effective_parameterization(light: bpy.types.Light) -> str:
 
 def takes_warp(parameterization: str) -> bool:
     """False for the methods the pipeline refuses a warp for (unfold, sm, psm)."""
-    return parameterization not in NO_WARP_PARAMETERIZATIONS
+    return frames.takes_warp(parameterization)
 
 
 def effective_warp(light: bpy.types.Light, parameterization: str | None = None) -> str:

@@ -5,6 +5,8 @@ would fix it. The CLI turns them into a non-zero exit with that message.
 """
 from __future__ import annotations
 
+import sys
+
 
 class OmniWarpError(Exception):
     """Base class of every error OmniWarp raises on purpose."""
@@ -28,6 +30,20 @@ class BackendError(OmniWarpError):
 
 class ReferenceCaptureError(OmniWarpError):
     """The Cycles reference could not be rendered, read or loaded from cache."""
+
+
+# Exit codes of the commands (omniwarp, and its child processes): bad input, other failure.
+EXIT_BAD_INPUT = 2
+EXIT_FAILURE = 1
+
+
+def report_error(program: str, exc: OmniWarpError) -> int:
+    """Print a command's one-line error on stderr and return its exit code."""
+    if isinstance(exc, InputError):
+        print(f"{program}: error: {exc}", file=sys.stderr)
+        return EXIT_BAD_INPUT
+    print(f"{program}: failed: {exc}", file=sys.stderr)
+    return EXIT_FAILURE
 
 
 def child_stderr_tail(text: str, limit: int = 2000) -> str:

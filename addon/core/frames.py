@@ -21,7 +21,7 @@ import numpy as np
 
 from .errors import InputError
 from .projection import CUBE, PARABOLOID, PROJECTIVE, UNFOLD
-from .scene import LightSpec
+from .scene import PROJECTIVE_EMISSIONS, LightSpec
 
 Parameterization = Literal["dpsm", "cube", "ipsm", "unfold", "sm", "psm"]
 POINT_PARAMETERIZATIONS = ("dpsm", "cube", "ipsm", "unfold")  # omni and hemi lights
@@ -87,6 +87,22 @@ def light_layers(light: LightSpec, parameterization: Parameterization) -> list[L
 def ipsm_layer(axis_world: np.ndarray) -> Layer:
     """The single paraboloid of IPSM (thesis 4.1), looking along the cone axis C (world)."""
     return Layer(0, PARABOLOID, "ipsm", _frame_from_axis(np.asarray(axis_world, dtype=np.float64)))
+
+
+def parameterizations_for(emission: str) -> tuple[str, ...]:
+    """The parameterizations that fit a light's emission: spot cones and suns take the
+    projective maps, omni and hemi lights the omnidirectional ones."""
+    return PROJECTIVE_PARAMETERIZATIONS if emission in PROJECTIVE_EMISSIONS else POINT_PARAMETERIZATIONS
+
+
+# The parameterizations a warp applies to. unfold draws its two halves in one pass with
+# one projection, and PSM is itself a global warp, so neither takes one.
+WARPABLE_PARAMETERIZATIONS = ("dpsm", "cube", "ipsm")
+
+
+def takes_warp(parameterization: str) -> bool:
+    """True for the parameterizations a NoTW or RTW warp applies to."""
+    return parameterization in WARPABLE_PARAMETERIZATIONS
 
 
 def projective_layer(parameterization: Parameterization) -> Layer:

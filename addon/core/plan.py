@@ -206,27 +206,25 @@ def plan_frame(light: LightSpec, parameterization: Parameterization, camera: Cam
     layers = light_layers(light, parameterization)
     if camera is None:
         return Plan(parameterization, layers, list(layers), None)
-    if parameterization == "unfold":
-        # Each half holds the whole sphere and both go out in one draw, so there is no
-        # layer to leave out; only objects are culled.
-        corners = truncated_frustum(camera, positions, hit, percentile=CULL_DEPTH_PERCENTILE)
-        planes = occluder_region(light, camera, positions, hit) if cull else None
-        return Plan(parameterization, layers, list(layers) if corners is not None or not cull else [], corners,
-                    occluder_planes=planes)
     corners = truncated_frustum(camera, positions, hit, percentile=CULL_DEPTH_PERCENTILE)
     if not cull:
         return Plan(parameterization, layers, list(layers), corners)
     if corners is None:
         return Plan(parameterization, layers, [], None, [layer.name for layer in layers])
+    strict = truncated_frustum(camera, positions, hit)
+    if parameterization == "unfold":
+        # Each half holds the whole sphere and both go out in one draw, so there is no
+        # layer to leave out; only objects are culled.
+        return Plan(parameterization, layers, list(layers), corners, occluder_planes=_occluder_planes(light, strict),
+                    sample_corners=strict)
     meets = {layer.slot for layer in layers if layer_meets_frustum(layer, light.position, corners, far)}
     if len(meets) < len(layers):
         # The percentile frustum may miss a stray sample; a layer that holds any sample
         # is always drawn, so culling never changes a shadow.
         meets |= occupied_slots(light, parameterization, positions, hit)
     drawn = [layer for layer in layers if layer.slot in meets]
-    strict = truncated_frustum(camera, positions, hit)
     return Plan(parameterization, layers, drawn, corners, [layer.name for layer in layers if layer.slot not in meets],
-                occluder_planes=hull_planes(np.vstack([strict, light.position[None]])), sample_corners=strict)
+                occluder_planes=_occluder_planes(light, strict), sample_corners=strict)
 
 
 def plan_projective(light: LightSpec, parameterization: Parameterization, camera: CameraSpec | None,
@@ -257,7 +255,7 @@ def plan_projective(light: LightSpec, parameterization: Parameterization, camera
             reach = 2.0 * float(np.linalg.norm(np.asarray(scene_hi) - np.asarray(scene_lo))) + 1.0
             planes = hull_planes(np.vstack([corners, corners - reach * light.axis]))
         else:
-            planes = hull_planes(np.vstack([corners, light.position[None]]))
+            planes = _occluder_planes(light, corners)
     return Plan(used, [layer], [layer], corners, requested=parameterization, occluder_planes=planes,
                 projective=projective)
 
@@ -324,7 +322,7 @@ def _plan_ipsm(light: LightSpec, camera: CameraSpec | None, positions: np.ndarra
             layer = ipsm_layer(axis)
             if theta < IPSM_MAX_HALF_ANGLE:
                 return Plan("ipsm", [layer], [layer], corners, ipsm_half_angle=theta, requested="ipsm",
-                            occluder_planes=hull_planes(np.vstack([corners, light.position[None]])))
+                            occluder_planes=_occluder_planes(light, corners))
     fallback = plan_frame(light, "dpsm", camera, positions, hit, far, cull)
     fallback.requested = "ipsm"
     return fallback
@@ -340,10 +338,12 @@ def occluder_region(light: LightSpec, camera: CameraSpec | None, positions: np.n
     """
     if camera is None:
         return None
-    corners = truncated_frustum(camera, positions, hit)
-    if corners is None:
-        return None
-    return hull_planes(np.vstack([corners, light.position[None]]))
+    return _occluder_planes(light, truncated_frustum(camera, positions, hit))
+
+
+def _occluder_planes(light: LightSpec, corners: np.ndarray | None) -> np.ndarray | None:
+    """Outward planes of conv(light, frustum corners), or None without a frustum."""
+    return None if corners is None else hull_planes(np.vstack([corners, light.position[None]]))
 
 
 def outside_region(triangles: np.ndarray, planes: np.ndarray | None, slack: float = 1e-6) -> np.ndarray:

@@ -162,19 +162,33 @@ def normalized_depth(distance: np.ndarray, near: float, far: float) -> np.ndarra
     return (np.asarray(distance, dtype=np.float64) - near) / (far - near)
 
 
-def depth_range(triangles: np.ndarray, light_position: np.ndarray, margin: float = 0.01) -> tuple[float, float]:
+def finite_bounds(triangles: np.ndarray) -> tuple[np.ndarray, np.ndarray] | None:
+    """World bounding box (lo, hi) of the finite corners, or None when there is none.
+
+    Coordinates beyond MAX_COORDINATE count as infinite (Blender's inf is FLT_MAX).
+    """
+    pts = np.asarray(triangles, dtype=np.float64).reshape(-1, 3)
+    pts = pts[np.all(np.isfinite(pts) & (np.abs(pts) < MAX_COORDINATE), axis=1)]
+    if len(pts) == 0:
+        return None
+    return pts.min(axis=0), pts.max(axis=0)
+
+
+def depth_range(triangles: np.ndarray, light_position: np.ndarray, margin: float = 0.01,
+                bounds: tuple[np.ndarray, np.ndarray] | None = None) -> tuple[float, float]:
     """Near and far radial distances from the light to the scene's bounding box.
 
     near is the distance from the light to the box (0 when the light is inside),
     far the distance to its farthest corner; both get a relative margin so that
-    geometry on the box surface stays strictly inside (0, 1) depth.
+    geometry on the box surface stays strictly inside (0, 1) depth. `bounds`, from
+    `finite_bounds`, saves scanning the triangles again.
     """
-    pts = np.asarray(triangles, dtype=np.float64).reshape(-1, 3)
-    pts = pts[np.all(np.isfinite(pts) & (np.abs(pts) < MAX_COORDINATE), axis=1)]
     light = np.asarray(light_position, dtype=np.float64)
-    if len(pts) == 0:
+    if bounds is None:
+        bounds = finite_bounds(triangles)
+    if bounds is None:
         return 0.0, 1.0
-    lo, hi = pts.min(axis=0), pts.max(axis=0)
+    lo, hi = bounds
     nearest = np.clip(light, lo, hi)
     near = float(np.linalg.norm(nearest - light))
     corners = np.array([[x, y, z] for x in (lo[0], hi[0]) for y in (lo[1], hi[1]) for z in (lo[2], hi[2])])

@@ -119,13 +119,18 @@ def _node(along: np.ndarray, size: int) -> tuple[np.ndarray, np.ndarray]:
     return k, frac
 
 
-def family_offset(table: np.ndarray, along: np.ndarray, across: np.ndarray) -> np.ndarray:
-    """Offset of the function family `table` at position `along`, interpolated `across`."""
-    size = table.shape[0]
+def _bracket(table: np.ndarray, along: np.ndarray, across: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The two neighbouring functions' offsets at `along` and the blend weight between them."""
     i0, i1, f = _blend_rows(table, across)
-    k, s = _node(along, size)
+    k, s = _node(along, table.shape[0])
     o0 = table[i0, k] * (1 - s) + table[i0, k + 1] * s
     o1 = table[i1, k] * (1 - s) + table[i1, k + 1] * s
+    return o0, o1, f
+
+
+def family_offset(table: np.ndarray, along: np.ndarray, across: np.ndarray) -> np.ndarray:
+    """Offset of the function family `table` at position `along`, interpolated `across`."""
+    o0, o1, f = _bracket(table, along, across)
     return o0 * (1 - f) + o1 * f
 
 
@@ -144,10 +149,7 @@ def family_slope(table: np.ndarray, along: np.ndarray, across: np.ndarray) -> np
 def family_shear(table: np.ndarray, along: np.ndarray, across: np.ndarray) -> np.ndarray:
     """d(offset)/d(across): how fast neighbouring functions differ (0 beyond the end centres)."""
     size = table.shape[0]
-    i0, i1, _ = _blend_rows(table, across)
-    k, s = _node(along, size)
-    o0 = table[i0, k] * (1 - s) + table[i0, k + 1] * s
-    o1 = table[i1, k] * (1 - s) + table[i1, k + 1] * s
+    o0, o1, _ = _bracket(table, along, across)
     t = np.asarray(across, dtype=np.float64) * size - 0.5
     blending = (t > 0.0) & (t < size - 1)
     return np.where(blending, (o1 - o0) * size, 0.0)

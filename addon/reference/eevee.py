@@ -51,7 +51,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from ..core import metrics
-from ..core.errors import InputError, OmniWarpError, ReferenceCaptureError, child_stderr_tail
+from ..core.errors import InputError, OmniWarpError, ReferenceCaptureError, child_stderr_tail, report_error
 from ..core.scene import CameraSpec, LightSpec, MeshSpec, SceneSpec, parse_size
 from .data import ReferenceData
 
@@ -492,12 +492,8 @@ def main(argv: Sequence[str] | None = None) -> int:
         say(f"done: warm-up {summary['warmup_ms']:.0f} ms; " + ", ".join(
             f"{name} {entry['render_ms']:.0f} ms" for name, entry in summary["settings"].items()))
         return 0
-    except InputError as exc:
-        print(f"omniwarp eevee: error: {exc}", file=sys.stderr)
-        return 2
     except OmniWarpError as exc:
-        print(f"omniwarp eevee: failed: {exc}", file=sys.stderr)
-        return 1
+        return report_error("omniwarp eevee", exc)
 
 
 # ----------------------------------------------------------------------------

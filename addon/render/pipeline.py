@@ -44,7 +44,6 @@ CLIP_NEAR_RELATIVE = 1e-6
 
 WARP_KINDS = ("none", "notw", "rtw")
 _PARAM_CODES = {"dpsm": 0, "cube": 1, "ipsm": 2, "unfold": 3, "sm": 4, "psm": 5}  # ow_param (lib/layers.glsl)
-_SHADOW_TEST_KIND = {"cube": projection.CUBE, "unfold": projection.UNFOLD}  # others: paraboloid
 # A triangle drawn whole into the unfold half of its nearer pole must keep clear of
 # the opposite pole, where the projection is singular (the pole becomes the rim).
 # Beyond this angle from the pole, or covering the opposite pole, it is split at the
@@ -87,12 +86,11 @@ class ShadowSettings:
         known = POINT_PARAMETERIZATIONS + PROJECTIVE_PARAMETERIZATIONS
         if self.parameterization not in known:
             raise InputError(f"unknown parameterization {self.parameterization!r}; use one of {', '.join(known)}")
-        if self.parameterization == "unfold" and self.warp != "none":
-            raise InputError("unfold takes no warp: its two halves share one pass and one projection")
+        if self.warp != "none" and not frames.takes_warp(self.parameterization):
+            raise InputError(f"{self.parameterization} takes no warp; warps apply to "
+                             f"{', '.join(frames.WARPABLE_PARAMETERIZATIONS)}")
         if self.edge_aa and self.parameterization != "unfold":
             raise InputError("edge-distance antialiasing is the unfold method's option (unfold+aa)")
-        if self.parameterization in PROJECTIVE_PARAMETERIZATIONS and self.warp != "none":
-            raise InputError(f"{self.parameterization} takes no warp (PSM is itself the global warp)")
         if self.warp not in WARP_KINDS:
             raise InputError(f"unknown warp {self.warp!r}; use one of {', '.join(WARP_KINDS)}")
         if not (MIN_RESOLUTION <= int(self.resolution) <= MAX_RESOLUTION):
@@ -445,10 +443,12 @@ class ShadowPipeline:
 
         t1 = time.perf_counter()
         check_light_fits(light, settings.parameterization)
-        near_far = projection.depth_range(triangles, light.position)
+        bounds = projection.finite_bounds(triangles)  # one scan of the triangles per frame
+        near_far = projection.depth_range(triangles, light.position, bounds=bounds)
         far_estimate = near_far[1]
         if settings.parameterization in PROJECTIVE_PARAMETERIZATIONS:
-            scene_lo, scene_hi = scene_bounds(triangles, light.position)
+            # With nothing finite to draw, any box around the light will do.
+            scene_lo, scene_hi = bounds if bounds is not None else (light.position - 1.0, light.position + 1.0)
             plan = plan_projective(light, settings.parameterization, samples.camera, samples.positions,
                                    samples.hit, scene_lo, scene_hi, settings.resolution, cull=settings.cull)
         else:
@@ -555,7 +555,8 @@ class ShadowPipeline:
             "ow_layer_tile": tiles,
             "ow_layer_crop": crops,
             "ow_param": _PARAM_CODES[plan.parameterization],
-            "ow_layer_kind": _SHADOW_TEST_KIND.get(plan.parameterization, projection.PARABOLOID),
+            # Every layer of a plan has the same kind (a projective plan never projects by kind).
+            "ow_layer_kind": plan.all_layers[0].kind if plan.all_layers else projection.PARABOLOID,
             "ow_hemi": 1 if light.emission == "hemi" else 0,
             "ow_warp_size": warp_size if any(m.warp is not None for m in mappings.values()) else 0,
             "ow_resolution": float(settings.resolution),
@@ -601,22 +602,11 @@ def edge_aa_parameters(resolution: int, near: float, far: float) -> tuple[int, f
 def check_light_fits(light: LightSpec, parameterization: str) -> None:
     """InputError unless the method suits the light: the omnidirectional methods take a
     point light (omni or hemi), sm and psm a spot (cone below 180 degrees) or a sun."""
-    if parameterization in PROJECTIVE_PARAMETERIZATIONS and light.is_point:
-        raise InputError(f"{parameterization} needs a spot (cone below 180 degrees) or sun light; "
-                         f"an {light.emission} light takes {', '.join(POINT_PARAMETERIZATIONS)}")
-    if parameterization in POINT_PARAMETERIZATIONS and not light.is_point:
-        raise InputError(f"{parameterization} needs a point light (omni or 180 degree spot); "
-                         f"a {light.emission} light takes {', '.join(PROJECTIVE_PARAMETERIZATIONS)}")
-
-
-def scene_bounds(triangles: np.ndarray, light_position: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """World bounding box of the finite corners (Blender's inf is FLT_MAX, see projection)."""
-    pts = np.asarray(triangles, dtype=np.float64).reshape(-1, 3)
-    pts = pts[np.all(np.isfinite(pts) & (np.abs(pts) < projection.MAX_COORDINATE), axis=1)]
-    if len(pts) == 0:
-        origin = np.asarray(light_position, dtype=np.float64)
-        return origin - 1.0, origin + 1.0
-    return pts.min(axis=0), pts.max(axis=0)
+    fitting = frames.parameterizations_for(light.emission)
+    if parameterization not in fitting:
+        needs = ("a spot (cone below 180 degrees) or sun light" if parameterization in PROJECTIVE_PARAMETERIZATIONS
+                 else "a point light (omni or 180 degree spot)")
+        raise InputError(f"{parameterization} needs {needs}; a {light.emission} light takes {', '.join(fitting)}")
 
 
 def ipsm_mapping(half_angle: float, resolution: int) -> LayerMapping:

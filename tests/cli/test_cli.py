@@ -8,7 +8,8 @@ import sys
 
 import pytest
 
-from addon.cli import EXIT_BAD_INPUT, main
+from addon.cli import main
+from addon.core.errors import EXIT_BAD_INPUT
 
 ROW_FIELDS = {
     "preset": str, "method": str, "emission": str, "resolution": int, "error_pct": float,
