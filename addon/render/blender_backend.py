@@ -17,11 +17,11 @@ import numpy as np
 from ..core.errors import BackendError
 from .backend import AtlasLayout, ShadowBackend, UniformValues
 from .shaders import (
-    DEPTH_PROGRAM,
     EDGE_PROGRAM,
     SCATTER_PROGRAM,
-    SHADOW_TEST_PROGRAM,
     ProgramInterface,
+    depth_program,
+    shadow_test_program,
     load_source,
 )
 
@@ -274,7 +274,7 @@ class BlenderGPUBackend(ShadowBackend):
             return
         data = np.ascontiguousarray(vertices, dtype=np.float32)
         with self._atlas_fb.bind():
-            shader = self._bind(DEPTH_PROGRAM, uniforms)
+            shader = self._bind(depth_program(uniforms), uniforms)
             batch = batch_for_shader(shader, "TRIS", {
                 "ow_position": data[:, 0:3], "ow_plane": data[:, 3:7], "ow_range": data[:, 7:9]})
             gpu.state.viewport_set(*viewport)
@@ -355,7 +355,7 @@ class BlenderGPUBackend(ShadowBackend):
             # Bound even when no antialiasing runs (ow_edge_radius = 0 never reads it).
             self._textures["ow_edges"] = _float_texture((1, 1), "R32F", np.zeros(1, np.float32))
         with fb.bind():
-            shader = self._bind(SHADOW_TEST_PROGRAM, uniforms)
+            shader = self._bind(shadow_test_program(uniforms), uniforms)
             batch = self._batches.get("fullscreen")
             if batch is None:
                 batch = batch_for_shader(shader, "TRIS", {"ow_corner": _FULLSCREEN})

@@ -13,11 +13,11 @@ import numpy as np
 from ..core.errors import BackendError
 from .backend import AtlasLayout, ShadowBackend, UniformValues
 from .shaders import (
-    DEPTH_PROGRAM,
     EDGE_PROGRAM,
     SCATTER_PROGRAM,
-    SHADOW_TEST_PROGRAM,
     ProgramInterface,
+    depth_program,
+    shadow_test_program,
     moderngl_sources,
 )
 
@@ -185,7 +185,7 @@ class ModernGLBackend(ShadowBackend):
             raise BackendError(str(exc)) from None
         if len(vertices) == 0:
             return
-        prog = self._use(DEPTH_PROGRAM, uniforms)
+        prog = self._use(depth_program(uniforms), uniforms)
         data = np.ascontiguousarray(vertices, dtype="f4")
         vbo = self.ctx.buffer(data.tobytes())
         try:
@@ -275,11 +275,14 @@ class ModernGLBackend(ShadowBackend):
         if "ow_edges" not in self._textures:
             # Bound even when no antialiasing runs (ow_edge_radius = 0 never reads it).
             self._textures["ow_edges"] = self._float_texture((1, 1), 1, np.zeros(1, "f4").tobytes())
-        prog = self._use(SHADOW_TEST_PROGRAM, uniforms)
-        vao = self._vaos.get("fullscreen")
+        iface = shadow_test_program(uniforms)
+        prog = self._use(iface, uniforms)
+        # A moderngl vertex array renders with the program it was made for, so each
+        # program variant keeps its own.
+        vao = self._vaos.get(iface.name)
         if vao is None:
             vao = self.ctx.vertex_array(prog, [(self._fullscreen_vbo, "2f", "ow_corner")])
-            self._vaos["fullscreen"] = vao
+            self._vaos[iface.name] = vao
         out, fbo = self._test_target
         fbo.use()
         fbo.viewport = (0, 0, width, height)

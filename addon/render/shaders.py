@@ -11,7 +11,7 @@ from __future__ import annotations
 
 import logging
 import re
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 
 from ..core.errors import BackendError
@@ -214,8 +214,28 @@ EDGE_PROGRAM = ProgramInterface(
     samplers=("ow_atlas", "ow_edge_x"),
 )
 
-PROGRAMS = (DEPTH_PROGRAM, SHADOW_TEST_PROGRAM, SCATTER_PROGRAM, GBUFFER_PROGRAM, PREVIEW_PROGRAM, OVERLAY_PROGRAM,
-            EDGE_PROGRAM)
+# Variants without the warp code. llvmpipe (and other SIMD software rasterisers) runs a
+# branch on a uniform with masked lanes, so the binary-search loop of the inverse warp
+# cost every plain depth fragment ~6x its real work even with ow_warp_size = 0. The
+# `OW_NO_WARP` define removes the code; `lib/mapping.glsl` keeps the crop.
+NO_WARP_DEFINE = "OW_NO_WARP"
+DEPTH_PLAIN_PROGRAM = replace(DEPTH_PROGRAM, name="omniwarp_depth_plain", defines={NO_WARP_DEFINE: "1"})
+SHADOW_TEST_PLAIN_PROGRAM = replace(SHADOW_TEST_PROGRAM, name="omniwarp_shadow_test_plain",
+                                    defines={NO_WARP_DEFINE: "1"})
+
+
+def depth_program(uniforms: dict) -> ProgramInterface:
+    """The depth program for a draw: the plain variant unless the uniforms set a warp."""
+    return DEPTH_PROGRAM if int(uniforms.get("ow_warp_size", 0)) > 0 else DEPTH_PLAIN_PROGRAM
+
+
+def shadow_test_program(uniforms: dict) -> ProgramInterface:
+    """The shadow-test program: the plain variant unless the uniforms set a warp."""
+    return SHADOW_TEST_PROGRAM if int(uniforms.get("ow_warp_size", 0)) > 0 else SHADOW_TEST_PLAIN_PROGRAM
+
+
+PROGRAMS = (DEPTH_PROGRAM, DEPTH_PLAIN_PROGRAM, SHADOW_TEST_PROGRAM, SHADOW_TEST_PLAIN_PROGRAM, SCATTER_PROGRAM,
+            GBUFFER_PROGRAM, PREVIEW_PROGRAM, OVERLAY_PROGRAM, EDGE_PROGRAM)
 
 
 def _decl_uniform(u: Uniform) -> str:
