@@ -20,7 +20,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from . import perspective, projection
-from .frames import Layer, Parameterization, ipsm_layer, light_layers, pick_slot, projective_layer
+from .frames import Layer, Parameterization, ipsm_layer, light_layers, pick_slot, projective_layer, slot_count
 from .perspective import hull_planes  # one convex-hull routine for culling and PSM
 from .projection import CUBE
 from .scene import CameraSpec, LightSpec
@@ -78,6 +78,30 @@ def frustum_corners(camera: CameraSpec, near_depth: float, far_depth: float) -> 
     return local @ m[:3, :3].T + m[:3, 3]
 
 
+def hit_points(positions: np.ndarray, hit: np.ndarray) -> np.ndarray:
+    """The finite world positions (N, 3) of the samples that hit geometry."""
+    pts = np.asarray(positions, dtype=np.float64)
+    return pts[np.asarray(hit, dtype=bool) & np.isfinite(pts).all(axis=-1)]  # one mask, one copy
+
+
+def view_depths(camera: CameraSpec, points: np.ndarray) -> np.ndarray:
+    """Depth along the camera's view axis of world points (N, 3)."""
+    m = np.asarray(camera.matrix_world, dtype=np.float64)
+    return -((points - m[:3, 3]) @ m[:3, 2])  # camera looks along its local -Z
+
+
+def frustum_from_depths(camera: CameraSpec, depths: np.ndarray, margin: float = 0.02,
+                        percentile: float = 0.0) -> np.ndarray | None:
+    """`truncated_frustum` from precomputed view depths (None when there are none)."""
+    if len(depths) == 0:
+        return None
+    low, high = (np.percentile(depths, [percentile, 100.0 - percentile]) if percentile > 0
+                 else (depths.min(), depths.max()))
+    near = max(float(low) * (1.0 - margin), 1e-9)
+    far = float(high) * (1.0 + margin) + 1e-9
+    return frustum_corners(camera, near, far)
+
+
 def truncated_frustum(camera: CameraSpec, positions: np.ndarray, hit: np.ndarray,
                       margin: float = 0.02, percentile: float = 0.0) -> np.ndarray | None:
     """Camera frustum cut at the view depths of the hit samples (with a 2 % margin).
@@ -87,17 +111,7 @@ def truncated_frustum(camera: CameraSpec, positions: np.ndarray, hit: np.ndarray
     near the lens) do not stretch the frustum. Returns None when no sample hits
     geometry (nothing needs a map).
     """
-    pts = np.asarray(positions, dtype=np.float64)[np.asarray(hit, dtype=bool)]
-    pts = pts[np.all(np.isfinite(pts), axis=1)]
-    if len(pts) == 0:
-        return None
-    m = np.asarray(camera.matrix_world, dtype=np.float64)
-    view_depth = -((pts - m[:3, 3]) @ m[:3, 2])  # camera looks along its local -Z
-    low, high = (np.percentile(view_depth, [percentile, 100.0 - percentile]) if percentile > 0
-                 else (view_depth.min(), view_depth.max()))
-    near = max(float(low) * (1.0 - margin), 1e-9)
-    far = float(high) * (1.0 + margin) + 1e-9
-    return frustum_corners(camera, near, far)
+    return frustum_from_depths(camera, view_depths(camera, hit_points(positions, hit)), margin, percentile)
 
 
 def _hull_axes(corners: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -206,12 +220,14 @@ def plan_frame(light: LightSpec, parameterization: Parameterization, camera: Cam
     layers = light_layers(light, parameterization)
     if camera is None:
         return Plan(parameterization, layers, list(layers), None)
-    corners = truncated_frustum(camera, positions, hit, percentile=CULL_DEPTH_PERCENTILE)
+    points = hit_points(positions, hit)  # filtered once: the frustums and slots below share it
+    depths = view_depths(camera, points)
+    corners = frustum_from_depths(camera, depths, percentile=CULL_DEPTH_PERCENTILE)
     if not cull:
         return Plan(parameterization, layers, list(layers), corners)
     if corners is None:
         return Plan(parameterization, layers, [], None, [layer.name for layer in layers])
-    strict = truncated_frustum(camera, positions, hit)
+    strict = frustum_from_depths(camera, depths)
     if parameterization == "unfold":
         # Each half holds the whole sphere and both go out in one draw, so there is no
         # layer to leave out; only objects are culled.
@@ -221,7 +237,7 @@ def plan_frame(light: LightSpec, parameterization: Parameterization, camera: Cam
     if len(meets) < len(layers):
         # The percentile frustum may miss a stray sample; a layer that holds any sample
         # is always drawn, so culling never changes a shadow.
-        meets |= occupied_slots(light, parameterization, positions, hit)
+        meets |= occupied_slots(light, parameterization, points)
     drawn = [layer for layer in layers if layer.slot in meets]
     return Plan(parameterization, layers, drawn, corners, [layer.name for layer in layers if layer.slot not in meets],
                 occluder_planes=_occluder_planes(light, strict), sample_corners=strict)
@@ -294,15 +310,13 @@ def layer_scissor(layer: Layer, light_position: np.ndarray, sample_corners: np.n
     return x0, y0, x1, y1
 
 
-def occupied_slots(light: LightSpec, parameterization: Parameterization, positions: np.ndarray,
-                   hit: np.ndarray) -> set[int]:
-    """Slots that some hit view sample in the emission domain falls into."""
-    pts = np.asarray(positions, dtype=np.float64)[np.asarray(hit, dtype=bool)]
-    pts = pts[np.all(np.isfinite(pts), axis=1)] - light.position
-    local = pts @ light.rotation  # world -> light local
+def occupied_slots(light: LightSpec, parameterization: Parameterization, points: np.ndarray) -> set[int]:
+    """Slots that some hit view sample (finite world `points`, N x 3) in the emission domain falls into."""
+    local = (np.asarray(points, dtype=np.float64) - light.position) @ light.rotation  # world -> light local
     if light.emission == "hemi":
         local = local[local[:, 2] < 0.0]
-    return set(int(s) for s in np.unique(pick_slot(parameterization, local)))
+    counts = np.bincount(pick_slot(parameterization, local), minlength=slot_count(parameterization))
+    return set(int(s) for s in np.flatnonzero(counts))
 
 
 def _plan_ipsm(light: LightSpec, camera: CameraSpec | None, positions: np.ndarray, hit: np.ndarray,
