@@ -1,7 +1,8 @@
-// Depth pass, fragment stage: exact normalised radial distance to the triangle.
-// The texel centre is taken back through the warp and the crop to its own ray,
-// which meets the triangle's plane at t = c / dot(n, dir): depth is exact however
-// coarse the tessellation, and whatever the warp.
+// Depth pass, fragment stage: normalised radial distance to the triangle, exact on
+// the texel centre's own ray. The centre is taken back through the crop (and, for a
+// warped layer, the warp: Newton steps from the interpolated projection point, see
+// lib/mapping.glsl) to its ray, which meets the triangle's plane at t = c / dot(n, dir),
+// however coarse the tessellation.
 #include "lib/projection.glsl"
 #include "lib/mapping.glsl"
 
@@ -22,7 +23,13 @@ void main()
     uv.x -= 1.0;  // the second unfold half, whose frame has y and z negated
     rot = mat3(1.0, 0.0, 0.0, 0.0, -1.0, 0.0, 0.0, 0.0, -1.0) * rot;
   }
+#ifdef OW_NO_WARP
   vec2 xy = ow_map_inverse(ow_warp_rows, ow_warp_cols, ow_layer_slot, ow_warp_size, ow_crop, uv);
+#else
+  vec2 xy = (ow_warp_size > 0)
+      ? ow_map_inverse_near(ow_warp_rows, ow_warp_cols, ow_layer_slot, ow_warp_size, ow_crop, uv, v_map_xy)
+      : ow_map_inverse(ow_warp_rows, ow_warp_cols, ow_layer_slot, ow_warp_size, ow_crop, uv);
+#endif
   vec3 dir = transpose(rot) * ow_unproject(ow_layer_kind, xy);
   float t = v_plane.w / dot(v_plane.xyz, dir);
   if (!(t > 0.0) || isinf(t)) {

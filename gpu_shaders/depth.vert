@@ -8,6 +8,7 @@ void main()
   v_distance = length(ow_position);
   v_plane = ow_plane;
   v_range = ow_range;
+  v_map_xy = vec2(0.0);  // set below for cropped or warped layers (the fragment stage's start point)
   if (ow_projective != 0) {
     // Spot or sun map (sm, psm): one 4x4 projective matrix; the GPU clips linearly,
     // which is exact for a projective map.
@@ -32,6 +33,7 @@ void main()
     // fragment stage.
     float magnification;
     vec2 xy = ow_project(ow_layer_kind, local_pos);
+    v_map_xy = xy;
     vec2 uv = ow_map_forward(ow_warp_rows, ow_warp_cols, ow_layer_slot, ow_warp_size, ow_crop, xy,
                              magnification);
     gl_Position = vec4(uv * 2.0 - 1.0, 0.0, 1.0);

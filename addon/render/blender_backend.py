@@ -161,6 +161,7 @@ class BlenderGPUBackend(ShadowBackend):
         self._test_target = None
         self._count_targets: dict[int, tuple] = {}
         self._batches: dict[str, Any] = {}
+        self._active: dict[str, frozenset[str]] = {}  # program name -> uniforms it kept
         self._overlay_dummy = None
         self._edge_fbs: tuple = ()
         self._edge_size: tuple[int, int] | None = None
@@ -200,18 +201,38 @@ class BlenderGPUBackend(ShadowBackend):
     def _bind(self, iface: ProgramInterface, uniforms: UniformValues, textures: dict[str, Any] | None = None):
         shader = self.shader(iface)
         shader.bind()
+        active = self._active_names(iface, shader)
         types = {u.name: u for u in iface.uniforms}
         for name, value in uniforms.items():
             uniform = types.get(name)
-            if uniform is None:
-                continue
+            if uniform is None or name not in active:
+                continue  # not declared, or optimised away by the GLSL compiler
             self._set_uniform(shader, uniform, value)
         for sampler in iface.samplers:
             texture = (textures or {}).get(sampler) or self._textures.get(sampler)
             if texture is None:
                 raise BackendError(f"{iface.name}: no texture for sampler {sampler}")
-            shader.uniform_sampler(sampler, texture)
+            if sampler in active:
+                shader.uniform_sampler(sampler, texture)
         return shader
+
+    def _active_names(self, iface: ProgramInterface, shader) -> frozenset[str]:
+        """Uniforms and samplers the compiled shader still has (cached per program).
+
+        A variant that compiles code out (OW_NO_WARP) loses the uniforms only that
+        code read, and `gpu` raises ValueError when asked to set a missing uniform.
+        """
+        names = self._active.get(iface.name)
+        if names is None:
+            found = set()
+            for name in [u.name for u in iface.uniforms] + list(iface.samplers):
+                try:
+                    shader.uniform_from_name(name)
+                except ValueError:
+                    continue  # compiled out
+                found.add(name)
+            names = self._active[iface.name] = frozenset(found)
+        return names
 
     @staticmethod
     def _set_uniform(shader, uniform, value) -> None:
@@ -428,6 +449,7 @@ class BlenderGPUBackend(ShadowBackend):
         self._atlas = self._atlas_depth = self._atlas_fb = None
         self._layout = None
         self._shaders.clear()
+        self._active.clear()
         self._overlay_dummy = None
         self._edge_fbs = ()
         self._edge_size = None

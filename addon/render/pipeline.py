@@ -272,12 +272,39 @@ def prepare_geometry(light: LightSpec, triangles: np.ndarray, plan: Plan, settin
             # A cropped or warped face is no longer a linear projection: clip to the
             # front of the face on the CPU (the GPU clips linearly) and tessellate.
             clipped = tessellate.clip_halfspace(local[keep], local[keep][..., 2] - far * CLIP_NEAR_RELATIVE)
+            clipped = _clip_to_crop(clipped, mapping, res)
             refined, n_added = tessellate.tessellate(clipped, _map_texels(layer.kind, mapping, res),
                                                      settings.tessellation_tolerance, window=float(res),
                                                      texel_angle_floor=texel_angle_floor(layer.kind, mapping, res))
             added += n_added
             streams[layer.slot] = _vertex_stream(refined @ layer.rotation)
     return PreparedGeometry(streams, near, far, report.skipped, added)
+
+
+# Texels of margin kept around a cropped cube face when clipping to it: rasterised
+# coverage reaches half a texel past an edge, and the shadow test clamps to the map.
+CROP_CLIP_MARGIN_TEXELS = 2.0
+
+
+def _clip_to_crop(local_tris: np.ndarray, mapping: LayerMapping, res: int) -> np.ndarray:
+    """Clip face-local triangles (z > 0) to the frustum of a cube face's crop box, plus a margin.
+
+    Nothing outside the box is stored, and a triangle reaching far outside would cross
+    the warp with straight, untessellated edges; inside the box tessellation follows
+    the warp, so the depth pass's interpolated projection point stays near the truth.
+    A side of the box at the face's own edge (uv 0 or 1) is left alone.
+    """
+    margin = CROP_CLIP_MARGIN_TEXELS / (res * mapping.scale)  # in uncropped uv
+    lo = mapping.lo - margin
+    hi = mapping.hi + margin
+    tris = local_tris
+    for axis in (0, 1):
+        # uv = (x / z) / 2 + 1/2 >= lo  <=>  x - (2 lo - 1) z >= 0 (z > 0); likewise <= hi.
+        if lo[axis] > 0.0:
+            tris = tessellate.clip_halfspace(tris, tris[..., axis] - (2.0 * lo[axis] - 1.0) * tris[..., 2])
+        if hi[axis] < 1.0:
+            tris = tessellate.clip_halfspace(tris, (2.0 * hi[axis] - 1.0) * tris[..., 2] - tris[..., axis])
+    return tris
 
 
 def _contains_ray(tris: np.ndarray, direction: np.ndarray) -> np.ndarray:

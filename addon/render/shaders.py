@@ -113,6 +113,7 @@ DEPTH_PROGRAM = ProgramInterface(
         Varying("float", "v_distance"),
         Varying("vec4", "v_plane", flat=True),
         Varying("vec2", "v_range", flat=True),
+        Varying("vec2", "v_map_xy"),
     ),
     writes_depth=True,
 )

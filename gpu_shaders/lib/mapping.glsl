@@ -6,13 +6,12 @@
 // dead warp code still costs every fragment.
 #include "lib/warp.glsl"
 
-vec2 ow_map_forward(sampler2D rows, sampler2D cols, int slot, int warp_size, vec4 crop, vec2 xy,
-                    out float magnification)
+// Map uv of projection point xy, and J = d(map uv)/d(uncropped uv) (crop and warp).
+vec2 ow_map_forward_jacobian(sampler2D rows, sampler2D cols, int slot, int warp_size, vec4 crop, vec2 xy,
+                             out mat2 jacobian)
 {
   vec2 uv = ((xy * 0.5 + 0.5) - crop.xy) * crop.zw;
-  // Magnification = the smallest singular value of d(map uv)/d(uncropped uv): a texel's
-  // preimage is at most 1/magnification texels of the plain map across, shear included.
-  mat2 jacobian = mat2(crop.z, 0.0, 0.0, crop.w);
+  jacobian = mat2(crop.z, 0.0, 0.0, crop.w);
 #ifndef OW_NO_WARP
   if (warp_size > 0) {
     mat2 warp_jacobian;
@@ -20,6 +19,16 @@ vec2 ow_map_forward(sampler2D rows, sampler2D cols, int slot, int warp_size, vec
     jacobian = warp_jacobian * jacobian;
   }
 #endif
+  return uv;
+}
+
+vec2 ow_map_forward(sampler2D rows, sampler2D cols, int slot, int warp_size, vec4 crop, vec2 xy,
+                    out float magnification)
+{
+  mat2 jacobian;
+  vec2 uv = ow_map_forward_jacobian(rows, cols, slot, warp_size, crop, xy, jacobian);
+  // Magnification = the smallest singular value of d(map uv)/d(uncropped uv): a texel's
+  // preimage is at most 1/magnification texels of the plain map across, shear included.
   magnification = ow_min_singular(jacobian);
   return uv;
 }
@@ -33,3 +42,28 @@ vec2 ow_map_inverse(sampler2D rows, sampler2D cols, int slot, int warp_size, vec
 #endif
   return (crop.xy + uv / crop.zw) * 2.0 - 1.0;
 }
+
+#ifndef OW_NO_WARP
+// Inverse of the map at `uv` by two Newton steps on the forward map, started from a
+// nearby projection point `xy_start`: the depth pass interpolates its vertices'
+// projection points, which tessellation (and, on cube faces, clipping to the crop)
+// keeps within about a texel of the truth. The warp is fold-free (det J > 0), so every
+// step is defined. Two steps cost two forward evaluations (8 fetches each) against
+// about 40 fetches in two binary searches (ow_map_inverse), and a software rasteriser
+// pays for every branch, so there is no fallback: tests/gl/test_depth_pass.py bounds
+// the error, and docs/warping.md gives the measured agreement with the exact search.
+const int OW_NEWTON_STEPS = 2;
+
+vec2 ow_map_inverse_near(sampler2D rows, sampler2D cols, int slot, int warp_size, vec4 crop, vec2 uv,
+                         vec2 xy_start)
+{
+  vec2 xy = xy_start;
+  for (int step = 0; step < OW_NEWTON_STEPS; step++) {
+    mat2 jacobian;
+    vec2 residual = uv - ow_map_forward_jacobian(rows, cols, slot, warp_size, crop, xy, jacobian);
+    // d(map uv)/d(xy) = J / 2, since uncropped uv = xy / 2 + 1/2.
+    xy += 2.0 * (inverse(jacobian) * residual);
+  }
+  return xy;
+}
+#endif

@@ -9,6 +9,7 @@ import numpy as np
 import pytest
 
 from addon.core.metrics import error_figure
+from addon.core.presets import build_preset
 from addon.core.scene import SceneBuilder
 from addon.render.pipeline import ShadowPipeline, ShadowSettings, count_statistics
 from tests.support.oracle import view_samples
@@ -61,8 +62,15 @@ def _grazing_floor():
     return b.finish()
 
 
+def _light_outside_view():
+    """The courtyard preset at test size: a light high behind the camera, a 30 m ground
+    seen towards its horizon. Warped cube faces hold a small crop of that ground, whose
+    triangles pass behind the light and reach far off the map."""
+    return build_preset("courtyard", SIZE)
+
+
 CASES = {"vertex_at_light": _vertex_at_light, "seam": _seam_straddler, "huge_floor": _huge_floor,
-         "grazing": _grazing_floor}
+         "grazing": _grazing_floor, "light_outside_view": _light_outside_view}
 
 
 @pytest.fixture(scope="module", params=list(CASES))
