@@ -103,8 +103,12 @@ class ShadowBackend(ABC):
         """Warp offset tables, (6 * A, A + 1) float32 each (slot-major), or None for no warp."""
 
     @abstractmethod
-    def scatter_counts(self, size: int, uniforms: UniformValues) -> np.ndarray:
-        """Count map (size x size float32, row 0 at the bottom) of the uploaded samples."""
+    def scatter_counts(self, size: int, tiles: int, uniforms: UniformValues) -> np.ndarray:
+        """Count maps of the uploaded samples, all layers in one dispatch (SCATTER_PROGRAM).
+
+        Returns (size, size * tiles) float32, row 0 at the bottom (v = 0); the layer in
+        slot s fills the columns of tile `uniforms["ow_slot_tile"][s]`.
+        """
 
     @abstractmethod
     def shadow_test(self, uniforms: UniformValues) -> np.ndarray:

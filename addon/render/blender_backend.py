@@ -19,6 +19,7 @@ from .backend import AtlasLayout, ShadowBackend, UniformValues
 from .shaders import (
     EDGE_PROGRAM,
     SCATTER_PROGRAM,
+    ComputeInterface,
     ProgramInterface,
     depth_program,
     shadow_test_program,
@@ -108,6 +109,24 @@ def read_texture(texture, fmt: str) -> np.ndarray:
     return _read(texture, fmt)
 
 
+def compute_create_info(iface: ComputeInterface) -> Any:
+    """A `GPUShaderCreateInfo` for a compute program: push constants, samplers, R32UI images."""
+    import gpu
+
+    info = gpu.types.GPUShaderCreateInfo()
+    info.local_group_size(iface.local_size, 1, 1)
+    for uniform in iface.uniforms:
+        info.push_constant(_GLSL_TYPES[uniform.glsl_type], uniform.name, uniform.array)
+    for slot, sampler in enumerate(iface.samplers):
+        info.sampler(slot, "FLOAT_2D", sampler)
+    for unit, (fmt, name) in enumerate(iface.images):
+        info.image(unit, fmt.upper(), "UINT_2D", name, qualifiers={"READ", "WRITE"})
+    for key, value in iface.defines.items():
+        info.define(key, value)
+    info.compute_source(load_source(iface.compute_file))
+    return info
+
+
 def _float_texture(size: tuple[int, int], fmt: str, data: np.ndarray | None = None):
     import gpu
 
@@ -159,7 +178,7 @@ class BlenderGPUBackend(ShadowBackend):
         self._textures: dict[str, Any] = {}
         self._sample_size: tuple[int, int] | None = None
         self._test_target = None
-        self._count_targets: dict[int, tuple] = {}
+        self._count_targets: dict[int, Any] = {}  # count-map size -> R32UI strip of its tiles
         self._batches: dict[str, Any] = {}
         self._active: dict[str, frozenset[str]] = {}  # program name -> uniforms it kept
         self._overlay_dummy = None
@@ -240,7 +259,14 @@ class BlenderGPUBackend(ShadowBackend):
 
         arr = np.asarray(value, dtype=np.float64)
         if uniform.glsl_type in ("int", "bool", "ivec2", "ivec3", "ivec4"):
-            shader.uniform_int(uniform.name, int(value) if arr.ndim == 0 else [int(v) for v in arr.ravel()])
+            if uniform.array:
+                # uniform_int takes at most 4 values; arrays go through their location.
+                ints = [int(v) for v in arr.ravel()]
+                length = 1 if uniform.glsl_type in ("int", "bool") else int(uniform.glsl_type[-1])
+                shader.uniform_vector_int(shader.uniform_from_name(uniform.name),
+                                          gpu.types.Buffer("INT", len(ints), ints), length, len(ints) // length)
+            else:
+                shader.uniform_int(uniform.name, int(value) if arr.ndim == 0 else [int(v) for v in arr.ravel()])
             return
         if uniform.glsl_type.startswith("mat"):
             # GLSL matrices are column-major: upload the transpose's rows.
@@ -323,7 +349,6 @@ class BlenderGPUBackend(ShadowBackend):
         if self._sample_size != (width, height):
             out = _float_texture((width, height), "RG32F")
             self._test_target = (out, _framebuffer(color_slots=(out,)))
-            self._batches.pop("scatter", None)
             self._sample_size = (width, height)
 
     def set_warp_tables(self, rows: np.ndarray | None, cols: np.ndarray | None) -> None:
@@ -331,38 +356,47 @@ class BlenderGPUBackend(ShadowBackend):
             data = np.zeros((1, 1), np.float32) if table is None else np.asarray(table, np.float32)
             self._textures[name] = _float_texture((data.shape[1], data.shape[0]), "R32F", data)
 
-    def scatter_counts(self, size: int, uniforms: UniformValues) -> np.ndarray:
+    def scatter_counts(self, size: int, tiles: int, uniforms: UniformValues) -> np.ndarray:
         import gpu
-        from gpu_extras.batch import batch_for_shader
 
         if self._sample_size is None:
             raise BackendError("scatter_counts called before upload_samples")
         target = self._count_targets.get(size)
-        if target is None:
-            tex = _float_texture((size, size), "R32F")
-            target = (tex, _framebuffer(color_slots=(tex,)))
+        if target is None or target.width != size * tiles:
+            # One strip per count-map size, reallocated when the layer count changes.
+            CREATED["texture"] += 1
+            target = gpu.types.GPUTexture((size * tiles, size), format="R32UI")
             self._count_targets[size] = target
-        tex, fb = target
-        with fb.bind():
-            fb.clear(color=(0.0, 0.0, 0.0, 0.0))
-            shader = self._bind(SCATTER_PROGRAM, uniforms)
-            batch = self._batches.get("scatter")
-            if batch is None:
-                count = self._sample_size[0] * self._sample_size[1]
-                batch = batch_for_shader(shader, "POINTS",
-                                         {"ow_index": np.arange(count, dtype=np.float32)})
-                self._batches["scatter"] = batch
-            gpu.state.viewport_set(0, 0, size, size)
-            # (ONE, ONE): 'ADDITIVE' would scale by the source alpha, which a
-            # one-channel output leaves at 0 (DESIGN.md section 3).
-            gpu.state.blend_set("ADDITIVE_PREMULT")
-            gpu.state.program_point_size_set(True)
+        target.clear(format="UINT", value=(0,))
+        shader = self.compute_shader(SCATTER_PROGRAM)
+        shader.bind()
+        active = self._active_names(SCATTER_PROGRAM, shader)
+        types = {u.name: u for u in SCATTER_PROGRAM.uniforms}
+        for name, value in uniforms.items():
+            if name in types and name in active:
+                self._set_uniform(shader, types[name], value)
+        for sampler in SCATTER_PROGRAM.samplers:
+            if sampler in active:
+                shader.uniform_sampler(sampler, self._textures[sampler])
+        shader.image("ow_counts", target)
+        width, height = self._sample_size
+        gpu.compute.dispatch(shader, SCATTER_PROGRAM.groups(width * height), 1, 1)
+        raw = np.asarray(target.read(), dtype=np.uint32)  # read() waits for the dispatch
+        return raw.reshape(size, size * tiles).astype(np.float32)
+
+    def compute_shader(self, iface: ComputeInterface):
+        """Build (once) the compute shader for an interface."""
+        import gpu
+
+        shader = self._shaders.get(iface.name)
+        if shader is None:
             try:
-                batch.draw(shader)
-            finally:
-                gpu.state.blend_set("NONE")
-                gpu.state.program_point_size_set(False)
-        return _read(tex, "R32F")
+                shader = gpu.shader.create_from_info(compute_create_info(iface))
+                CREATED["shader"] += 1
+            except Exception as exc:  # gpu reports GLSL errors as plain Exception
+                raise BackendError(f"GLSL compute program {iface.name} failed to build in Blender: {exc}") from exc
+            self._shaders[iface.name] = shader
+        return shader
 
     def shadow_test(self, uniforms: UniformValues) -> np.ndarray:
         import gpu
@@ -431,7 +465,7 @@ class BlenderGPUBackend(ShadowBackend):
 
     def live_resources(self) -> int:
         """GPU objects this backend holds now (textures, framebuffers, shaders, batches)."""
-        count = len(self._shaders) + len(self._textures) + len(self._batches) + 2 * len(self._count_targets)
+        count = len(self._shaders) + len(self._textures) + len(self._batches) + len(self._count_targets)
         count += 2 if self._test_target is not None else 0
         count += sum(obj is not None for obj in (self._atlas_depth, self._atlas_fb))
         count += 1 if getattr(self, "_overlay_dummy", None) is not None else 0

@@ -15,10 +15,12 @@ from .backend import AtlasLayout, ShadowBackend, UniformValues
 from .shaders import (
     EDGE_PROGRAM,
     SCATTER_PROGRAM,
+    ComputeInterface,
     ProgramInterface,
     depth_program,
-    shadow_test_program,
+    moderngl_compute_source,
     moderngl_sources,
+    shadow_test_program,
 )
 
 log = logging.getLogger(__name__)
@@ -86,9 +88,7 @@ class ModernGLBackend(ShadowBackend):
         self._textures: dict[str, object] = {}
         self._sample_size: tuple[int, int] | None = None
         self._test_target = None  # (texture, framebuffer) of the sample size
-        self._count_targets: dict[int, tuple] = {}
-        self._index_vbo = None
-        self._index_count = 0
+        self._count_targets: dict[int, object] = {}  # count-map size -> R32UI strip of its tiles
         with self.ctx:
             self._fullscreen_vbo = self.ctx.buffer(_FULLSCREEN.tobytes())
             self._set_table("ow_warp_rows", None)
@@ -220,12 +220,7 @@ class ModernGLBackend(ShadowBackend):
                     obj.release()
             out = self._float_texture((width, height), 2)
             self._test_target = (out, self.ctx.framebuffer(color_attachments=[out]))
-            if self._index_vbo is not None:
-                self._index_vbo.release()
-            self._index_vbo = self.ctx.buffer(np.arange(width * height, dtype="f4").tobytes())
-            self._index_count = width * height
             self._sample_size = (width, height)
-            self._drop_vao("scatter")
         self._textures["ow_positions"].write(np.ascontiguousarray(positions, dtype="f4").tobytes())
         self._textures["ow_normals"].write(np.ascontiguousarray(normals, dtype="f4").tobytes())
 
@@ -234,38 +229,57 @@ class ModernGLBackend(ShadowBackend):
         self._set_table("ow_warp_rows", rows)
         self._set_table("ow_warp_cols", cols)
 
-    def _drop_vao(self, name: str) -> None:
-        vao = self._vaos.pop(name, None)
-        if vao is not None:
-            vao.release()
-
     @_current
-    def scatter_counts(self, size: int, uniforms: UniformValues) -> np.ndarray:
+    def scatter_counts(self, size: int, tiles: int, uniforms: UniformValues) -> np.ndarray:
         if self._sample_size is None:
             raise BackendError("scatter_counts called before upload_samples")
         target = self._count_targets.get(size)
-        if target is None:
-            tex = self._float_texture((size, size), 1)
-            target = (tex, self.ctx.framebuffer(color_attachments=[tex]))
+        if target is None or target.width != size * tiles:
+            # One strip per count-map size, reallocated when the layer count changes.
+            if target is not None:
+                target.release()
+            target = self.ctx.texture((size * tiles, size), 1, dtype="u4")
+            target.filter = (self._mgl.NEAREST, self._mgl.NEAREST)
             self._count_targets[size] = target
-        tex, fbo = target
-        prog = self._use(SCATTER_PROGRAM, uniforms)
-        vao = self._vaos.get("scatter")
-        if vao is None:
-            vao = self.ctx.vertex_array(prog, [(self._index_vbo, "f", "ow_index")])
-            self._vaos["scatter"] = vao
-        fbo.use()
-        fbo.viewport = (0, 0, size, size)
-        fbo.clear(0.0, 0.0, 0.0, 0.0)
-        # Additive blending (ONE, ONE) sums one per sample into an R32F texel.
-        self.ctx.enable(self._mgl.BLEND | self._mgl.PROGRAM_POINT_SIZE)
-        self.ctx.blend_func = (self._mgl.ONE, self._mgl.ONE)
-        self.ctx.blend_equation = self._mgl.FUNC_ADD
-        try:
-            vao.render(self._mgl.POINTS, vertices=self._index_count)
-        finally:
-            self.ctx.disable(self._mgl.BLEND | self._mgl.PROGRAM_POINT_SIZE)
-        return np.frombuffer(tex.read(), dtype="f4").reshape(size, size).copy()
+        target.write(np.zeros(size * tiles * size, dtype="u4").tobytes())
+        prog = self._use_compute(SCATTER_PROGRAM, uniforms)
+        target.bind_to_image(0, read=True, write=True)
+        width, height = self._sample_size
+        prog.run(group_x=SCATTER_PROGRAM.groups(width * height))
+        # The read-back waits for the dispatch; image stores need this barrier first.
+        self.ctx.memory_barrier()
+        counts = np.frombuffer(target.read(), dtype="u4").reshape(size, size * tiles)
+        return counts.astype(np.float32)
+
+    def _use_compute(self, iface: ComputeInterface, uniforms: UniformValues):
+        prog = self._programs.get(iface.name)
+        if prog is None:
+            try:
+                prog = self.ctx.compute_shader(moderngl_compute_source(iface))
+            except Exception as exc:  # moderngl reports compile errors as plain Exception
+                raise BackendError(f"GLSL compute program {iface.name} failed to build: {exc}") from exc
+            for binding, sampler in enumerate(iface.samplers):
+                if sampler in prog:
+                    prog[sampler].value = binding
+            self._programs[iface.name] = prog
+        types = {u.name: u.glsl_type for u in iface.uniforms}
+        for name, value in uniforms.items():
+            if name not in prog:
+                continue  # optimised away by the GLSL compiler
+            raw = _uniform_bytes(value, types.get(name, ""))
+            if raw is not None:
+                prog[name].write(raw)
+            elif isinstance(value, (tuple, list, np.ndarray)):
+                cast = int if types.get(name) == "int" else float
+                prog[name].value = tuple(cast(v) for v in np.asarray(value).ravel())
+            else:
+                prog[name].value = value
+        for binding, sampler in enumerate(iface.samplers):
+            texture = self._textures.get(sampler)
+            if texture is None:
+                raise BackendError(f"{iface.name}: no texture for sampler {sampler}")
+            texture.use(binding)
+        return prog
 
     @_current
     def shadow_test(self, uniforms: UniformValues) -> np.ndarray:
@@ -351,8 +365,7 @@ class ModernGLBackend(ShadowBackend):
             for vao in self._vaos.values():
                 vao.release()
             self._vaos.clear()
-            for tex, fbo in self._count_targets.values():
-                fbo.release()
+            for tex in self._count_targets.values():
                 tex.release()
             self._count_targets.clear()
             for fbo in self._edge_fbos or ():
@@ -364,9 +377,7 @@ class ModernGLBackend(ShadowBackend):
             for tex in self._textures.values():
                 tex.release()
             self._textures.clear()
-            for buf in (self._index_vbo, self._fullscreen_vbo):
-                if buf is not None:
-                    buf.release()
+            self._fullscreen_vbo.release()
             for prog in self._programs.values():
                 prog.release()
             self._programs.clear()

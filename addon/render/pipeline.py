@@ -408,53 +408,66 @@ class ShadowPipeline:
     def __init__(self, backend: ShadowBackend) -> None:
         self.backend = backend
 
-    def _scatter_uniforms(self, light: LightSpec, layer: Layer, parameterization: str,
-                          mapping: LayerMapping, warp_size: int, mode: int) -> dict:
-        return {
+    def count_maps(self, light: LightSpec, plan: Plan, mappings: dict[int, LayerMapping], size: int,
+                   mode: int) -> dict[int, np.ndarray]:
+        """GPU count maps (row 0 = v = 0) of the uploaded samples, one per drawn layer of `plan`.
+
+        mode 0: after each layer's crop only; 1: through the row warps; 2: through the
+        full warp. A layer missing from `mappings` counts uncropped. The warp tables must
+        already be uploaded for modes 1 and 2. All layers share one dispatch.
+        """
+        slots = plan.drawn_slots
+        rotations = np.tile(np.eye(3), (6, 1, 1))
+        crops = np.tile([0.0, 0.0, 1.0, 1.0], (6, 1))
+        tiles = np.full(6, -1, dtype=np.int64)
+        warp_size = 0
+        for tile, layer in enumerate(plan.drawn):
+            mapping = mappings.get(layer.slot, LayerMapping.identity())
+            rotations[layer.slot] = layer.rotation
+            crops[layer.slot] = mapping.crop_vec4()
+            tiles[layer.slot] = tile
+            if mapping.warp is not None:
+                warp_size = mapping.warp.size
+        uniforms = {
             "ow_light_rot": light.rotation.T,
-            "ow_layer_rot": layer.rotation,
-            "ow_layer_kind": layer.kind,
-            "ow_layer_slot": layer.slot,
-            "ow_param": _PARAM_CODES[parameterization],
+            "ow_layer_rot": rotations,
+            "ow_layer_crop": crops,
+            "ow_slot_tile": tiles,
+            "ow_layer_kind": plan.all_layers[0].kind if plan.all_layers else projection.PARABOLOID,
+            "ow_param": _PARAM_CODES[plan.parameterization],
             "ow_hemi": 1 if light.emission == "hemi" else 0,
             "ow_warp_size": warp_size,
             "ow_scatter_mode": mode,
-            "ow_crop": mapping.crop_vec4(),
+            "ow_count_size": size,
         }
-
-    def count_map(self, light: LightSpec, plan: Plan, layer: Layer, mapping: LayerMapping,
-                  size: int, mode: int) -> np.ndarray:
-        """GPU count map of the uploaded samples for one layer of `plan` (row 0 = v = 0).
-
-        mode 0: after the crop only; 1: through the row warps; 2: through the full warp.
-        The warp tables must already be uploaded for modes 1 and 2.
-        """
-        warp_size = mapping.warp.size if mapping.warp is not None else 0
-        uniforms = self._scatter_uniforms(light, layer, plan.parameterization, mapping, warp_size, mode)
-        return self.backend.scatter_counts(size, uniforms)
+        strip = self.backend.scatter_counts(size, max(len(slots), 1), uniforms)
+        return {slot: strip[:, tile * size:(tile + 1) * size].copy() for tile, slot in enumerate(slots)}
 
     def _analyse(self, light: LightSpec, settings: ShadowSettings, plan: Plan) -> tuple[dict, dict]:
-        """DV crop and warp construction per drawn layer (Algorithm 3, steps 2-7)."""
+        """DV crop and warp construction for every drawn layer (Algorithm 3, steps 2-7).
+
+        Each step scatters all layers at once: 3 dispatches for NoTW, 2 for RTW.
+        """
         size = settings.analysis_size or analysis_size_for(settings.resolution)
-        mappings: dict[int, LayerMapping] = {}
-        counts: dict[int, np.ndarray] = {}
         self.backend.set_warp_tables(None, None)
-        for layer in plan.drawn:
-            whole = self.count_map(light, plan, layer, LayerMapping.identity(), size, 0)
-            lo, hi = dv_crop_from_counts(whole)
-            crop = LayerMapping(lo, hi, None)
-            cropped = self.count_map(light, plan, layer, crop, size, 0)
-            counts[layer.slot] = cropped
-            if settings.warp == "rtw":
-                warp = rtw_from_counts(cropped)
-            else:
-                rows, row_window = notw_rows(cropped)
-                mappings[layer.slot] = LayerMapping(lo, hi, _warp_of(rows, None, size))
-                self.backend.set_warp_tables(*_stack_tables(mappings, size))
-                after_rows = self.count_map(light, plan, layer, mappings[layer.slot], size, 1)
-                cols, col_window = notw_cols(after_rows)
-                warp = _warp_of(rows, cols, size, row_window, col_window)
-            mappings[layer.slot] = LayerMapping(lo, hi, warp)
+        whole = self.count_maps(light, plan, {}, size, 0)
+        crops = {slot: LayerMapping(*dv_crop_from_counts(counts), None) for slot, counts in whole.items()}
+        counts = self.count_maps(light, plan, crops, size, 0)
+        mappings: dict[int, LayerMapping] = {}
+        if settings.warp == "rtw":
+            for slot, crop in crops.items():
+                mappings[slot] = LayerMapping(crop.lo, crop.hi, rtw_from_counts(counts[slot]))
+        else:
+            rows = {slot: notw_rows(counts[slot]) for slot in crops}
+            row_only = {slot: LayerMapping(crop.lo, crop.hi, _warp_of(rows[slot][0], None, size))
+                        for slot, crop in crops.items()}
+            self.backend.set_warp_tables(*_stack_tables(row_only, size))
+            after_rows = self.count_maps(light, plan, row_only, size, 1)
+            for slot, crop in crops.items():
+                cols, col_window = notw_cols(after_rows[slot])
+                row_table, row_window = rows[slot]
+                mappings[slot] = LayerMapping(crop.lo, crop.hi,
+                                              _warp_of(row_table, cols, size, row_window, col_window))
         self.backend.set_warp_tables(*_stack_tables(mappings, size))
         return mappings, counts
 
@@ -717,12 +730,10 @@ def count_statistics(pipeline: ShadowPipeline, light: LightSpec, settings: Shado
             raise InputError("count statistics of a spot or sun map need the view samples")
         counts = projective_counts(result.plan.projective, light, samples, res)
         return CountStatistics({0: counts}, {0: counts})
-    before, after = {}, {}
-    for layer in result.plan.drawn:
-        before[layer.slot] = pipeline.count_map(light, result.plan, layer, LayerMapping.identity(), res, 0)
-        mapping = result.mappings.get(layer.slot)
-        if mapping is None:
-            after[layer.slot] = before[layer.slot]
-        else:
-            after[layer.slot] = pipeline.count_map(light, result.plan, layer, mapping, res, 2)
+    before = pipeline.count_maps(light, result.plan, {}, res, 0)
+    mapped = {slot: m for slot, m in result.mappings.items() if slot in before}
+    after = dict(before)
+    if mapped:
+        after.update({slot: counts for slot, counts in pipeline.count_maps(light, result.plan, mapped, res, 2).items()
+                      if slot in mapped})
     return CountStatistics(before, after)

@@ -53,6 +53,23 @@ class ProgramInterface:
     defines: dict[str, str] = field(default_factory=dict)
 
 
+@dataclass(frozen=True)
+class ComputeInterface:
+    """Declarations around a shared compute body: uniforms, samplers and images."""
+
+    name: str
+    compute_file: str
+    uniforms: tuple[Uniform, ...] = ()
+    samplers: tuple[str, ...] = ()  # sampler2D names, binding = index
+    images: tuple[tuple[str, str], ...] = ()  # (format, name) of uimage2D images, unit = index
+    local_size: int = 64  # invocations per work group along x
+    defines: dict[str, str] = field(default_factory=dict)
+
+    def groups(self, invocations: int) -> int:
+        """Work groups that cover `invocations` (the body returns past the end)."""
+        return max(1, -(-int(invocations) // self.local_size))
+
+
 def load_source(relative: str, shader_dir: Path = SHADER_DIR) -> str:
     """Read a GLSL file and inline its `#include`s, each file at most once.
 
@@ -151,24 +168,23 @@ SHADOW_TEST_PROGRAM = ProgramInterface(
     samplers=("ow_positions", "ow_normals", "ow_atlas") + _WARP_SAMPLERS + ("ow_edges",),
 )
 
-SCATTER_PROGRAM = ProgramInterface(
+SCATTER_PROGRAM = ComputeInterface(
     name="omniwarp_scatter",
-    vertex_file="scatter.vert",
-    fragment_file="scatter.frag",
-    vertex_in=(("float", "ow_index"),),
-    fragment_out=(("float", "ow_count"),),
+    compute_file="scatter.comp",
     uniforms=(
         Uniform("mat3", "ow_light_rot"),
-        Uniform("mat3", "ow_layer_rot"),
+        Uniform("mat3", "ow_layer_rot", 6),
+        Uniform("vec4", "ow_layer_crop", 6),
+        Uniform("int", "ow_slot_tile", 6),
         Uniform("int", "ow_layer_kind"),
-        Uniform("int", "ow_layer_slot"),
         Uniform("int", "ow_param"),
         Uniform("int", "ow_hemi"),
         Uniform("int", "ow_warp_size"),
         Uniform("int", "ow_scatter_mode"),
-        Uniform("vec4", "ow_crop"),
+        Uniform("int", "ow_count_size"),
     ),
     samplers=("ow_positions",) + _WARP_SAMPLERS,
+    images=(("r32ui", "ow_counts"),),
 )
 
 GBUFFER_PROGRAM = ProgramInterface(
@@ -235,8 +251,9 @@ def shadow_test_program(uniforms: dict) -> ProgramInterface:
     return SHADOW_TEST_PROGRAM if int(uniforms.get("ow_warp_size", 0)) > 0 else SHADOW_TEST_PLAIN_PROGRAM
 
 
-PROGRAMS = (DEPTH_PROGRAM, DEPTH_PLAIN_PROGRAM, SHADOW_TEST_PROGRAM, SHADOW_TEST_PLAIN_PROGRAM, SCATTER_PROGRAM,
-            GBUFFER_PROGRAM, PREVIEW_PROGRAM, OVERLAY_PROGRAM, EDGE_PROGRAM)
+PROGRAMS = (DEPTH_PROGRAM, DEPTH_PLAIN_PROGRAM, SHADOW_TEST_PROGRAM, SHADOW_TEST_PLAIN_PROGRAM, GBUFFER_PROGRAM,
+            PREVIEW_PROGRAM, OVERLAY_PROGRAM, EDGE_PROGRAM)
+COMPUTE_PROGRAMS = (SCATTER_PROGRAM,)
 
 
 def _decl_uniform(u: Uniform) -> str:
@@ -260,6 +277,23 @@ def glsl_header(iface: ProgramInterface, stage: str) -> str:
     else:
         lines += [f"layout(location = {i}) out {t} {n};" for i, (t, n) in enumerate(iface.fragment_out)]
     return "\n".join(lines) + "\n#line 1\n"
+
+
+def compute_header(iface: ComputeInterface) -> str:
+    """Declarations of a compute program for a plain-GLSL backend (moderngl)."""
+    lines = [f"#version {GLSL_VERSION}"]
+    lines += [f"#define {k} {v}" for k, v in iface.defines.items()]
+    lines.append(f"layout(local_size_x = {iface.local_size}) in;")
+    lines += [_decl_uniform(u) for u in iface.uniforms]
+    lines += [f"uniform sampler2D {name};" for name in iface.samplers]
+    lines += [f"layout({fmt}, binding = {unit}) uniform uimage2D {name};"
+              for unit, (fmt, name) in enumerate(iface.images)]
+    return "\n".join(lines) + "\n#line 1\n"
+
+
+def moderngl_compute_source(iface: ComputeInterface, shader_dir: Path = SHADER_DIR) -> str:
+    """Complete compute source for moderngl."""
+    return compute_header(iface) + load_source(iface.compute_file, shader_dir)
 
 
 def moderngl_sources(iface: ProgramInterface, shader_dir: Path = SHADER_DIR) -> tuple[str, str]:

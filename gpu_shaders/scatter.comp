@@ -1,0 +1,49 @@
+// Count-map scatter (thesis Algorithm 3, steps 2 and 6): one invocation per view
+// sample adds one to the count-map texel it maps to, with imageAtomicAdd on R32UI, so
+// counts are exact integers. Every drawn layer goes out in the same dispatch: layer
+// slot s writes the tile at x = ow_slot_tile[s] * ow_count_size (-1: not drawn).
+// ow_scatter_mode: 0 = after the DV crop, 1 = also through the row warps,
+// 2 = through the full warp (the importance map).
+#include "lib/projection.glsl"
+#include "lib/layers.glsl"
+#include "lib/mapping.glsl"
+
+void main()
+{
+  ivec2 size = textureSize(ow_positions, 0);
+  int index = int(gl_GlobalInvocationID.x);
+  if (index >= size.x * size.y) {
+    return;
+  }
+  vec4 pw = texelFetch(ow_positions, ivec2(index % size.x, index / size.x), 0);
+  float dist = length(pw.xyz);
+  if (pw.w < 0.5 || !(dist > 0.0)) {
+    return;
+  }
+  vec3 dir = pw.xyz / dist;
+  vec3 ldir = ow_light_rot * dir;
+  if (ow_hemi != 0 && ldir.z >= 0.0) {
+    return;
+  }
+  int slot = ow_pick_slot(ow_param, ldir);
+  int tile = ow_slot_tile[slot];
+  if (tile < 0) {
+    return;
+  }
+  vec4 crop = ow_layer_crop[slot];
+  vec2 xy = ow_project(ow_layer_kind, ow_layer_rot[slot] * dir);
+  vec2 uv = ((xy * 0.5 + 0.5) - crop.xy) * crop.zw;
+  if (ow_scatter_mode == 1) {
+    uv = ow_apply_row_warp(ow_warp_rows, slot, ow_warp_size, uv);
+  }
+  else if (ow_scatter_mode == 2) {
+    float magnification;
+    uv = ow_map_forward(ow_warp_rows, ow_warp_cols, slot, ow_warp_size, crop, xy, magnification);
+  }
+  // Points outside [0, 1)^2 are dropped, as in warping.scatter_counts (the numpy oracle).
+  ivec2 texel = ivec2(floor(uv * float(ow_count_size)));
+  if (any(lessThan(uv, vec2(0.0))) || any(greaterThanEqual(texel, ivec2(ow_count_size)))) {
+    return;
+  }
+  imageAtomicAdd(ow_counts, texel + ivec2(tile * ow_count_size, 0), 1u);
+}
