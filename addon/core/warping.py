@@ -97,6 +97,27 @@ class Warp:
                 1.0 + family_slope(self.cols, uv[..., 1], u2))
 
 
+def singular_values_2x2(m: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Largest and smallest singular values of (..., 2, 2) matrices, in closed form.
+
+    From the eigenvalues of M^T M: mean +- sqrt(((a - c) / 2)^2 + b^2), with a, c the
+    squared column norms and b their dot product (as `ow_min_singular` in GLSL).
+    Much faster than np.linalg.svd on many small matrices.
+    """
+    m = np.asarray(m, dtype=np.float64)
+    # Scaled to a largest entry of 1 first, so squaring neither under- nor overflows.
+    peak = np.abs(m).max(axis=(-2, -1))
+    scale = np.where(peak > 0.0, peak, 1.0)
+    m = m / scale[..., None, None]
+    col0, col1 = m[..., :, 0], m[..., :, 1]
+    a = np.einsum("...i,...i->...", col0, col0)
+    c = np.einsum("...i,...i->...", col1, col1)
+    b = np.einsum("...i,...i->...", col0, col1)
+    mean = 0.5 * (a + c)
+    spread = np.sqrt(0.25 * (a - c) ** 2 + b * b)
+    return scale * np.sqrt(mean + spread), scale * np.sqrt(np.maximum(mean - spread, 0.0))
+
+
 # ---------------------------------------------------------------------------
 # evaluation of one family (shared by rows and columns)
 # ---------------------------------------------------------------------------
@@ -472,7 +493,7 @@ class LayerMapping:
         if self.warp is not None:
             uv = (xy * 0.5 + 0.5 - self.lo) * self.scale
             jac = self.warp.jacobian(uv) @ crop
-        return np.linalg.svd(jac, compute_uv=False)[..., -1]
+        return singular_values_2x2(jac)[1]
 
     def inverse(self, uv: np.ndarray) -> np.ndarray:
         """Final map uv back to projection coordinates."""

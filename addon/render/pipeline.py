@@ -30,6 +30,7 @@ from ..core.warping import (
     notw_cols,
     notw_rows,
     rtw_from_counts,
+    singular_values_2x2,
 )
 from .backend import AtlasLayout, ShadowBackend
 
@@ -207,7 +208,7 @@ def texel_angle_floor(kind: int, mapping: LayerMapping, res: int) -> float:
         size = mapping.warp.size
         centres = (np.arange(size) + 0.5) / size
         grid = np.stack(np.meshgrid(centres, centres), axis=-1).reshape(-1, 2)
-        stretch *= 2.0 * float(np.linalg.svd(mapping.warp.jacobian(grid), compute_uv=False)[:, 0].max())
+        stretch *= 2.0 * float(singular_values_2x2(mapping.warp.jacobian(grid))[0].max())
     return base / stretch
 
 

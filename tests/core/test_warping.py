@@ -207,3 +207,15 @@ def test_smoothing_subnormal_totals_stays_monotone(window):
     offsets = W.offsets_from_counts(counts)
     smooth = W.smooth_offsets(offsets, counts.sum(axis=1), window)
     _check_family(smooth, W.FLOOR_SHARE, W.MAX_SLOPE)
+
+
+@settings(max_examples=200, deadline=None)
+@given(st.lists(st.floats(-1e3, 1e3, allow_nan=False), min_size=4, max_size=4))
+def test_closed_form_singular_values_match_svd(entries):
+    m = np.array(entries, dtype=np.float64).reshape(2, 2)
+    big, small = W.singular_values_2x2(m[None])
+    expected = np.linalg.svd(m, compute_uv=False)
+    scale = max(expected[0], 1e-300)
+    assert abs(big[0] - expected[0]) <= 1e-9 * scale
+    # The smaller one loses digits to cancellation when the matrix is nearly singular.
+    assert abs(small[0] - expected[1]) <= 1e-6 * scale
