@@ -11,7 +11,7 @@ import pytest
 
 from addon.core.scene import SceneBuilder
 from addon.render.moderngl_backend import ModernGLBackend
-from addon.render.pipeline import ShadowPipeline, ShadowSettings, ViewSamples
+from addon.render.pipeline import ShadowPipeline, ShadowSettings
 from addon.render.shaders import (
     DEPTH_PLAIN_PROGRAM,
     DEPTH_PROGRAM,
