@@ -290,10 +290,10 @@ CROP_CLIP_MARGIN_TEXELS = 2.0
 def _clip_to_crop(local_tris: np.ndarray, mapping: LayerMapping, res: int) -> np.ndarray:
     """Clip face-local triangles (z > 0) to the frustum of a cube face's crop box, plus a margin.
 
-    Nothing outside the box is stored, and a triangle reaching far outside would cross
-    the warp with straight, untessellated edges; inside the box tessellation follows
-    the warp, so the depth pass's interpolated projection point stays near the truth.
-    A side of the box at the face's own edge (uv 0 or 1) is left alone.
+    Nothing outside the box is stored (a whole face's box is the face itself). A
+    triangle reaching far outside would cross the warp with straight, untessellated
+    edges; inside the box tessellation follows the warp, so the depth pass's
+    interpolated projection point stays near the truth.
     """
     margin = CROP_CLIP_MARGIN_TEXELS / (res * mapping.scale)  # in uncropped uv
     lo = mapping.lo - margin
@@ -301,10 +301,8 @@ def _clip_to_crop(local_tris: np.ndarray, mapping: LayerMapping, res: int) -> np
     tris = local_tris
     for axis in (0, 1):
         # uv = (x / z) / 2 + 1/2 >= lo  <=>  x - (2 lo - 1) z >= 0 (z > 0); likewise <= hi.
-        if lo[axis] > 0.0:
-            tris = tessellate.clip_halfspace(tris, tris[..., axis] - (2.0 * lo[axis] - 1.0) * tris[..., 2])
-        if hi[axis] < 1.0:
-            tris = tessellate.clip_halfspace(tris, (2.0 * hi[axis] - 1.0) * tris[..., 2] - tris[..., axis])
+        tris = tessellate.clip_halfspace(tris, tris[..., axis] - (2.0 * lo[axis] - 1.0) * tris[..., 2])
+        tris = tessellate.clip_halfspace(tris, (2.0 * hi[axis] - 1.0) * tris[..., 2] - tris[..., axis])
     return tris
 
 

@@ -69,8 +69,14 @@ def _light_outside_view():
     return build_preset("courtyard", SIZE)
 
 
+def _huge_triangles():
+    """The stress preset at test size: triangles far larger than the view, which every
+    cube face holds uncropped, so they reach far off each warped face."""
+    return build_preset("stress_huge_triangles", SIZE)
+
+
 CASES = {"vertex_at_light": _vertex_at_light, "seam": _seam_straddler, "huge_floor": _huge_floor,
-         "grazing": _grazing_floor, "light_outside_view": _light_outside_view}
+         "grazing": _grazing_floor, "light_outside_view": _light_outside_view, "huge_triangles": _huge_triangles}
 
 
 @pytest.fixture(scope="module", params=list(CASES))
