@@ -188,14 +188,15 @@ class BlenderGPUBackend(ShadowBackend):
         self.set_warp_tables(None, None)
 
     # shaders ----------------------------------------------------------------
-    def shader(self, iface: ProgramInterface):
-        """Build (once) the shader for an interface."""
+    def shader(self, iface: ProgramInterface | ComputeInterface):
+        """Build (once) the shader (or compute shader) for an interface."""
         import gpu
 
         shader = self._shaders.get(iface.name)
         if shader is None:
+            info = compute_create_info(iface) if isinstance(iface, ComputeInterface) else create_info(iface)
             try:
-                shader = gpu.shader.create_from_info(create_info(iface))
+                shader = gpu.shader.create_from_info(info)
                 CREATED["shader"] += 1
             except Exception as exc:  # gpu reports GLSL errors as plain Exception
                 raise BackendError(f"GLSL program {iface.name} failed to build in Blender: {exc}") from exc
@@ -217,7 +218,8 @@ class BlenderGPUBackend(ShadowBackend):
         """
         return self._bind(iface, uniforms, textures)
 
-    def _bind(self, iface: ProgramInterface, uniforms: UniformValues, textures: dict[str, Any] | None = None):
+    def _bind(self, iface: ProgramInterface | ComputeInterface, uniforms: UniformValues,
+              textures: dict[str, Any] | None = None):
         shader = self.shader(iface)
         shader.bind()
         active = self._active_names(iface, shader)
@@ -235,7 +237,7 @@ class BlenderGPUBackend(ShadowBackend):
                 shader.uniform_sampler(sampler, texture)
         return shader
 
-    def _active_names(self, iface: ProgramInterface, shader) -> frozenset[str]:
+    def _active_names(self, iface: ProgramInterface | ComputeInterface, shader) -> frozenset[str]:
         """Uniforms and samplers the compiled shader still has (cached per program).
 
         A variant that compiles code out (OW_NO_WARP) loses the uniforms only that
@@ -368,35 +370,12 @@ class BlenderGPUBackend(ShadowBackend):
             target = gpu.types.GPUTexture((size * tiles, size), format="R32UI")
             self._count_targets[size] = target
         target.clear(format="UINT", value=(0,))
-        shader = self.compute_shader(SCATTER_PROGRAM)
-        shader.bind()
-        active = self._active_names(SCATTER_PROGRAM, shader)
-        types = {u.name: u for u in SCATTER_PROGRAM.uniforms}
-        for name, value in uniforms.items():
-            if name in types and name in active:
-                self._set_uniform(shader, types[name], value)
-        for sampler in SCATTER_PROGRAM.samplers:
-            if sampler in active:
-                shader.uniform_sampler(sampler, self._textures[sampler])
+        shader = self._bind(SCATTER_PROGRAM, uniforms)
         shader.image("ow_counts", target)
         width, height = self._sample_size
         gpu.compute.dispatch(shader, SCATTER_PROGRAM.groups(width * height), 1, 1)
         raw = np.asarray(target.read(), dtype=np.uint32)  # read() waits for the dispatch
         return raw.reshape(size, size * tiles).astype(np.float32)
-
-    def compute_shader(self, iface: ComputeInterface):
-        """Build (once) the compute shader for an interface."""
-        import gpu
-
-        shader = self._shaders.get(iface.name)
-        if shader is None:
-            try:
-                shader = gpu.shader.create_from_info(compute_create_info(iface))
-                CREATED["shader"] += 1
-            except Exception as exc:  # gpu reports GLSL errors as plain Exception
-                raise BackendError(f"GLSL compute program {iface.name} failed to build in Blender: {exc}") from exc
-            self._shaders[iface.name] = shader
-        return shader
 
     def shadow_test(self, uniforms: UniformValues) -> np.ndarray:
         import gpu

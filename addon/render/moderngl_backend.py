@@ -98,13 +98,16 @@ class ModernGLBackend(ShadowBackend):
 
     # programs ---------------------------------------------------------------
     @_current
-    def program(self, iface: ProgramInterface):
-        """Compile (once) and return the program for an interface."""
+    def program(self, iface: ProgramInterface | ComputeInterface):
+        """Compile (once) and return the program (or compute shader) for an interface."""
         prog = self._programs.get(iface.name)
         if prog is None:
-            vertex, fragment = moderngl_sources(iface)
             try:
-                prog = self.ctx.program(vertex_shader=vertex, fragment_shader=fragment)
+                if isinstance(iface, ComputeInterface):
+                    prog = self.ctx.compute_shader(moderngl_compute_source(iface))
+                else:
+                    vertex, fragment = moderngl_sources(iface)
+                    prog = self.ctx.program(vertex_shader=vertex, fragment_shader=fragment)
             except Exception as exc:  # moderngl reports compile errors as plain Exception
                 raise BackendError(f"GLSL program {iface.name} failed to build: {exc}") from exc
             for binding, sampler in enumerate(iface.samplers):
@@ -113,7 +116,7 @@ class ModernGLBackend(ShadowBackend):
             self._programs[iface.name] = prog
         return prog
 
-    def _use(self, iface: ProgramInterface, uniforms: UniformValues):
+    def _use(self, iface: ProgramInterface | ComputeInterface, uniforms: UniformValues):
         prog = self.program(iface)
         types = {u.name: u.glsl_type for u in iface.uniforms}
         for name, value in uniforms.items():
@@ -123,7 +126,8 @@ class ModernGLBackend(ShadowBackend):
             if raw is not None:
                 prog[name].write(raw)
             elif isinstance(value, (tuple, list, np.ndarray)):
-                prog[name].value = tuple(float(v) for v in np.asarray(value).ravel())
+                cast = int if types.get(name) == "int" else float
+                prog[name].value = tuple(cast(v) for v in np.asarray(value).ravel())
             else:
                 prog[name].value = value
         for binding, sampler in enumerate(iface.samplers):
@@ -242,7 +246,7 @@ class ModernGLBackend(ShadowBackend):
             target.filter = (self._mgl.NEAREST, self._mgl.NEAREST)
             self._count_targets[size] = target
         target.write(np.zeros(size * tiles * size, dtype="u4").tobytes())
-        prog = self._use_compute(SCATTER_PROGRAM, uniforms)
+        prog = self._use(SCATTER_PROGRAM, uniforms)
         target.bind_to_image(0, read=True, write=True)
         width, height = self._sample_size
         prog.run(group_x=SCATTER_PROGRAM.groups(width * height))
@@ -250,36 +254,6 @@ class ModernGLBackend(ShadowBackend):
         self.ctx.memory_barrier()
         counts = np.frombuffer(target.read(), dtype="u4").reshape(size, size * tiles)
         return counts.astype(np.float32)
-
-    def _use_compute(self, iface: ComputeInterface, uniforms: UniformValues):
-        prog = self._programs.get(iface.name)
-        if prog is None:
-            try:
-                prog = self.ctx.compute_shader(moderngl_compute_source(iface))
-            except Exception as exc:  # moderngl reports compile errors as plain Exception
-                raise BackendError(f"GLSL compute program {iface.name} failed to build: {exc}") from exc
-            for binding, sampler in enumerate(iface.samplers):
-                if sampler in prog:
-                    prog[sampler].value = binding
-            self._programs[iface.name] = prog
-        types = {u.name: u.glsl_type for u in iface.uniforms}
-        for name, value in uniforms.items():
-            if name not in prog:
-                continue  # optimised away by the GLSL compiler
-            raw = _uniform_bytes(value, types.get(name, ""))
-            if raw is not None:
-                prog[name].write(raw)
-            elif isinstance(value, (tuple, list, np.ndarray)):
-                cast = int if types.get(name) == "int" else float
-                prog[name].value = tuple(cast(v) for v in np.asarray(value).ravel())
-            else:
-                prog[name].value = value
-        for binding, sampler in enumerate(iface.samplers):
-            texture = self._textures.get(sampler)
-            if texture is None:
-                raise BackendError(f"{iface.name}: no texture for sampler {sampler}")
-            texture.use(binding)
-        return prog
 
     @_current
     def shadow_test(self, uniforms: UniformValues) -> np.ndarray:
