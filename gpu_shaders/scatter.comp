@@ -40,10 +40,11 @@ void main()
     float magnification;
     uv = ow_map_forward(ow_warp_rows, ow_warp_cols, slot, ow_warp_size, crop, xy, magnification);
   }
-  // Points outside [0, 1)^2 are dropped, as in warping.scatter_counts (the numpy oracle).
-  ivec2 texel = ivec2(floor(uv * float(ow_count_size)));
-  if (any(lessThan(uv, vec2(0.0))) || any(greaterThanEqual(texel, ivec2(ow_count_size)))) {
+  // Points outside [0, 1)^2, or NaN, are dropped, as in warping.scatter_counts (the
+  // numpy oracle); written so that a NaN fails the test instead of reaching floor().
+  if (!(all(greaterThanEqual(uv, vec2(0.0))) && all(lessThan(uv, vec2(1.0))))) {
     return;
   }
+  ivec2 texel = min(ivec2(floor(uv * float(ow_count_size))), ivec2(ow_count_size - 1));
   imageAtomicAdd(ow_counts, texel + ivec2(tile * ow_count_size, 0), 1u);
 }
