@@ -374,7 +374,9 @@ class BlenderGPUBackend(ShadowBackend):
         shader.image("ow_counts", target)
         width, height = self._sample_size
         gpu.compute.dispatch(shader, SCATTER_PROGRAM.groups(width * height), 1, 1)
-        raw = np.asarray(target.read(), dtype=np.uint32)  # read() waits for the dispatch
+        # dispatch() ends with a texture-fetch and image-access barrier (pygpu_compute_dispatch);
+        # read() then waits for the GPU.
+        raw = np.asarray(target.read(), dtype=np.uint32)
         return raw.reshape(size, size * tiles).astype(np.float32)
 
     def shadow_test(self, uniforms: UniformValues) -> np.ndarray:

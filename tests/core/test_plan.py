@@ -356,3 +356,29 @@ def test_layer_scissor_holds_every_sample(seed, par):
         lo = np.array([box[0] + 1 if box[0] > 0 else 0, box[1] + 1 if box[1] > 0 else 0])
         hi = np.array([box[2] - 1 if box[2] < res else res, box[3] - 1 if box[3] < res else res])
         assert np.all(texel >= lo) and np.all(texel <= hi), (box, texel.min(axis=0), texel.max(axis=0))
+
+
+@pytest.mark.parametrize("parameterization", ["dpsm", "unfold", "cube"])
+@pytest.mark.parametrize("emission", ["omni", "hemi"])
+def test_occupied_slots_match_pick_slot(parameterization, emission):
+    """The fast paraboloid path and the general one both agree with pick_slot per sample."""
+    from addon.core.frames import pick_slot
+    from addon.core.scene import LightSpec
+
+    rng = np.random.default_rng(4)
+    angles = rng.uniform(-np.pi, np.pi, 3)
+    c, s = np.cos(angles), np.sin(angles)
+    rot = (np.array([[1, 0, 0], [0, c[0], -s[0]], [0, s[0], c[0]]])
+           @ np.array([[c[1], 0, s[1]], [0, 1, 0], [-s[1], 0, c[1]]])
+           @ np.array([[c[2], -s[2], 0], [s[2], c[2], 0], [0, 0, 1]]))
+    matrix = np.eye(4)
+    matrix[:3, :3] = rot
+    matrix[:3, 3] = [1.0, -2.0, 0.5]
+    light = LightSpec(emission, matrix)
+    for count in (1, 7, 500):
+        pts = light.position + rng.normal(size=(count, 3)) * rng.uniform(0.1, 10.0)
+        local = (pts - light.position) @ light.rotation
+        if emission == "hemi":
+            local = local[local[:, 2] < 0.0]
+        expected = set(int(v) for v in np.unique(pick_slot(parameterization, local)))
+        assert PL.occupied_slots(light, parameterization, pts) == expected
