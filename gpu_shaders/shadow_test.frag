@@ -102,6 +102,11 @@ void main()
   vec2 uv = ow_map_forward(ow_warp_rows, ow_warp_cols, slot, ow_warp_size, ow_layer_crop[slot], xy,
                            magnification);
   ivec2 texel = clamp(ivec2(floor(uv * ow_resolution)), ivec2(0), ivec2(res - 1));
+  vec4 box = ow_layer_box[slot];  // texels (x0, y0, x1, y1) cleared and drawn this frame
+  if (any(lessThan(vec2(texel), box.xy)) || any(greaterThanEqual(vec2(texel), box.zw))) {
+    ow_result = vec2(1.0, 0.0);  // outside: empty, as a cleared texel would be (lit)
+    return;
+  }
   float stored = texelFetch(ow_atlas, texel + ivec2(tile.xy), 0).r;
   float t_map = ow_near + stored * (ow_far - ow_near);
   float tan_i = sqrt(max(1.0 - cos_i * cos_i, 0.0)) / max(cos_i, 0.05);

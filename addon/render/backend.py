@@ -76,8 +76,14 @@ class ShadowBackend(ABC):
         """Largest 2D texture side the GPU accepts."""
 
     @abstractmethod
-    def begin_atlas(self, layout: AtlasLayout) -> None:
-        """Make the atlas exist at this layout and clear it to depth 1 (empty)."""
+    def begin_atlas(self, layout: AtlasLayout, boxes: dict[int, tuple[int, int, int, int]] | None = None) -> None:
+        """Make the atlas exist at this layout and clear it to depth 1 (empty).
+
+        `boxes` maps a tile to the texel box (x0, y0, x1, y1) the shadow test can read
+        (plan.layer_scissor); such a tile is cleared only inside its box, the others
+        whole. Outside a box the atlas keeps stale values: the shadow test never reads
+        there (ow_layer_box), and the pipeline masks it in read-backs.
+        """
 
     @abstractmethod
     def draw_layer(self, tile: int, vertices: np.ndarray, uniforms: UniformValues, span: int = 1,

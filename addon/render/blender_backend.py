@@ -295,7 +295,7 @@ class BlenderGPUBackend(ShadowBackend):
 
         return int(gpu.capabilities.max_texture_size_get())
 
-    def begin_atlas(self, layout: AtlasLayout) -> None:
+    def begin_atlas(self, layout: AtlasLayout, boxes: dict[int, tuple[int, int, int, int]] | None = None) -> None:
         import gpu
 
         if self._layout != layout:
@@ -306,7 +306,20 @@ class BlenderGPUBackend(ShadowBackend):
             self._layout = layout
             self._textures["ow_atlas"] = self._atlas
         with self._atlas_fb.bind():
-            self._atlas_fb.clear(color=(1.0, 1.0, 1.0, 1.0), depth=1.0)
+            if not boxes:
+                self._atlas_fb.clear(color=(1.0, 1.0, 1.0, 1.0), depth=1.0)
+                return
+            # A framebuffer clear honours the scissor test: clear each readable box only.
+            gpu.state.scissor_test_set(True)
+            try:
+                for tile in range(layout.tiles):
+                    box = boxes.get(tile)
+                    rect = layout.scissor_rect(tile, box) if box is not None else layout.span_viewport(tile, 1)
+                    if rect[2] > 0 and rect[3] > 0:
+                        gpu.state.scissor_set(*rect)
+                        self._atlas_fb.clear(color=(1.0, 1.0, 1.0, 1.0), depth=1.0)
+            finally:
+                gpu.state.scissor_test_set(False)
 
     def draw_layer(self, tile: int, vertices: np.ndarray, uniforms: UniformValues, span: int = 1,
                    scissor: tuple[int, int, int, int] | None = None) -> None:

@@ -166,7 +166,7 @@ class ModernGLBackend(ShadowBackend):
         return int(self.ctx.info["GL_MAX_TEXTURE_SIZE"])
 
     @_current
-    def begin_atlas(self, layout: AtlasLayout) -> None:
+    def begin_atlas(self, layout: AtlasLayout, boxes: dict[int, tuple[int, int, int, int]] | None = None) -> None:
         if self._atlas_layout != layout:
             self._free_atlas()
             self._atlas = self._float_texture(layout.size, 1)
@@ -176,7 +176,14 @@ class ModernGLBackend(ShadowBackend):
             self._textures["ow_atlas"] = self._atlas
         self._atlas_fbo.use()
         self._atlas_fbo.viewport = (0, 0) + layout.size
-        self._atlas_fbo.clear(1.0, 1.0, 1.0, 1.0, depth=1.0)
+        if not boxes:
+            self._atlas_fbo.clear(1.0, 1.0, 1.0, 1.0, depth=1.0)
+            return
+        for tile in range(layout.tiles):
+            box = boxes.get(tile)
+            rect = layout.scissor_rect(tile, box) if box is not None else layout.span_viewport(tile, 1)
+            if rect[2] > 0 and rect[3] > 0:
+                self._atlas_fbo.clear(1.0, 1.0, 1.0, 1.0, depth=1.0, viewport=rect)  # a scissored clear
 
     @_current
     def draw_layer(self, tile: int, vertices: np.ndarray, uniforms: UniformValues, span: int = 1,

@@ -137,6 +137,7 @@ class FrameResult:
     tile_of_slot: dict[int, int] = field(default_factory=dict)
     mappings: dict[int, LayerMapping] = field(default_factory=dict)
     count_maps: dict[int, np.ndarray] = field(default_factory=dict)  # analysis count map per slot
+    boxes: dict[int, tuple[int, int, int, int]] = field(default_factory=dict)  # slot -> readable texel box
 
     @property
     def passes(self) -> int:
@@ -516,7 +517,9 @@ class ShadowPipeline:
         res = settings.resolution
         tile_of_slot = {layer.slot: i for i, layer in enumerate(plan.drawn)}
         layout = AtlasLayout.for_tiles(res, len(plan.drawn), backend.max_texture_size())
-        backend.begin_atlas(layout)
+        boxes = readable_boxes(plan, light, settings, mappings)
+        # Texels outside a layer's box are neither cleared nor drawn (map-space culling).
+        backend.begin_atlas(layout, {tile_of_slot[slot]: box for slot, box in boxes.items()})
         size = settings.analysis_size or analysis_size_for(res)
         if plan.parameterization == "unfold" and plan.drawn:
             # Both halves in one draw over two side-by-side tiles; the vertex stage
@@ -535,12 +538,9 @@ class ShadowPipeline:
             for layer in plan.drawn:
                 origin = layout.origin(tile_of_slot[layer.slot])
                 mapping = mappings.get(layer.slot, LayerMapping.identity())
-                # A crop or warp already fits the map to the samples; a plain layer is
-                # scissored to the part the test can read (culling, so not with --no-cull).
-                scissor = (layer_scissor(layer, light.position, plan.sample_corners, res)
-                           if settings.cull and mapping.is_identity else None)
                 backend.draw_layer(tile_of_slot[layer.slot], geometry.streams[layer.slot],
-                                   _layer_uniforms(layer, geometry, res, origin, mapping, size), scissor=scissor)
+                                   _layer_uniforms(layer, geometry, res, origin, mapping, size),
+                                   scissor=boxes.get(layer.slot))
         edge_radius = 0
         if settings.edge_aa and plan.drawn:
             edge_radius, edge_eps = edge_aa_parameters(res, geometry.near, geometry.far)
@@ -550,18 +550,18 @@ class ShadowPipeline:
         timings["shadow_maps"] = (t5 - t4) * 1e3
 
         result = self._shadow_test(light, settings, plan, geometry, layout, tile_of_slot, mappings, size,
-                                   edge_radius)
+                                   edge_radius, boxes)
         backend.finish()
         t6 = time.perf_counter()
         timings["shadow_test"] = (t6 - t5 + t_upload) * 1e3
         timings["total"] = (t6 - t0) * 1e3
 
-        atlas = backend.read_atlas() if keep_atlas else None
+        atlas = _mask_unread_texels(backend.read_atlas(), layout, tile_of_slot, boxes) if keep_atlas else None
         visibility = result[..., 0][::-1].copy()
         flags = result[..., 1][::-1].astype(np.int8)
         return FrameResult(visibility, flags, timings, plan, geometry, layout,
                            texels=len(plan.drawn) * res * res, atlas=atlas, tile_of_slot=tile_of_slot,
-                           mappings=mappings, count_maps=counts)
+                           mappings=mappings, count_maps=counts, boxes=boxes)
 
     def _upload_samples(self, light: LightSpec, samples: ViewSamples) -> None:
         height, width = samples.hit.shape
@@ -576,11 +576,16 @@ class ShadowPipeline:
 
     def _shadow_test(self, light: LightSpec, settings: ShadowSettings, plan: Plan, geometry: PreparedGeometry,
                      layout: AtlasLayout, tile_of_slot: dict[int, int], mappings: dict[int, LayerMapping],
-                     warp_size: int, edge_radius: int = 0) -> np.ndarray:
+                     warp_size: int, edge_radius: int = 0,
+                     boxes: dict[int, tuple[int, int, int, int]] | None = None) -> np.ndarray:
         n_slots = 6
         rotations = np.tile(np.eye(3), (n_slots, 1, 1))
         tiles = np.zeros((n_slots, 4))
         crops = np.tile([0.0, 0.0, 1.0, 1.0], (n_slots, 1))
+        res = float(settings.resolution)
+        readable = np.tile([0.0, 0.0, res, res], (n_slots, 1))
+        for slot, box in (boxes or {}).items():
+            readable[slot] = box
         for layer in plan.all_layers:
             rotations[layer.slot] = layer.rotation
         for slot, tile in tile_of_slot.items():
@@ -593,6 +598,7 @@ class ShadowPipeline:
             "ow_layer_rot": rotations,
             "ow_layer_tile": tiles,
             "ow_layer_crop": crops,
+            "ow_layer_box": readable,
             "ow_param": _PARAM_CODES[plan.parameterization],
             # Every layer of a plan has the same kind (a projective plan never projects by kind).
             "ow_layer_kind": plan.all_layers[0].kind if plan.all_layers else projection.PARABOLOID,
@@ -617,6 +623,43 @@ class ShadowPipeline:
             uniforms.update(ow_projective=1, ow_map_inverted=int(plan.projective.inverted),
                             ow_map_matrix=plan.projective.matrix, ow_depth_offset=plan.projective.depth_offset)
         return self.backend.shadow_test(uniforms)
+
+
+def readable_boxes(plan: Plan, light: LightSpec, settings: ShadowSettings,
+                   mappings: dict[int, LayerMapping]) -> dict[int, tuple[int, int, int, int]]:
+    """Slot -> texel box the shadow test can read, for the plain layers culling bounds.
+
+    Only with culling, and only for plain point-light layers: a crop or warp already
+    fits the map to the samples, an unfold draw spans both halves, and a projective map
+    is fitted to the view by its matrix (plan.layer_scissor gives the box).
+    """
+    if not settings.cull or plan.projective is not None or plan.parameterization == "unfold":
+        return {}
+    boxes = {}
+    for layer in plan.drawn:
+        if mappings.get(layer.slot, LayerMapping.identity()).is_identity:
+            box = layer_scissor(layer, light.position, plan.sample_corners, settings.resolution)
+            if box is not None:
+                boxes[layer.slot] = box
+    return boxes
+
+
+def _mask_unread_texels(atlas: np.ndarray, layout: AtlasLayout, tile_of_slot: dict[int, int],
+                        boxes: dict[int, tuple[int, int, int, int]]) -> np.ndarray:
+    """The atlas with every texel outside its layer's readable box set to 1 (empty).
+
+    Those texels were neither cleared nor drawn this frame, so they hold stale values;
+    images and checks of the read-back see them as the empty texels they stand for.
+    """
+    for slot, box in boxes.items():
+        x, y = layout.origin(tile_of_slot[slot])
+        res = layout.resolution
+        keep = np.zeros((res, res), dtype=bool)
+        x0, y0, x1, y1 = (min(max(int(v), 0), res) for v in box)
+        keep[y0:y1, x0:x1] = True  # rows are y (row 0 at the bottom, as GL stores it)
+        tile = atlas[y:y + res, x:x + res]
+        tile[~keep] = 1.0
+    return atlas
 
 
 # Edge-distance antialiasing (unfold+aa): the steepest receiver whose own depth change

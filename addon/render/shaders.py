@@ -146,6 +146,7 @@ SHADOW_TEST_PROGRAM = ProgramInterface(
         Uniform("mat3", "ow_layer_rot", 6),
         Uniform("vec4", "ow_layer_tile", 6),
         Uniform("vec4", "ow_layer_crop", 6),
+        Uniform("vec4", "ow_layer_box", 6),
         Uniform("int", "ow_param"),
         Uniform("int", "ow_layer_kind"),
         Uniform("int", "ow_hemi"),

@@ -20,7 +20,7 @@ from addon.cli import main  # noqa: E402
 from addon.render.pipeline import ShadowPipeline, ShadowSettings  # noqa: E402
 from tests.gl.test_pipeline_extremes import _seam_straddler  # noqa: E402
 from tests.gl.test_projective import _street  # noqa: E402
-from tests.support.blender_gpu_worker import CASES, PROJECTIVE_CASES, case_key  # noqa: E402
+from tests.support.blender_gpu_worker import BOXED_CASES, CASES, PROJECTIVE_CASES, boxed_scene, case_key  # noqa: E402
 from tests.support.oracle import view_samples  # noqa: E402
 
 pytestmark = [pytest.mark.blender, pytest.mark.gl]
@@ -63,6 +63,14 @@ def test_blender_backend_matches_moderngl(gl_backend, tmp_path, monkeypatch):
                                ShadowSettings(param, 256, warp=warp, edge_aa=aa), keep_atlas=True)
         assert np.array_equal(ours.visibility, theirs[f"{key}_visibility"]), key
         assert np.allclose(ours.atlas, theirs[f"{key}_atlas"], atol=1e-6), key
+    court = boxed_scene()
+    court_samples, _, _ = view_samples(court)
+    for param in BOXED_CASES:
+        ours = pipeline.render(court.light, court.world_triangles(), court_samples, ShadowSettings(param, 256),
+                               keep_atlas=True)
+        assert ours.boxes, param  # the case really clears and draws boxes only
+        assert np.array_equal(ours.visibility, theirs[f"boxed_{param}_visibility"]), param
+        assert np.allclose(ours.atlas, theirs[f"boxed_{param}_atlas"], atol=1e-6), param
     for light, method in PROJECTIVE_CASES:
         street = _street(light)
         street_samples, _, _ = view_samples(street)

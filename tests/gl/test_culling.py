@@ -60,3 +60,64 @@ def test_percentile_frustum_is_tighter_than_strict():
     robust = P.truncated_frustum(scene.camera, samples.positions, samples.hit, percentile=5.0)
     cam = scene.camera.matrix_world[:3, 3]
     assert np.linalg.norm(robust[4:] - cam, axis=1).max() < np.linalg.norm(strict[4:] - cam, axis=1).max()
+
+
+def test_texels_outside_the_readable_box_are_never_read():
+    """Culled plain layers clear and draw only their readable box. A frame that follows
+    one filling the same atlas layout (ipsm draws its whole tile) must not see its stale
+    texels: visibility equals a fresh backend's, and the read-back shows them empty."""
+    from addon.render.moderngl_backend import ModernGLBackend
+
+    scene = build_preset("courtyard", (128, 96))
+    samples, _, _ = view_samples(scene)
+    tris = scene.world_triangles()
+    culled = ShadowSettings("dpsm", 256)
+    fresh_backend = ModernGLBackend()
+    try:
+        expected = ShadowPipeline(fresh_backend).render(scene.light, tris, samples, culled, keep_atlas=True)
+    finally:
+        fresh_backend.release()
+    (slot, box), = expected.boxes.items()  # the one side drawn, with its box
+    x0, y0, x1, y1 = box
+    assert 0 < (x1 - x0) * (y1 - y0) < 0.5 * 256 * 256  # the box leaves most of the tile out
+    backend = ModernGLBackend()
+    try:
+        pipe = ShadowPipeline(backend)
+        stale = pipe.render(scene.light, tris, samples, ShadowSettings("ipsm", 256), keep_atlas=True)
+        assert stale.layout == expected.layout and not stale.boxes
+        assert np.count_nonzero(stale.atlas < 1.0) > 4 * np.count_nonzero(expected.atlas < 1.0)
+        again = pipe.render(scene.light, tris, samples, culled, keep_atlas=True)
+    finally:
+        backend.release()
+    assert np.array_equal(again.visibility, expected.visibility)
+    assert np.array_equal(again.atlas, expected.atlas)
+    tile = again.atlas[:, :256] if again.layout.columns == 1 else again.atlas[:256, :256]
+    outside = np.ones((256, 256), dtype=bool)
+    outside[y0:y1, x0:x1] = False
+    assert np.all(tile[outside] == 1.0)
+
+
+def test_a_lookup_outside_the_box_reads_empty(monkeypatch):
+    """The shadow test's guard: a lookup outside a layer's readable box counts as lit (an
+    empty texel), never as whatever a previous frame left there. A deliberately wrong
+    1x1 box puts every lookup outside it."""
+    from addon.render import pipeline as pipeline_module
+    from addon.render.moderngl_backend import ModernGLBackend
+
+    scene = build_preset("courtyard", (128, 96))
+    samples, _, _ = view_samples(scene)
+    tris = scene.world_triangles()
+    backend = ModernGLBackend()
+    try:
+        pipe = ShadowPipeline(backend)
+        stale = pipe.render(scene.light, tris, samples, ShadowSettings("ipsm", 256))
+        assert np.any(stale.visibility[stale.flags == 0] < 0.5)  # the stale map shadows something
+        real = pipeline_module.readable_boxes
+        monkeypatch.setattr(pipeline_module, "readable_boxes",
+                            lambda *a: {slot: (0, 0, 1, 1) for slot in real(*a)})
+        result = pipe.render(scene.light, tris, samples, ShadowSettings("dpsm", 256))
+    finally:
+        backend.release()
+    tested = result.flags == 0
+    assert tested.sum() > 1000
+    assert np.all(result.visibility[tested] == 1.0)

@@ -19,6 +19,15 @@ CASES = (("dpsm", "none", False), ("cube", "none", False), ("dpsm", "notw", Fals
          ("unfold", "none", False), ("unfold", "none", True))
 # Spot and sun maps on the small street of tests/gl/test_projective.py.
 PROJECTIVE_CASES = (("spot", "sm"), ("spot", "psm"), ("sun", "psm"))
+# Culled plain layers with readable boxes (scissored clears and draws): the courtyard
+# preset at test size, light outside the view, after an ipsm frame fills the atlas.
+BOXED_CASES = ("dpsm", "cube")
+
+
+def boxed_scene():
+    from addon.core.presets import build_preset
+
+    return build_preset("courtyard", (128, 96))
 
 
 def case_key(param: str, warp: str, aa: bool) -> str:
@@ -54,6 +63,14 @@ def backends(out: str, reference: str | None = None) -> None:
                                  keep_atlas=True)
         arrays[f"{light}_{method}_visibility"] = result.visibility
         arrays[f"{light}_{method}_atlas"] = result.atlas
+    court = boxed_scene()
+    court_samples, _, _ = view_samples(court)
+    for param in BOXED_CASES:
+        pipeline.render(court.light, court.world_triangles(), court_samples, ShadowSettings("ipsm", 256))
+        result = pipeline.render(court.light, court.world_triangles(), court_samples, ShadowSettings(param, 256),
+                                 keep_atlas=True)
+        arrays[f"boxed_{param}_visibility"] = result.visibility
+        arrays[f"boxed_{param}_atlas"] = result.atlas
     if reference:
         ref = ReferenceData.load(reference)
         for param, warp, aa in CASES:
