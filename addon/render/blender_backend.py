@@ -22,8 +22,8 @@ from .shaders import (
     ComputeInterface,
     ProgramInterface,
     depth_program,
-    shadow_test_program,
     load_source,
+    shadow_test_program,
 )
 
 log = logging.getLogger(__name__)
