@@ -169,8 +169,8 @@ def test_one_dispatch_counts_every_cube_face_as_numpy_does(gl_backend):
         xy = projection.project(layer.kind, layer.to_local(dirs.reshape(-1, 3)[slots == layer.slot]))
         mapping = mappings[layer.slot]
         uv_crop = (xy * 0.5 + 0.5 - mapping.lo) * mapping.scale
-        assert np.array_equal(cropped[layer.slot], W.scatter_counts(uv_crop, size))
-        expected = W.scatter_counts(mapping.forward(xy), size)
-        # float32 on the GPU: a sample within rounding of a texel border may change sides.
+        # float32 on the GPU: a sample within rounding of a texel border may change sides;
+        # allow two per face.
         assert cropped[layer.slot].sum() > 0
-        assert np.abs(warped[layer.slot] - expected).sum() <= 2
+        assert np.abs(cropped[layer.slot] - W.scatter_counts(uv_crop, size)).sum() <= 2
+        assert np.abs(warped[layer.slot] - W.scatter_counts(mapping.forward(xy), size)).sum() <= 2
