@@ -115,6 +115,9 @@ def test_extension_build_contents(tmp_path: Path) -> None:
     for folder in ("presets", "gpu_shaders"):
         if any((REPO_ROOT / folder).rglob("*.*")):
             assert any(n.startswith(folder + "/") for n in names), f"{folder}/ missing from the zip"
+    # Every shader file ships, whatever its extension (.vert, .frag, .comp, .glsl).
+    shaders = {p.relative_to(REPO_ROOT).as_posix() for p in (REPO_ROOT / "gpu_shaders").rglob("*") if p.is_file()}
+    assert shaders and shaders <= set(names), f"shader files missing from the zip: {sorted(shaders - set(names))}"
     dev = ("tests/", "docs/", "scripts/", ".ci/", ".venv/", ".cache/", "out/", ".git")
     leaked = [n for n in names if n.startswith(dev) or "__pycache__" in n or n.endswith(".pyc")]
     leaked += [n for n in names if n in ("pyproject.toml", "README.md")]
