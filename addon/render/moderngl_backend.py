@@ -13,14 +13,15 @@ import numpy as np
 from ..core.errors import BackendError
 from .backend import AtlasLayout, ShadowBackend, UniformValues
 from .shaders import (
+    DEPTH_PROGRAM,
     EDGE_PROGRAM,
     SCATTER_PROGRAM,
+    SHADOW_TEST_PROGRAM,
     ComputeInterface,
     ProgramInterface,
-    depth_program,
     moderngl_compute_source,
     moderngl_sources,
-    shadow_test_program,
+    warp_variant,
 )
 
 log = logging.getLogger(__name__)
@@ -196,7 +197,7 @@ class ModernGLBackend(ShadowBackend):
             raise BackendError(str(exc)) from None
         if len(vertices) == 0:
             return
-        prog = self._use(depth_program(uniforms), uniforms)
+        prog = self._use(warp_variant(DEPTH_PROGRAM, uniforms), uniforms)
         data = np.ascontiguousarray(vertices, dtype="f4")
         vbo = self.ctx.buffer(data.tobytes())
         try:
@@ -270,7 +271,7 @@ class ModernGLBackend(ShadowBackend):
         if "ow_edges" not in self._textures:
             # Bound even when no antialiasing runs (ow_edge_radius = 0 never reads it).
             self._textures["ow_edges"] = self._float_texture((1, 1), 1, np.zeros(1, "f4").tobytes())
-        iface = shadow_test_program(uniforms)
+        iface = warp_variant(SHADOW_TEST_PROGRAM, uniforms)
         prog = self._use(iface, uniforms)
         # A moderngl vertex array renders with the program it was made for, so each
         # program variant keeps its own.

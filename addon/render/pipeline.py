@@ -449,8 +449,7 @@ class ShadowPipeline:
         Each step scatters all layers at once: 3 dispatches for NoTW, 2 for RTW.
         """
         size = settings.analysis_size or analysis_size_for(settings.resolution)
-        self.backend.set_warp_tables(None, None)
-        whole = self.count_maps(light, plan, {}, size, 0)
+        whole = self.count_maps(light, plan, {}, size, 0)  # mode 0 reads no warp table
         crops = {slot: LayerMapping(*dv_crop_from_counts(counts), None) for slot, counts in whole.items()}
         counts = self.count_maps(light, plan, crops, size, 0)
         mappings: dict[int, LayerMapping] = {}
@@ -773,9 +772,7 @@ def count_statistics(pipeline: ShadowPipeline, light: LightSpec, settings: Shado
         counts = projective_counts(result.plan.projective, light, samples, res)
         return CountStatistics({0: counts}, {0: counts})
     before = pipeline.count_maps(light, result.plan, {}, res, 0)
-    mapped = {slot: m for slot, m in result.mappings.items() if slot in before}
-    after = dict(before)
-    if mapped:
-        after.update({slot: counts for slot, counts in pipeline.count_maps(light, result.plan, mapped, res, 2).items()
-                      if slot in mapped})
+    # A frame maps all its drawn layers or none (a warp, an ipsm zoom or a cut), and
+    # count_maps counts an unmapped layer plainly anyway.
+    after = pipeline.count_maps(light, result.plan, result.mappings, res, 2) if result.mappings else before
     return CountStatistics(before, after)

@@ -242,14 +242,15 @@ SHADOW_TEST_PLAIN_PROGRAM = replace(SHADOW_TEST_PROGRAM, name="omniwarp_shadow_t
                                     defines={NO_WARP_DEFINE: "1"})
 
 
-def depth_program(uniforms: dict) -> ProgramInterface:
-    """The depth program for a draw: the plain variant unless the uniforms set a warp."""
-    return DEPTH_PROGRAM if int(uniforms.get("ow_warp_size", 0)) > 0 else DEPTH_PLAIN_PROGRAM
+_PLAIN_VARIANTS = {DEPTH_PROGRAM.name: DEPTH_PLAIN_PROGRAM, SHADOW_TEST_PROGRAM.name: SHADOW_TEST_PLAIN_PROGRAM}
 
 
-def shadow_test_program(uniforms: dict) -> ProgramInterface:
-    """The shadow-test program: the plain variant unless the uniforms set a warp."""
-    return SHADOW_TEST_PROGRAM if int(uniforms.get("ow_warp_size", 0)) > 0 else SHADOW_TEST_PLAIN_PROGRAM
+def warp_variant(iface: ProgramInterface, uniforms: dict) -> ProgramInterface:
+    """`iface` when the uniforms set a warp (ow_warp_size > 0), else its plain variant.
+
+    Only the depth and shadow-test programs have one.
+    """
+    return iface if int(uniforms.get("ow_warp_size", 0)) > 0 else _PLAIN_VARIANTS[iface.name]
 
 
 PROGRAMS = (DEPTH_PROGRAM, DEPTH_PLAIN_PROGRAM, SHADOW_TEST_PROGRAM, SHADOW_TEST_PLAIN_PROGRAM, GBUFFER_PROGRAM,

@@ -18,9 +18,8 @@ from addon.render.shaders import (
     NO_WARP_DEFINE,
     SHADOW_TEST_PLAIN_PROGRAM,
     SHADOW_TEST_PROGRAM,
-    depth_program,
     glsl_header,
-    shadow_test_program,
+    warp_variant,
 )
 from tests.support.oracle import view_samples
 
@@ -28,11 +27,11 @@ pytestmark = pytest.mark.gl
 
 
 def test_variant_choice_follows_the_warp_uniform():
-    assert depth_program({"ow_warp_size": 0}) is DEPTH_PLAIN_PROGRAM
-    assert depth_program({}) is DEPTH_PLAIN_PROGRAM
-    assert depth_program({"ow_warp_size": 128}) is DEPTH_PROGRAM
-    assert shadow_test_program({"ow_warp_size": 0}) is SHADOW_TEST_PLAIN_PROGRAM
-    assert shadow_test_program({"ow_warp_size": 64}) is SHADOW_TEST_PROGRAM
+    assert warp_variant(DEPTH_PROGRAM, {"ow_warp_size": 0}) is DEPTH_PLAIN_PROGRAM
+    assert warp_variant(DEPTH_PROGRAM, {}) is DEPTH_PLAIN_PROGRAM
+    assert warp_variant(DEPTH_PROGRAM, {"ow_warp_size": 128}) is DEPTH_PROGRAM
+    assert warp_variant(SHADOW_TEST_PROGRAM, {"ow_warp_size": 0}) is SHADOW_TEST_PLAIN_PROGRAM
+    assert warp_variant(SHADOW_TEST_PROGRAM, {"ow_warp_size": 64}) is SHADOW_TEST_PROGRAM
 
 
 def test_plain_variants_share_the_interface_but_not_the_name():

@@ -108,13 +108,18 @@ def test_glsl_mapping_matches_numpy(gl_backend, tmp_path, clustered_warp):
     assert np.allclose(mag[:, 0], mapping.magnification(xy), rtol=1e-4)
 
 
-def test_gpu_scatter_matches_numpy_count_map(gl_backend):
-    """The additive-blend scatter counts exactly what numpy's bincount counts."""
-    b = SceneBuilder("s", (8, 8))
+def _light_over_floor(size: tuple[int, int]):
+    """A light at the origin over a floor; the tests below bring their own samples."""
+    b = SceneBuilder("s", size)
     b.plane("floor", (0, 0, -1), 4, 4)
     b.point_light((0, 0, 0))
     b.camera((0, 0, 3), (0, 0, 0))
-    scene = b.finish()
+    return b.finish()
+
+
+def test_gpu_scatter_matches_numpy_count_map(gl_backend):
+    """The compute scatter counts exactly what numpy's bincount counts."""
+    scene = _light_over_floor((8, 8))
     rng = np.random.default_rng(8)
     # Directions aimed at texel centres of a 16^2 paraboloid map, many per texel.
     texels = rng.integers(3, 13, size=(40, 40, 2))
@@ -139,11 +144,7 @@ def test_one_dispatch_counts_every_cube_face_as_numpy_does(gl_backend):
     from addon.core import frames, projection
     from addon.render.pipeline import _stack_tables, _warp_of
 
-    b = SceneBuilder("s", (64, 48))
-    b.plane("floor", (0, 0, -1), 4, 4)
-    b.point_light((0, 0, 0))
-    b.camera((0, 0, 3), (0, 0, 0))
-    scene = b.finish()
+    scene = _light_over_floor((64, 48))
     rng = np.random.default_rng(12)
     dirs = rng.normal(size=(48, 64, 3))
     dirs /= np.linalg.norm(dirs, axis=-1, keepdims=True)
