@@ -8,6 +8,8 @@
 
 void main()
 {
+  // A paraboloid or cube variant is never projective.
+#ifndef OW_FIXED_KIND
   if (ow_projective != 0) {
     // The map's own depth z01 = gl_FragCoord.z. An inverted light (PSM: a point light
     // behind the camera plane, seen in post-perspective space) keeps the FARTHEST
@@ -17,12 +19,16 @@ void main()
     ow_depth = z01;
     return;
   }
+#endif
   vec2 uv = (gl_FragCoord.xy - ow_tile_origin) / ow_resolution;
   mat3 rot = ow_layer_rot;
+  // A paraboloid or cube variant is never an unfold.
+#ifndef OW_FIXED_KIND
   if (ow_unfold_split >= 0 && uv.x >= 1.0) {
     uv.x -= 1.0;  // the second unfold half, whose frame has y and z negated
     rot = mat3(1.0, 0.0, 0.0, 0.0, -1.0, 0.0, 0.0, 0.0, -1.0) * rot;
   }
+#endif
 #ifdef OW_NO_WARP
   vec2 xy = ow_map_inverse(ow_warp_rows, ow_warp_cols, ow_layer_slot, ow_warp_size, ow_crop, uv);
 #else

@@ -9,12 +9,15 @@ void main()
   v_plane = ow_plane;
   v_range = ow_range;
   v_map_xy = vec2(0.0);  // set below for cropped or warped layers (the fragment stage's start point)
+  // A paraboloid or cube variant is neither projective nor an unfold.
+#ifndef OW_FIXED_KIND
   if (ow_projective != 0) {
     // Spot or sun map (sm, psm): one 4x4 projective matrix; the GPU clips linearly,
     // which is exact for a projective map.
     gl_Position = ow_map_matrix * vec4(ow_position, 1.0);
+    return;
   }
-  else if (ow_unfold_split >= 0) {
+  if (ow_unfold_split >= 0) {
     // Dual sphere-unfolding: half 0's triangles come first in the stream, half 1's
     // after `ow_unfold_split`. Half 1's frame is half 0's with y and z negated. The
     // viewport spans the `ow_unfold_halves` tiles, half 0 on the left.
@@ -25,8 +28,10 @@ void main()
     vec2 uv = ow_unfold_project(local_pos) * 0.5 + 0.5;
     float x = (uv.x + half_index) / float(ow_unfold_halves);
     gl_Position = vec4(x * 2.0 - 1.0, uv.y * 2.0 - 1.0, 0.0, 1.0);
+    return;
   }
-  else if (ow_layer_kind == OW_KIND_PARABOLOID || ow_mapped != 0) {
+#endif
+  if (OW_KIND(ow_layer_kind) == OW_KIND_PARABOLOID || ow_mapped != 0) {
     // Paraboloid pieces were split at the seam on the CPU (1 + v.z >= 1); cube
     // pieces of a cropped or warped face were clipped to z > 0 on the CPU. Either
     // way the map position is final here, so w = 1 and depth comes from the

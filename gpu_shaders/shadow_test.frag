@@ -52,10 +52,13 @@ void main()
   }
   vec3 p = pw.xyz;
   vec3 n = texelFetch(ow_normals, pix, 0).xyz;
+  // A paraboloid or cube variant is never projective.
+#ifndef OW_FIXED_KIND
   if (ow_projective != 0) {
     ow_result = ow_projective_test(p, n);
     return;
   }
+#endif
   float dist = length(p);
   if (!(dist > 0.0)) {
     ow_result = vec2(1.0, 2.0);

@@ -24,7 +24,7 @@ from .shaders import (
     ComputeInterface,
     ProgramInterface,
     load_source,
-    warp_variant,
+    program_variant,
 )
 
 log = logging.getLogger(__name__)
@@ -337,7 +337,7 @@ class BlenderGPUBackend(ShadowBackend):
             return
         data = np.ascontiguousarray(vertices, dtype=np.float32)
         with self._atlas_fb.bind():
-            shader = self._bind(warp_variant(DEPTH_PROGRAM, uniforms), uniforms)
+            shader = self._bind(program_variant(DEPTH_PROGRAM, uniforms), uniforms)
             batch = batch_for_shader(shader, "TRIS", {
                 "ow_position": data[:, 0:3], "ow_plane": data[:, 3:7], "ow_range": data[:, 7:9]})
             gpu.state.viewport_set(*viewport)
@@ -405,7 +405,7 @@ class BlenderGPUBackend(ShadowBackend):
             # Bound even when no antialiasing runs (ow_edge_radius = 0 never reads it).
             self._textures["ow_edges"] = _float_texture((1, 1), "R32F", np.zeros(1, np.float32))
         with fb.bind():
-            shader = self._bind(warp_variant(SHADOW_TEST_PROGRAM, uniforms), uniforms)
+            shader = self._bind(program_variant(SHADOW_TEST_PROGRAM, uniforms), uniforms)
             batch = self._batches.get("fullscreen")
             if batch is None:
                 batch = batch_for_shader(shader, "TRIS", {"ow_corner": _FULLSCREEN})

@@ -21,7 +21,7 @@ from .shaders import (
     ProgramInterface,
     moderngl_compute_source,
     moderngl_sources,
-    warp_variant,
+    program_variant,
 )
 
 log = logging.getLogger(__name__)
@@ -197,7 +197,7 @@ class ModernGLBackend(ShadowBackend):
             raise BackendError(str(exc)) from None
         if len(vertices) == 0:
             return
-        prog = self._use(warp_variant(DEPTH_PROGRAM, uniforms), uniforms)
+        prog = self._use(program_variant(DEPTH_PROGRAM, uniforms), uniforms)
         data = np.ascontiguousarray(vertices, dtype="f4")
         vbo = self.ctx.buffer(data.tobytes())
         try:
@@ -271,7 +271,7 @@ class ModernGLBackend(ShadowBackend):
         if "ow_edges" not in self._textures:
             # Bound even when no antialiasing runs (ow_edge_radius = 0 never reads it).
             self._textures["ow_edges"] = self._float_texture((1, 1), 1, np.zeros(1, "f4").tobytes())
-        iface = warp_variant(SHADOW_TEST_PROGRAM, uniforms)
+        iface = program_variant(SHADOW_TEST_PROGRAM, uniforms)
         prog = self._use(iface, uniforms)
         # A moderngl vertex array renders with the program it was made for, so each
         # program variant keeps its own.

@@ -6,6 +6,15 @@
 #define OW_KIND_UNFOLD 2
 #define OW_PI 3.14159265358979
 
+// A program variant built for one layer kind (shaders.program_variant) defines
+// OW_FIXED_KIND: the kind argument becomes a constant, so the compiler folds the other
+// kinds' branches away instead of running them with masked lanes.
+#ifdef OW_FIXED_KIND
+#define OW_KIND(kind) OW_FIXED_KIND
+#else
+#define OW_KIND(kind) (kind)
+#endif
+
 // Brabec et al. 2002, eq. 3: the halfway vector scaled to z = 1 (stereographic projection).
 vec2 ow_paraboloid_project(vec3 p)
 {
@@ -50,6 +59,7 @@ vec3 ow_unfold_unproject(vec2 xy)
 
 vec2 ow_project(int kind, vec3 p)
 {
+  kind = OW_KIND(kind);
   if (kind == OW_KIND_UNFOLD) {
     return ow_unfold_project(p);
   }
@@ -58,6 +68,7 @@ vec2 ow_project(int kind, vec3 p)
 
 vec3 ow_unproject(int kind, vec2 xy)
 {
+  kind = OW_KIND(kind);
   if (kind == OW_KIND_UNFOLD) {
     return ow_unfold_unproject(xy);
   }
@@ -67,6 +78,7 @@ vec3 ow_unproject(int kind, vec2 xy)
 // Upper bound of the angle one texel spans at map point xy (see texel_angle in projection.py).
 float ow_texel_angle(int kind, vec2 xy, float resolution)
 {
+  kind = OW_KIND(kind);
   float r2 = dot(xy, xy);
   float step_xy = 2.0 / resolution;
   if (kind == OW_KIND_UNFOLD) {

@@ -1,25 +1,29 @@
-"""The plain (no-warp) variants of the depth and shadow-test programs.
+"""The variants of the depth and shadow-test programs: plain (no warp) and fixed-kind.
 
 They exist for speed on software rasterisers; these tests check that they really
-drop the warp code, are picked only without a warp, and give the same frames as the
-full programs, including when both kinds alternate in one backend.
+drop the code they claim to, are picked only when a frame allows it, and give the
+same frames as the generic programs, including when variants alternate in one backend.
 """
 from __future__ import annotations
 
 import numpy as np
 import pytest
 
+from addon.core.errors import BackendError
 from addon.core.scene import SceneBuilder
 from addon.render.moderngl_backend import ModernGLBackend
 from addon.render.pipeline import ShadowPipeline, ShadowSettings
 from addon.render.shaders import (
     DEPTH_PLAIN_PROGRAM,
     DEPTH_PROGRAM,
+    GBUFFER_PROGRAM,
     NO_WARP_DEFINE,
     SHADOW_TEST_PLAIN_PROGRAM,
+    FIXED_KIND_DEFINE,
     SHADOW_TEST_PROGRAM,
+    VARIANT_PROGRAMS,
     glsl_header,
-    warp_variant,
+    program_variant,
 )
 from tests.support.oracle import view_samples
 
@@ -27,11 +31,36 @@ pytestmark = pytest.mark.gl
 
 
 def test_variant_choice_follows_the_warp_uniform():
-    assert warp_variant(DEPTH_PROGRAM, {"ow_warp_size": 0}) is DEPTH_PLAIN_PROGRAM
-    assert warp_variant(DEPTH_PROGRAM, {}) is DEPTH_PLAIN_PROGRAM
-    assert warp_variant(DEPTH_PROGRAM, {"ow_warp_size": 128}) is DEPTH_PROGRAM
-    assert warp_variant(SHADOW_TEST_PROGRAM, {"ow_warp_size": 0}) is SHADOW_TEST_PLAIN_PROGRAM
-    assert warp_variant(SHADOW_TEST_PROGRAM, {"ow_warp_size": 64}) is SHADOW_TEST_PROGRAM
+    assert program_variant(DEPTH_PROGRAM, {"ow_warp_size": 0}) is DEPTH_PLAIN_PROGRAM
+    assert program_variant(DEPTH_PROGRAM, {}) is DEPTH_PLAIN_PROGRAM
+    assert program_variant(DEPTH_PROGRAM, {"ow_warp_size": 128}) is DEPTH_PROGRAM
+    assert program_variant(SHADOW_TEST_PROGRAM, {"ow_warp_size": 0}) is SHADOW_TEST_PLAIN_PROGRAM
+    assert program_variant(SHADOW_TEST_PROGRAM, {"ow_warp_size": 64}) is SHADOW_TEST_PROGRAM
+
+
+@pytest.mark.parametrize("base", [DEPTH_PROGRAM, SHADOW_TEST_PROGRAM], ids=lambda i: i.name)
+@pytest.mark.parametrize("warp_size", [0, 64])
+def test_variant_choice_fixes_only_paraboloid_and_cube_frames(base, warp_size):
+    def pick(**uniforms):
+        return program_variant(base, {"ow_warp_size": warp_size, **uniforms})
+
+    generic = pick()
+    assert FIXED_KIND_DEFINE not in generic.defines
+    for kind in (0, 1):
+        fixed = pick(ow_layer_kind=kind, ow_projective=0, ow_unfold_split=-1)
+        assert fixed.defines[FIXED_KIND_DEFINE] == str(kind)
+        assert pick(ow_layer_kind=kind) is fixed  # built once
+        # A projective (spot, sun) or unfold frame keeps the generic program.
+        assert pick(ow_layer_kind=kind, ow_projective=1) is generic
+        assert pick(ow_layer_kind=kind, ow_unfold_split=30) is generic
+    assert pick(ow_layer_kind=2) is generic  # the unfold kind
+    with pytest.raises(BackendError):
+        program_variant(GBUFFER_PROGRAM, {})
+
+
+def test_every_variant_has_its_own_name():
+    names = [iface.name for iface in VARIANT_PROGRAMS]
+    assert len(set(names)) == len(names) == 12
 
 
 def test_plain_variants_share_the_interface_but_not_the_name():
@@ -83,3 +112,38 @@ def test_alternating_plain_and_warped_frames_match_fresh_backends(gl_backend):
     for settings, expected in ((plain, expected_plain), (warped, expected_warped), (plain, expected_plain)):
         got = pipe.render(scene.light, tris, samples, settings).visibility
         assert np.array_equal(got, expected)
+
+
+def test_fixed_kind_variants_compile_the_other_paths_out(gl_backend):
+    """The projective matrix is read only on the spot/sun path, which a fixed kind removes."""
+    for base in (DEPTH_PROGRAM, SHADOW_TEST_PROGRAM):
+        generic = program_variant(base, {})
+        assert "ow_map_matrix" in gl_backend.program(generic)
+        for kind in (0, 1):
+            fixed = program_variant(base, {"ow_layer_kind": kind})
+            assert "ow_map_matrix" not in gl_backend.program(fixed)
+
+
+@pytest.mark.parametrize("settings", [ShadowSettings("dpsm", 128), ShadowSettings("cube", 96),
+                                      ShadowSettings("dpsm", 128, warp="notw"),
+                                      ShadowSettings("cube", 96, warp="notw")],
+                         ids=["dpsm", "cube", "dpsm+notw", "cube+notw"])
+def test_fixed_kind_variants_match_the_generic_programs(gl_backend, settings, monkeypatch):
+    """Folding the kind to a constant changes no pixel and no texel."""
+    from addon.render import moderngl_backend
+
+    scene = _scene()
+    samples, _, _ = view_samples(scene)
+    tris = scene.world_triangles()
+    fixed = ShadowPipeline(gl_backend).render(scene.light, tris, samples, settings, keep_atlas=True)
+    backend = ModernGLBackend()
+    try:
+        # Keep the warp choice, drop the kind: every frame takes the generic kind code.
+        monkeypatch.setattr(moderngl_backend, "program_variant",
+                            lambda iface, uniforms: program_variant(iface, {**uniforms, "ow_layer_kind": -1}))
+        generic = ShadowPipeline(backend).render(scene.light, tris, samples, settings, keep_atlas=True)
+    finally:
+        backend.release()
+    assert np.array_equal(fixed.visibility, generic.visibility)
+    assert np.array_equal(fixed.atlas, generic.atlas)
+    assert 0.0 < fixed.visibility[fixed.flags == 0].mean() < 1.0  # some shadow, some light
