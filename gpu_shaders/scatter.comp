@@ -3,10 +3,17 @@
 // counts are exact integers. Every drawn layer goes out in the same dispatch: layer
 // slot s writes the tile at x = ow_slot_tile[s] * ow_count_size (-1: not drawn).
 // ow_scatter_mode: 0 = after the DV crop, 1 = also through the row warps,
-// 2 = through the full warp (the importance map).
+// 2 = through the full warp (the importance map). Variants built for one mode define
+// OW_SCATTER_MODE (shaders.scatter_variant), so the other modes compile out.
 #include "lib/projection.glsl"
 #include "lib/layers.glsl"
 #include "lib/mapping.glsl"
+
+#ifdef OW_SCATTER_MODE
+#define OW_MODE OW_SCATTER_MODE
+#else
+#define OW_MODE ow_scatter_mode
+#endif
 
 void main()
 {
@@ -33,10 +40,10 @@ void main()
   vec4 crop = ow_layer_crop[slot];
   vec2 xy = ow_project(ow_layer_kind, ow_layer_rot[slot] * dir);
   vec2 uv = ((xy * 0.5 + 0.5) - crop.xy) * crop.zw;
-  if (ow_scatter_mode == 1) {
+  if (OW_MODE == 1) {
     uv = ow_apply_row_warp(ow_warp_rows, slot, ow_warp_size, uv);
   }
-  else if (ow_scatter_mode == 2) {
+  else if (OW_MODE == 2) {
     float magnification;
     uv = ow_map_forward(ow_warp_rows, ow_warp_cols, slot, ow_warp_size, crop, xy, magnification);
   }

@@ -61,21 +61,54 @@ class Plan:
         return len(self.drawn)
 
 
-def frustum_corners(camera: CameraSpec, near_depth: float, far_depth: float) -> np.ndarray:
-    """World-space corners (8, 3) of the camera frustum between two view depths."""
+# Screen window of a frustum: (x0, x1, y0, y1) in normalised device coordinates,
+# (-1, 1, -1, 1) being the whole camera frame.
+Window = tuple[float, float, float, float]
+FULL_WINDOW: Window = (-1.0, 1.0, -1.0, 1.0)
+
+
+def frustum_corners(camera: CameraSpec, near_depth: float, far_depth: float,
+                    window: Window = FULL_WINDOW) -> np.ndarray:
+    """World-space corners (8, 3) of the camera frustum between two view depths.
+
+    `window` narrows it to a rectangle of the frame (see `sample_window`).
+    """
     width, height = camera.resolution
     half = math.tan(math.radians(camera.fov_deg) / 2.0)
     if width >= height:
         hx, hy = half, half * height / width
     else:
         hx, hy = half * width / height, half
+    x0, x1, y0, y1 = window
     corners = []
     for depth in (near_depth, far_depth):
-        for sx, sy in ((-1, -1), (1, -1), (1, 1), (-1, 1)):
+        for sx, sy in ((x0, y0), (x1, y0), (x1, y1), (x0, y1)):
             corners.append([sx * hx * depth, sy * hy * depth, -depth])
     local = np.asarray(corners, dtype=np.float64)
     m = np.asarray(camera.matrix_world, dtype=np.float64)
     return local @ m[:3, :3].T + m[:3, 3]
+
+
+def sample_window(camera: CameraSpec, hit: np.ndarray) -> Window:
+    """The frame rectangle holding every pixel with a sample, grown by one pixel.
+
+    The truncated frustum is cut at the samples' depths, and also at the sides of
+    the image that see only sky: a view sample lies on a ray through its own pixel
+    (with a reconstruction filter, within a pixel of it), so the frustum through
+    this rectangle still holds every sample. The whole frame when `hit` is not an
+    (H, W) mask of the camera's image, or has no sample.
+    """
+    mask = np.asarray(hit, dtype=bool)
+    width, height = camera.resolution
+    if mask.shape != (height, width) or not mask.any():
+        return FULL_WINDOW
+    rows = np.flatnonzero(mask.any(axis=1))  # row 0 is the top of the image
+    cols = np.flatnonzero(mask.any(axis=0))
+    x0 = 2.0 * (cols[0] - 1) / width - 1.0
+    x1 = 2.0 * (cols[-1] + 2) / width - 1.0
+    y0 = 1.0 - 2.0 * (rows[-1] + 2) / height
+    y1 = 1.0 - 2.0 * (rows[0] - 1) / height
+    return (max(x0, -1.0), min(x1, 1.0), max(y0, -1.0), min(y1, 1.0))
 
 
 def hit_points(positions: np.ndarray, hit: np.ndarray) -> np.ndarray:
@@ -91,7 +124,7 @@ def view_depths(camera: CameraSpec, points: np.ndarray) -> np.ndarray:
 
 
 def frustum_from_depths(camera: CameraSpec, depths: np.ndarray, margin: float = 0.02,
-                        percentile: float = 0.0) -> np.ndarray | None:
+                        percentile: float = 0.0, window: Window = FULL_WINDOW) -> np.ndarray | None:
     """`truncated_frustum` from precomputed view depths (None when there are none)."""
     if len(depths) == 0:
         return None
@@ -99,19 +132,22 @@ def frustum_from_depths(camera: CameraSpec, depths: np.ndarray, margin: float = 
                  else (depths.min(), depths.max()))
     near = max(float(low) * (1.0 - margin), 1e-9)
     far = float(high) * (1.0 + margin) + 1e-9
-    return frustum_corners(camera, near, far)
+    return frustum_corners(camera, near, far, window)
 
 
 def truncated_frustum(camera: CameraSpec, positions: np.ndarray, hit: np.ndarray,
                       margin: float = 0.02, percentile: float = 0.0) -> np.ndarray | None:
-    """Camera frustum cut at the view depths of the hit samples (with a 2 % margin).
+    """Camera frustum cut at the view depths of the hit samples (with a 2 % margin), and
+    narrowed to the image rectangle that holds them (`sample_window`) when `hit` is the
+    (H, W) mask of the camera's image.
 
     `percentile` p cuts at the p-th and (100 - p)-th depth percentiles instead of the
     strict min and max, so a few stray samples (a distant sky-line object, a speck
     near the lens) do not stretch the frustum. Returns None when no sample hits
     geometry (nothing needs a map).
     """
-    return frustum_from_depths(camera, view_depths(camera, hit_points(positions, hit)), margin, percentile)
+    return frustum_from_depths(camera, view_depths(camera, hit_points(positions, hit)), margin, percentile,
+                               sample_window(camera, hit))
 
 
 def _hull_axes(corners: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -222,12 +258,13 @@ def plan_frame(light: LightSpec, parameterization: Parameterization, camera: Cam
         return Plan(parameterization, layers, list(layers), None)
     points = hit_points(positions, hit)  # filtered once: the frustums and slots below share it
     depths = view_depths(camera, points)
-    corners = frustum_from_depths(camera, depths, percentile=CULL_DEPTH_PERCENTILE)
+    window = sample_window(camera, hit)
+    corners = frustum_from_depths(camera, depths, percentile=CULL_DEPTH_PERCENTILE, window=window)
     if not cull:
         return Plan(parameterization, layers, list(layers), corners)
     if corners is None:
         return Plan(parameterization, layers, [], None, [layer.name for layer in layers])
-    strict = frustum_from_depths(camera, depths)
+    strict = frustum_from_depths(camera, depths, window=window)
     if parameterization == "unfold":
         # Each half holds the whole sphere and both go out in one draw, so there is no
         # layer to leave out; only objects are culled.

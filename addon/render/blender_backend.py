@@ -19,12 +19,12 @@ from .backend import AtlasLayout, ShadowBackend, UniformValues
 from .shaders import (
     DEPTH_PROGRAM,
     EDGE_PROGRAM,
-    SCATTER_PROGRAM,
     SHADOW_TEST_PROGRAM,
     ComputeInterface,
     ProgramInterface,
     load_source,
     program_variant,
+    scatter_variant,
 )
 
 log = logging.getLogger(__name__)
@@ -384,10 +384,11 @@ class BlenderGPUBackend(ShadowBackend):
             target = gpu.types.GPUTexture((size * tiles, size), format="R32UI")
             self._count_targets[size] = target
         target.clear(format="UINT", value=(0,))
-        shader = self._bind(SCATTER_PROGRAM, uniforms)
+        iface = scatter_variant(uniforms)
+        shader = self._bind(iface, uniforms)
         shader.image("ow_counts", target)
         width, height = self._sample_size
-        gpu.compute.dispatch(shader, SCATTER_PROGRAM.groups(width * height), 1, 1)
+        gpu.compute.dispatch(shader, iface.groups(width * height), 1, 1)
         # dispatch() ends with a texture-fetch and image-access barrier (pygpu_compute_dispatch);
         # read() then waits for the GPU.
         raw = np.asarray(target.read(), dtype=np.uint32)

@@ -15,13 +15,13 @@ from .backend import AtlasLayout, ShadowBackend, UniformValues
 from .shaders import (
     DEPTH_PROGRAM,
     EDGE_PROGRAM,
-    SCATTER_PROGRAM,
     SHADOW_TEST_PROGRAM,
     ComputeInterface,
     ProgramInterface,
     moderngl_compute_source,
     moderngl_sources,
     program_variant,
+    scatter_variant,
 )
 
 log = logging.getLogger(__name__)
@@ -254,10 +254,11 @@ class ModernGLBackend(ShadowBackend):
             target.filter = (self._mgl.NEAREST, self._mgl.NEAREST)
             self._count_targets[size] = target
         target.write(np.zeros(size * tiles * size, dtype="u4").tobytes())
-        prog = self._use(SCATTER_PROGRAM, uniforms)
+        iface = scatter_variant(uniforms)
+        prog = self._use(iface, uniforms)
         target.bind_to_image(0, read=True, write=True)
         width, height = self._sample_size
-        prog.run(group_x=SCATTER_PROGRAM.groups(width * height))
+        prog.run(group_x=iface.groups(width * height))
         # The read-back waits for the dispatch; image stores need this barrier first.
         self.ctx.memory_barrier()
         counts = np.frombuffer(target.read(), dtype="u4").reshape(size, size * tiles)

@@ -283,6 +283,34 @@ def program_variant(iface: ProgramInterface, uniforms: dict) -> ProgramInterface
     return _variant(iface.name, warped, None if generic else kind)
 
 
+SCATTER_MODE_DEFINE = "OW_SCATTER_MODE"
+SCATTER_MODES = (0, 1, 2)  # after the crop; through the row warps; through the full warp
+
+
+@functools.cache
+def _scatter_variant(mode: int, kind: int | None) -> ComputeInterface:
+    defines = {**SCATTER_PROGRAM.defines, SCATTER_MODE_DEFINE: str(mode)}
+    name = f"{SCATTER_PROGRAM.name}_mode{mode}"
+    if kind is not None:
+        defines[FIXED_KIND_DEFINE] = str(kind)
+        name += "_" + FIXED_KIND_NAMES[kind]
+    return replace(SCATTER_PROGRAM, name=name, defines=defines)
+
+
+def scatter_variant(uniforms: dict) -> ComputeInterface:
+    """The count-map scatter built for the uniforms' mode (ow_scatter_mode) and kind.
+
+    The analysis runs three scatters a frame over every view sample; with the mode and
+    the kind as constants, the other modes' warp lookups and the other kinds'
+    projections compile out instead of running masked.
+    """
+    mode = int(uniforms.get("ow_scatter_mode", 0))
+    if mode not in SCATTER_MODES:
+        raise BackendError(f"unknown scatter mode {mode}")
+    kind = int(uniforms.get("ow_layer_kind", -1))
+    return _scatter_variant(mode, kind if kind in FIXED_KIND_NAMES else None)
+
+
 DEPTH_PLAIN_PROGRAM = _variant(DEPTH_PROGRAM.name, False, None)
 SHADOW_TEST_PLAIN_PROGRAM = _variant(SHADOW_TEST_PROGRAM.name, False, None)
 VARIANT_PROGRAMS = tuple(_variant(base, warped, kind) for base in _VARIANT_BASES for warped in (True, False)
@@ -290,7 +318,8 @@ VARIANT_PROGRAMS = tuple(_variant(base, warped, kind) for base in _VARIANT_BASES
 
 
 PROGRAMS = (*VARIANT_PROGRAMS, GBUFFER_PROGRAM, PREVIEW_PROGRAM, OVERLAY_PROGRAM, EDGE_PROGRAM)
-COMPUTE_PROGRAMS = (SCATTER_PROGRAM,)
+COMPUTE_PROGRAMS = (SCATTER_PROGRAM, *(_scatter_variant(mode, kind) for mode in SCATTER_MODES
+                                       for kind in (None, *FIXED_KIND_NAMES)))
 
 
 def _decl_uniform(u: Uniform) -> str:

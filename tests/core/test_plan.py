@@ -382,3 +382,56 @@ def test_occupied_slots_match_pick_slot(parameterization, emission):
             local = local[local[:, 2] < 0.0]
         expected = set(int(v) for v in np.unique(pick_slot(parameterization, local)))
         assert PL.occupied_slots(light, parameterization, pts) == expected
+
+
+# ---------------------------------------------------------------- sample window
+
+
+def _pixel_ground_samples(camera: CameraSpec, half_size: float) -> tuple[np.ndarray, np.ndarray]:
+    """(H, W, 3) hits of pixel-centre rays (row 0 at the top) on a ground square, and the mask."""
+    from tests.support.oracle import camera_rays
+
+    width, height = camera.resolution
+    origins, dirs = camera_rays(camera)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        t = -origins[:, 2] / dirs[:, 2]
+    hit = np.isfinite(t) & (t > 0)
+    pos = origins + dirs * np.where(hit, t, 0.0)[:, None]
+    hit &= (np.abs(pos[:, 0]) <= half_size) & (np.abs(pos[:, 1]) <= half_size)
+    return pos.reshape(height, width, 3), hit.reshape(height, width)
+
+
+def _ndc(camera: CameraSpec, points: np.ndarray) -> np.ndarray:
+    m = camera.matrix_world
+    local = (points - m[:3, 3]) @ m[:3, :3]
+    hx, hy = _half_extents(camera)
+    return np.stack([local[:, 0] / -local[:, 2] / hx, local[:, 1] / -local[:, 2] / hy], axis=1)
+
+
+@pytest.mark.parametrize("target", [(0.0, 30.0, 0.0), (-12.0, 30.0, -1.0), (14.0, 6.0, -4.0)])
+def test_sample_window_drops_sky_rows_and_keeps_every_sample(target):
+    """A camera looking over a ground square sees sky above the horizon (and beside the
+    square): the window leaves those pixels out but holds every sample's image point."""
+    cam = CameraSpec(look_at((0.0, -6.0, 2.0), target), 70.0, (64, 48))
+    pos, hit = _pixel_ground_samples(cam, 8.0)
+    assert 0 < hit.sum() < hit.size
+    x0, x1, y0, y1 = PL.sample_window(cam, hit)
+    assert (x1 - x0) * (y1 - y0) < 4.0  # narrower than the whole frame
+    ndc = _ndc(cam, pos[hit])
+    assert np.all((ndc[:, 0] >= x0) & (ndc[:, 0] <= x1) & (ndc[:, 1] >= y0) & (ndc[:, 1] <= y1))
+    # Within one pixel and a half of the outermost samples (the window grows one pixel).
+    width, height = cam.resolution
+    assert x0 >= ndc[:, 0].min() - 3.0 / width and x1 <= ndc[:, 0].max() + 3.0 / width
+    assert y0 >= ndc[:, 1].min() - 3.0 / height and y1 <= ndc[:, 1].max() + 3.0 / height
+    # The truncated frustum through the window holds every sample.
+    corners = PL.truncated_frustum(cam, pos, hit)
+    assert all(PL.point_in_frustum(p, corners) for p in pos[hit][::7])
+
+
+def test_sample_window_falls_back_to_the_whole_frame():
+    cam = CameraSpec(look_at((0.0, -6.0, 2.0), (0.0, 30.0, 0.0)), 70.0, (64, 48))
+    _, hit = _pixel_ground_samples(cam, 8.0)
+    assert PL.sample_window(cam, hit.ravel()) == PL.FULL_WINDOW  # not an image mask
+    assert PL.sample_window(cam, hit.T) == PL.FULL_WINDOW  # the wrong way round
+    assert PL.sample_window(cam, np.zeros_like(hit)) == PL.FULL_WINDOW
+    assert PL.sample_window(cam, np.ones_like(hit)) == PL.FULL_WINDOW
