@@ -31,19 +31,32 @@ _TINY = float(np.finfo(np.float64).tiny)
 # Coordinates beyond this are treated like inf: Blender stores an inf vertex as FLT_MAX,
 # and one such vertex would otherwise set the scene's depth range and every tolerance.
 MAX_COORDINATE = 1e15
+# Squared lengths safely inside float64's normal range (see unit_directions).
+_SQUARE_MIN = 1e-290
+_SQUARE_MAX = 1e290
 
 
 def unit_directions(points: np.ndarray) -> np.ndarray:
     """Unit vectors of points (..., 3); the origin gives (0, 0, 0).
 
-    Dividing by the largest component first keeps the squares of very small
-    (1e-300) or very large (1e300) coordinates from under- or overflowing.
+    Points whose squared length would under- or overflow (coordinates beyond about
+    1e±150) are divided by their largest component first. The rest, nearly always all
+    of them, take the direct path, which is several times faster (tessellation
+    projects hundreds of thousands of points a frame).
     """
     p = np.asarray(points, dtype=np.float64)
-    scale = np.max(np.abs(p), axis=-1, keepdims=True)
+    squared = np.einsum("...i,...i->...", p, p)
+    direct = (squared > _SQUARE_MIN) & (squared < _SQUARE_MAX)
+    if np.all(direct):
+        return p / np.sqrt(squared)[..., None]
+    out = np.zeros(p.shape)
+    out[direct] = p[direct] / np.sqrt(squared[direct])[..., None]
+    rest = p[~direct]
+    scale = np.max(np.abs(rest), axis=-1, keepdims=True)
     nonzero = scale > 0.0
-    q = p / np.where(nonzero, scale, 1.0)
-    return np.where(nonzero, q / np.where(nonzero, np.linalg.norm(q, axis=-1, keepdims=True), 1.0), 0.0)
+    q = rest / np.where(nonzero, scale, 1.0)
+    out[~direct] = np.where(nonzero, q / np.where(nonzero, np.linalg.norm(q, axis=-1, keepdims=True), 1.0), 0.0)
+    return out
 
 
 def paraboloid_project(local: np.ndarray) -> np.ndarray:
@@ -52,7 +65,13 @@ def paraboloid_project(local: np.ndarray) -> np.ndarray:
     The point is normalised first, so the result depends only on direction.
     Points at the origin map to the centre (they subtend no solid angle).
     """
-    v = unit_directions(local)
+    p = np.asarray(local, dtype=np.float64)
+    squared = np.einsum("...i,...i->...", p, p)
+    if np.all((squared > _SQUARE_MIN) & (squared < _SQUARE_MAX)):
+        # v.xy / (1 + v.z) with v = p / |p|, without normalising all three components.
+        length = np.sqrt(squared)
+        return p[..., :2] / np.maximum(length + p[..., 2], _TINY * length)[..., None]
+    v = unit_directions(p)
     denom = 1.0 + v[..., 2:3]
     return v[..., :2] / np.maximum(denom, _TINY)
 
