@@ -436,3 +436,23 @@ def test_unfold_texel_angle_bounds_local_angle(res):
     assert np.all(bound >= measured.max(axis=1) * (1.0 - 1e-6))
     near = np.linalg.norm(xy, axis=1) <= 0.5
     assert np.all(bound[near] <= 2.0 * measured[near].min(axis=1))
+
+
+def test_mixed_scales_in_one_array_match_row_by_row():
+    """unit_directions and paraboloid_project take a fast path when every squared length is
+    safe; one tiny, huge or zero row sends the array down the scaled path, row results unchanged."""
+    rng = np.random.default_rng(11)
+    dirs = rng.normal(size=(40, 3))
+    scales = np.ones(40)
+    scales[::5] = 1e-200
+    scales[1::5] = 1e200
+    points = dirs * scales[:, None]
+    points[7] = 0.0
+    together = P.unit_directions(points)
+    one_by_one = np.array([P.unit_directions(p[None])[0] for p in points])
+    assert np.allclose(together, one_by_one, rtol=1e-15, atol=0.0)
+    assert np.array_equal(together[7], np.zeros(3))
+    assert np.allclose(np.linalg.norm(np.delete(together, 7, axis=0), axis=1), 1.0, atol=1e-15)
+    xy = P.paraboloid_project(points)
+    assert np.all(np.isfinite(xy))
+    assert np.allclose(xy, np.array([P.paraboloid_project(p[None])[0] for p in points]), rtol=1e-12, atol=1e-12)
