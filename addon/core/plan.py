@@ -22,6 +22,7 @@ import numpy as np
 from . import perspective, projection
 from .frames import Layer, Parameterization, ipsm_layer, light_layers, pick_slot, projective_layer, slot_count
 from .perspective import hull_planes  # one convex-hull routine for culling and PSM
+from .polytope import Polytope, sample_polytope
 from .projection import CUBE
 from .scene import CameraSpec, LightSpec
 
@@ -47,7 +48,8 @@ class Plan:
     requested: str = ""  # the parameterization asked for (ipsm may fall back to dpsm)
     occluder_planes: np.ndarray | None = None  # (P, 4) outward planes of conv(light, view frustum)
     projective: "perspective.ProjectiveMap | None" = None  # sm and psm: the map's matrix
-    sample_corners: np.ndarray | None = None  # (8, 3) strictly truncated frustum: holds every sample
+    # The strictly truncated frustum cut by the samples' box (core.polytope): holds every sample.
+    sample_polytope: Polytope | None = None
 
     @property
     def drawn_slots(self) -> list[int]:
@@ -235,15 +237,6 @@ def skewed_axis(light_position: np.ndarray, corners: np.ndarray, camera: CameraS
     return axis / np.linalg.norm(axis)
 
 
-def frustum_edge_points(corners: np.ndarray, per_edge: int = 33) -> np.ndarray:
-    """Points along the 12 edges of a frustum (near quad, far quad, 4 side edges)."""
-    near, far = corners[:4], corners[4:]
-    edges = [(near[i], near[(i + 1) % 4]) for i in range(4)] + [(far[i], far[(i + 1) % 4]) for i in range(4)]
-    edges += [(near[i], far[i]) for i in range(4)]
-    t = np.linspace(0.0, 1.0, per_edge)[:, None]
-    return np.concatenate([a + t * (b - a) for a, b in edges])
-
-
 def plan_frame(light: LightSpec, parameterization: Parameterization, camera: CameraSpec | None,
                positions: np.ndarray, hit: np.ndarray, far: float, cull: bool = True, cut: bool = False) -> Plan:
     """Decide which layers to draw for one frame.
@@ -269,7 +262,7 @@ def plan_frame(light: LightSpec, parameterization: Parameterization, camera: Cam
         # Each half holds the whole sphere and both go out in one draw, so there is no
         # layer to leave out; only objects are culled.
         return Plan(parameterization, layers, list(layers), corners, occluder_planes=_occluder_planes(light, strict),
-                    sample_corners=strict)
+                    sample_polytope=sample_polytope(strict, points))
     meets = {layer.slot for layer in layers if layer_meets_frustum(layer, light.position, corners, far)}
     if len(meets) < len(layers):
         # The percentile frustum may miss a stray sample; a layer that holds any sample
@@ -277,7 +270,8 @@ def plan_frame(light: LightSpec, parameterization: Parameterization, camera: Cam
         meets |= occupied_slots(light, parameterization, points)
     drawn = [layer for layer in layers if layer.slot in meets]
     return Plan(parameterization, layers, drawn, corners, [layer.name for layer in layers if layer.slot not in meets],
-                occluder_planes=_occluder_planes(light, strict), sample_corners=strict)
+                occluder_planes=_occluder_planes(light, strict),
+                sample_polytope=sample_polytope(strict, points))
 
 
 def plan_projective(light: LightSpec, parameterization: Parameterization, camera: CameraSpec | None,
@@ -321,19 +315,20 @@ SCISSOR_MARGIN_TEXELS = 4
 SCISSOR_EDGE_POINTS = 64
 
 
-def layer_scissor(layer: Layer, light_position: np.ndarray, sample_corners: np.ndarray | None,
+def layer_scissor(layer: Layer, light_position: np.ndarray, polytope: Polytope | None,
                   resolution: int) -> tuple[int, int, int, int] | None:
     """Texel box (x0, y0, x1, y1) of a plain layer that can be looked up, or None (all of it).
 
-    Every view sample lies in the strictly truncated frustum, so the shadow test reads
-    only texels in that frustum's image (plus the normal offset). Seen from a light
-    outside it, the image of a convex frustum is bounded by the images of its edges.
-    Conservative: None when the light is inside the frustum, when part of the frustum
-    lies behind the layer's plane (its image is unbounded there), or with no samples.
+    Every view sample lies in the sample polytope (the strictly truncated frustum cut by
+    the samples' box), so the shadow test reads only texels in its image (plus the
+    normal offset). Seen from a light outside it, the image of a convex body is bounded
+    by the images of its edges. Conservative: None when the light is inside the
+    polytope, when part of it lies behind the layer's plane (its image is unbounded
+    there), or with no samples.
     """
-    if sample_corners is None or point_in_frustum(light_position, sample_corners):
+    if polytope is None or polytope.contains(light_position):
         return None
-    local = layer.to_local(frustum_edge_points(sample_corners, SCISSOR_EDGE_POINTS) - light_position)
+    local = layer.to_local(polytope.edge_points(SCISSOR_EDGE_POINTS) - light_position)
     if np.any(local[:, 2] <= 1e-9 * (float(np.abs(local).max()) + 1e-30)):
         return None
     xy = projection.project(layer.kind, local)
@@ -364,22 +359,34 @@ def occupied_slots(light: LightSpec, parameterization: Parameterization, points:
 
 def _plan_ipsm(light: LightSpec, camera: CameraSpec | None, positions: np.ndarray, hit: np.ndarray,
                far: float, cull: bool, cut: bool = False) -> Plan:
-    """IPSM (thesis 4.1): one paraboloid along the cone over the truncated view frustum when
-    the light is outside it; otherwise (or without culling) the dual paraboloid. With
-    `cut`, the axis is skewed towards the camera and the map cropped to the frustum."""
-    corners = truncated_frustum(camera, positions, hit) if camera is not None else None
-    if cull and corners is not None and not point_in_frustum(light.position, corners):
-        axis, theta = ipsm_cone(light.position, corners)
+    """IPSM (thesis 4.1): one paraboloid along the cone over the samples when the light is
+    outside them; otherwise (or without culling) the dual paraboloid. With `cut`, the axis
+    is skewed towards the camera and the map cropped to the samples' image.
+
+    The thesis fits the cone to the truncated view frustum's corners. Here it fits the
+    sample polytope (that frustum cut by the samples' box): it holds every sample too,
+    and is often much smaller, so the cone is narrower and the zoom higher.
+    """
+    corners = polytope = None
+    if camera is not None:
+        points = hit_points(positions, hit)
+        corners = frustum_from_depths(camera, view_depths(camera, points), window=sample_window(camera, hit))
+        polytope = sample_polytope(corners, points) if corners is not None else None
+    # Every sample lies in the sample polytope; a light outside it (a convex body) sees
+    # them all within a cone of less than a hemisphere.
+    if cull and polytope is not None and not polytope.contains(light.position):
+        axis, theta = ipsm_cone(light.position, polytope.vertices)
         if theta < IPSM_MAX_HALF_ANGLE:
             if cut:
-                axis = skewed_axis(light.position, corners, camera)
-                d = frustum_edge_points(corners) - light.position
+                axis = skewed_axis(light.position, polytope.vertices, camera)
+                d = polytope.edge_points(SCISSOR_EDGE_POINTS) - light.position
                 theta = float(np.max(np.arccos(np.clip((d / np.linalg.norm(d, axis=1, keepdims=True)) @ axis,
                                                        -1.0, 1.0))))
             layer = ipsm_layer(axis)
             if theta < IPSM_MAX_HALF_ANGLE:
                 return Plan("ipsm", [layer], [layer], corners, ipsm_half_angle=theta, requested="ipsm",
-                            occluder_planes=_occluder_planes(light, corners))
+                            occluder_planes=_occluder_planes(light, corners),
+                            sample_polytope=polytope)
     fallback = plan_frame(light, "dpsm", camera, positions, hit, far, cull)
     fallback.requested = "ipsm"
     return fallback

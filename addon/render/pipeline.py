@@ -18,7 +18,7 @@ import numpy as np
 from ..core import frames, perspective, projection, tessellate
 from ..core.errors import InputError
 from ..core.frames import POINT_PARAMETERIZATIONS, PROJECTIVE_PARAMETERIZATIONS, Layer, Parameterization
-from ..core.plan import Plan, frustum_edge_points, layer_scissor, outside_region, plan_frame, plan_projective
+from ..core.plan import SCISSOR_EDGE_POINTS, Plan, layer_scissor, outside_region, plan_frame, plan_projective
 from ..core.scene import CameraSpec, LightSpec
 from ..core.warping import (
     FLOOR_SHARE,
@@ -637,7 +637,7 @@ def readable_boxes(plan: Plan, light: LightSpec, settings: ShadowSettings,
     boxes = {}
     for layer in plan.drawn:
         if mappings.get(layer.slot, LayerMapping.identity()).is_identity:
-            box = layer_scissor(layer, light.position, plan.sample_corners, settings.resolution)
+            box = layer_scissor(layer, light.position, plan.sample_polytope, settings.resolution)
             if box is not None:
                 boxes[layer.slot] = box
     return boxes
@@ -702,14 +702,15 @@ def ipsm_mapping(half_angle: float, resolution: int) -> LayerMapping:
 
 
 def cut_mapping(plan: Plan, light: LightSpec, resolution: int) -> LayerMapping:
-    """Cut parameters (min/max x, y) of the skewed cut: the bounding box of the truncated
-    frustum's edges projected into the skewed paraboloid, grown by 2 % and 4 texels.
+    """Cut parameters (min/max x, y) of the skewed cut: the bounding box of the sample
+    polytope's edges projected into the skewed paraboloid, grown by 2 % and 4 texels.
 
-    The image of a convex frustum seen from outside is bounded by the images of its
+    The image of a convex body seen from outside is bounded by the images of its
     edges, so the box holds every view sample.
     """
     layer = plan.drawn[0]
-    xy = projection.paraboloid_project(layer.to_local(frustum_edge_points(plan.frustum_corners) - light.position))
+    edges = plan.sample_polytope.edge_points(SCISSOR_EDGE_POINTS)
+    xy = projection.paraboloid_project(layer.to_local(edges - light.position))
     lo, hi = xy.min(axis=0) * 0.5 + 0.5, xy.max(axis=0) * 0.5 + 0.5
     grow = (hi - lo) * 0.02 + 4.0 / resolution
     lo, hi = np.clip(lo - grow, 0.0, 1.0), np.clip(hi + grow, 0.0, 1.0)
