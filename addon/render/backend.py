@@ -13,6 +13,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ..core.errors import BackendError
+
 
 @dataclass(frozen=True)
 class AtlasLayout:
@@ -106,7 +108,10 @@ class ShadowBackend(ABC):
 
     @abstractmethod
     def set_warp_tables(self, rows: np.ndarray | None, cols: np.ndarray | None) -> None:
-        """Warp offset tables, (6 * A, A + 1) float32 each (slot-major), or None for no warp."""
+        """Warp offset tables, (6 * A, A + 1) float32 each (slot-major), or None for no warp.
+
+        Backends upload them as `pack_warp_table` lays them out (RGBA32F, A x 6A).
+        """
 
     @abstractmethod
     def scatter_counts(self, size: int, tiles: int, uniforms: UniformValues) -> np.ndarray:
@@ -146,3 +151,24 @@ class ShadowBackend(ABC):
 
     def __exit__(self, *exc) -> None:
         self.release()
+
+
+def pack_warp_table(table: np.ndarray | None) -> np.ndarray:
+    """The GPU layout of a (6 * A, A + 1) warp table: (6 * A, A, 4) float32.
+
+    Texel (k, row) holds the four offsets one evaluation needs: nodes k and k + 1 of
+    function i = row and of its neighbour i + 1 (the same function at the last one of a
+    slot's A). One fetch instead of four: on a software rasteriser the fetches of the
+    warp dominate the warped depth pass, which evaluates it twice per texel (see
+    lib/warp.glsl). None packs to one zero texel.
+    """
+    if table is None:
+        return np.zeros((1, 1, 4), dtype=np.float32)
+    t = np.asarray(table, dtype=np.float32)
+    size = t.shape[1] - 1
+    if size < 1 or t.shape[0] % size:
+        raise BackendError(f"warp table of shape {t.shape} is not (6 * A, A + 1)")
+    following = np.arange(t.shape[0]) + 1
+    following[size - 1::size] -= 1  # the last function of each slot has no next one: itself
+    nxt = t[following]
+    return np.ascontiguousarray(np.stack([t[:, :-1], t[:, 1:], nxt[:, :-1], nxt[:, 1:]], axis=-1))

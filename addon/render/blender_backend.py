@@ -15,7 +15,7 @@ from typing import Any
 import numpy as np
 
 from ..core.errors import BackendError
-from .backend import AtlasLayout, ShadowBackend, UniformValues
+from .backend import AtlasLayout, ShadowBackend, UniformValues, pack_warp_table
 from .shaders import (
     DEPTH_PROGRAM,
     EDGE_PROGRAM,
@@ -369,8 +369,8 @@ class BlenderGPUBackend(ShadowBackend):
 
     def set_warp_tables(self, rows: np.ndarray | None, cols: np.ndarray | None) -> None:
         for name, table in (("ow_warp_rows", rows), ("ow_warp_cols", cols)):
-            data = np.zeros((1, 1), np.float32) if table is None else np.asarray(table, np.float32)
-            self._textures[name] = _float_texture((data.shape[1], data.shape[0]), "R32F", data)
+            data = pack_warp_table(table)
+            self._textures[name] = _float_texture((data.shape[1], data.shape[0]), "RGBA32F", data)
 
     def scatter_counts(self, size: int, tiles: int, uniforms: UniformValues) -> np.ndarray:
         import gpu

@@ -11,7 +11,7 @@ import logging
 import numpy as np
 
 from ..core.errors import BackendError
-from .backend import AtlasLayout, ShadowBackend, UniformValues
+from .backend import AtlasLayout, ShadowBackend, UniformValues, pack_warp_table
 from .shaders import (
     DEPTH_PROGRAM,
     EDGE_PROGRAM,
@@ -145,16 +145,14 @@ class ModernGLBackend(ShadowBackend):
 
     def _set_table(self, name: str, table: np.ndarray | None) -> None:
         old = self._textures.get(name)
-        if table is None:
-            data = np.zeros((1, 1), dtype="f4")
-        else:
-            data = np.ascontiguousarray(table, dtype="f4")
-        if old is not None and old.size == (data.shape[1], data.shape[0]):
+        data = pack_warp_table(table)
+        size = (data.shape[1], data.shape[0])
+        if old is not None and old.size == size:
             old.write(data.tobytes())
             return
         if old is not None:
             old.release()
-        self._textures[name] = self._float_texture((data.shape[1], data.shape[0]), 1, data.tobytes())
+        self._textures[name] = self._float_texture(size, 4, data.tobytes())
 
     # interface --------------------------------------------------------------
     @_current

@@ -1,8 +1,10 @@
 // NoTW / RTW warps; mirrors addon/core/warping.py (Warp.forward, .inverse, .slopes).
-// Tables are R32F textures of width A + 1 (nodes k / A) and height 6 * A: the A
-// functions of layer slot s occupy rows s * A .. s * A + A - 1. Offsets are
-// interpolated linearly along the nodes and between neighbouring function centres
-// with texelFetch and mix(): fixed-function filtering has too few weight bits.
+// Tables are RGBA32F textures of width A and height 6 * A (backend.pack_warp_table):
+// the A functions of layer slot s occupy rows s * A .. s * A + A - 1, and texel (k, i)
+// holds nodes k and k + 1 (at k / A and (k + 1) / A) of function i in .xy and of
+// function i + 1 in .zw, so one fetch serves one evaluation. Offsets are interpolated
+// linearly along the nodes and between neighbouring function centres with mix():
+// fixed-function filtering has too few weight bits.
 
 struct OwBlend {
   int i0;
@@ -22,9 +24,10 @@ OwBlend ow_blend(float across, int size)
 
 float ow_node_value(sampler2D table, int base, OwBlend b, int k, int size)
 {
-  float o0 = texelFetch(table, ivec2(k, base + b.i0), 0).r;
-  float o1 = texelFetch(table, ivec2(k, base + b.i1), 0).r;
-  return float(k) / float(size) + mix(o0, o1, b.f);
+  // Node `size` (the right end) is the second node of the last texel.
+  vec4 q = texelFetch(table, ivec2(min(k, size - 1), base + b.i0), 0);
+  vec2 o = (k < size) ? q.xz : q.yw;
+  return float(k) / float(size) + mix(o.x, o.y, b.f);
 }
 
 // Offset of the family at `along`, blended `across`; `slope` gets d(offset)/d(along)
@@ -37,10 +40,12 @@ float ow_family_offset2(sampler2D table, int slot, int size, float along, float 
   float s = along * float(size);
   int k = clamp(int(floor(s)), 0, size - 1);
   float fr = clamp(s - float(k), 0.0, 1.0);
-  float a0 = texelFetch(table, ivec2(k, base + b.i0), 0).r;
-  float a1 = texelFetch(table, ivec2(k + 1, base + b.i0), 0).r;
-  float c0 = texelFetch(table, ivec2(k, base + b.i1), 0).r;
-  float c1 = texelFetch(table, ivec2(k + 1, base + b.i1), 0).r;
+  // Functions i0 and i0 + 1 (= b.i1, or i0 itself at the slot's last function).
+  vec4 q = texelFetch(table, ivec2(k, base + b.i0), 0);
+  float a0 = q.x;
+  float a1 = q.y;
+  float c0 = q.z;
+  float c1 = q.w;
   bool inside = along >= 0.0 && along <= 1.0;
   slope = inside ? mix(a1 - a0, c1 - c0, b.f) * float(size) : 0.0;
   float t = across * float(size) - 0.5;

@@ -6,6 +6,7 @@ import pytest
 
 from addon.core import warping as W
 from addon.core.scene import SceneBuilder
+from addon.render.backend import pack_warp_table
 from addon.render.pipeline import ShadowPipeline, ShadowSettings, ViewSamples
 from addon.render.shaders import SHADER_DIR, ProgramInterface, Uniform, moderngl_sources
 
@@ -33,6 +34,7 @@ def _harness(gl_backend, tmp_path, body: str, inputs: np.ndarray, warp: W.Warp, 
     cols = np.zeros((6 * size, size + 1), "f4")
     rows[slot * size:(slot + 1) * size] = warp.rows
     cols[slot * size:(slot + 1) * size] = warp.cols
+    rows, cols = pack_warp_table(rows), pack_warp_table(cols)
     n = len(inputs)
     data = np.zeros((1, n, 4), "f4")
     data[0, :, :inputs.shape[1]] = inputs
@@ -40,8 +42,8 @@ def _harness(gl_backend, tmp_path, body: str, inputs: np.ndarray, warp: W.Warp, 
     with ctx:
         prog = ctx.program(vertex_shader=vs, fragment_shader=fs)
         textures = [ctx.texture((n, 1), 4, data.tobytes(), dtype="f4"),
-                    ctx.texture((size + 1, 6 * size), 1, rows.tobytes(), dtype="f4"),
-                    ctx.texture((size + 1, 6 * size), 1, cols.tobytes(), dtype="f4")]
+                    ctx.texture((size, 6 * size), 4, rows.tobytes(), dtype="f4"),
+                    ctx.texture((size, 6 * size), 4, cols.tobytes(), dtype="f4")]
         out = ctx.texture((n, 1), 4, dtype="f4")
         fbo = ctx.framebuffer(color_attachments=[out])
         vbo = ctx.buffer(np.array([[-1, -1], [3, -1], [-1, 3]], "f4").tobytes())
