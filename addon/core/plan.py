@@ -116,7 +116,7 @@ def sample_window(camera: CameraSpec, hit: np.ndarray) -> Window:
 def hit_points(positions: np.ndarray, hit: np.ndarray) -> np.ndarray:
     """The finite world positions (N, 3) of the samples that hit geometry."""
     pts = np.asarray(positions, dtype=np.float64)
-    return pts[np.asarray(hit, dtype=bool) & np.isfinite(pts).all(axis=-1)]  # one mask, one copy
+    return pts[np.asarray(hit, dtype=bool) & projection.finite_points(pts)]  # one mask, one copy
 
 
 def view_depths(camera: CameraSpec, points: np.ndarray) -> np.ndarray:

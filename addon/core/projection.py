@@ -181,16 +181,31 @@ def normalized_depth(distance: np.ndarray, near: float, far: float) -> np.ndarra
     return (np.asarray(distance, dtype=np.float64) - near) / (far - near)
 
 
+def finite_points(points: np.ndarray, limit: float = np.inf) -> np.ndarray:
+    """(...) bool: the points (..., 3) whose three coordinates are finite and below `limit`.
+
+    Component by component: numpy reduces a short last axis (np.all(..., axis=-1)) many
+    times slower, and this runs over every view sample each frame.
+    """
+    p = np.asarray(points)
+    mask = np.isfinite(p[..., 0]) & np.isfinite(p[..., 1]) & np.isfinite(p[..., 2])
+    if limit < np.inf:
+        for k in range(3):
+            mask &= np.abs(p[..., k]) < limit
+    return mask
+
+
 def finite_bounds(triangles: np.ndarray) -> tuple[np.ndarray, np.ndarray] | None:
     """World bounding box (lo, hi) of the finite corners, or None when there is none.
 
     Coordinates beyond MAX_COORDINATE count as infinite (Blender's inf is FLT_MAX).
     """
     pts = np.asarray(triangles, dtype=np.float64).reshape(-1, 3)
-    pts = pts[np.all(np.isfinite(pts) & (np.abs(pts) < MAX_COORDINATE), axis=1)]
+    pts = pts[finite_points(pts, MAX_COORDINATE)]
     if len(pts) == 0:
         return None
-    return pts.min(axis=0), pts.max(axis=0)
+    # Column by column, for the same reason as in finite_points.
+    return (np.array([pts[:, k].min() for k in range(3)]), np.array([pts[:, k].max() for k in range(3)]))
 
 
 def depth_range(triangles: np.ndarray, light_position: np.ndarray, margin: float = 0.01,

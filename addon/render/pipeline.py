@@ -566,7 +566,7 @@ class ShadowPipeline:
         height, width = samples.hit.shape
         pos = np.zeros((height, width, 4), dtype=np.float32)
         nrm = np.zeros((height, width, 4), dtype=np.float32)
-        hit = samples.hit & np.all(np.isfinite(samples.positions), axis=-1)
+        hit = samples.hit & projection.finite_points(samples.positions)
         pos[..., :3] = np.where(hit[..., None], samples.positions - light.position, 0.0)
         pos[..., 3] = hit
         nrm[..., :3] = np.where(hit[..., None], samples.normals, 0.0)
