@@ -30,7 +30,7 @@ from .errors import InputError
 # Rules for the automatic parameters (docs/warping.md explains them).
 FLOOR_SHARE = 0.1  # uniform share mixed into every row's density: slope >= FLOOR_SHARE
 MAX_SLOPE = 8.0  # one cell may grow to at most this many cells (steepness clamp)
-SHEAR_LIMIT = 1.0  # largest |du'/dv| (resp. |dv'/du'|) the smoothing may leave
+SHEAR_LIMIT = 0.5  # largest |du'/dv| (resp. |dv'/du'|) the smoothing may leave (docs/warping.md)
 IDENTITY_PRIOR = 0.02  # pseudo-count (share of the mean populated row) pulling sparse rows to identity
 ALONG_BLUR_SHARE = 1 / 32  # tent half-width along each row, as a share of A (smooths kinks)
 
