@@ -14,16 +14,19 @@ from addon.core.scene import SceneBuilder
 from addon.render.moderngl_backend import ModernGLBackend
 from addon.render.pipeline import ShadowPipeline, ShadowSettings
 from addon.render.shaders import (
+    COMPUTE_PROGRAMS,
     DEPTH_PLAIN_PROGRAM,
     DEPTH_PROGRAM,
+    FIXED_KIND_DEFINE,
     GBUFFER_PROGRAM,
     NO_WARP_DEFINE,
+    SCATTER_MODE_DEFINE,
     SHADOW_TEST_PLAIN_PROGRAM,
-    FIXED_KIND_DEFINE,
     SHADOW_TEST_PROGRAM,
     VARIANT_PROGRAMS,
     glsl_header,
     program_variant,
+    scatter_variant,
 )
 from tests.support.oracle import view_samples
 
@@ -61,6 +64,20 @@ def test_variant_choice_fixes_only_paraboloid_and_cube_frames(base, warp_size):
 def test_every_variant_has_its_own_name():
     names = [iface.name for iface in VARIANT_PROGRAMS]
     assert len(set(names)) == len(names) == 12
+    scatter_names = [iface.name for iface in COMPUTE_PROGRAMS]
+    assert len(set(scatter_names)) == len(scatter_names) == 10  # the generic one and 3 modes x 3 kinds
+
+
+def test_scatter_variant_fixes_mode_and_kind():
+    for mode in (0, 1, 2):
+        generic = scatter_variant({"ow_scatter_mode": mode})
+        assert generic.defines[SCATTER_MODE_DEFINE] == str(mode) and FIXED_KIND_DEFINE not in generic.defines
+        assert scatter_variant({"ow_scatter_mode": mode, "ow_layer_kind": 2}) is generic  # unfold
+        for kind in (0, 1):
+            fixed = scatter_variant({"ow_scatter_mode": mode, "ow_layer_kind": kind})
+            assert fixed.defines[FIXED_KIND_DEFINE] == str(kind) and fixed is not generic
+    with pytest.raises(BackendError, match="scatter mode"):
+        scatter_variant({"ow_scatter_mode": 3})
 
 
 def test_plain_variants_share_the_interface_but_not_the_name():
