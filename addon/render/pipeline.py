@@ -564,14 +564,19 @@ class ShadowPipeline:
 
     def _upload_samples(self, light: LightSpec, samples: ViewSamples) -> None:
         height, width = samples.hit.shape
-        pos = np.zeros((height, width, 4), dtype=np.float32)
-        nrm = np.zeros((height, width, 4), dtype=np.float32)
-        hit = samples.hit & projection.finite_points(samples.positions)
-        pos[..., :3] = np.where(hit[..., None], samples.positions - light.position, 0.0)
+        # GL textures start at the bottom row and the samples at the top, so the arrays
+        # are filled upside down, in place: a third of the time of building them with
+        # np.where and flipping a copy (every frame, every method).
+        hit = (samples.hit & projection.finite_points(samples.positions))[::-1]
+        pos = np.empty((height, width, 4), dtype=np.float32)
+        nrm = np.empty((height, width, 4), dtype=np.float32)
+        with np.errstate(over="ignore", invalid="ignore"):  # misses are zeroed below
+            np.subtract(samples.positions[::-1], light.position, out=pos[..., :3], casting="same_kind")
+            nrm[..., :3] = samples.normals[::-1]
         pos[..., 3] = hit
-        nrm[..., :3] = np.where(hit[..., None], samples.normals, 0.0)
-        # GL textures start at the bottom row; the samples start at the top.
-        self.backend.upload_samples(pos[::-1], nrm[::-1])
+        pos[~hit] = 0.0
+        nrm[~hit] = 0.0
+        self.backend.upload_samples(pos, nrm)
 
     def _shadow_test(self, light: LightSpec, settings: ShadowSettings, plan: Plan, geometry: PreparedGeometry,
                      layout: AtlasLayout, tile_of_slot: dict[int, int], mappings: dict[int, LayerMapping],
