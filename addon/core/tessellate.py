@@ -184,18 +184,22 @@ def _edge_marks(tris: np.ndarray, project_texels: Callable[[np.ndarray], np.ndar
     pa = project_texels(a.reshape(-1, 3)).reshape(n, 3, 2)
     pb = np.roll(pa, -1, axis=1)
     bend = np.zeros((n, 3))
-    points = [pa, pb]
+    # Per texel axis, the smallest and largest of the five points (for the window test).
+    # Components are handled one by one: numpy reduces a short last axis slowly.
+    low = np.minimum(pa, pb)
+    high = np.maximum(pa, pb)
     for wa, wb in ((0.75, 0.25), (0.5, 0.5), (0.25, 0.75)):
         point = project_texels((a * wa + b * wb).reshape(-1, 3)).reshape(n, 3, 2)
-        bend = np.maximum(bend, np.linalg.norm(point - (pa * wa + pb * wb), axis=-1))
-        points.append(point)
+        off = point - (pa * wa + pb * wb)
+        bend = np.maximum(bend, np.sqrt(off[..., 0] * off[..., 0] + off[..., 1] * off[..., 1]))
+        np.minimum(low, point, out=low)
+        np.maximum(high, point, out=high)
     marks = bend > tolerance
     if window is not None:
-        stack = np.stack(points)  # (5, n, 3, 2)
         margin = bend + tolerance
-        outside = (np.all(stack < -margin[None, ..., None], axis=0)
-                   | np.all(stack > window + margin[None, ..., None], axis=0))
-        marks &= ~np.any(outside, axis=-1)
+        outside = ((high[..., 0] < -margin) | (low[..., 0] > window + margin)
+                   | (high[..., 1] < -margin) | (low[..., 1] > window + margin))
+        marks &= ~outside
     return marks
 
 
