@@ -66,3 +66,15 @@ def test_disjoint_planes_give_no_polytope():
     planes = np.concatenate([box_planes(np.zeros(3), np.ones(3)), box_planes(np.full(3, 2.0), np.full(3, 3.0))])
     assert polytope_of_planes(planes) is None
     assert sample_polytope(PL.frustum_corners(CameraSpec(np.eye(4), 60.0, (8, 8)), 1.0, 2.0), np.zeros((0, 3))) is None
+
+
+@pytest.mark.parametrize("scale", [1e-6, 1.0, 1e6])
+def test_samples_at_one_point_give_a_tiny_polytope_that_holds_it(scale):
+    """The degenerate box (every sample on one point) still makes a closed solid around it."""
+    camera = CameraSpec(look_at((0.0, -6.0 * scale, 2.0 * scale), (0.0, 0.0, 0.0)), 60.0, (8, 6))
+    point = np.array([0.3, 0.2, 0.0]) * scale
+    corners = PL.frustum_corners(camera, 5.0 * scale, 8.0 * scale)
+    polytope = sample_polytope(corners, np.tile(point, (48, 1)))
+    assert polytope.contains(point)
+    assert len(polytope.vertices) == 8 and len(polytope.edges) == 12
+    assert np.abs(polytope.vertices - point).max() < 1e-4 * scale
