@@ -14,6 +14,7 @@ cheaper than the point-in-frustum / edge-plane tests of the thesis.
 """
 from __future__ import annotations
 
+import functools
 import math
 from dataclasses import dataclass, field
 
@@ -23,7 +24,7 @@ from . import perspective, projection
 from .frames import Layer, Parameterization, ipsm_layer, light_layers, pick_slot, projective_layer, slot_count
 from .perspective import hull_planes  # one convex-hull routine for culling and PSM
 from .polytope import Polytope, sample_polytope
-from .projection import CUBE
+from .projection import CUBE, PARABOLOID
 from .scene import CameraSpec, LightSpec
 
 # Relative slack: culling must be conservative, never drop a needed layer.
@@ -50,6 +51,12 @@ class Plan:
     projective: "perspective.ProjectiveMap | None" = None  # sm and psm: the map's matrix
     # The strictly truncated frustum cut by the samples' box (core.polytope): holds every sample.
     sample_polytope: Polytope | None = None
+
+    @property
+    def layer_kind(self) -> int:
+        """The projection kind of the plan's layers: all of them share one (a projective
+        plan never projects by kind)."""
+        return self.all_layers[0].kind if self.all_layers else PARABOLOID
 
     @property
     def drawn_slots(self) -> list[int]:
@@ -237,6 +244,36 @@ def skewed_axis(light_position: np.ndarray, corners: np.ndarray, camera: CameraS
     return axis / np.linalg.norm(axis)
 
 
+@dataclass
+class _ViewRegion:
+    """A frame's view samples, filtered once, and what planning derives from them.
+
+    IPSM falls back to the dual paraboloid when the light is among the samples, and the
+    fallback plans from the same region instead of filtering the samples again.
+    """
+
+    camera: CameraSpec
+    points: np.ndarray  # finite hit positions (N, 3)
+    window: Window
+
+    @functools.cached_property
+    def depths(self) -> np.ndarray:
+        return view_depths(self.camera, self.points)
+
+    @functools.cached_property
+    def strict(self) -> np.ndarray | None:
+        """The strictly truncated frustum: it holds every sample."""
+        return frustum_from_depths(self.camera, self.depths, window=self.window)
+
+    @functools.cached_property
+    def polytope(self) -> Polytope | None:
+        return None if self.strict is None else sample_polytope(self.strict, self.points)
+
+
+def _view_region(camera: CameraSpec, positions: np.ndarray, hit: np.ndarray) -> _ViewRegion:
+    return _ViewRegion(camera, hit_points(positions, hit), sample_window(camera, hit))
+
+
 def plan_frame(light: LightSpec, parameterization: Parameterization, camera: CameraSpec | None,
                positions: np.ndarray, hit: np.ndarray, far: float, cull: bool = True, cut: bool = False) -> Plan:
     """Decide which layers to draw for one frame.
@@ -246,32 +283,35 @@ def plan_frame(light: LightSpec, parameterization: Parameterization, camera: Cam
     """
     if parameterization == "ipsm":
         return _plan_ipsm(light, camera, positions, hit, far, cull, cut)
-    layers = light_layers(light, parameterization)
     if camera is None:
+        layers = light_layers(light, parameterization)
         return Plan(parameterization, layers, list(layers), None)
-    points = hit_points(positions, hit)  # filtered once: the frustums and slots below share it
-    depths = view_depths(camera, points)
-    window = sample_window(camera, hit)
-    corners = frustum_from_depths(camera, depths, percentile=CULL_DEPTH_PERCENTILE, window=window)
+    return _plan_layers(light, parameterization, _view_region(camera, positions, hit), far, cull)
+
+
+def _plan_layers(light: LightSpec, parameterization: Parameterization, region: _ViewRegion, far: float,
+                 cull: bool) -> Plan:
+    """`plan_frame` for the layered parameterizations, from the view region."""
+    layers = light_layers(light, parameterization)
+    corners = frustum_from_depths(region.camera, region.depths, percentile=CULL_DEPTH_PERCENTILE,
+                                  window=region.window)
     if not cull:
         return Plan(parameterization, layers, list(layers), corners)
     if corners is None:
         return Plan(parameterization, layers, [], None, [layer.name for layer in layers])
-    strict = frustum_from_depths(camera, depths, window=window)
     if parameterization == "unfold":
         # Each half holds the whole sphere and both go out in one draw, so there is no
         # layer to leave out; only objects are culled.
-        return Plan(parameterization, layers, list(layers), corners, occluder_planes=_occluder_planes(light, strict),
-                    sample_polytope=sample_polytope(strict, points))
+        return Plan(parameterization, layers, list(layers), corners,
+                    occluder_planes=_occluder_planes(light, region.strict), sample_polytope=region.polytope)
     meets = {layer.slot for layer in layers if layer_meets_frustum(layer, light.position, corners, far)}
     if len(meets) < len(layers):
         # The percentile frustum may miss a stray sample; a layer that holds any sample
         # is always drawn, so culling never changes a shadow.
-        meets |= occupied_slots(light, parameterization, points)
+        meets |= occupied_slots(light, parameterization, region.points)
     drawn = [layer for layer in layers if layer.slot in meets]
     return Plan(parameterization, layers, drawn, corners, [layer.name for layer in layers if layer.slot not in meets],
-                occluder_planes=_occluder_planes(light, strict),
-                sample_polytope=sample_polytope(strict, points))
+                occluder_planes=_occluder_planes(light, region.strict), sample_polytope=region.polytope)
 
 
 def plan_projective(light: LightSpec, parameterization: Parameterization, camera: CameraSpec | None,
@@ -307,9 +347,9 @@ def plan_projective(light: LightSpec, parameterization: Parameterization, camera
                 projective=projective)
 
 
-# Map-space culling (layer_scissor): the box of the frustum's image grows by this share
-# of its size plus SCISSOR_MARGIN_TEXELS, for the shadow test's normal offset and for
-# the curve of an edge's image between its sampled points.
+# Map-space culling (layer_scissor): the box of the sample polytope's image grows by
+# this share of its size plus SCISSOR_MARGIN_TEXELS, for the shadow test's normal offset
+# and for the curve of an edge's image between its sampled points.
 SCISSOR_GROW = 0.02
 SCISSOR_MARGIN_TEXELS = 4
 SCISSOR_EDGE_POINTS = 64
@@ -367,11 +407,9 @@ def _plan_ipsm(light: LightSpec, camera: CameraSpec | None, positions: np.ndarra
     sample polytope (that frustum cut by the samples' box): it holds every sample too,
     and is often much smaller, so the cone is narrower and the zoom higher.
     """
-    corners = polytope = None
-    if camera is not None:
-        points = hit_points(positions, hit)
-        corners = frustum_from_depths(camera, view_depths(camera, points), window=sample_window(camera, hit))
-        polytope = sample_polytope(corners, points) if corners is not None else None
+    region = _view_region(camera, positions, hit) if camera is not None else None
+    corners = region.strict if region is not None else None
+    polytope = region.polytope if region is not None else None
     # Every sample lies in the sample polytope; a light outside it (a convex body) sees
     # them all within a cone of less than a hemisphere.
     if cull and polytope is not None and not polytope.contains(light.position):
@@ -387,7 +425,8 @@ def _plan_ipsm(light: LightSpec, camera: CameraSpec | None, positions: np.ndarra
                 return Plan("ipsm", [layer], [layer], corners, ipsm_half_angle=theta, requested="ipsm",
                             occluder_planes=_occluder_planes(light, corners),
                             sample_polytope=polytope)
-    fallback = plan_frame(light, "dpsm", camera, positions, hit, far, cull)
+    fallback = (_plan_layers(light, "dpsm", region, far, cull) if region is not None
+                else plan_frame(light, "dpsm", camera, positions, hit, far, cull))
     fallback.requested = "ipsm"
     return fallback
 

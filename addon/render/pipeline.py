@@ -18,7 +18,15 @@ import numpy as np
 from ..core import frames, perspective, projection, tessellate
 from ..core.errors import InputError
 from ..core.frames import POINT_PARAMETERIZATIONS, PROJECTIVE_PARAMETERIZATIONS, Layer, Parameterization
-from ..core.plan import SCISSOR_EDGE_POINTS, Plan, layer_scissor, outside_region, plan_frame, plan_projective
+from ..core.plan import (
+    SCISSOR_EDGE_POINTS,
+    Plan,
+    hit_points,
+    layer_scissor,
+    outside_region,
+    plan_frame,
+    plan_projective,
+)
 from ..core.scene import CameraSpec, LightSpec
 from ..core.warping import (
     FLOOR_SHARE,
@@ -417,23 +425,16 @@ class ShadowPipeline:
         already be uploaded for modes 1 and 2. All layers share one dispatch.
         """
         slots = plan.drawn_slots
-        rotations = np.tile(np.eye(3), (6, 1, 1))
-        crops = np.tile([0.0, 0.0, 1.0, 1.0], (6, 1))
-        tiles = np.full(6, -1, dtype=np.int64)
-        warp_size = 0
-        for tile, layer in enumerate(plan.drawn):
-            mapping = mappings.get(layer.slot, LayerMapping.identity())
-            rotations[layer.slot] = layer.rotation
-            crops[layer.slot] = mapping.crop_vec4()
-            tiles[layer.slot] = tile
-            if mapping.warp is not None:
-                warp_size = mapping.warp.size
+        rotations, crops = _slot_rotations_and_crops(plan, mappings)
+        tiles = np.full(SLOTS, -1, dtype=np.int64)
+        tiles[slots] = np.arange(len(slots))
+        warp_size = max((m.warp.size for m in mappings.values() if m.warp is not None), default=0)
         uniforms = {
             "ow_light_rot": light.rotation.T,
             "ow_layer_rot": rotations,
             "ow_layer_crop": crops,
             "ow_slot_tile": tiles,
-            "ow_layer_kind": plan.all_layers[0].kind if plan.all_layers else projection.PARABOLOID,
+            "ow_layer_kind": plan.layer_kind,
             "ow_param": _PARAM_CODES[plan.parameterization],
             "ow_hemi": 1 if light.emission == "hemi" else 0,
             "ow_warp_size": warp_size,
@@ -582,21 +583,15 @@ class ShadowPipeline:
                      layout: AtlasLayout, tile_of_slot: dict[int, int], mappings: dict[int, LayerMapping],
                      warp_size: int, edge_radius: int = 0,
                      boxes: dict[int, tuple[int, int, int, int]] | None = None) -> np.ndarray:
-        n_slots = 6
-        rotations = np.tile(np.eye(3), (n_slots, 1, 1))
-        tiles = np.zeros((n_slots, 4))
-        crops = np.tile([0.0, 0.0, 1.0, 1.0], (n_slots, 1))
+        rotations, crops = _slot_rotations_and_crops(plan, mappings)
+        tiles = np.zeros((SLOTS, 4))
         res = float(settings.resolution)
-        readable = np.tile([0.0, 0.0, res, res], (n_slots, 1))
+        readable = np.tile([0.0, 0.0, res, res], (SLOTS, 1))
         for slot, box in (boxes or {}).items():
             readable[slot] = box
-        for layer in plan.all_layers:
-            rotations[layer.slot] = layer.rotation
         for slot, tile in tile_of_slot.items():
             x, y = layout.origin(tile)
             tiles[slot] = (x, y, 1.0, 0.0)
-        for slot, mapping in mappings.items():
-            crops[slot] = mapping.crop_vec4()
         uniforms = {
             "ow_light_rot": light.rotation.T,
             "ow_layer_rot": rotations,
@@ -604,8 +599,7 @@ class ShadowPipeline:
             "ow_layer_crop": crops,
             "ow_layer_box": readable,
             "ow_param": _PARAM_CODES[plan.parameterization],
-            # Every layer of a plan has the same kind (a projective plan never projects by kind).
-            "ow_layer_kind": plan.all_layers[0].kind if plan.all_layers else projection.PARABOLOID,
+            "ow_layer_kind": plan.layer_kind,
             "ow_hemi": 1 if light.emission == "hemi" else 0,
             "ow_warp_size": warp_size if any(m.warp is not None for m in mappings.values()) else 0,
             "ow_resolution": float(settings.resolution),
@@ -627,6 +621,25 @@ class ShadowPipeline:
             uniforms.update(ow_projective=1, ow_map_inverted=int(plan.projective.inverted),
                             ow_map_matrix=plan.projective.matrix, ow_depth_offset=plan.projective.depth_offset)
         return self.backend.shadow_test(uniforms)
+
+
+# Layer slots the GLSL tables hold (ow_layer_rot[6] and the like): a cube's six faces.
+SLOTS = 6
+
+
+def _slot_rotations_and_crops(plan: Plan, mappings: dict[int, LayerMapping]) -> tuple[np.ndarray, np.ndarray]:
+    """Per-slot layer rotations (6, 3, 3) and crop vec4s (6, 4) for the GLSL tables.
+
+    Unused slots keep the identity rotation and the whole map; a layer missing from
+    `mappings` is uncropped.
+    """
+    rotations = np.tile(np.eye(3), (SLOTS, 1, 1))
+    crops = np.tile([0.0, 0.0, 1.0, 1.0], (SLOTS, 1))
+    for layer in plan.all_layers:
+        rotations[layer.slot] = layer.rotation
+    for slot, mapping in mappings.items():
+        crops[slot] = mapping.crop_vec4()
+    return rotations, crops
 
 
 def readable_boxes(plan: Plan, light: LightSpec, settings: ShadowSettings,
@@ -754,8 +767,7 @@ class CountStatistics:
 def projective_counts(projective: perspective.ProjectiveMap, light: LightSpec, samples: ViewSamples,
                       resolution: int) -> np.ndarray:
     """Count map (row 0 = v = 0) of the view samples through a spot or sun map, in numpy."""
-    pts = np.asarray(samples.positions, dtype=np.float64)[np.asarray(samples.hit, dtype=bool)]
-    pts = pts[np.all(np.isfinite(pts), axis=1)] - light.position
+    pts = hit_points(samples.positions, samples.hit) - light.position
     uv, _, w = perspective.project(projective, pts)
     inside = (w > 0.0) & np.all((uv >= 0.0) & (uv < 1.0), axis=1)
     texel = np.floor(uv[inside] * resolution).astype(np.int64)

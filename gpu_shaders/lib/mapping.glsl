@@ -48,10 +48,11 @@ vec2 ow_map_inverse(sampler2D rows, sampler2D cols, int slot, int warp_size, vec
 // nearby projection point `xy_start`: the depth pass interpolates its vertices'
 // projection points, which tessellation (and, on cube faces, clipping to the crop)
 // keeps within about a texel of the truth. The warp is fold-free (det J > 0), so every
-// step is defined. Two steps cost two forward evaluations (8 fetches each) against
-// about 40 fetches in two binary searches (ow_map_inverse), and a software rasteriser
-// pays for every branch, so there is no fallback: tests/gl/test_depth_pass.py bounds
-// the error, and docs/warping.md gives the measured agreement with the exact search.
+// step is defined. Two steps cost two forward evaluations (2 fetches each from the
+// packed tables) against two binary searches of about ten fetches each (ow_map_inverse),
+// and a software rasteriser pays for every branch, so there is no fallback:
+// tests/gl/test_depth_pass.py bounds the error, and docs/warping.md gives the measured
+// agreement with the exact search.
 const int OW_NEWTON_STEPS = 2;
 
 vec2 ow_map_inverse_near(sampler2D rows, sampler2D cols, int slot, int warp_size, vec4 crop, vec2 uv,
