@@ -3,7 +3,10 @@
 // counts are exact integers. Every drawn layer goes out in the same dispatch: layer
 // slot s writes the tile at x = ow_slot_tile[s] * ow_count_size (-1: not drawn).
 // ow_scatter_mode: 0 = after the DV crop, 1 = also through the row warps,
-// 2 = through the full warp (the importance map). Variants built for one mode define
+// 2 = through the full warp (the importance map). With ow_weighted != 0 a sample adds
+// its importance weight, which the positions' w holds (an integer >= 1 where the
+// pixel hit, 0 where it missed), instead of one: the warp analysis counts weights,
+// the count statistics count samples. Variants built for one mode define
 // OW_SCATTER_MODE (shaders.scatter_variant), so the other modes compile out.
 #include "lib/projection.glsl"
 #include "lib/layers.glsl"
@@ -53,5 +56,6 @@ void main()
     return;
   }
   ivec2 texel = min(ivec2(floor(uv * float(ow_count_size))), ivec2(ow_count_size - 1));
-  imageAtomicAdd(ow_counts, texel + ivec2(tile * ow_count_size, 0), 1u);
+  uint amount = ow_weighted != 0 ? uint(pw.w + 0.5) : 1u;
+  imageAtomicAdd(ow_counts, texel + ivec2(tile * ow_count_size, 0), amount);
 }

@@ -211,16 +211,18 @@ def family_inverse(table: np.ndarray, warped: np.ndarray, across: np.ndarray) ->
 # ---------------------------------------------------------------------------
 # construction
 # ---------------------------------------------------------------------------
-def scatter_counts(uv: np.ndarray, size: int) -> np.ndarray:
+def scatter_counts(uv: np.ndarray, size: int, weights: np.ndarray | None = None) -> np.ndarray:
     """Count map (size x size, row = v) of map points; points outside [0,1)^2 are dropped.
 
-    The numpy oracle of the GPU scatter pass.
+    The numpy oracle of the GPU scatter pass. `weights` (one per point) are summed
+    instead of counting each point once, as the weighted scatter does.
     """
     uv = np.asarray(uv, dtype=np.float64).reshape(-1, 2)
     ok = np.all(np.isfinite(uv), axis=1) & np.all((uv >= 0.0) & (uv < 1.0), axis=1)
     idx = np.floor(uv[ok] * size).astype(np.int64)
     flat = np.clip(idx[:, 1], 0, size - 1) * size + np.clip(idx[:, 0], 0, size - 1)
-    return np.bincount(flat, minlength=size * size).reshape(size, size).astype(np.float64)
+    picked = None if weights is None else np.asarray(weights, dtype=np.float64).reshape(-1)[ok]
+    return np.bincount(flat, weights=picked, minlength=size * size).reshape(size, size).astype(np.float64)
 
 
 def _cap_density(p: np.ndarray, cap: float) -> np.ndarray:

@@ -103,7 +103,9 @@ class ShadowBackend(ABC):
     def upload_samples(self, positions: np.ndarray, normals: np.ndarray) -> None:
         """View samples for the scatter and test passes: (H, W, 4) float32, row 0 at the bottom.
 
-        positions: light-centred xyz and w = 1 where the pixel hit geometry.
+        positions: light-centred xyz; w = the sample's importance weight (an integer
+        >= 1, 1 unless ViewSamples.importance is given) where the pixel hit geometry,
+        0 where it missed.
         """
 
     @abstractmethod

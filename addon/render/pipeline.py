@@ -106,14 +106,45 @@ class ShadowSettings:
             raise InputError(f"resolution {self.resolution} out of range [{MIN_RESOLUTION}, {MAX_RESOLUTION}]")
 
 
+# Largest importance weight one view sample may carry. The scatter sums weights as
+# 32-bit integers: 2^12 for each of a 4K frame's 8.3 M samples still fits in 2^32.
+MAX_IMPORTANCE = 4096.0
+
+
 @dataclass
 class ViewSamples:
-    """Per-pixel view samples; row 0 is the TOP image row (as the reference stores it)."""
+    """Per-pixel view samples; row 0 is the TOP image row (as the reference stores it).
+
+    `importance` weights each sample in the warp analysis (thesis 4.2.1: the warp
+    follows an importance, and the count map is its plain stand-in): a sample of
+    weight k counts as k samples in the count maps the warps are built from. None
+    means 1 everywhere, the thesis's count map. The count statistics of a frame
+    (max_count_before/after) always count samples, not weights.
+    """
 
     positions: np.ndarray  # (H, W, 3) world
     normals: np.ndarray  # (H, W, 3) world, unit
     hit: np.ndarray  # (H, W) bool
     camera: CameraSpec | None  # None: no perspective camera, so no layer culling
+    importance: np.ndarray | None = None  # (H, W) weights in [1, MAX_IMPORTANCE], rounded to integers
+
+    def importance_weights(self) -> np.ndarray | None:
+        """The importance as rounded float32 weights, checked; None when not given.
+
+        Raises InputError naming the problem: a shape other than the hit mask's, or a
+        weight that is not finite or lies outside [1, MAX_IMPORTANCE] on a hit pixel.
+        """
+        if self.importance is None:
+            return None
+        weights = np.asarray(self.importance, dtype=np.float64)
+        if weights.shape != self.hit.shape:
+            raise InputError(f"importance has shape {weights.shape}; the view samples are {self.hit.shape}")
+        used = weights[self.hit]
+        bad = ~(np.isfinite(used) & (used >= 1.0) & (used <= MAX_IMPORTANCE))
+        if bad.any():
+            raise InputError(f"importance weights must be finite and in [1, {MAX_IMPORTANCE:g}]; "
+                             f"{int(bad.sum())} hit pixels are not (first: {used[bad][0]!r})")
+        return np.rint(weights).astype(np.float32)
 
 
 @dataclass
@@ -417,12 +448,13 @@ class ShadowPipeline:
         self.backend = backend
 
     def count_maps(self, light: LightSpec, plan: Plan, mappings: dict[int, LayerMapping], size: int,
-                   mode: int) -> dict[int, np.ndarray]:
+                   mode: int, weighted: bool = False) -> dict[int, np.ndarray]:
         """GPU count maps (row 0 = v = 0) of the uploaded samples, one per drawn layer of `plan`.
 
         mode 0: after each layer's crop only; 1: through the row warps; 2: through the
         full warp. A layer missing from `mappings` counts uncropped. The warp tables must
         already be uploaded for modes 1 and 2. All layers share one dispatch.
+        `weighted` sums the samples' importance weights instead of counting them.
         """
         slots = plan.drawn_slots
         rotations, crops = _slot_rotations_and_crops(plan, mappings)
@@ -440,6 +472,7 @@ class ShadowPipeline:
             "ow_warp_size": warp_size,
             "ow_scatter_mode": mode,
             "ow_count_size": size,
+            "ow_weighted": int(weighted),
         }
         strip = self.backend.scatter_counts(size, max(len(slots), 1), uniforms)
         return {slot: strip[:, tile * size:(tile + 1) * size].copy() for tile, slot in enumerate(slots)}
@@ -447,12 +480,14 @@ class ShadowPipeline:
     def _analyse(self, light: LightSpec, settings: ShadowSettings, plan: Plan) -> tuple[dict, dict]:
         """DV crop and warp construction for every drawn layer (Algorithm 3, steps 2-7).
 
-        Each step scatters all layers at once: 3 dispatches for NoTW, 2 for RTW.
+        Each step scatters all layers at once: 3 dispatches for NoTW, 2 for RTW. The
+        counts sum the samples' importance weights (1 each unless ViewSamples.importance
+        says otherwise); the DV crop only asks which cells are occupied.
         """
         size = settings.analysis_size or analysis_size_for(settings.resolution)
         whole = self.count_maps(light, plan, {}, size, 0)  # mode 0 reads no warp table
         crops = {slot: LayerMapping(*dv_crop_from_counts(counts), None) for slot, counts in whole.items()}
-        counts = self.count_maps(light, plan, crops, size, 0)
+        counts = self.count_maps(light, plan, crops, size, 0, weighted=True)
         mappings: dict[int, LayerMapping] = {}
         if settings.warp == "rtw":
             for slot, crop in crops.items():
@@ -462,7 +497,7 @@ class ShadowPipeline:
             row_only = {slot: LayerMapping(crop.lo, crop.hi, _warp_of(rows[slot][0], None, size))
                         for slot, crop in crops.items()}
             self.backend.set_warp_tables(*_stack_tables(row_only, size))
-            after_rows = self.count_maps(light, plan, row_only, size, 1)
+            after_rows = self.count_maps(light, plan, row_only, size, 1, weighted=True)
             for slot, crop in crops.items():
                 cols, col_window = notw_cols(after_rows[slot])
                 row_table, row_window = rows[slot]
@@ -574,7 +609,8 @@ class ShadowPipeline:
         with np.errstate(over="ignore", invalid="ignore"):  # misses are zeroed below
             np.subtract(samples.positions[::-1], light.position, out=pos[..., :3], casting="same_kind")
             nrm[..., :3] = samples.normals[::-1]
-        pos[..., 3] = hit
+        weights = samples.importance_weights()
+        pos[..., 3] = hit if weights is None else weights[::-1]
         pos[~hit] = 0.0
         nrm[~hit] = 0.0
         self.backend.upload_samples(pos, nrm)

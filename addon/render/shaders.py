@@ -184,6 +184,7 @@ SCATTER_PROGRAM = ComputeInterface(
         Uniform("int", "ow_warp_size"),
         Uniform("int", "ow_scatter_mode"),
         Uniform("int", "ow_count_size"),
+        Uniform("int", "ow_weighted"),
     ),
     samplers=("ow_positions",) + _WARP_SAMPLERS,
     images=(("r32ui", "ow_counts"),),

@@ -20,7 +20,14 @@ from addon.cli import main  # noqa: E402
 from addon.render.pipeline import ShadowPipeline, ShadowSettings  # noqa: E402
 from tests.gl.test_pipeline_extremes import _seam_straddler  # noqa: E402
 from tests.gl.test_projective import _street  # noqa: E402
-from tests.support.blender_gpu_worker import BOXED_CASES, CASES, PROJECTIVE_CASES, boxed_scene, case_key  # noqa: E402
+from tests.support.blender_gpu_worker import (  # noqa: E402
+    BOXED_CASES,
+    CASES,
+    PROJECTIVE_CASES,
+    boxed_scene,
+    case_key,
+    weighted_samples,
+)
 from tests.support.oracle import view_samples  # noqa: E402
 
 pytestmark = [pytest.mark.blender, pytest.mark.gl]
@@ -63,6 +70,14 @@ def test_blender_backend_matches_moderngl(gl_backend, tmp_path, monkeypatch):
                                ShadowSettings(param, 256, warp=warp, edge_aa=aa), keep_atlas=True)
         assert np.array_equal(ours.visibility, theirs[f"{key}_visibility"]), key
         assert np.allclose(ours.atlas, theirs[f"{key}_atlas"], atol=1e-6), key
+    # Importance weights reach the analysis scatter on both backends alike.
+    plain = pipeline.render(scene.light, scene.world_triangles(), samples, ShadowSettings("dpsm", 256, warp="notw"),
+                            keep_atlas=True)
+    ours = pipeline.render(scene.light, scene.world_triangles(), weighted_samples(samples),
+                           ShadowSettings("dpsm", 256, warp="notw"), keep_atlas=True)
+    assert not np.allclose(ours.atlas, plain.atlas, atol=1e-6)  # the weights move the warp
+    assert np.array_equal(ours.visibility, theirs["weighted_visibility"])
+    assert np.allclose(ours.atlas, theirs["weighted_atlas"], atol=1e-6)
     court = boxed_scene()
     court_samples, _, _ = view_samples(court)
     for param in BOXED_CASES:

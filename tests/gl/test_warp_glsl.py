@@ -140,6 +140,88 @@ def test_gpu_scatter_matches_numpy_count_map(gl_backend):
     assert np.array_equal(gpu, expected)
 
 
+def _aimed_samples(scene, texels: np.ndarray, res: int):
+    """Samples on directions aimed at texel centres of the front paraboloid of a res^2 map."""
+    from addon.core import frames, projection
+
+    layer = frames.light_layers(scene.light, "dpsm")[0]
+    xy = (texels + 0.5) / res * 2 - 1
+    dirs = projection.paraboloid_unproject(xy) @ layer.rotation
+    return layer, xy, dirs
+
+
+def test_weighted_scatter_sums_importance_as_numpy_does(gl_backend):
+    """With importance weights the analysis scatter sums them (numpy's weighted
+    bincount); the statistics scatter still counts each sample once."""
+    scene = _light_over_floor((8, 8))
+    rng = np.random.default_rng(9)
+    texels = rng.integers(3, 13, size=(40, 40, 2))
+    layer, xy, dirs = _aimed_samples(scene, texels, 16)
+    weights = rng.integers(1, 50, size=(40, 40)).astype(np.float64)
+    samples = ViewSamples(dirs * 2.0, -dirs, np.ones((40, 40), bool), scene.camera, importance=weights)
+    pipe = ShadowPipeline(gl_backend)
+    result = pipe.render(scene.light, scene.world_triangles(), samples, ShadowSettings("dpsm", 16, warp="none"))
+    uv = (xy * 0.5 + 0.5).reshape(-1, 2)
+    summed = pipe.count_maps(scene.light, result.plan, {}, 16, 0, weighted=True)[layer.slot]
+    counted = pipe.count_maps(scene.light, result.plan, {}, 16, 0)[layer.slot]
+    assert summed.sum() == weights.sum()
+    assert np.array_equal(summed, W.scatter_counts(uv, 16, weights.reshape(-1)))
+    assert np.array_equal(counted, W.scatter_counts(uv, 16))
+
+
+def test_importance_moves_resolution_to_the_weighted_samples(gl_backend):
+    """A uniform weight leaves the NoTW warp as it is, to rounding (the analysis scales
+    the counts to a peak of 1); weighting one half of the samples gives that half more texels."""
+    scene = _light_over_floor((8, 8))
+    rng = np.random.default_rng(10)
+    texels = rng.integers(2, 30, size=(48, 48, 2))
+    layer, xy, dirs = _aimed_samples(scene, texels, 32)
+    hit = np.ones((48, 48), bool)
+    settings = ShadowSettings("dpsm", 256, warp="notw", cull=False)
+    pipe = ShadowPipeline(gl_backend)
+
+    def mapping(importance):
+        samples = ViewSamples(dirs * 2.0, -dirs, hit, scene.camera, importance=importance)
+        return pipe.render(scene.light, scene.world_triangles(), samples, settings).mappings[layer.slot]
+
+    plain = mapping(None)
+    tripled = mapping(np.full((48, 48), 3.0))
+    assert np.allclose(plain.warp.rows, tripled.warp.rows, rtol=0, atol=1e-12)
+    assert np.allclose(plain.warp.cols, tripled.warp.cols, rtol=0, atol=1e-12)
+    left = xy[..., 0] < 0.0
+    weighted = mapping(np.where(left, 40.0, 1.0))
+    # Where the border between the halves (x = 0) lands in the map: the share of each
+    # row the left half gets, about a half with plain counts.
+    border = np.stack([np.zeros(15), np.linspace(-0.7, 0.7, 15)], axis=1)
+    assert abs(plain.forward(border)[:, 0].mean() - 0.5) < 0.05
+    assert weighted.forward(border)[:, 0].min() > 0.8
+    points = xy.reshape(-1, 2)[~left.reshape(-1)]
+    assert np.median(weighted.magnification(points) / plain.magnification(points)) < 0.5
+
+
+@pytest.mark.parametrize("bad, problem", [
+    (np.full((4, 5), 2.0), "shape"),
+    (np.where(np.eye(4, dtype=bool), np.nan, 1.0), "finite"),
+    (np.full((4, 4), 0.5), "in [1"),
+    (np.full((4, 4), 1e6), "in [1"),
+])
+def test_bad_importance_is_refused_by_name(gl_backend, bad, problem):
+    """A wrong shape or a weight outside [1, MAX_IMPORTANCE] is an InputError that says
+    so, raised before anything is uploaded; a missed pixel's weight is never read."""
+    from addon.core.errors import InputError
+
+    scene = _light_over_floor((4, 4))
+    pos = np.tile([0.0, 0.0, -1.0], (4, 4, 1))
+    samples = ViewSamples(pos, np.tile([0.0, 0.0, 1.0], (4, 4, 1)), np.ones((4, 4), bool), scene.camera,
+                          importance=bad)
+    with pytest.raises(InputError, match=problem.replace("[", r"\[")):
+        ShadowPipeline(gl_backend).render(scene.light, scene.world_triangles(), samples,
+                                          ShadowSettings("dpsm", 16, warp="notw"))
+    missed = ViewSamples(pos, samples.normals, np.zeros((4, 4), bool), scene.camera,
+                         importance=np.full((4, 4), np.nan))
+    assert missed.importance_weights() is not None  # NaN on missed pixels only: accepted
+
+
 def test_one_dispatch_counts_every_cube_face_as_numpy_does(gl_backend):
     """The compute scatter fills each drawn layer's tile from one dispatch, cropped and
     warped, as numpy's projection, slot choice and bincount do."""

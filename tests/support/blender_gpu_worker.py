@@ -30,6 +30,15 @@ def boxed_scene():
     return build_preset("courtyard", (128, 96))
 
 
+def weighted_samples(samples):
+    """The seam scene's samples with importance weights 1 to 16 in diagonal stripes,
+    for the weighted scatter (ViewSamples.importance) on both backends."""
+    from dataclasses import replace
+
+    rows, cols = np.indices(samples.hit.shape)
+    return replace(samples, importance=1.0 + ((rows + cols) // 3) % 16)
+
+
 def case_key(param: str, warp: str, aa: bool) -> str:
     return f"{param}_{warp}{'_aa' if aa else ''}"
 
@@ -63,6 +72,10 @@ def backends(out: str, reference: str | None = None) -> None:
                                  keep_atlas=True)
         arrays[f"{light}_{method}_visibility"] = result.visibility
         arrays[f"{light}_{method}_atlas"] = result.atlas
+    result = pipeline.render(scene.light, scene.world_triangles(), weighted_samples(samples),
+                             ShadowSettings("dpsm", 256, warp="notw"), keep_atlas=True)
+    arrays["weighted_visibility"] = result.visibility
+    arrays["weighted_atlas"] = result.atlas
     court = boxed_scene()
     court_samples, _, _ = view_samples(court)
     for param in BOXED_CASES:
