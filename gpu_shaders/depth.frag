@@ -42,8 +42,13 @@ void main()
     t = v_distance;  // grazing ray: fall back to the interpolated distance
   }
   // Texels at the border of a tessellated triangle may lie just off the true
-  // triangle; clamping to the triangle's distance range keeps them sane.
-  t = clamp(t, v_range.x, v_range.y);
+  // triangle. Never nearer than the triangle's nearest point: that keeps silhouettes
+  // from growing a near halo. No upper bound: such a texel sees the plane's farther
+  // continuation, right for a coplanar neighbour, and a farther depth can only lose
+  // the depth test to a nearer real surface. (Clamping at the farthest point stored
+  // depths too near on grazing receivers, which the warped maps' many triangle borders
+  // turned into false shadow.)
+  t = max(t, v_range.x);
   float depth = clamp((t - ow_near) / (ow_far - ow_near), 0.0, 1.0);
   gl_FragDepth = depth;
   ow_depth = depth;

@@ -76,15 +76,33 @@ void main()
     return;
   }
   int slot = ow_pick_slot(ow_param, ldir);
-  vec2 xy = ow_project(ow_layer_kind, ow_layer_rot[slot] * dir);
-  float magnification;
-  ow_map_forward(ow_warp_rows, ow_warp_cols, slot, ow_warp_size, ow_layer_crop[slot], xy, magnification);
-  // One texel of this (cropped, warped) map seen from the light, at the sample.
-  float footprint = dist * ow_texel_angle(ow_layer_kind, xy, ow_resolution) / magnification;
+  mat3 layer_rot = ow_layer_rot[slot];
+  vec2 xy = ow_project(ow_layer_kind, layer_rot * dir);
+  mat2 jacobian;
+  ow_map_forward_jacobian(ow_warp_rows, ow_warp_cols, slot, ow_warp_size, ow_layer_crop[slot], xy, jacobian);
+  float texel_size = dist * ow_texel_angle(ow_layer_kind, xy, ow_resolution);  // plain-map texel, world units
+  // One texel of this (cropped, warped) map seen from the light, at the sample, at its
+  // widest: the constant bias.
+  float footprint = texel_size / max(ow_min_singular(jacobian), 1e-30);
+  // The surface's depth changes along g, the map image of the normal's part across
+  // the ray, and the normal offset moves the lookup along g. So the offset and the
+  // slope bias need the texel's width along g only (ow_texel_reach; equal to the
+  // footprint on plain maps): a warp that compresses across g no longer inflates them.
+  // g by a finite difference of the exact projection, 1e-3 rad along that part.
+  float footprint_along = footprint;
+  vec3 across = n + cos_i * dir;
+  float across_len = length(across);
+  if (across_len > 1e-4) {
+    vec2 g = ow_project(ow_layer_kind, layer_rot * normalize(dir + across * (1e-3 / across_len))) - xy;
+    float g_len = length(g);
+    if (g_len > 0.0) {
+      footprint_along = texel_size * ow_texel_reach(jacobian, g / g_len);
+    }
+  }
 
-  // Normal offset (in texel footprints), then project the moved point exactly
+  // Normal offset (in texel widths along g), then project the moved point exactly
   // per pixel (Osman et al.): never interpolate map coordinates.
-  vec3 q = p + n * (ow_bias_normal * footprint);
+  vec3 q = p + n * (ow_bias_normal * footprint_along);
   float qdist = length(q);
   vec3 qdir = q / qdist;
   vec3 qldir = ow_light_rot * qdir;
@@ -102,6 +120,7 @@ void main()
   }
   xy = ow_project(ow_layer_kind, ow_layer_rot[slot] * qdir);
   int res = int(ow_resolution);
+  float magnification;
   vec2 uv = ow_map_forward(ow_warp_rows, ow_warp_cols, slot, ow_warp_size, ow_layer_crop[slot], xy,
                            magnification);
   ivec2 texel = clamp(ivec2(floor(uv * ow_resolution)), ivec2(0), ivec2(res - 1));
@@ -113,7 +132,7 @@ void main()
   float stored = texelFetch(ow_atlas, texel + ivec2(tile.xy), 0).r;
   float t_map = ow_near + stored * (ow_far - ow_near);
   float tan_i = sqrt(max(1.0 - cos_i * cos_i, 0.0)) / max(cos_i, 0.05);
-  float bias = footprint * (ow_bias_const + ow_bias_slope * min(tan_i, 20.0));
+  float bias = footprint * ow_bias_const + footprint_along * ow_bias_slope * min(tan_i, 20.0);
   float visibility = (qdist - bias <= t_map) ? 1.0 : 0.0;
   if (ow_edge_radius > 0 && visibility > 0.5) {
     // Edge-distance antialiasing (dual sphere-unfolding paper): a lit sample z texels

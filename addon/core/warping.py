@@ -118,6 +118,22 @@ def singular_values_2x2(m: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     return scale * np.sqrt(mean + spread), scale * np.sqrt(np.maximum(mean - spread, 0.0))
 
 
+def texel_reach(jacobian: np.ndarray, direction: np.ndarray) -> np.ndarray:
+    """Plain-map texels one map texel spans along unit plain-map directions (as `ow_texel_reach`).
+
+    jacobian: (..., 2, 2) d(map uv)/d(plain uv); direction: (..., 2) unit vectors g.
+    The width of the texel's preimage J^-1 S (S the unit square) along g is
+    ||J^-T g||_1; it is capped at 1/sigma_min, the isotropic reach. The shadow test
+    scales its normal offset and slope bias by it (docs/warping.md).
+    """
+    jacobian = np.asarray(jacobian, dtype=np.float64)
+    direction = np.asarray(direction, dtype=np.float64)
+    _, smallest = singular_values_2x2(jacobian)
+    cap = 1.0 / np.maximum(smallest, 1e-30)
+    pre = np.linalg.solve(np.swapaxes(jacobian, -1, -2), direction[..., None])[..., 0]
+    return np.minimum(np.abs(pre).sum(axis=-1), cap)
+
+
 # ---------------------------------------------------------------------------
 # evaluation of one family (shared by rows and columns)
 # ---------------------------------------------------------------------------
@@ -534,14 +550,21 @@ class LayerMapping:
         A map texel's preimage spans at most 1/magnification plain-map texels in any
         direction; the shadow test scales its bias footprint by it.
         """
+        return singular_values_2x2(self.jacobian(xy))[1]
+
+    def jacobian(self, xy: np.ndarray) -> np.ndarray:
+        """d(map uv)/d(uncropped uv) at projection points xy, (..., 2, 2): crop, then warp."""
         xy = np.asarray(xy, dtype=np.float64)
         crop = np.zeros(xy.shape[:-1] + (2, 2))
         crop[..., 0, 0], crop[..., 1, 1] = self.scale
-        jac = crop
-        if self.warp is not None:
-            uv = (xy * 0.5 + 0.5 - self.lo) * self.scale
-            jac = self.warp.jacobian(uv) @ crop
-        return singular_values_2x2(jac)[1]
+        if self.warp is None:
+            return crop
+        uv = (xy * 0.5 + 0.5 - self.lo) * self.scale
+        return self.warp.jacobian(uv) @ crop
+
+    def reach(self, xy: np.ndarray, direction: np.ndarray) -> np.ndarray:
+        """Plain-map texels a map texel spans along unit directions at xy (`texel_reach`)."""
+        return texel_reach(self.jacobian(xy), direction)
 
     def inverse(self, uv: np.ndarray) -> np.ndarray:
         """Final map uv back to projection coordinates."""

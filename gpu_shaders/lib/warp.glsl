@@ -118,6 +118,20 @@ float ow_min_singular(mat2 m)
   return sqrt(max(mean - spread, 0.0));
 }
 
+// Plain-map texels one map texel spans along unit plain-map direction g, where J =
+// d(map uv)/d(plain uv): the width ||J^-T g||_1 of the texel's preimage J^-1 S (S the
+// unit square) along g, capped at 1/sigma_min, the isotropic reach the bias used
+// before. At J = I the width is 1 to sqrt(2), so plain maps stay at the cap, 1; through
+// a sheared or anisotropic warp it is the width along g that a normal offset must
+// cover, since the surface's depth changes along g (texel_reach in
+// addon/core/warping.py mirrors this).
+float ow_texel_reach(mat2 jacobian, vec2 g)
+{
+  float cap = 1.0 / max(ow_min_singular(jacobian), 1e-30);
+  vec2 pre = transpose(inverse(jacobian)) * g;
+  return min(abs(pre.x) + abs(pre.y), cap);
+}
+
 // Row warp only (the second scatter of Algorithm 3).
 vec2 ow_apply_row_warp(sampler2D rows, int slot, int size, vec2 uv)
 {

@@ -219,3 +219,33 @@ def test_closed_form_singular_values_match_svd(entries):
     assert abs(big[0] - expected[0]) <= 1e-9 * scale
     # The smaller one loses digits to cancellation when the matrix is nearly singular.
     assert abs(small[0] - expected[1]) <= 1e-6 * scale
+
+
+def test_texel_reach_of_plain_and_stretched_maps():
+    """A plain map's texel spans one texel in every direction (the isotropic cap);
+    a map stretched 2x along u spans half a plain texel along u and stays at the cap
+    (1 / sigma_min = 2) along a v it compresses."""
+    angles = np.linspace(0.0, 2.0 * np.pi, 17)
+    dirs = np.stack([np.cos(angles), np.sin(angles)], axis=-1)
+    assert np.allclose(W.texel_reach(np.broadcast_to(np.eye(2), (17, 2, 2)), dirs), 1.0)
+    stretched = np.broadcast_to(np.diag([2.0, 0.5]), (2, 2, 2))
+    assert np.allclose(W.texel_reach(stretched, np.array([[1.0, 0.0], [0.0, 1.0]])), [0.5, 2.0])
+    # Shear: J = [[1, s], [0, 1]] moves u with v; along u the preimage is wider than 1.
+    sheared = np.array([[1.0, 0.5], [0.0, 1.0]])
+    _, smallest = W.singular_values_2x2(sheared)
+    assert np.isclose(W.texel_reach(sheared, np.array([1.0, 0.0])), min(1.5, 1.0 / smallest))
+
+
+@settings(max_examples=200, deadline=None)
+@given(st.lists(st.floats(-4.0, 4.0, allow_nan=False), min_size=4, max_size=4), st.floats(0.0, 2.0 * np.pi))
+def test_texel_reach_lies_between_the_euclidean_preimage_and_the_cap(entries, angle):
+    """||J^-T g||_2 <= reach <= 1 / sigma_min for every invertible J and unit g."""
+    m = np.array(entries, dtype=np.float64).reshape(2, 2)
+    if abs(np.linalg.det(m)) < 1e-3:
+        return
+    g = np.array([np.cos(angle), np.sin(angle)])
+    reach = float(W.texel_reach(m, g))
+    cap = 1.0 / np.linalg.svd(m, compute_uv=False)[1]
+    euclid = float(np.linalg.norm(np.linalg.solve(m.T, g)))
+    assert reach <= cap * (1 + 1e-6)
+    assert reach >= min(euclid, cap) * (1 - 1e-6)

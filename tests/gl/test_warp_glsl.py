@@ -110,6 +110,25 @@ def test_glsl_mapping_matches_numpy(gl_backend, tmp_path, clustered_warp):
     assert np.allclose(mag[:, 0], mapping.magnification(xy), rtol=1e-4)
 
 
+def test_glsl_texel_reach_matches_numpy(gl_backend, tmp_path, clustered_warp):
+    """ow_texel_reach on the crop-and-warp Jacobian equals LayerMapping.reach, so the
+    GLSL Jacobian is oriented as numpy's (the smallest singular value alone would not
+    tell a matrix from its transpose)."""
+    mapping = W.LayerMapping(np.array([0.25, 0.5]), np.array([0.75, 0.75]), clustered_warp)
+    rng = np.random.default_rng(7)
+    xy = rng.uniform([-0.45, 0.05], [0.45, 0.45], (300, 2))
+    angle = rng.uniform(0.0, 2.0 * np.pi, 300)
+    g = np.stack([np.cos(angle), np.sin(angle)], axis=1)
+    got = _harness(gl_backend, tmp_path,
+                   "mat2 j; ow_map_forward_jacobian(ow_warp_rows, ow_warp_cols, ow_slot, ow_size, ow_crop, inp.xy, j);"
+                   " outp.x = ow_texel_reach(j, inp.zw);",
+                   np.concatenate([xy, g], axis=1), clustered_warp, slot=0)
+    expected = mapping.reach(xy, g)
+    assert np.allclose(got[:, 0], expected, rtol=1e-4)
+    swapped = W.texel_reach(np.swapaxes(mapping.jacobian(xy), -1, -2), g)
+    assert not np.allclose(got[:, 0], swapped, rtol=1e-3)  # the test can tell the orientation
+
+
 def _light_over_floor(size: tuple[int, int]):
     """A light at the origin over a floor; the tests below bring their own samples."""
     b = SceneBuilder("s", size)
