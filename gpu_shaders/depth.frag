@@ -41,14 +41,14 @@ void main()
   if (!(t > 0.0) || isinf(t)) {
     t = v_distance;  // grazing ray: fall back to the interpolated distance
   }
-  // Texels at the border of a tessellated triangle may lie just off the true
-  // triangle. Never nearer than the triangle's nearest point: that keeps silhouettes
-  // from growing a near halo. No upper bound: such a texel sees the plane's farther
-  // continuation, right for a coplanar neighbour, and a farther depth can only lose
-  // the depth test to a nearer real surface. (Clamping at the farthest point stored
-  // depths too near on grazing receivers, which the warped maps' many triangle borders
-  // turned into false shadow.)
-  t = max(t, v_range.x);
+  // A texel at the border of a tessellated triangle may lie just off the true
+  // triangle; it stores the plane's continuation, unclamped. That is right for a
+  // coplanar neighbour, and a farther depth can only lose the depth test to a nearer
+  // real surface. Until 2026-12-01 t was clamped to the triangle's distance range:
+  // the lower end, the plane's distance, can never bind (|t| >= |c| for a unit dir;
+  // clamping to the exact nearest point changed no pixel either), and the upper end,
+  // the farthest corner, stored depths too near on grazing receivers, which the
+  // warped maps' many triangle borders turned into false shadow (docs/warping.md).
   float depth = clamp((t - ow_near) / (ow_far - ow_near), 0.0, 1.0);
   gl_FragDepth = depth;
   ow_depth = depth;

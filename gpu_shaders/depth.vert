@@ -7,7 +7,6 @@ void main()
   vec3 local_pos = ow_layer_rot * ow_position;
   v_distance = length(ow_position);
   v_plane = ow_plane;
-  v_range = ow_range;
   v_map_xy = vec2(0.0);  // set below for cropped or warped layers (the fragment stage's start point)
   // A paraboloid or cube variant is neither projective nor an unfold.
 #ifndef OW_FIXED_KIND

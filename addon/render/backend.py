@@ -95,8 +95,8 @@ class ShadowBackend(ABC):
         `scissor` (x0, y0, x1, y1), in texels of the tile, limits the fragments drawn to
         the part of the map the shadow test can read (plan.layer_scissor).
 
-        `vertices` is (n, 9) float32, three rows per triangle: light-centred
-        position (3), plane (4) and distance range (2), matching DEPTH_PROGRAM.
+        `vertices` is (n, 7) float32, three rows per triangle: light-centred
+        position (3) and plane (4), matching DEPTH_PROGRAM.
         """
 
     @abstractmethod

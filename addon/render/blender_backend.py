@@ -339,7 +339,7 @@ class BlenderGPUBackend(ShadowBackend):
         with self._atlas_fb.bind():
             shader = self._bind(program_variant(DEPTH_PROGRAM, uniforms), uniforms)
             batch = batch_for_shader(shader, "TRIS", {
-                "ow_position": data[:, 0:3], "ow_plane": data[:, 3:7], "ow_range": data[:, 7:9]})
+                "ow_position": data[:, 0:3], "ow_plane": data[:, 3:7]})
             gpu.state.viewport_set(*viewport)
             if scissor is not None:
                 # Fragments outside the readable box are never looked up (map-space culling).

@@ -199,7 +199,7 @@ class ModernGLBackend(ShadowBackend):
         data = np.ascontiguousarray(vertices, dtype="f4")
         vbo = self.ctx.buffer(data.tobytes())
         try:
-            vao = self.ctx.vertex_array(prog, [(vbo, "3f 4f 2f", "ow_position", "ow_plane", "ow_range")])
+            vao = self.ctx.vertex_array(prog, [(vbo, "3f 4f", "ow_position", "ow_plane")])
             try:
                 self._atlas_fbo.use()
                 self._atlas_fbo.viewport = viewport

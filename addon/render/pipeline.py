@@ -46,6 +46,9 @@ log = logging.getLogger(__name__)
 
 MIN_RESOLUTION = 16
 MAX_RESOLUTION = 4096
+# Floats per vertex of a depth-pass stream: light-centred position (3), then the
+# triangle's plane (unit normal, offset), repeated on its three vertices.
+VERTEX_FLOATS = 7
 # Near clip of cube faces, relative to far: geometry closer to the light than this
 # is lost to clipping; 1e-6 keeps it far below a texel at any supported resolution.
 CLIP_NEAR_RELATIVE = 1e-6
@@ -151,7 +154,7 @@ class ViewSamples:
 class PreparedGeometry:
     """Per-layer float32 vertex streams and counts, ready to draw."""
 
-    streams: dict[int, np.ndarray]  # slot -> (n, 9) float32 (unfold: both halves under slot 0)
+    streams: dict[int, np.ndarray]  # slot -> (n, VERTEX_FLOATS) float32 (unfold: both halves under slot 0)
     near: float
     far: float
     skipped_triangles: int
@@ -184,19 +187,15 @@ class FrameResult:
 
 
 def _vertex_stream(tris_centred: np.ndarray) -> np.ndarray:
-    """(n*3, 9) float32: position, plane (normal, offset) and distance range per vertex."""
+    """(n*3, VERTEX_FLOATS) float32: position and plane (normal, offset) per vertex."""
     if len(tris_centred) == 0:
-        return np.zeros((0, 9), dtype=np.float32)
+        return np.zeros((0, VERTEX_FLOATS), dtype=np.float32)
     normal = np.cross(tris_centred[:, 1] - tris_centred[:, 0], tris_centred[:, 2] - tris_centred[:, 0])
     normal /= np.maximum(np.linalg.norm(normal, axis=1, keepdims=True), 1e-300)
     offset = np.einsum("ij,ij->i", normal, tris_centred[:, 0])
-    # Distance bounds over the triangle: the plane distance below (the nearest point
-    # may be interior), the farthest corner above (distance is convex).
-    lo = np.abs(offset)
-    hi = np.linalg.norm(tris_centred, axis=2).max(axis=1)
-    per_tri = np.concatenate([normal, offset[:, None], lo[:, None], hi[:, None]], axis=1)
+    per_tri = np.concatenate([normal, offset[:, None]], axis=1)
     stream = np.concatenate([tris_centred, np.repeat(per_tri[:, None, :], 3, axis=1)], axis=2)
-    return stream.reshape(-1, 9).astype(np.float32)
+    return stream.reshape(-1, VERTEX_FLOATS).astype(np.float32)
 
 
 def _cull_to_face(local_tris: np.ndarray) -> np.ndarray:
@@ -405,7 +404,7 @@ def _unfold_stream(centred: np.ndarray, plan: Plan, settings: ShadowSettings) ->
         added += n_added
         streams.append(_vertex_stream(refined @ layer.rotation))
     split = len(streams[0]) if streams else 0
-    return (np.concatenate(streams) if streams else np.zeros((0, 9), np.float32)), split, added
+    return (np.concatenate(streams) if streams else np.zeros((0, VERTEX_FLOATS), np.float32)), split, added
 
 
 def _layer_uniforms(layer: Layer, geometry: PreparedGeometry, res: int, origin: tuple[int, int],
@@ -562,7 +561,7 @@ class ShadowPipeline:
             uniforms = _layer_uniforms(plan.drawn[0], geometry, res, layout.origin(0), LayerMapping.identity(), 0)
             uniforms["ow_unfold_split"] = geometry.unfold_split
             uniforms["ow_unfold_halves"] = len(plan.drawn)
-            backend.draw_layer(0, geometry.streams.get(0, np.zeros((0, 9), np.float32)), uniforms,
+            backend.draw_layer(0, geometry.streams.get(0, np.zeros((0, VERTEX_FLOATS), np.float32)), uniforms,
                                span=len(plan.drawn))
         elif plan.projective is not None:
             uniforms = _layer_uniforms(plan.drawn[0], geometry, res, layout.origin(0), LayerMapping.identity(), 0)

@@ -106,7 +106,7 @@ DEPTH_PROGRAM = ProgramInterface(
     name="omniwarp_depth",
     vertex_file="depth.vert",
     fragment_file="depth.frag",
-    vertex_in=(("vec3", "ow_position"), ("vec4", "ow_plane"), ("vec2", "ow_range")),
+    vertex_in=(("vec3", "ow_position"), ("vec4", "ow_plane")),
     fragment_out=(("float", "ow_depth"),),
     uniforms=(
         Uniform("mat3", "ow_layer_rot"),
@@ -130,7 +130,6 @@ DEPTH_PROGRAM = ProgramInterface(
     varyings=(
         Varying("float", "v_distance"),
         Varying("vec4", "v_plane", flat=True),
-        Varying("vec2", "v_range", flat=True),
         Varying("vec2", "v_map_xy"),
     ),
     writes_depth=True,
