@@ -2,7 +2,8 @@
 
 
 // Shadow test: one fragment per view sample. Positions are light-centred world
-// coordinates (w = 1 where the pixel hit geometry). Output: x = visibility
+// coordinates (w >= 1, the sample's importance weight, where the pixel hit geometry;
+// 0 where it missed). Output: x = visibility
 // (1 lit, 0 shadowed), y = flag (0 tested, 1 no geometry, 2 outside the emission
 // domain or at the light, 3 its layer was not drawn).
 #include "lib/projection.glsl"

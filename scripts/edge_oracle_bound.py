@@ -76,6 +76,8 @@ def measure(pipeline: ShadowPipeline, ref: ReferenceData, method: str, resolutio
 
 
 def run(presets: list[str], resolution: int, weights: list[int], radius: int, methods: list[str]) -> tuple[list, str]:
+    """Rows for every preset: the plain maps at 1x and 2x, each warped method with
+    plain counts and with each edge weight; and the renderer string."""
     rows: list[dict] = []
     backend = ModernGLBackend()
     try:
@@ -106,6 +108,7 @@ def run(presets: list[str], resolution: int, weights: list[int], radius: int, me
 
 
 def report(rows: list[dict], renderer: str, command: str, radius: int) -> str:
+    """The markdown table of `rows`, with the date, the renderer and the command."""
     stamp = _dt.datetime.now(_dt.timezone.utc).strftime("%Y-%m-%d %H:%M UTC")
     lines = [
         "# Edge-oracle bound for the warps",

@@ -109,9 +109,13 @@ class ShadowSettings:
             raise InputError(f"resolution {self.resolution} out of range [{MIN_RESOLUTION}, {MAX_RESOLUTION}]")
 
 
-# Largest importance weight one view sample may carry. The scatter sums weights as
-# 32-bit integers: 2^12 for each of a 4K frame's 8.3 M samples still fits in 2^32.
-MAX_IMPORTANCE = 4096.0
+# Largest importance weight one view sample may carry: weights travel in a float32
+# (the positions' w), exact for integers far beyond this, and relative weights need
+# no more range.
+MAX_IMPORTANCE = 65536.0
+# The scatter sums weights in 32-bit unsigned counters; all samples may land in one
+# texel (stress_one_texel), so the total over the frame must fit one.
+MAX_IMPORTANCE_TOTAL = 2**32 - 1
 
 
 @dataclass
@@ -134,8 +138,9 @@ class ViewSamples:
     def importance_weights(self) -> np.ndarray | None:
         """The importance as rounded float32 weights, checked; None when not given.
 
-        Raises InputError naming the problem: a shape other than the hit mask's, or a
-        weight that is not finite or lies outside [1, MAX_IMPORTANCE] on a hit pixel.
+        Raises InputError naming the problem: a shape other than the hit mask's, a
+        weight that is not finite or lies outside [1, MAX_IMPORTANCE] on a hit pixel,
+        or hit weights that sum past MAX_IMPORTANCE_TOTAL.
         """
         if self.importance is None:
             return None
@@ -147,7 +152,12 @@ class ViewSamples:
         if bad.any():
             raise InputError(f"importance weights must be finite and in [1, {MAX_IMPORTANCE:g}]; "
                              f"{int(bad.sum())} hit pixels are not (first: {used[bad][0]!r})")
-        return np.rint(weights).astype(np.float32)
+        rounded = np.rint(weights)
+        total = float(rounded[self.hit].sum())
+        if total > MAX_IMPORTANCE_TOTAL:
+            raise InputError(f"importance weights sum to {total:.0f}; a count-map texel holds at most "
+                             f"{MAX_IMPORTANCE_TOTAL} (2^32 - 1), and every sample may land in one")
+        return rounded.astype(np.float32)
 
 
 @dataclass

@@ -223,6 +223,7 @@ def test_importance_moves_resolution_to_the_weighted_samples(gl_backend):
     (np.where(np.eye(4, dtype=bool), np.nan, 1.0), "finite"),
     (np.full((4, 4), 0.5), "in [1"),
     (np.full((4, 4), 1e6), "in [1"),
+    (np.full((4, 4), 3e9), "in [1"),
 ])
 def test_bad_importance_is_refused_by_name(gl_backend, bad, problem):
     """A wrong shape or a weight outside [1, MAX_IMPORTANCE] is an InputError that says
@@ -239,6 +240,22 @@ def test_bad_importance_is_refused_by_name(gl_backend, bad, problem):
     missed = ViewSamples(pos, samples.normals, np.zeros((4, 4), bool), scene.camera,
                          importance=np.full((4, 4), np.nan))
     assert missed.importance_weights() is not None  # NaN on missed pixels only: accepted
+
+
+def test_importance_whose_sum_overflows_a_counter_is_refused():
+    """Every sample may land in one texel of a 32-bit counter, so the hit weights may
+    sum to 2^32 - 1 at most: 65,536 samples of the largest weight are one too many."""
+    from addon.core.errors import InputError
+    from addon.render.pipeline import MAX_IMPORTANCE, MAX_IMPORTANCE_TOTAL
+
+    hit = np.ones((256, 256), bool)
+    pos = np.tile([0.0, 0.0, -1.0], (256, 256, 1))
+    full = ViewSamples(pos, pos, hit, None, importance=np.full((256, 256), MAX_IMPORTANCE))
+    with pytest.raises(InputError, match="sum to 4294967296"):
+        full.importance_weights()
+    hit[0, 0] = False  # one sample fewer fits exactly
+    fits = ViewSamples(pos, pos, hit, None, importance=np.full((256, 256), MAX_IMPORTANCE))
+    assert fits.importance_weights()[hit].sum(dtype=np.float64) == MAX_IMPORTANCE_TOTAL - (MAX_IMPORTANCE - 1)
 
 
 def test_one_dispatch_counts_every_cube_face_as_numpy_does(gl_backend):
