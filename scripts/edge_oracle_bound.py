@@ -59,17 +59,14 @@ def shadow_edge_band(lit: np.ndarray, radius: int) -> np.ndarray:
     return band
 
 
-def measure(pipeline: ShadowPipeline, ref: ReferenceData, method: str, resolution: int,
-            importance: np.ndarray | None) -> dict:
+def measure(pipeline: ShadowPipeline, ref: ReferenceData, reference_lit: np.ndarray, evaluable: np.ndarray,
+            method: str, resolution: int, importance: np.ndarray | None) -> dict:
     """One frame of `method` (the errors are deterministic; no timing is taken here)."""
-    light = light_from_reference(ref)
     samples = replace(samples_from_reference(ref), importance=importance)
     parameterization, warp = METHODS[method]
-    result = pipeline.render(light, ref.triangles.astype(np.float64), samples,
+    result = pipeline.render(light_from_reference(ref), ref.triangles.astype(np.float64), samples,
                              ShadowSettings(parameterization, resolution, warp=warp))
-    evaluable = metrics.evaluable_mask(ref.position, ref.normal, ref.hit, ref.unshadowed, light)
-    figure = metrics.error_figure(result.visibility > 0.5, metrics.reference_visibility(ref.shadowed, ref.unshadowed),
-                                  evaluable)
+    figure = metrics.error_figure(result.visibility > 0.5, reference_lit, evaluable)
     return {"method": method, "resolution": resolution, "error_pct": figure.error_pct,
             "false_shadow_pct": figure.false_shadow_pct, "false_lit_pct": figure.false_lit_pct,
             "triangles_drawn": result.geometry.triangles_drawn}
@@ -86,20 +83,22 @@ def run(presets: list[str], resolution: int, weights: list[int], radius: int, me
             ref = load_or_capture(preset, (640, 480))
             light = light_from_reference(ref)
             evaluable = metrics.evaluable_mask(ref.position, ref.normal, ref.hit, ref.unshadowed, light)
-            lit = metrics.reference_visibility(ref.shadowed, ref.unshadowed) & evaluable
-            band = shadow_edge_band(lit, radius) & ref.hit
+            reference_lit = metrics.reference_visibility(ref.shadowed, ref.unshadowed)
+            band = shadow_edge_band(reference_lit & evaluable, radius) & ref.hit
             share = float(band.sum() / max(int(ref.hit.sum()), 1))
-            plains = sorted({METHODS[m][0] for m in methods})
-            for plain in plains:
+
+            def row(method: str, res: int, importance: np.ndarray | None) -> dict:
+                return measure(pipeline, ref, reference_lit, evaluable, method, res, importance)
+
+            for plain in sorted({METHODS[m][0] for m in methods}):
                 for res in (resolution, 2 * resolution):
-                    rows.append({"preset": preset, "importance": "counts", **measure(pipeline, ref, plain, res, None)})
+                    rows.append({"preset": preset, "importance": "counts", **row(plain, res, None)})
             for method in methods:
-                rows.append({"preset": preset, "importance": "counts",
-                             **measure(pipeline, ref, method, resolution, None)})
+                rows.append({"preset": preset, "importance": "counts", **row(method, resolution, None)})
                 for k in weights:
                     importance = np.where(band, float(k), 1.0)
                     rows.append({"preset": preset, "importance": f"edges x{k}", "edge_share": share,
-                                 **measure(pipeline, ref, method, resolution, importance)})
+                                 **row(method, resolution, importance)})
                     print(f"{preset} {method} {resolution} edges x{k}: {rows[-1]['error_pct']:.3f} %", flush=True)
         renderer = backend.renderer()
     finally:

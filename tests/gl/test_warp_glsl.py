@@ -138,27 +138,6 @@ def _light_over_floor(size: tuple[int, int]):
     return b.finish()
 
 
-def test_gpu_scatter_matches_numpy_count_map(gl_backend):
-    """The compute scatter counts exactly what numpy's bincount counts."""
-    scene = _light_over_floor((8, 8))
-    rng = np.random.default_rng(8)
-    # Directions aimed at texel centres of a 16^2 paraboloid map, many per texel.
-    texels = rng.integers(3, 13, size=(40, 40, 2))
-    xy = (texels + 0.5) / 16 * 2 - 1
-    from addon.core import frames, projection
-
-    layer = frames.light_layers(scene.light, "dpsm")[0]
-    dirs = projection.paraboloid_unproject(xy) @ layer.rotation
-    samples = ViewSamples(dirs * 2.0, -dirs, np.ones((40, 40), bool), scene.camera)
-    pipe = ShadowPipeline(gl_backend)
-    settings = ShadowSettings("dpsm", 16, warp="none")
-    result = pipe.render(scene.light, scene.world_triangles(), samples, settings)
-    gpu = pipe.count_maps(scene.light, result.plan, {}, 16, 0)[layer.slot]
-    expected = W.scatter_counts((xy * 0.5 + 0.5).reshape(-1, 2), 16)
-    assert gpu.sum() == 1600
-    assert np.array_equal(gpu, expected)
-
-
 def _aimed_samples(scene, texels: np.ndarray, res: int):
     """Samples on directions aimed at texel centres of the front paraboloid of a res^2 map."""
     from addon.core import frames, projection
@@ -167,6 +146,22 @@ def _aimed_samples(scene, texels: np.ndarray, res: int):
     xy = (texels + 0.5) / res * 2 - 1
     dirs = projection.paraboloid_unproject(xy) @ layer.rotation
     return layer, xy, dirs
+
+
+def test_gpu_scatter_matches_numpy_count_map(gl_backend):
+    """The compute scatter counts exactly what numpy's bincount counts."""
+    scene = _light_over_floor((8, 8))
+    rng = np.random.default_rng(8)
+    # Directions aimed at texel centres of a 16^2 paraboloid map, many per texel.
+    layer, xy, dirs = _aimed_samples(scene, rng.integers(3, 13, size=(40, 40, 2)), 16)
+    samples = ViewSamples(dirs * 2.0, -dirs, np.ones((40, 40), bool), scene.camera)
+    pipe = ShadowPipeline(gl_backend)
+    settings = ShadowSettings("dpsm", 16, warp="none")
+    result = pipe.render(scene.light, scene.world_triangles(), samples, settings)
+    gpu = pipe.count_maps(scene.light, result.plan, {}, 16, 0)[layer.slot]
+    expected = W.scatter_counts((xy * 0.5 + 0.5).reshape(-1, 2), 16)
+    assert gpu.sum() == 1600
+    assert np.array_equal(gpu, expected)
 
 
 def test_weighted_scatter_sums_importance_as_numpy_does(gl_backend):
@@ -227,7 +222,7 @@ def test_importance_moves_resolution_to_the_weighted_samples(gl_backend):
 ])
 def test_bad_importance_is_refused_by_name(gl_backend, bad, problem):
     """A wrong shape or a weight outside [1, MAX_IMPORTANCE] is an InputError that says
-    so, raised before anything is uploaded; a missed pixel's weight is never read."""
+    so, raised before anything is uploaded."""
     from addon.core.errors import InputError
 
     scene = _light_over_floor((4, 4))
@@ -237,9 +232,13 @@ def test_bad_importance_is_refused_by_name(gl_backend, bad, problem):
     with pytest.raises(InputError, match=problem.replace("[", r"\[")):
         ShadowPipeline(gl_backend).render(scene.light, scene.world_triangles(), samples,
                                           ShadowSettings("dpsm", 16, warp="notw"))
-    missed = ViewSamples(pos, samples.normals, np.zeros((4, 4), bool), scene.camera,
-                         importance=np.full((4, 4), np.nan))
-    assert missed.importance_weights() is not None  # NaN on missed pixels only: accepted
+
+
+def test_importance_of_missed_pixels_is_never_read():
+    """NaN weights on pixels that hit nothing are accepted: they are never uploaded."""
+    pos = np.tile([0.0, 0.0, -1.0], (4, 4, 1))
+    missed = ViewSamples(pos, pos, np.zeros((4, 4), bool), None, importance=np.full((4, 4), np.nan))
+    assert missed.importance_weights() is not None
 
 
 def test_importance_whose_sum_overflows_a_counter_is_refused():
