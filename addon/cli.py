@@ -4,7 +4,9 @@
     omniwarp reference --preset SEL [--size WxH] [--refresh]
     omniwarp compare --preset SEL | --blend FILE [--light NAME] [--camera NAME]
                      [--methods m1,m2] [--resolutions 512,1024] [--no-cull | --cull-both] [--out DIR]
-    omniwarp preview --preset NAME | --blend FILE [--light NAME] [--out DIR]
+    omniwarp preview --preset NAME | --blend FILE [--light NAME] [--method M] [--resolution R] [--out DIR]
+
+The method names and what each fits come from `core/methods.py`.
 
 Bad input exits with status 2 and one line naming the problem; other known
 failures exit with status 1.
@@ -18,6 +20,7 @@ import sys
 from collections.abc import Callable, Sequence
 from pathlib import Path
 
+from .core import methods as method_registry
 from .core.errors import InputError, OmniWarpError, child_stderr_tail, report_error
 from .core.presets import DEFAULT_PRESET, available_presets, select_presets
 from .core.scene import parse_size
@@ -44,9 +47,9 @@ def _parser() -> argparse.ArgumentParser:
     source.add_argument("--blend", help="a saved .blend file (its scene camera and one point/spot light)")
     cmp_.add_argument("--light", help="with --blend: the light object to use")
     cmp_.add_argument("--camera", help="with --blend: the camera object to use")
-    cmp_.add_argument("--methods", default="dpsm,cube",
-                      help="comma list of methods: dpsm, cube, dpsm+notw, cube+notw, dpsm+rtw, cube+rtw, "
-                           "ipsm, ipsm+notw, ipsm+cut, eevee (default dpsm,cube)")
+    cmp_.add_argument("--methods", default=",".join(method_registry.DEFAULT_METHODS),
+                      help=f"comma list of methods: {method_registry.help_list()} "
+                           f"(default {','.join(method_registry.DEFAULT_METHODS)})")
     cmp_.add_argument("--resolutions", default="512,1024,2048", help="comma list of map resolutions")
     culling = cmp_.add_mutually_exclusive_group()
     culling.add_argument("--no-cull", action="store_true", help="draw every layer and triangle (measure culling)")
@@ -64,11 +67,33 @@ def _parser() -> argparse.ArgumentParser:
     prev.add_argument("--light", help="with --blend: the light object to preview")
     prev.add_argument("--out", default="out/preview", help="output folder (default out/preview)")
     prev.add_argument("--size", default="640x480", help="camera size WxH for presets (default 640x480)")
-    prev.add_argument("--method", default=None,
-                      help="method for lights without OmniWarp settings, e.g. a preset's (default dpsm+notw "
-                           "for point lights, psm for spot and sun lights)")
+    prev.add_argument("--method", default=None, help=_preview_method_help())
     prev.add_argument("--resolution", type=int, default=1024, help="map resolution for those lights (default 1024)")
     return parser
+
+
+def _preview_method_help() -> str:
+    """The `preview --method` help, from the method registry."""
+    external = method_registry.external_methods()
+    return (f"method for lights without OmniWarp settings, e.g. a preset's: one of "
+            f"{', '.join(method_registry.pipeline_methods())}"
+            + (f"; {', '.join(external)} only in compare" if external else "")
+            + f"; default {method_registry.default_method('omni')} for point lights, "
+              f"{method_registry.default_method('spot')} for spot and sun lights")
+
+
+def _preview_method(text: str | None) -> method_registry.Method | None:
+    """The `preview --method` entry: one method the pipeline draws (InputError otherwise)."""
+    if text is None:
+        return None
+    name = text.strip()
+    if "," in name:
+        raise InputError(f"--method {text!r}: preview takes one method")
+    entry = method_registry.method(name)
+    if entry.external:
+        raise InputError(f"--method {name}: preview draws the pipeline's methods only "
+                         f"({', '.join(method_registry.pipeline_methods())}); {name} is measured by compare")
+    return entry
 
 
 def _say(message: str) -> None:
@@ -126,11 +151,11 @@ def _blend_reference(args: argparse.Namespace) -> Callable[[], object]:
 
 
 def cmd_compare(args: argparse.Namespace) -> int:
-    from .compare import CompareOptions, parse_methods, parse_resolutions, run_compare
+    from .compare import CompareOptions, parse_resolutions, run_compare
     from .render.moderngl_backend import ModernGLBackend
     from .render.pipeline import ShadowPipeline
 
-    methods = parse_methods(args.methods)
+    methods = method_registry.parse_methods(args.methods)
     resolutions = parse_resolutions(args.resolutions)
     if args.frames < 1:
         raise InputError(f"bad --frames {args.frames}: at least 1")
@@ -164,22 +189,33 @@ def cmd_preview(args: argparse.Namespace) -> int:
     import subprocess
     import tempfile
 
-    from .compare import parse_methods, parse_resolutions
+    from .compare import parse_resolutions
 
-    method = parse_methods(args.method)[0] if args.method else None  # None: chosen by the light (worker)
+    # The method is checked here, before any Cycles render: unknown or external (eevee) at
+    # once, a misfit as soon as the light's emission is known (a preset's from its spec,
+    # a .blend's once its reference is rendered).
+    entry = _preview_method(args.method)  # None: chosen by the light (worker)
     resolution = parse_resolutions(str(args.resolution))[0]
     if args.preset is not None:
         if "," in args.preset or args.preset in ("all", "stress_all"):
             raise InputError("preview takes one preset name")
         name = select_presets(args.preset)[0]
+        size = parse_size(args.size)
+        if entry is not None:
+            from .core.presets import build_preset
+
+            method_registry.check_fits(entry.name, build_preset(name, size).light.emission, pipeline_only=True)
         from .reference.cache import load_or_capture
 
-        reference = load_or_capture(name, parse_size(args.size), log_progress=_say)
+        reference = load_or_capture(name, size, log_progress=_say)
         source = ["--preset", name]
     else:
         args.camera = None
         reference = _blend_reference(args)()
         source = ["--blend", str(Path(args.blend).resolve())] + (["--light", args.light] if args.light else [])
+    if entry is not None:
+        method_registry.check_fits(entry.name, reference.emission, pipeline_only=True)
+    method = entry.name if entry is not None else None
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
     with tempfile.TemporaryDirectory(prefix="omniwarp_preview_") as tmp:

@@ -19,8 +19,9 @@ from pathlib import Path
 import numpy as np
 
 from .core import metrics
+from .core import methods as method_registry
 from .core.errors import InputError
-from .core.frames import PROJECTIVE_PARAMETERIZATIONS, parameterizations_for
+from .core.methods import DEFAULT_METHODS
 from .core.scene import POINT_EMISSIONS, PROJECTIVE_EMISSIONS, CameraSpec, LightSpec
 from .reference.data import ReferenceData
 from .render.blender_draw import pool_image
@@ -29,36 +30,14 @@ from .render.pipeline import (
     MIN_RESOLUTION,
     FrameResult,
     ShadowPipeline,
-    ShadowSettings,
     ViewSamples,
     count_statistics,
+    settings_for,
 )
 
 log = logging.getLogger(__name__)
 
-# Methods this build implements: (parameterization, warp).
-METHODS: dict[str, tuple[str, str]] = {
-    "dpsm": ("dpsm", "none"),
-    "cube": ("cube", "none"),
-    "dpsm+notw": ("dpsm", "notw"),
-    "cube+notw": ("cube", "notw"),
-    "dpsm+rtw": ("dpsm", "rtw"),
-    "cube+rtw": ("cube", "rtw"),
-    "ipsm": ("ipsm", "none"),
-    "ipsm+notw": ("ipsm", "notw"),
-    "ipsm+cut": ("ipsm", "none"),  # with the skewed cut (CUT_METHODS)
-    "unfold": ("unfold", "none"),
-    "unfold+aa": ("unfold", "none"),  # with edge-distance antialiasing (AA_METHODS)
-    "sm": ("sm", "none"),
-    "psm": ("psm", "none"),
-}
-CUT_METHODS = {"ipsm+cut"}
-AA_METHODS = {"unfold+aa"}
-# Rows measured outside the pipeline: Blender's own EEVEE shadows, rendered in a child
-# process at the light's default and a finer shadow resolution (--resolutions do not apply).
-EXTERNAL_METHODS = ("eevee",)
 MAP_IMAGE_MAX = 512  # map images are pooled down to at most this many pixels a side
-DEFAULT_METHODS = ("dpsm", "cube")
 DEFAULT_RESOLUTIONS = (512, 1024, 2048)
 
 
@@ -72,36 +51,6 @@ class CompareOptions:
     out_dir: Path = Path("out/compare")
     write_images: bool = True
     command: str = ""  # the command line, recorded in report.md for provenance
-
-
-def method_fits(method: str, emission: str) -> bool:
-    """True when a method can shadow this kind of light (see pipeline.check_light_fits)."""
-    if method in EXTERNAL_METHODS:
-        return emission in POINT_EMISSIONS
-    return METHODS[method][0] in parameterizations_for(emission)
-
-
-def _projective(method: str) -> bool:
-    return METHODS[method][0] in PROJECTIVE_PARAMETERIZATIONS
-
-
-def fits_text(emission: str) -> str:
-    """Which methods a light of this emission takes, for messages."""
-    if emission in PROJECTIVE_EMISSIONS:
-        return "spot and sun lights take " + ", ".join(m for m in METHODS if _projective(m))
-    return "point lights take " + ", ".join([m for m in METHODS if not _projective(m)] + list(EXTERNAL_METHODS))
-
-
-def parse_methods(text: str) -> tuple[str, ...]:
-    """Comma list of method names; unknown names are an InputError."""
-    names = tuple(s.strip() for s in text.split(",") if s.strip())
-    if not names:
-        raise InputError("no methods given; known: " + ", ".join(METHODS))
-    for name in names:
-        if name not in METHODS and name not in EXTERNAL_METHODS:
-            raise InputError(f"unknown method {name!r}; this build implements: "
-                             f"{', '.join(tuple(METHODS) + EXTERNAL_METHODS)}")
-    return names
 
 
 def parse_resolutions(text: str) -> tuple[int, ...]:
@@ -129,7 +78,8 @@ def light_from_reference(ref: ReferenceData) -> LightSpec:
 
 
 def camera_from_reference(ref: ReferenceData) -> CameraSpec:
-    return CameraSpec(ref.camera_matrix, ref.camera_fov_deg, ref.resolution)
+    """The reference's camera as the file had it (ReferenceData.camera)."""
+    return ref.camera()
 
 
 def samples_from_reference(ref: ReferenceData) -> ViewSamples:
@@ -170,9 +120,7 @@ def run_row(pipeline: ShadowPipeline, ref: ReferenceData, preset: str, method: s
     """Measure one (preset, method, resolution) row."""
     light = light_from_reference(ref)
     samples = samples_from_reference(ref)
-    parameterization, warp = METHODS[method]
-    settings = ShadowSettings(parameterization, resolution, cull=options.cull, warp=warp, cut=method in CUT_METHODS,
-                              edge_aa=method in AA_METHODS)
+    settings = settings_for(method, resolution, cull=options.cull)
     triangles = ref.triangles.astype(np.float64)
     pipeline.render(light, triangles, samples, settings)  # warm-up: shader compile, allocation
     count = max(1, options.frames)
@@ -334,8 +282,8 @@ def run_compare(references: dict[str, Callable[[], ReferenceData]], options: Com
     out = Path(options.out_dir)
     out.mkdir(parents=True, exist_ok=True)
     image_dir = out / "images" if options.write_images else None
-    pipeline_methods = [m for m in options.methods if m in METHODS]
-    external = [m for m in options.methods if m in EXTERNAL_METHODS]
+    pipeline_methods = [m for m in options.methods if method_registry.method(m).pipeline]
+    external = [m for m in options.methods if method_registry.method(m).external]
     if external and not sources:
         raise InputError("the eevee rows need to know how to rebuild the scene (no source given)")
     variants = len(_cull_variants(options))
@@ -346,15 +294,17 @@ def run_compare(references: dict[str, Callable[[], ReferenceData]], options: Com
     try:
         for preset, load in references.items():
             ref = load()
+            first = len(rows)
             for method in options.methods:
-                if not method_fits(method, ref.emission):
+                entry = method_registry.method(method)
+                if not entry.fits(ref.emission):
                     # e.g. `--preset all --methods dpsm,psm`: each light gets the methods it fits.
                     skipped.append(f"{preset} {method}")
                     print(f"skipped {preset} {method}: it does not fit a {ref.emission} light "
-                          f"({fits_text(ref.emission)})", file=sys.stderr)
-                    progress.done += 1 if method in EXTERNAL_METHODS else len(options.resolutions) * variants
+                          f"({method_registry.fits_text(ref.emission)})", file=sys.stderr)
+                    progress.done += 1 if entry.external else len(options.resolutions) * variants
                     continue
-                if method in EXTERNAL_METHODS:
+                if entry.external:
                     progress.step(f"{preset} {method} (EEVEE renders in a child process)")
                     rows += _eevee_rows(sources[preset], ref, preset, out, image_dir, options)
                     progress.advance()
@@ -364,11 +314,16 @@ def run_compare(references: dict[str, Callable[[], ReferenceData]], options: Com
                         progress.step(f"{preset} {method} @ {resolution}{'' if variant.cull else ' (no cull)'}")
                         rows.append(run_row(pipeline, ref, preset, method, resolution, variant, image_dir))
                         progress.advance()
+            # What the comparison cannot follow in this scene (shadow_rule.unfollowed), on every row.
+            for row in rows[first:]:
+                if ref.meta.get("notes"):
+                    row["scene_notes"] = list(ref.meta["notes"])
     finally:
         pipeline.backend.release()
     if not rows and skipped:
         presets = ", ".join(sorted({entry.split()[0] for entry in skipped}))
-        raise InputError(f"no requested method fits the light of {presets}; {fits_text('omni')}; {fits_text('sun')}")
+        raise InputError(f"no requested method fits the light of {presets}; {method_registry.fits_text('omni')}; "
+                         f"{method_registry.fits_text('sun')}")
     check_rows(rows)
     stamp = _dt.datetime.now(_dt.timezone.utc).strftime("%Y-%m-%d %H:%M UTC")
     (out / "results.json").write_text(json.dumps(rows, indent=1), encoding="utf-8")

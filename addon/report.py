@@ -34,6 +34,15 @@ def markdown_table(rows: Sequence[dict]) -> str:
     return "\n".join(lines) + "\n"
 
 
+def _scene_notes(rows: Sequence[dict]) -> list[str]:
+    """One line per scene and note: what its rows cannot follow (see shadow_rule.unfollowed)."""
+    lines = []
+    for preset in sorted({r["preset"] for r in rows}):
+        notes = next((r["scene_notes"] for r in rows if r["preset"] == preset and r.get("scene_notes")), [])
+        lines += [f"- note on {preset}: {note}" for note in notes]
+    return lines
+
+
 def write_markdown(rows: Sequence[dict], path: Path, stamp: str, command: str = "") -> None:
     """report.md: provenance, then the table."""
     renderers = sorted({r["renderer"] for r in rows})
@@ -51,6 +60,7 @@ def write_markdown(rows: Sequence[dict], path: Path, stamp: str, command: str = 
         "- error % = mismatching evaluated pixels against the Cycles visibility; soft error % = mean "
         "|visibility - Cycles| (equal to error % for binary methods; antialiased rows differ); times on a "
         "software rasteriser mean little in absolute terms, compare them as ratios within this table",
+        *_scene_notes(rows),
         "",
         markdown_table(rows),
     ]

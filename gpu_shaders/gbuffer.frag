@@ -1,8 +1,10 @@
 // Geometric normals are turned towards the camera, as Cycles' True Normal is.
+// ow_camera_pos is homogeneous: the eye (w = 1), or for an orthographic view the
+// direction towards the camera (w = 0), the same for every pixel.
 void main()
 {
   vec3 n = normalize(v_normal);
-  if (dot(n, ow_camera_pos - v_world) < 0.0) {
+  if (dot(n, ow_camera_pos.xyz - ow_camera_pos.w * v_world) < 0.0) {
     n = -n;
   }
   ow_gb_position = vec4(v_world, 1.0);

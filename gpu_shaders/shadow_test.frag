@@ -40,7 +40,9 @@ vec2 ow_projective_test(vec3 p, vec3 n)
   ivec2 texel = clamp(ivec2(floor(uvz.xy * ow_resolution)), ivec2(0), ivec2(res - 1));
   float stored = texelFetch(ow_atlas, texel + ivec2(ow_layer_tile[0].xy), 0).r;
   float z01 = (ow_map_inverted != 0) ? 1.0 - uvz.z : uvz.z;
-  return vec2((z01 - ow_depth_offset <= stored) ? 1.0 : 0.0, 0.0);
+  // A cleared texel (1.0: nothing drawn) is empty, even for a receiver beyond the
+  // occluders' far plane (one that casts no shadow itself, see shadow_rule.py).
+  return vec2((stored >= 1.0 || z01 - ow_depth_offset <= stored) ? 1.0 : 0.0, 0.0);
 }
 
 void main()
@@ -134,7 +136,10 @@ void main()
   float t_map = ow_near + stored * (ow_far - ow_near);
   float tan_i = sqrt(max(1.0 - cos_i * cos_i, 0.0)) / max(cos_i, 0.05);
   float bias = footprint * ow_bias_const + footprint_along * ow_bias_slope * min(tan_i, 20.0);
-  float visibility = (qdist - bias <= t_map) ? 1.0 : 0.0;
+  // The range [near, far] bounds the occluders only; a receiver that blocks nothing
+  // (visible_shadow off, shadow linking) may lie beyond far. A cleared texel (1.0:
+  // nothing drawn; drawn depths stay below it, projection.depth_range) is empty.
+  float visibility = (stored >= 1.0 || qdist - bias <= t_map) ? 1.0 : 0.0;
   if (ow_edge_radius > 0 && visibility > 0.5) {
     // Edge-distance antialiasing (dual sphere-unfolding paper): a lit sample z texels
     // (Manhattan) from a nearer occluder's edge is dimmed, down to just above one half

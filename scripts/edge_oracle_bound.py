@@ -30,12 +30,13 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
-from addon.compare import METHODS, light_from_reference, samples_from_reference  # noqa: E402
+from addon.compare import light_from_reference, samples_from_reference  # noqa: E402
 from addon.core import metrics  # noqa: E402
+from addon.core.methods import method as method_entry  # noqa: E402
 from addon.reference.cache import load_or_capture  # noqa: E402
 from addon.reference.data import ReferenceData  # noqa: E402
 from addon.render.moderngl_backend import ModernGLBackend  # noqa: E402
-from addon.render.pipeline import ShadowPipeline, ShadowSettings  # noqa: E402
+from addon.render.pipeline import ShadowPipeline, settings_for  # noqa: E402
 
 WARPED = ("dpsm+notw", "dpsm+rtw", "cube+notw", "cube+rtw")
 
@@ -63,9 +64,8 @@ def measure(pipeline: ShadowPipeline, ref: ReferenceData, reference_lit: np.ndar
             method: str, resolution: int, importance: np.ndarray | None) -> dict:
     """One frame of `method` (the errors are deterministic; no timing is taken here)."""
     samples = replace(samples_from_reference(ref), importance=importance)
-    parameterization, warp = METHODS[method]
     result = pipeline.render(light_from_reference(ref), ref.triangles.astype(np.float64), samples,
-                             ShadowSettings(parameterization, resolution, warp=warp))
+                             settings_for(method, resolution))
     figure = metrics.error_figure(result.visibility > 0.5, reference_lit, evaluable)
     return {"method": method, "resolution": resolution, "error_pct": figure.error_pct,
             "false_shadow_pct": figure.false_shadow_pct, "false_lit_pct": figure.false_lit_pct,
@@ -90,7 +90,7 @@ def run(presets: list[str], resolution: int, weights: list[int], radius: int, me
             def row(method: str, res: int, importance: np.ndarray | None) -> dict:
                 return measure(pipeline, ref, reference_lit, evaluable, method, res, importance)
 
-            for plain in sorted({METHODS[m][0] for m in methods}):
+            for plain in sorted({method_entry(m).parameterization for m in methods}):
                 for res in (resolution, 2 * resolution):
                     rows.append({"preset": preset, "importance": "counts", **row(plain, res, None)})
             for method in methods:

@@ -49,6 +49,7 @@ from bpy.props import (
 )
 
 from .. import compare, report
+from ..core import methods as method_registry
 from ..core.errors import InputError, OmniWarpError
 from ..core.presets import DEFAULT_PRESET, DEFAULT_RESOLUTION, PresetInfo, available_presets, build_preset
 from .viewport import tag_redraw_all  # the sidebar lives in the 3D views this redraws
@@ -79,25 +80,9 @@ def method_prop(method: str) -> str:
     return "use_" + re.sub(r"[^a-z0-9]+", "_", method.lower())
 
 
-_PARAM_TEXT = {
-    "dpsm": "dual paraboloid maps (at most two passes, curved triangles tessellated)",
-    "cube": "cube maps (up to six passes, no tessellation)",
-    "ipsm": "one paraboloid map cut to the view cone when the light is outside the view, "
-            "else dual paraboloid maps",
-    "unfold": "dual sphere-unfolding (one pass for both halves, for point lights)",
-    "sm": "one uniform shadow map (spot and sun lights only)",
-    "psm": "a perspective shadow map in the camera's post-perspective space (spot and sun lights only)",
-}
-_WARP_TEXT = {
-    "none": "no warp (no analysis pass)",
-    "notw": "NoTW warping (an analysis pass, more triangles)",
-    "rtw": "RTW warping, for comparison with NoTW (an analysis pass, more triangles)",
-}
-
-
 def _method_description(method: str) -> str:
-    param, warp = compare.METHODS[method]
-    return (f"Measure {method}: {_PARAM_TEXT.get(param, param)}, {_WARP_TEXT.get(warp, warp)}. "
+    """The checkbox tooltip: the registry's one-line description of the method."""
+    return (f"Measure {method}: {method_registry.method(method).description}. "
             "Each ticked method adds one row per resolution")
 
 
@@ -299,8 +284,8 @@ SOURCE_ITEMS = (
 class OMNIWARP_PG_comparison(bpy.types.PropertyGroup):
     """Settings and results of the comparison tool (`scene.omniwarp_compare`).
 
-    One BoolProperty per method in `compare.METHODS` (`use_dpsm`, `use_cube_notw`, ...)
-    is added below the class, so a new method shows up here by itself.
+    One BoolProperty per pipeline method of the registry (`core/methods.py`: `use_dpsm`,
+    `use_cube_notw`, ...) is added below the class, so a new method shows up here by itself.
     """
 
     source: EnumProperty(
@@ -384,18 +369,18 @@ class OMNIWARP_PG_comparison(bpy.types.PropertyGroup):
         free_state()
 
 
-for _method in compare.METHODS:
+for _method in method_registry.pipeline_methods():
     OMNIWARP_PG_comparison.__annotations__[method_prop(_method)] = BoolProperty(
         name=_method,
         description=_method_description(_method),
-        default=_method in compare.DEFAULT_METHODS,
+        default=_method in method_registry.DEFAULT_METHODS,
     )
 del _method
 
 
 def selected_methods(settings: OMNIWARP_PG_comparison) -> tuple[str, ...]:
-    """The ticked methods, in `compare.METHODS` order."""
-    return tuple(m for m in compare.METHODS if getattr(settings, method_prop(m)))
+    """The ticked methods, in registry order."""
+    return tuple(m for m in method_registry.pipeline_methods() if getattr(settings, method_prop(m)))
 
 
 # ----------------------------------------------------------------------------
@@ -431,7 +416,8 @@ def start_job(context: bpy.types.Context, report_fn: Report) -> _Job | None:
     settings = scene.omniwarp_compare
     methods = selected_methods(settings)
     if not methods:
-        report_fn({"ERROR"}, "No method ticked: tick at least one of " + ", ".join(compare.METHODS))
+        report_fn({"ERROR"}, "No method ticked: tick at least one of "
+                  + ", ".join(method_registry.pipeline_methods()))
         return None
     try:
         resolutions = compare.parse_resolutions(settings.resolutions)
@@ -535,13 +521,13 @@ def _drop_unfit_tasks(job: _Job) -> str:
     """Drop the ticked methods the reference's light does not take (as `compare` skips
     them); an InputError when none is left. Returns a note for the step's message."""
     emission = job.reference.emission
-    unfit = sorted({method for method, _ in job.tasks if not compare.method_fits(method, emission)})
+    unfit = sorted({method for method, _ in job.tasks if not method_registry.fits(method, emission)})
     if not unfit:
         return ""
-    job.tasks = [(method, res) for method, res in job.tasks if compare.method_fits(method, emission)]
+    job.tasks = [(method, res) for method, res in job.tasks if method_registry.fits(method, emission)]
     if not job.tasks:
         raise InputError(f"none of the ticked methods fits the {emission} light of {job.preset}: "
-                         f"{compare.fits_text(emission)}")
+                         f"{method_registry.fits_text(emission)}")
     return f"; skipped {', '.join(unfit)}: they do not fit a {emission} light"
 
 
@@ -978,7 +964,7 @@ class OMNIWARP_PT_compare(bpy.types.Panel):
         box = layout.box()
         box.label(text="Methods")
         grid = box.grid_flow(row_major=True, columns=2, even_columns=True, align=True)
-        for method in compare.METHODS:
+        for method in method_registry.pipeline_methods():
             grid.prop(settings, method_prop(method))
         layout.prop(settings, "resolutions")
         row = layout.row()

@@ -21,10 +21,11 @@ from pathlib import Path
 import numpy as np
 
 from ..core import metrics
-from ..core.errors import InputError, OmniWarpError, report_error
-from ..core.scene import PROJECTIVE_EMISSIONS, CameraSpec, LightSpec
+from ..core import methods as method_registry
+from ..core.errors import OmniWarpError, report_error
+from ..core.scene import LightSpec
 from ..reference.data import ReferenceData
-from ..render.pipeline import ShadowPipeline, ShadowSettings, ViewSamples, count_statistics
+from ..render.pipeline import ShadowPipeline, ShadowSettings, ViewSamples, count_statistics, settings_for
 
 log = logging.getLogger(__name__)
 
@@ -100,28 +101,34 @@ def stats_line(name: str, result, stats) -> str:
 
 def run(reference: ReferenceData, lights: list[tuple[str, LightSpec, ShadowSettings]], triangles: np.ndarray,
         out_dir: Path, strength: float = 0.6, maps: frozenset[str] = frozenset({"DEPTH", "COUNT", "IMPORTANCE"}),
-        thumb: int = 150) -> dict:
-    """Render the preview of `lights` from the reference's camera and write the three files."""
+        thumb: int = 150,
+        occluders: dict[str, np.ndarray] | None = None) -> dict:
+    """Render the preview of `lights` from the reference's camera and write the three files.
+
+    `triangles` are what the camera sees (the G-buffer); `occluders` gives, per light
+    name, what blocks that light (`scene_cache.shadow_inputs`), else `triangles` do.
+    """
     from ..render.blender_backend import BlenderGPUBackend, ensure_gpu
     from ..render.blender_draw import draw_overlay, draw_shadow_composite, render_gbuffer, visibility_texture
 
     ensure_gpu()
     out_dir.mkdir(parents=True, exist_ok=True)
-    camera = CameraSpec(reference.camera_matrix, reference.camera_fov_deg, reference.resolution)
+    camera = reference.camera()  # shift, sensor fit, pixel aspect, ortho and clip as captured
     view = np.linalg.inv(camera.matrix_world)
     view_proj = camera.projection() @ view
     backend = BlenderGPUBackend()
     try:
         pipeline = ShadowPipeline(backend)
         t0 = time.perf_counter()
-        gbuffer = render_gbuffer(backend, triangles, view_proj, camera.matrix_world[:3, 3], camera.resolution)
+        gbuffer = render_gbuffer(backend, triangles, view_proj, camera.eye_homogeneous(), camera.resolution)
         gbuffer_ms = (time.perf_counter() - t0) * 1e3
         samples = ViewSamples(gbuffer.positions[..., :3].astype(np.float64), gbuffer.normals[..., :3].astype(np.float64),
                               gbuffer.hit, camera)
         per_light = []
         for name, light, settings in lights:
-            pipeline.render(light, triangles, samples, settings)  # warm-up (shader compile)
-            result = pipeline.render(light, triangles, samples, settings, keep_atlas=True)
+            blockers = (occluders or {}).get(name, triangles)
+            pipeline.render(light, blockers, samples, settings)  # warm-up (shader compile)
+            result = pipeline.render(light, blockers, samples, settings, keep_atlas=True)
             stats = count_statistics(pipeline, light, settings, result, samples)
             raw = np.stack([result.visibility, result.flags.astype(np.float32)], axis=-1)
             per_light.append((name, light, settings, result, stats, raw))
@@ -165,8 +172,11 @@ def _report(reference: ReferenceData, per_light, gbuffer, gbuffer_ms: float, ren
     lights = []
     for name, light, settings, result, stats, _ in per_light:
         lights.append({
-            "light": name, "emission": light.emission, "parameterization": settings.parameterization,
-            "warp": settings.warp, "resolution": settings.resolution, "passes": result.passes,
+            "light": name, "emission": light.emission,
+            "method": method_registry.label_for(settings.parameterization, settings.warp, settings.cut,
+                                                settings.edge_aa),
+            "parameterization": settings.parameterization, "warp": settings.warp, "cut": settings.cut,
+            "edge_aa": settings.edge_aa, "resolution": settings.resolution, "passes": result.passes,
             "texels": result.texels, "triangles_drawn": result.geometry.triangles_drawn,
             "max_count_before": stats.max_count_before, "max_count_after": stats.max_count_after,
             "texel_utilization": stats.texel_utilization, "time_ms": result.time_ms,
@@ -196,6 +206,27 @@ def _scene_lights(scene, depsgraph, reference: ReferenceData, light_name: str | 
     return [(reference.meta.get("light", "light"), light, default)]
 
 
+def default_settings(method: str | None, emission: str, resolution: int) -> ShadowSettings:
+    """Settings of the lights without OmniWarp settings: `method` (the registry's default
+    for the emission when None), with its cut and edge AA; an InputError if it does not fit."""
+    name = method or method_registry.default_method(emission)
+    method_registry.check_fits(name, emission, pipeline_only=True)
+    return settings_for(name, resolution)
+
+
+def _load_scene(args: argparse.Namespace, reference: ReferenceData):
+    """The scene to preview: the preset built anew, or the .blend loaded (nothing is saved back)."""
+    import bpy
+
+    if args.preset:
+        from ..core.presets import build_preset
+        from ..reference.blender_scene import build_blender_scene
+
+        return build_blender_scene(build_preset(args.preset, reference.resolution))
+    bpy.ops.wm.open_mainfile(filepath=str(Path(args.blend).resolve()), load_ui=False)
+    return bpy.context.scene
+
+
 def main(argv: list[str] | None = None) -> int:
     """Entry of the preview subprocess."""
     parser = argparse.ArgumentParser(prog="omniwarp-preview-worker")
@@ -205,42 +236,34 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--light")
     parser.add_argument("--reference", required=True)
     parser.add_argument("--out", required=True)
-    parser.add_argument("--method", default=None)  # None: dpsm+notw, or psm for a spot or sun reference
+    parser.add_argument("--method", default=None)  # None: the registry's default for the reference's light
     parser.add_argument("--resolution", type=int, default=1024)
     args = parser.parse_args(argv)
     logging.basicConfig(level=logging.WARNING, format="%(levelname)s %(name)s: %(message)s")
     try:
-        import bpy
-
-        from ..reference.capture import evaluated_depsgraph
+        from ..reference.capture import evaluated_depsgraph, pick_view_layer
+        from ..reference.render_geometry import render_triangles
+        from ..reference.shadow_rule import rules_for, shadow_inputs
         from . import registration
-        from .scene_cache import SceneGeometryCache
 
         reference = ReferenceData.load(args.reference)
+        default = default_settings(args.method, reference.emission, args.resolution)
+        # Load first, register once after: the file's stored light settings (the
+        # IDProperties under "omniwarp") are then read through the new pointers, and the
+        # runtime handlers are not dropped by the file load.
+        scene = _load_scene(args, reference)
         registration.register()
         try:
-            if args.preset:
-                from ..core.presets import build_preset
-                from ..reference.blender_scene import build_blender_scene
-
-                scene = build_blender_scene(build_preset(args.preset, reference.resolution))
-            else:
-                bpy.ops.wm.open_mainfile(filepath=str(Path(args.blend).resolve()), load_ui=False)
-                registration.register()  # loading a file keeps registered classes; pointers survive too
-                scene = bpy.context.scene
-            depsgraph = evaluated_depsgraph(scene)
-            cache = SceneGeometryCache()
-            cache.update(depsgraph)
-            triangles = cache.world_triangles()
-            from ..compare import METHODS
-
-            method = args.method or ("psm" if reference.emission in PROJECTIVE_EMISSIONS else "dpsm+notw")
-            if method not in METHODS:
-                raise InputError(f"unknown method {method!r}; known: {', '.join(METHODS)}")
-            parameterization, warp = METHODS[method]
-            default = ShadowSettings(parameterization, args.resolution, warp=warp)
+            layer = pick_view_layer(scene)
+            depsgraph = evaluated_depsgraph(scene, layer)
             lights = _scene_lights(scene, depsgraph, reference, args.light, default)
-            report = run(reference, lights, triangles, Path(args.out))
+            # The scene as the renderer reads it (render-level modifiers, hide_render),
+            # like the Cycles reference it is measured against; the interactive
+            # viewport reads its own depsgraph (scene_cache.py).
+            found = render_triangles(scene, layer)
+            seen, occluders = shadow_inputs(found.select, found.everything(),
+                                            rules_for(scene, [name for name, _, _ in lights]))
+            report = run(reference, lights, seen, Path(args.out), occluders=occluders)
         finally:
             registration.unregister()
         print(json.dumps({k: report[k] for k in ("error_pct", "evaluated_pixels")}))

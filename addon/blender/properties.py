@@ -29,6 +29,7 @@ from bpy.props import BoolProperty, EnumProperty, FloatProperty, IntProperty
 
 from ..core import frames
 from ..core.frames import POINT_PARAMETERIZATIONS, PROJECTIVE_PARAMETERIZATIONS
+from ..core.methods import PARAMETERIZATION_TEXT, WARP_TEXT
 from ..core.scene import PROJECTIVE_EMISSIONS, Emission, LightSpec, spot_emission
 from ..render.pipeline import BiasSettings, ShadowSettings
 
@@ -102,28 +103,18 @@ EMISSION_ITEMS = (
      "at most five cube faces", 2),
 )
 
-# Stable numbers: they are what .blend files store, so never renumber an item.
-PARAMETERIZATION_ITEMS = (
-    ("DPSM", "Dual paraboloid",
-     "Two paraboloid maps, one per hemisphere. Cost: at most two passes, but triangles that the "
-     "curved projection bends are tessellated first (more triangles, more CPU time)", 0),
-    ("CUBE", "Cube",
-     "Six 90° perspective faces. Cost: up to six passes (each redraws the geometry it sees), "
-     "no tessellation", 1),
-    ("IPSM", "Single paraboloid (IPSM)",
-     "One paraboloid map aimed at the view and zoomed to the cone that holds it, when the light is "
-     "outside the view; otherwise (or with Cull off) it falls back to the dual paraboloid. Cost: one "
-     "pass, with tessellation of the bent triangles", 2),
-    ("UNFOLD", "Sphere unfolding",
-     "Dual sphere-unfolding: both hemispheres side by side in one map, drawn in a single pass. "
-     "Cost: one pass, with tessellation, and seam triangles drawn into both halves; takes no warp", 3),
-    ("SM", "Uniform",
-     "One plain shadow map: the spot's cone, or for a sun a parallel box fitted to what the view "
-     "needs. Cost: one pass, no tessellation; takes no warp", 4),
-    ("PSM", "Perspective (PSM)",
-     "Perspective shadow map (Stamminger & Drettakis 2002): one map taken after the camera's "
-     "perspective, so texels gather near the camera. Cost: one pass, no tessellation; it is "
-     "itself a global warp, so it takes no other", 5),
+# Stable numbers: they are what .blend files store, so never renumber an item. The
+# tooltips are the method registry's (core/methods.py), which describes each once.
+PARAMETERIZATION_ITEMS = tuple(
+    (identifier, label, PARAMETERIZATION_TEXT[identifier.lower()], number)
+    for identifier, label, number in (
+        ("DPSM", "Dual paraboloid", 0),
+        ("CUBE", "Cube", 1),
+        ("IPSM", "Single paraboloid (IPSM)", 2),
+        ("UNFOLD", "Sphere unfolding", 3),
+        ("SM", "Uniform", 4),
+        ("PSM", "Perspective (PSM)", 5),
+    )
 )
 _PARAMETERIZATION_ITEM = {item[0]: item for item in PARAMETERIZATION_ITEMS}
 _PARAMETERIZATION_NUMBER = {item[0]: item[3] for item in PARAMETERIZATION_ITEMS}
@@ -148,16 +139,9 @@ FALLBACK_PARAMETERIZATION = {"point": "dpsm", "projective": "psm"}
 # refuse the keyword, so there the stale value stays and is resolved in Python.
 _HAS_GET_TRANSFORM = bpy.app.version >= (5, 0, 0)
 
-WARP_ITEMS = (
-    ("NONE", "None",
-     "Uniform shadow map: no analysis pass, no extra triangles", 0),
-    ("NOTW", "NoTW",
-     "Non-orthogonal texture warping: moves map resolution to where the camera needs it. "
-     "Cost: an analysis pass over the view samples, plus more triangles (warped edges are "
-     "tessellated)", 1),
-    ("RTW", "RTW",
-     "Rectilinear texture warping (Rosen 2012), offered as a comparison to NoTW. "
-     "Cost: the same analysis pass, plus more triangles", 2),
+WARP_ITEMS = tuple(
+    (identifier, label, WARP_TEXT[identifier.lower()], number)
+    for identifier, label, number in (("NONE", "None", 0), ("NOTW", "NoTW", 1), ("RTW", "RTW", 2))
 )
 
 

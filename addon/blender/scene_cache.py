@@ -45,7 +45,10 @@ from typing import Any, Callable, Hashable, Iterable
 import bpy
 import numpy as np
 
-from ..reference.capture import _GEOMETRY_TYPES, _local_triangles
+from ..reference.render_geometry import GEOMETRY_TYPES as _GEOMETRY_TYPES
+from ..reference.render_geometry import local_triangles as _local_triangles
+from ..reference.shadow_rule import rules_for
+from ..reference.shadow_rule import shadow_inputs as _shadow_inputs
 
 log = logging.getLogger(__name__)
 
@@ -94,6 +97,8 @@ class _Part:
     name: str
     matrix: np.ndarray  # world matrix of the object / instancer, for change detection
     sources: list[tuple[np.ndarray, np.ndarray]]
+    # Per source: (original object, instancer or None) names, for the shadow rule.
+    owners: list[tuple[str, str | None]] = field(default_factory=list)
     data_key: Key | None = None  # original object data (plain objects)
     source_keys: frozenset = frozenset()  # instanced source objects (instance groups)
     collection_keys: frozenset = frozenset()  # instanced collections (instance groups)
@@ -152,6 +157,7 @@ class SceneGeometryCache:
         self._layout: dict[tuple[str, Key], tuple[int, int]] = {}
         self._stale: set[tuple[str, Key]] = set()  # parts whose world triangles changed
         self._world_valid = False
+        self._selections: dict[Hashable, tuple[int, np.ndarray]] = {}
         self.stats: dict[str, int] = {
             "geometry_reads": 0, "matrix_updates": 0, "instance_collections": 0, "version": 0,
         }
@@ -238,7 +244,8 @@ class SceneGeometryCache:
         flags = self._dirty.objects.get(part_key[1], 0)
         if part is None or flags & GEOMETRY or (data_key is not None and data_key in self._dirty.data):
             local = self._read(obj, depsgraph)
-            self._parts[part_key] = _Part(obj.name, matrix, [(local, matrix[None])], data_key=data_key)
+            self._parts[part_key] = _Part(obj.name, matrix, [(local, matrix[None])],
+                                          [(obj.original.name_full, None)], data_key=data_key)
             self._stale.add(part_key)
             return True
         if np.array_equal(matrix, part.matrix, equal_nan=True):
@@ -276,6 +283,7 @@ class SceneGeometryCache:
         """One pass over `depsgraph.object_instances` for the given instancers."""
         # Per instancer: source key -> (local triangles, list of world matrices).
         groups: dict[Key, dict[Key, tuple[np.ndarray, list[np.ndarray]]]] = {k: {} for k in instancers}
+        owners: dict[Key, dict[Key, tuple[str, str | None]]] = {k: {} for k in instancers}
         source_keys: dict[Key, set[Key]] = {k: set() for k in instancers}
         # Geometry-nodes instance geometry has no original object to key on; its
         # evaluated data pointer identifies it during this pass only.
@@ -304,15 +312,17 @@ class SceneGeometryCache:
                     local = self._source_local(local_key, obj, depsgraph)
                     pass_local[local_key] = local
                 entry = group[local_key] = (local, [])
+                owners[parent_key][local_key] = (obj.original.name_full, inst.parent.original.name_full)
             entry[1].append(_matrix(inst.matrix_world))
         parts = {}
         for key, obj in instancers.items():
-            sources = [(local, np.stack(mats)) for local, mats in groups[key].values() if len(local)]
+            kept = [local_key for local_key, (local, _) in groups[key].items() if len(local)]
+            sources = [(groups[key][k][0], np.stack(groups[key][k][1])) for k in kept]
             collections = obj.original.instance_collection if obj.original.instance_type == "COLLECTION" else None
             coll_keys = set()
             if collections is not None:
                 coll_keys = {id_key(collections)} | {id_key(c) for c in collections.children_recursive}
-            parts[key] = _Part(obj.name, _matrix(obj.matrix_world), sources,
+            parts[key] = _Part(obj.name, _matrix(obj.matrix_world), sources, [owners[key][k] for k in kept],
                                source_keys=frozenset(source_keys[key]), collection_keys=frozenset(coll_keys))
         return parts
 
@@ -376,6 +386,31 @@ class SceneGeometryCache:
         self._stale.clear()
         return out
 
+    def select(self, keep: Callable[[str, str | None], bool], key: Hashable) -> np.ndarray:
+        """The triangles of the sources whose owner `keep(name, instancer)` accepts (read-only).
+
+        `key` names the selection (a `ShadowRule.key()`): the same key on an unchanged
+        cache returns the same array object.
+        """
+        world = self.world_triangles()
+        cached = self._selections.get(key)
+        if cached is not None and cached[0] == self.stats["version"]:
+            return cached[1]
+        pieces = []
+        for part_key, part in self._parts.items():
+            start = self._layout[part_key][0]
+            for (local, matrices), owner in zip(part.sources, part.owners):
+                n = len(local) * len(matrices)
+                if n and keep(*owner):
+                    pieces.append(world[start:start + n])
+                start += n
+        out = np.concatenate(pieces, axis=0) if pieces else np.zeros((0, 3, 3), dtype=np.float64)
+        out.flags.writeable = False
+        if len(self._selections) > 16:  # lights come and go; keep the cache small
+            self._selections.clear()
+        self._selections[key] = (self.stats["version"], out)
+        return out
+
     @property
     def object_count(self) -> int:
         """Cached plain objects plus instance groups."""
@@ -391,12 +426,19 @@ class SceneGeometryCache:
         self._stale.clear()
         self._world = None
         self._world_valid = False
+        self._selections.clear()
         self._identity = None
         if had:
             self.stats["version"] += 1
 
 
 CACHE = SceneGeometryCache()
+
+
+def shadow_inputs(cache: SceneGeometryCache, scene: "bpy.types.Scene",
+                  light_names: Iterable[str]) -> tuple[np.ndarray, dict[str, np.ndarray]]:
+    """The camera's triangles and each light's occluders from the cache (`shadow_rule.shadow_inputs`)."""
+    return _shadow_inputs(cache.select, cache.world_triangles(), rules_for(scene, light_names))
 
 
 def _noop(_kind: str) -> None:

@@ -163,19 +163,25 @@ def enabled_lights(scene: bpy.types.Scene, depsgraph) -> list:
 
 
 def compute_view(backend, pipeline: ShadowPipeline, triangles: np.ndarray, view_matrix: np.ndarray,
-                 projection: np.ndarray, size: tuple[int, int], lights: list) -> tuple[Any, list]:
-    """G-buffer of one view and the pipeline result of every light (explicit inputs)."""
+                 projection: np.ndarray, size: tuple[int, int], lights: list,
+                 occluders: dict[str, np.ndarray] | None = None) -> tuple[Any, list]:
+    """G-buffer of one view and the pipeline result of every light (explicit inputs).
+
+    `triangles` are what the camera sees; `occluders` gives, per light name, what
+    blocks that light (`scene_cache.shadow_inputs`), else `triangles` do.
+    """
     from ..render.blender_draw import render_gbuffer
 
     view_proj = projection @ view_matrix
-    camera_position = np.linalg.inv(view_matrix)[:3, 3]
-    gbuffer = render_gbuffer(backend, triangles, view_proj, camera_position, size)
+    # Perspective, lens-shifted or orthographic: the view's real frustum, so culling works.
     camera = camera_from_matrices(view_matrix, projection, size)
+    eye = np.linalg.inv(view_matrix)[:3, 3] if camera is None else camera.eye_homogeneous()
+    gbuffer = render_gbuffer(backend, triangles, view_proj, eye, size)
     samples = ViewSamples(gbuffer.positions[..., :3].astype(np.float64),
                           gbuffer.normals[..., :3].astype(np.float64), gbuffer.hit, camera)
     results = []
     for name, light, settings in lights:
-        result = pipeline.render(light, triangles, samples, settings, keep_atlas=True)
+        result = pipeline.render(light, (occluders or {}).get(name, triangles), samples, settings, keep_atlas=True)
         stats = count_statistics(pipeline, light, settings, result, samples)
         raw = np.stack([result.visibility, result.flags.astype(np.float32)], axis=-1)
         results.append((name, light, settings, result, stats, raw))
@@ -218,7 +224,7 @@ def draw_view(scene: bpy.types.Scene, depsgraph, view_matrix: np.ndarray, projec
     import gpu
 
     from ..render.blender_draw import draw_overlay, draw_shadow_composite
-    from .scene_cache import CACHE
+    from .scene_cache import CACHE, shadow_inputs
 
     settings = scene.omniwarp
     scale = settings.camera_resolution_scale
@@ -233,10 +239,10 @@ def draw_view(scene: bpy.types.Scene, depsgraph, view_matrix: np.ndarray, projec
             try:
                 _ensure_backend()
                 CACHE.update(depsgraph)
-                triangles = CACHE.world_triangles()
                 lights = enabled_lights(scene, depsgraph)
-                gbuffer, results = compute_view(_STATE.backend, _STATE.pipeline, triangles, view_matrix,
-                                                projection, size, lights)
+                seen, occluders = shadow_inputs(CACHE, scene, [name for name, _, _ in lights])
+                gbuffer, results = compute_view(_STATE.backend, _STATE.pipeline, seen, view_matrix,
+                                                projection, size, lights, occluders)
                 cached = _build_result(key, gbuffer, results, settings)
                 _STATE.results[region_key] = cached
                 _STATE.last_error = ""

@@ -483,7 +483,10 @@ def _spot_matrix(light: LightSpec, lo: np.ndarray, hi: np.ndarray, tol: float) -
 
 def camera_clip(camera: CameraSpec, near: float, far: float, origin: np.ndarray, shift: float = 0.0) -> np.ndarray:
     """C: light-centred points -> camera clip space, near/far given, camera moved back
-    by `shift` along its view axis (paper 4.2: near kept, far grown by the shift)."""
+    by `shift` along its view axis (paper 4.2: near kept, far grown by the shift).
+
+    The camera's own projection: its window (lens shift, sensor fit, pixel aspect)
+    stays, only the clip range changes."""
     m = np.asarray(camera.matrix_world, dtype=np.float64)
     rot = orthonormalize(m[:3, :3])
     view = np.eye(4)
@@ -532,8 +535,15 @@ def psm_map(light: LightSpec, camera: CameraSpec, near: float, far: float, frust
        (sun) (sec. 3).
     4. A standard shadow map in PPS from L, aimed at H's centre, window and depth
        fitted to H's image; see `_pps_fit`.
+    The camera may be off-centre (lens shift, any fit or pixel aspect): C is its own
+    projection. An orthographic camera is an InputError (`plan_projective` uses sm).
     """
     _check(light, resolution)
+    if camera.ortho:
+        # PPS of an orthographic camera is an affine image of the world: there is no
+        # perspective to undo, and the sec. 4.2 shift assumes an eye. sm is that map.
+        raise InputError("psm needs a perspective camera; with an orthographic camera use sm "
+                         "(its post-perspective space is the world up to an affine map)")
     near, far = float(near), float(far)
     if not (math.isfinite(near) and math.isfinite(far) and 0.0 < near < far):
         raise InputError(f"view depths must satisfy 0 < near < far, got near={near!r}, far={far!r}")

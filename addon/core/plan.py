@@ -15,6 +15,7 @@ cheaper than the point-in-frustum / edge-plane tests of the thesis.
 from __future__ import annotations
 
 import functools
+import logging
 import math
 from dataclasses import dataclass, field
 
@@ -26,6 +27,8 @@ from .perspective import hull_planes  # one convex-hull routine for culling and 
 from .polytope import Polytope, sample_polytope
 from .projection import CUBE, PARABOLOID
 from .scene import CameraSpec, LightSpec
+
+log = logging.getLogger(__name__)
 
 # Relative slack: culling must be conservative, never drop a needed layer.
 _SLACK = 1e-6
@@ -78,24 +81,18 @@ FULL_WINDOW: Window = (-1.0, 1.0, -1.0, 1.0)
 
 def frustum_corners(camera: CameraSpec, near_depth: float, far_depth: float,
                     window: Window = FULL_WINDOW) -> np.ndarray:
-    """World-space corners (8, 3) of the camera frustum between two view depths.
+    """World-space corners (8, 3) of the camera frustum between two view depths: the
+    near quad then the far quad, each counter-clockwise from the bottom left.
 
-    `window` narrows it to a rectangle of the frame (see `sample_window`).
+    The camera's own window (shift, sensor fit, pixel aspect) fixes the frame; `window`
+    narrows it to a rectangle of that frame (see `sample_window`). An orthographic
+    camera's frustum is a box: its corners do not scale with depth.
     """
-    width, height = camera.resolution
-    half = math.tan(math.radians(camera.fov_deg) / 2.0)
-    if width >= height:
-        hx, hy = half, half * height / width
-    else:
-        hx, hy = half * width / height, half
     x0, x1, y0, y1 = window
-    corners = []
-    for depth in (near_depth, far_depth):
-        for sx, sy in ((x0, y0), (x1, y0), (x1, y1), (x0, y1)):
-            corners.append([sx * hx * depth, sy * hy * depth, -depth])
-    local = np.asarray(corners, dtype=np.float64)
-    m = np.asarray(camera.matrix_world, dtype=np.float64)
-    return local @ m[:3, :3].T + m[:3, 3]
+    quad = np.array([(x0, y0), (x1, y0), (x1, y1), (x0, y1)], dtype=np.float64)
+    ndc = np.concatenate([quad, quad])
+    depth = np.repeat(np.array([near_depth, far_depth], dtype=np.float64), 4)
+    return camera.world_points(ndc, depth)
 
 
 def sample_window(camera: CameraSpec, hit: np.ndarray) -> Window:
@@ -128,8 +125,7 @@ def hit_points(positions: np.ndarray, hit: np.ndarray) -> np.ndarray:
 
 def view_depths(camera: CameraSpec, points: np.ndarray) -> np.ndarray:
     """Depth along the camera's view axis of world points (N, 3)."""
-    m = np.asarray(camera.matrix_world, dtype=np.float64)
-    return -((points - m[:3, 3]) @ m[:3, 2])  # camera looks along its local -Z
+    return camera.view_depths(points)  # camera looks along its local -Z, ortho or not
 
 
 def frustum_from_depths(camera: CameraSpec, depths: np.ndarray, margin: float = 0.02,
@@ -139,6 +135,12 @@ def frustum_from_depths(camera: CameraSpec, depths: np.ndarray, margin: float = 
         return None
     low, high = (np.percentile(depths, [percentile, 100.0 - percentile]) if percentile > 0
                  else (depths.min(), depths.max()))
+    if camera.ortho:
+        # A box: depths may be zero or negative (Blender's orthographic viewport puts its
+        # near plane behind the view point), so the margin is absolute here.
+        low, high = float(low), float(high)
+        pad = margin * max(high - low, abs(low), abs(high)) + 1e-9
+        return frustum_corners(camera, low - pad, high + pad, window)
     near = max(float(low) * (1.0 - margin), 1e-9)
     far = float(high) * (1.0 + margin) + 1e-9
     return frustum_corners(camera, near, far, window)
@@ -234,13 +236,16 @@ def skewed_axis(light_position: np.ndarray, corners: np.ndarray, camera: CameraS
 
     The near corners weigh (far / near) times more than the far ones, so the dense
     centre of the paraboloid turns towards the part of the view close to the camera,
-    where a texel covers the most pixels.
+    where a texel covers the most pixels. An orthographic camera's pixels have the same
+    size at every depth, so there every corner weighs the same.
     """
     d = np.asarray(corners, dtype=np.float64) - light_position
     d /= np.linalg.norm(d, axis=1, keepdims=True)
-    m = np.asarray(camera.matrix_world, dtype=np.float64)
-    depth = np.maximum(-((corners - m[:3, 3]) @ m[:3, 2]), 1e-9)
-    axis = (d / depth[:, None]).sum(axis=0)
+    if camera.ortho:
+        axis = d.sum(axis=0)
+    else:
+        depth = np.maximum(camera.view_depths(corners), 1e-9)
+        axis = (d / depth[:, None]).sum(axis=0)
     return axis / np.linalg.norm(axis)
 
 
@@ -278,8 +283,8 @@ def plan_frame(light: LightSpec, parameterization: Parameterization, camera: Cam
                positions: np.ndarray, hit: np.ndarray, far: float, cull: bool = True, cut: bool = False) -> Plan:
     """Decide which layers to draw for one frame.
 
-    Without a perspective camera (e.g. an orthographic viewport) there is no view
-    frustum to test against, so every layer is drawn.
+    Without a camera (a projection `camera_from_matrices` cannot describe) there is no
+    view frustum to test against, so every layer is drawn.
     """
     if parameterization == "ipsm":
         return _plan_ipsm(light, camera, positions, hit, far, cull, cut)
@@ -322,13 +327,16 @@ def plan_projective(light: LightSpec, parameterization: Parameterization, camera
 
     PSM needs the view: it is fitted to the strictly truncated view frustum (every
     sample must land in the map, so no percentile here). With no camera or no sample
-    it falls back to the uniform map, and the plan says so in `requested`.
+    it falls back to the uniform map, and the plan says so in `requested`. So it does
+    with an orthographic camera: its post-perspective space is an affine image of the
+    world, so a PSM there would only be a uniform map seen through a skewed frame.
     """
     corners = truncated_frustum(camera, positions, hit) if camera is not None else None
     layer = projective_layer(parameterization)
-    if parameterization == "psm" and corners is not None:
-        m = np.asarray(camera.matrix_world, dtype=np.float64)
-        depths = -((corners - m[:3, 3]) @ m[:3, 2])
+    if parameterization == "psm" and camera is not None and camera.ortho:
+        log.info("psm with an orthographic camera is the uniform map: using sm")
+    if parameterization == "psm" and corners is not None and not camera.ortho:
+        depths = camera.view_depths(corners)
         near, far = float(depths.min()), float(depths.max())
         projective = perspective.psm_map(light, camera, near, far, corners, scene_lo, scene_hi, resolution)
         used = "psm"

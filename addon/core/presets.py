@@ -84,10 +84,12 @@ def select_presets(selection: str, preset_dir: Path = PRESET_DIR) -> list[str]:
 
 
 def preset_source_hash(name: str, preset_dir: Path = PRESET_DIR) -> str:
-    """Hash of the builder file and of scene.py, so a changed builder refreshes caches."""
+    """Hash of the builder file, scene.py and camera.py, so a changed builder (or the
+    camera a builder makes) refreshes caches."""
     digest = hashlib.sha256()
     digest.update((preset_dir / f"{name}.py").read_bytes())
-    digest.update(Path(__file__).with_name("scene.py").read_bytes())
+    for module in ("scene.py", "camera.py"):
+        digest.update(Path(__file__).with_name(module).read_bytes())
     return digest.hexdigest()[:16]
 
 

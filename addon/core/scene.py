@@ -16,6 +16,8 @@ from typing import Literal
 
 import numpy as np
 
+# CameraSpec lives in camera.py; it is re-exported here, where the other scene types are.
+from .camera import CameraSpec, blender_camera_window, camera_from_matrices  # noqa: F401
 from .errors import InputError
 
 Emission = Literal["omni", "hemi", "spot", "sun"]
@@ -94,56 +96,6 @@ class LightSpec:
     def is_point(self) -> bool:
         """True for the lights the omnidirectional methods take (omni, hemi)."""
         return self.emission in POINT_EMISSIONS
-
-
-@dataclass
-class CameraSpec:
-    """A perspective camera. `fov_deg` spans the larger image side (Blender AUTO fit)."""
-
-    matrix_world: np.ndarray
-    fov_deg: float
-    resolution: tuple[int, int]  # (width, height)
-    clip_start: float = 0.05
-    clip_end: float = 200.0
-
-    def projection(self) -> np.ndarray:
-        """OpenGL-style 4x4 projection matrix matching Blender's camera."""
-        width, height = self.resolution
-        half = math.tan(math.radians(self.fov_deg) / 2.0)
-        if width >= height:
-            sx, sy = 1.0 / half, (width / height) / half
-        else:
-            sx, sy = (height / width) / half, 1.0 / half
-        n, f = self.clip_start, self.clip_end
-        return np.array(
-            [
-                [sx, 0, 0, 0],
-                [0, sy, 0, 0],
-                [0, 0, -(f + n) / (f - n), -2 * f * n / (f - n)],
-                [0, 0, -1, 0],
-            ],
-            dtype=np.float64,
-        )
-
-
-def camera_from_matrices(view_matrix: np.ndarray, projection: np.ndarray,
-                         resolution: tuple[int, int]) -> CameraSpec | None:
-    """The perspective camera behind an OpenGL view and projection matrix, or None.
-
-    Returns None for orthographic or off-centre (lens-shifted) projections, which a
-    `CameraSpec` cannot describe.
-    """
-    p = np.asarray(projection, dtype=np.float64)
-    if abs(p[3, 2] + 1.0) > 1e-6 or abs(p[3, 3]) > 1e-9 or abs(p[0, 2]) > 1e-6 or abs(p[1, 2]) > 1e-6:
-        return None
-    width, height = resolution
-    # P[0,0] = 1/tan(half fov x), P[1,1] = 1/tan(half fov y); fov spans the larger side.
-    half = 1.0 / p[0, 0] if width >= height else 1.0 / p[1, 1]
-    fov = math.degrees(2.0 * math.atan(half))
-    near = p[2, 3] / (p[2, 2] - 1.0)
-    far = p[2, 3] / (p[2, 2] + 1.0)
-    world = np.linalg.inv(np.asarray(view_matrix, dtype=np.float64))
-    return CameraSpec(world, fov, (int(width), int(height)), float(near), float(far))
 
 
 @dataclass
@@ -301,11 +253,30 @@ class SceneBuilder:
         self._light = LightSpec("sun", look_at(origin, origin + d), strength)
 
     def camera(self, location, target, fov_deg: float = 60.0, clip_end: float = 200.0,
-               clip_start: float = 0.05) -> None:
-        """Perspective camera looking at `target` (clip range in scene units)."""
+               clip_start: float = 0.05, *, shift: tuple[float, float] = (0.0, 0.0),
+               ortho_scale: float | None = None) -> None:
+        """Camera looking at `target` (clip range in scene units), AUTO sensor fit.
+
+        Perspective with `fov_deg` across the larger image side, or orthographic with
+        `ortho_scale` (scene units) across it; `shift` is Blender's lens shift, in units
+        of that side.
+        """
         if not 0.0 < clip_start < clip_end:
             raise InputError(f"camera clip range must satisfy 0 < start < end, got {clip_start}, {clip_end}")
-        self._camera = CameraSpec(look_at(location, target), fov_deg, self.resolution, clip_start, clip_end)
+        matrix = look_at(location, target)
+        if ortho_scale is None and tuple(shift) == (0.0, 0.0):
+            # The centred form: the same numbers as before windows existed.
+            self._camera = CameraSpec(matrix, fov_deg, self.resolution, clip_start, clip_end)
+            return
+        if ortho_scale is None and not 0.0 < fov_deg < 180.0:
+            raise InputError(f"camera field of view {fov_deg} must lie in (0, 180) degrees")
+        # A 36 mm sensor with the lens that gives fov_deg: only their ratio matters.
+        lens = 18.0 / math.tan(math.radians(fov_deg) / 2.0) if ortho_scale is None else 50.0
+        window = blender_camera_window(self.resolution, ortho=ortho_scale is not None, lens=lens,
+                                       ortho_scale=1.0 if ortho_scale is None else float(ortho_scale),
+                                       sensor_width=36.0, shift=(float(shift[0]), float(shift[1])))
+        self._camera = CameraSpec.from_window(matrix, window, self.resolution, clip_start, clip_end,
+                                              ortho=ortho_scale is not None)
 
     def finish(self, description: str = "", stresses: str = "") -> SceneSpec:
         """Return the scene; a preset must have set a light and a camera."""

@@ -11,6 +11,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
+from ..core.camera import blender_camera_settings
 from ..core.errors import InputError
 from ..core.scene import MeshSpec, SceneSpec
 
@@ -126,9 +127,18 @@ def build_blender_scene(spec: SceneSpec) -> "bpy.types.Scene":
 
     cam_spec = spec.camera
     camera = bpy.data.cameras.new(f"{spec.name}_camera")
-    camera.type = "PERSP"
-    camera.sensor_fit = "AUTO"  # the angle spans the larger image side, like CameraSpec
-    camera.angle = math.radians(cam_spec.fov_deg)
+    aspect = (1.0, 1.0)
+    if cam_spec.window is None:
+        camera.type = "PERSP"
+        camera.sensor_fit = "AUTO"  # the angle spans the larger image side, like CameraSpec
+        camera.angle = math.radians(cam_spec.fov_deg)
+    else:
+        # A windowed camera (shift, pixel aspect, orthographic): the settings that give it.
+        settings = blender_camera_settings(cam_spec)
+        for key in ("type", "sensor_fit", "sensor_width", "shift_x", "shift_y", "lens", "ortho_scale"):
+            if key in settings:
+                setattr(camera, key, settings[key])
+        aspect = (float(settings["pixel_aspect_x"]), float(settings["pixel_aspect_y"]))
     camera.clip_start = float(cam_spec.clip_start)
     camera.clip_end = float(cam_spec.clip_end)
     cam_obj = bpy.data.objects.new(f"{spec.name}_camera", camera)
@@ -140,8 +150,7 @@ def build_blender_scene(spec: SceneSpec) -> "bpy.types.Scene":
     scene.render.resolution_x = int(width)
     scene.render.resolution_y = int(height)
     scene.render.resolution_percentage = 100
-    scene.render.pixel_aspect_x = 1.0
-    scene.render.pixel_aspect_y = 1.0
+    scene.render.pixel_aspect_x, scene.render.pixel_aspect_y = aspect
     log.debug("built scene %r: %d meshes, %s light", scene.name, len(spec.meshes), light_spec.emission)
     return scene
 

@@ -1,7 +1,7 @@
 """Cache of Cycles references per preset, resolution and sample count.
 
 A cached reference loads without `bpy`; Blender is imported only to render a new one.
-The cache key hashes the preset's builder source (with scene.py), the Blender
+The cache key hashes the preset's builder source (with scene.py and camera.py), the Blender
 version, the resolution, the sample count and `capture.CAPTURE_VERSION`.
 
 Where: `cache_dir` if given, else the folder named by $OMNIWARP_CACHE, else

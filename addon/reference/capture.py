@@ -1,6 +1,7 @@
 """Render the Cycles ground truth of a Blender scene into a `ReferenceData`.
 
-`capture(scene)` works on any scene with a perspective camera and one point, spot or
+`capture(scene)` works on any scene with a perspective or orthographic camera (any
+sensor fit, lens shift, pixel aspect and resolution percentage) and one point, spot or
 sun light (the presets, and user .blend files). It temporarily switches the scene to
 the reference set-up of DESIGN.md section 5 and restores every setting it touched:
 
@@ -15,7 +16,11 @@ the reference set-up of DESIGN.md section 5 and restores every setting it touche
 - a black world and a transparent film (its alpha is the hit mask).
 
 It renders twice: once as is and once with the light's shadow casting off, which
-gives the `shadowed` and `unshadowed` Diffuse Direct passes. `bpy` is imported lazily.
+gives the `shadowed` and `unshadowed` Diffuse Direct passes. The stored triangles
+are the ones that block the light: the render depsgraph's geometry
+(`render_geometry.py`) sorted by `shadow_rule.ShadowRule`, which follows ray
+visibility, shadow linking and the light's own `use_shadow` as Cycles does. `bpy`
+is imported lazily.
 """
 from __future__ import annotations
 
@@ -29,9 +34,12 @@ from typing import TYPE_CHECKING, Any, Callable
 
 import numpy as np
 
+from ..core.camera import Window, blender_camera_window, window_fov_deg
 from ..core.errors import ReferenceCaptureError
 from ..core.scene import orthonormalize, spot_emission
 from .data import ReferenceData
+from .render_geometry import GEOMETRY_TYPES, render_triangles
+from .shadow_rule import ShadowRule
 
 if TYPE_CHECKING:  # pragma: no cover - typing only
     import bpy
@@ -47,8 +55,7 @@ CAPTURE_VERSION = 1
 DEFAULT_SAMPLES = 1
 AOV_NORMAL = "OmniWarpTrueNormal"
 PIXEL_FILTER_WIDTH = 0.01  # px; effectively no filter (Blender's minimum)
-# Object types whose evaluated geometry becomes triangles (to_mesh understands them).
-_GEOMETRY_TYPES = {"MESH", "CURVE", "SURFACE", "META", "FONT"}
+_GEOMETRY_TYPES = GEOMETRY_TYPES
 # Light types the reference accepts. A SUN has a direction only: nothing in the capture
 # depends on its position (Cycles' culling is off, and there is no near/far to fit).
 _LIGHT_TYPES = {"POINT", "SPOT", "SUN"}
@@ -118,7 +125,8 @@ def _render_visible_objects(view_layer: "bpy.types.ViewLayer") -> set[str]:
     return names
 
 
-def _pick_view_layer(scene: "bpy.types.Scene", name: str | None) -> "bpy.types.ViewLayer":
+def pick_view_layer(scene: "bpy.types.Scene", name: str | None = None) -> "bpy.types.ViewLayer":
+    """The named view layer, else the first one enabled for rendering."""
     if name is not None:
         if name not in scene.view_layers:
             raise ReferenceCaptureError(f"scene {scene.name!r} has no view layer {name!r}")
@@ -185,7 +193,7 @@ def _warn_soft_light(light_obj: "bpy.types.Object") -> None:
 
 
 def _camera_fov_deg(camera: "bpy.types.Camera", width: int, height: int) -> float:
-    """Field of view along the larger image side, for any sensor fit."""
+    """Field of view along the larger image side, for any sensor fit (square pixels)."""
     fit = camera.sensor_fit
     if fit == "AUTO":
         return math.degrees(camera.angle)
@@ -198,6 +206,25 @@ def _camera_fov_deg(camera: "bpy.types.Camera", width: int, height: int) -> floa
         if height < width:
             half *= width / height
     return math.degrees(2.0 * math.atan(half))
+
+
+def _camera_window(camera: "bpy.types.Camera", render: "bpy.types.RenderSettings", width: int,
+                   height: int) -> Window | None:
+    """The camera's image window (Blender's rule, `core.camera.blender_camera_window`),
+    or None for a centred perspective camera with square pixels: `_camera_fov_deg`
+    alone describes that one, and its reference stays what it was before windows."""
+    aspect = (float(render.pixel_aspect_x), float(render.pixel_aspect_y))
+    square = abs(aspect[0] - aspect[1]) <= 1e-6 * max(aspect)
+    shift = (float(camera.shift_x), float(camera.shift_y))
+    if camera.type == "PERSP" and square and shift == (0.0, 0.0):
+        return None
+    return blender_camera_window((width, height), ortho=camera.type == "ORTHO", lens=float(camera.lens),
+                                 ortho_scale=float(camera.ortho_scale), sensor_fit=camera.sensor_fit,
+                                 sensor_width=float(camera.sensor_width), sensor_height=float(camera.sensor_height),
+                                 shift=shift, pixel_aspect=aspect)
+
+
+_pick_view_layer = pick_view_layer
 
 
 def _rigid(matrix) -> np.ndarray:
@@ -221,69 +248,6 @@ def evaluated_depsgraph(scene: "bpy.types.Scene", view_layer: "bpy.types.ViewLay
 
 
 _evaluated_depsgraph = evaluated_depsgraph
-
-
-def _warn_viewport_render_mismatch(scene: "bpy.types.Scene", visible: set[str]) -> None:
-    """The triangles come from the viewport depsgraph; warn where render geometry may differ."""
-    for obj in scene.objects:
-        if obj.name_full not in visible or obj.type not in _GEOMETRY_TYPES:
-            continue
-        for mod in obj.modifiers:
-            differs = mod.show_viewport != mod.show_render
-            if mod.type in {"SUBSURF", "MULTIRES"}:
-                differs |= getattr(mod, "levels", 0) != getattr(mod, "render_levels", 0)
-            if differs:
-                log.warning(
-                    "object %r modifier %r differs between viewport and render; "
-                    "the stored triangles follow the viewport", obj.name, mod.name,
-                )
-
-
-def world_triangles(depsgraph, visible: set[str]) -> tuple[np.ndarray, set[str]]:
-    """All rendered triangles of an evaluated depsgraph in world space, (T, 3, 3) float32.
-
-    Also returns the names of the original objects that contributed.
-    """
-    parts: list[np.ndarray] = []
-    seen: set[str] = set()
-    for inst in depsgraph.object_instances:
-        obj = inst.object
-        if obj.type not in _GEOMETRY_TYPES:
-            continue
-        owner = (inst.parent if inst.is_instance else obj).original
-        if owner.name_full not in visible:
-            continue
-        if not inst.is_instance and obj.is_instancer and not obj.original.show_instancer_for_render:
-            continue  # an emitter Cycles does not draw itself
-        matrix = np.array(inst.matrix_world, dtype=np.float64)
-        local = _local_triangles(obj, depsgraph)
-        if len(local):
-            corners = local.reshape(-1, 3).astype(np.float64) @ matrix[:3, :3].T + matrix[:3, 3]
-            parts.append(corners.reshape(-1, 3, 3).astype(np.float32))
-        seen.add(owner.name_full)
-    if not parts:
-        return np.zeros((0, 3, 3), dtype=np.float32), seen
-    return np.concatenate(parts, axis=0), seen
-
-
-def _local_triangles(obj, depsgraph) -> np.ndarray:
-    """Object-space triangles (n, 3, 3) float32 of an evaluated object."""
-    temporary = obj.type != "MESH"
-    mesh = obj.to_mesh(preserve_all_data_layers=False, depsgraph=depsgraph) if temporary else obj.data
-    try:
-        if mesh is None:
-            return np.zeros((0, 3, 3), dtype=np.float32)
-        if len(mesh.polygons) and not len(mesh.loop_triangles):
-            mesh.calc_loop_triangles()
-        n_tris = len(mesh.loop_triangles)
-        coords = np.empty(len(mesh.vertices) * 3, dtype=np.float32)
-        mesh.vertices.foreach_get("co", coords)
-        indices = np.empty(n_tris * 3, dtype=np.int32)
-        mesh.loop_triangles.foreach_get("vertices", indices)
-        return coords.reshape(-1, 3)[indices].reshape(n_tris, 3, 3)
-    finally:
-        if temporary:
-            obj.to_mesh_clear()
 
 
 # ----------------------------------------------------------------------------
@@ -386,7 +350,7 @@ def _apply_render_settings(scene, view_layer, light_obj, visible: set[str], samp
     s(light, "shadow_soft_size", 0.0)
     if light.type == "SUN":
         s(light, "angle", 0.0)  # a sun's softness is its angle, not its radius
-    s(light, "use_shadow", True, optional=True)
+    # The light's own use_shadow is the file's: off, nothing blocks it (ShadowRule).
     s(light, "use_soft_falloff", False, optional=True)
     s(light_obj, "visible_diffuse", True, optional=True)
     for obj in scene.objects:
@@ -503,11 +467,12 @@ def capture(scene: "bpy.types.Scene", samples: int = DEFAULT_SAMPLES, *, light: 
     cam_obj = scene.camera
     if cam_obj is None or cam_obj.type != "CAMERA":
         raise ReferenceCaptureError(f"scene {scene.name!r} has no active camera; the reference needs one")
-    if cam_obj.data.type != "PERSP":
+    if cam_obj.data.type not in ("PERSP", "ORTHO"):
         raise ReferenceCaptureError(
-            f"camera {cam_obj.name!r} is {cam_obj.data.type}; the reference needs a perspective camera"
+            f"camera {cam_obj.name!r} is {cam_obj.data.type}; the reference needs a perspective or "
+            "orthographic camera"
         )
-    layer = _pick_view_layer(scene, view_layer)
+    layer = pick_view_layer(scene, view_layer)
     # A new scene's view layer is synced lazily (layer_collection stays None until
     # the scene is evaluated once), so evaluate before reading its collections.
     _evaluated_depsgraph(scene, layer)
@@ -523,12 +488,13 @@ def capture(scene: "bpy.types.Scene", samples: int = DEFAULT_SAMPLES, *, light: 
     say = progress or (lambda message: None)
 
     render = scene.render
+    # Blender's own rounding of the percentage (integer division of positive sizes).
     width = int(render.resolution_x * render.resolution_percentage / 100)
     height = int(render.resolution_y * render.resolution_percentage / 100)
-    if abs(render.pixel_aspect_x - render.pixel_aspect_y) > 1e-6:
-        raise ReferenceCaptureError("non-square pixels (pixel aspect) are not supported by the reference")
-    if cam_obj.data.shift_x or cam_obj.data.shift_y:
-        log.warning("camera %r has lens shift; the stored camera matrix/fov ignore it", cam_obj.name)
+    # Lens shift, sensor fit, pixel aspect and orthographic scale: the camera's window.
+    camera_window = _camera_window(cam_obj.data, render, width, height)
+    camera_ortho = cam_obj.data.type == "ORTHO"
+    camera_clip = (float(cam_obj.data.clip_start), float(cam_obj.data.clip_end))
 
     tmpdir = Path(tempfile.mkdtemp(prefix="omniwarp_ref_"))
     overrides = _Overrides()
@@ -544,14 +510,15 @@ def capture(scene: "bpy.types.Scene", samples: int = DEFAULT_SAMPLES, *, light: 
         scale = np.array(light_eval.matrix_world.to_scale())
         if light_obj.data.type == "SPOT" and np.ptp(np.abs(scale)) > 1e-4:
             log.warning("spot light %r has non-uniform scale %s: its cone is not circular", light_obj.name, scale)
-        _warn_viewport_render_mismatch(scene, visible)
-        say("collecting triangles")
-        triangles, seen = world_triangles(depsgraph, visible)
-        missing = {o.name_full for o in scene.objects
-                   if o.type in _GEOMETRY_TYPES and o.name_full in visible} - seen
-        if missing:
-            log.warning("objects rendered but not evaluated in the viewport (hidden there?); "
-                        "their triangles are missing: %s", ", ".join(sorted(missing)))
+        say("collecting triangles (render depsgraph)")
+        # The render depsgraph: render-level modifiers, hide_render, instancer flags.
+        scene_triangles = render_triangles(scene, layer)
+        rule = ShadowRule.for_light(scene, light_obj)
+        triangles = scene_triangles.select(rule.blocks)
+        empty = {o.name for o in scene.objects
+                 if o.type in _GEOMETRY_TYPES and o.name_full in visible} - scene_triangles.names
+        if empty:
+            log.info("rendered objects without triangles: %s", ", ".join(sorted(empty)))
 
         say(f"Cycles render 1/2 (shadowed, {width}x{height}, {samples} spp)")
         t_shadowed = _render(scene, layer, exr_path)
@@ -593,6 +560,11 @@ def capture(scene: "bpy.types.Scene", samples: int = DEFAULT_SAMPLES, *, light: 
         "capture_version": CAPTURE_VERSION,
         "render_seconds": {"shadowed": round(t_shadowed, 3), "unshadowed": round(t_unshadowed, 3)},
         "light_energy": float(light_obj.data.energy),
+        # What blocks the light (ShadowRule), and what the rule could not follow.
+        "occluder_triangles": int(len(triangles)),
+        "scene_triangles": int(sum(len(t) for t in scene_triangles.triangles)),
+        "light_casts_shadows": rule.casts_shadows,
+        "notes": list(rule.notes),
     }
     if light_obj.data.type == "SPOT":
         meta["spot_size_deg"] = math.degrees(light_obj.data.spot_size)
@@ -611,9 +583,13 @@ def capture(scene: "bpy.types.Scene", samples: int = DEFAULT_SAMPLES, *, light: 
         light_matrix=light_matrix,
         emission=emission,
         camera_matrix=camera_matrix,
-        camera_fov_deg=_camera_fov_deg(cam_obj.data, width, height),
+        camera_fov_deg=(_camera_fov_deg(cam_obj.data, width, height) if camera_window is None
+                        else window_fov_deg(camera_window, (width, height), camera_ortho)),
         resolution=(width, height),
         meta=meta,
         # Only a narrower cone restricts the domain; hemi, omni and sun keep pi.
         spot_size=float(light_obj.data.spot_size) if emission == "spot" else math.pi,
+        camera_window=camera_window,
+        camera_ortho=camera_ortho,
+        camera_clip=camera_clip,
     )

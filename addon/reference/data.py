@@ -15,6 +15,12 @@ Conventions (verified in tests/blender/test_reference.py):
 - `spot_size` is the full cone angle (radians) of a "spot" light; pi for every other
   emission. Files written before the field existed load with pi (or, for a spot, the
   cone recorded in meta["spot_size_deg"]), so the field needs no format bump.
+- The camera (`camera()`, a `core.camera.CameraSpec`): `camera_matrix`, `resolution`,
+  `camera_clip` (clip start and end) and, for a camera that `camera_fov_deg` alone
+  cannot describe (lens shift, non-square pixels, orthographic), `camera_window` and
+  `camera_ortho`. A centred perspective camera with square pixels stores no window,
+  exactly as before these fields existed; older files load without them (a centred
+  camera, clip 0.05 to 200 as then), so they need no format bump either.
 """
 from __future__ import annotations
 
@@ -28,6 +34,7 @@ from typing import Any
 
 import numpy as np
 
+from ..core.camera import CameraSpec, Window
 from ..core.errors import ReferenceCaptureError
 
 log = logging.getLogger(__name__)
@@ -47,16 +54,20 @@ class ReferenceData:
     hit: np.ndarray  # (H, W) bool, the camera ray hit geometry
     shadowed: np.ndarray  # (H, W) float32, Diffuse Direct (mean of RGB) with shadows
     unshadowed: np.ndarray  # (H, W) float32, the same with shadow casting disabled
-    triangles: np.ndarray  # (T, 3, 3) float32, world space, evaluated scene
+    triangles: np.ndarray  # (T, 3, 3) float32, world space: what blocks the light (shadow_rule.py)
     light_matrix: np.ndarray  # (4, 4) float64, light to world, rotation orthonormal (scale dropped)
     emission: str  # "omni" | "hemi" | "spot" | "sun"
     camera_matrix: np.ndarray  # (4, 4) float64, camera to world (looks along local -Z), no scale
-    camera_fov_deg: float  # field of view along the larger image side
+    camera_fov_deg: float  # field of view along the larger image side; with a camera_window only a description
     resolution: tuple[int, int]  # (W, H)
     meta: dict[str, Any] = field(default_factory=dict)
     # Full cone angle in radians; only a "spot" narrows the domain below pi. Kept last so
     # positional construction of the older fields is unchanged.
     spot_size: float = math.pi
+    # The camera's image window (CameraSpec.window) when fov alone cannot describe it.
+    camera_window: Window | None = None
+    camera_ortho: bool = False
+    camera_clip: tuple[float, float] | None = None  # (start, end); None: CameraSpec's defaults
 
     def __post_init__(self) -> None:
         self.position = np.asarray(self.position, dtype=np.float32)
@@ -73,6 +84,13 @@ class ReferenceData:
         self.spot_size = float(self.spot_size)
         if not (0.0 < self.spot_size <= math.pi):
             raise ReferenceCaptureError(f"reference spot_size {self.spot_size!r} rad is outside (0, pi]")
+        if self.camera_window is not None:
+            self.camera_window = tuple(float(v) for v in self.camera_window)  # type: ignore[assignment]
+        self.camera_ortho = bool(self.camera_ortho)
+        if self.camera_clip is not None:
+            self.camera_clip = (float(self.camera_clip[0]), float(self.camera_clip[1]))
+        if self.camera_ortho and self.camera_window is None:
+            raise ReferenceCaptureError("an orthographic reference camera needs its camera_window")
         self._check_shapes()
 
     def _check_shapes(self) -> None:
@@ -105,6 +123,15 @@ class ReferenceData:
         """World position of the camera."""
         return self.camera_matrix[:3, 3].copy()
 
+    def camera(self) -> CameraSpec:
+        """The camera the reference was rendered from: the one function that turns the
+        stored fields into a CameraSpec (compare and the headless preview use it)."""
+        clip = () if self.camera_clip is None else self.camera_clip
+        if self.camera_window is None:
+            return CameraSpec(self.camera_matrix, self.camera_fov_deg, self.resolution, *clip)
+        return CameraSpec.from_window(self.camera_matrix, self.camera_window, self.resolution, *clip,
+                                      ortho=self.camera_ortho)
+
     def visibility(self, eps: float = 1e-6) -> np.ndarray:
         """Reference visibility (H, W) bool: lit where shadowed/unshadowed >= 0.5.
 
@@ -121,6 +148,16 @@ class ReferenceData:
         return self.hit & (self.unshadowed > eps)
 
     # persistence -------------------------------------------------------------
+    def _camera_arrays(self) -> dict[str, np.ndarray]:
+        """The optional camera fields as arrays; a centred camera writes no window."""
+        arrays: dict[str, np.ndarray] = {}
+        if self.camera_window is not None:
+            arrays["camera_window"] = np.array(self.camera_window, dtype=np.float64)
+            arrays["camera_ortho"] = np.array(self.camera_ortho)
+        if self.camera_clip is not None:
+            arrays["camera_clip"] = np.array(self.camera_clip, dtype=np.float64)
+        return arrays
+
     def save(self, path: str | os.PathLike) -> Path:
         """Write a compressed .npz atomically (a temp file renamed into place)."""
         path = Path(path)
@@ -146,6 +183,7 @@ class ReferenceData:
                     resolution=np.array(self.resolution, dtype=np.int64),
                     spot_size=np.array(self.spot_size, dtype=np.float64),
                     meta=np.array(json.dumps(meta, sort_keys=True)),
+                    **self._camera_arrays(),
                 )
             os.replace(tmp, path)
         finally:
@@ -180,10 +218,22 @@ class ReferenceData:
                     resolution=tuple(int(v) for v in npz["resolution"]),
                     meta=meta,
                     spot_size=_stored_spot_size(npz, meta),
+                    **_stored_camera(npz),
                 )
         except (OSError, KeyError, ValueError) as exc:
             # ValueError covers a truncated zip and bad JSON alike.
             raise ReferenceCaptureError(f"cannot read reference file {path}: {exc}") from exc
+
+
+def _stored_camera(npz) -> dict[str, Any]:
+    """The optional camera fields of a loaded file (older files have none of them)."""
+    fields: dict[str, Any] = {}
+    if "camera_window" in npz.files:
+        fields["camera_window"] = tuple(float(v) for v in npz["camera_window"])
+        fields["camera_ortho"] = bool(npz["camera_ortho"]) if "camera_ortho" in npz.files else False
+    if "camera_clip" in npz.files:
+        fields["camera_clip"] = tuple(float(v) for v in npz["camera_clip"])
+    return fields
 
 
 def _stored_spot_size(npz, meta: dict[str, Any]) -> float:

@@ -103,7 +103,10 @@ def save_scene_spec(spec: SceneSpec, path: str | os.PathLike) -> Path:
         "mesh_names": [mesh.name for mesh in spec.meshes],
         "light": {"emission": spec.light.emission, "energy": float(spec.light.energy)},
         "camera": {"fov_deg": float(spec.camera.fov_deg), "resolution": [int(v) for v in spec.camera.resolution],
-                   "clip_start": float(spec.camera.clip_start), "clip_end": float(spec.camera.clip_end)},
+                   "clip_start": float(spec.camera.clip_start), "clip_end": float(spec.camera.clip_end),
+                   # None for the centred camera; else its window (shift, pixel aspect, ortho).
+                   "window": None if spec.camera.window is None else list(spec.camera.window),
+                   "ortho": bool(spec.camera.ortho)},
     }
     path.parent.mkdir(parents=True, exist_ok=True)
     with open(path, "wb") as fh:  # a file object keeps numpy from appending ".npz"
@@ -123,8 +126,10 @@ def load_scene_spec(path: str | os.PathLike) -> SceneSpec:
                       for i, name in enumerate(header["mesh_names"])]
             light = LightSpec(header["light"]["emission"], npz["light_matrix"], header["light"]["energy"])
             cam = header["camera"]
+            window = cam.get("window")  # absent in files written before windows existed
             camera = CameraSpec(npz["camera_matrix"], cam["fov_deg"], tuple(cam["resolution"]),
-                                cam["clip_start"], cam["clip_end"])
+                                cam["clip_start"], cam["clip_end"], None if window is None else tuple(window),
+                                bool(cam.get("ortho", False)))
     except (OSError, KeyError, ValueError) as exc:
         raise InputError(f"cannot read scene spec {path}: {exc}") from exc
     return SceneSpec(header["name"], meshes, light, camera, header.get("description", ""),

@@ -42,9 +42,20 @@ class GBuffer:
         return self.positions[..., 3] > 0.5
 
 
+def _homogeneous_eye(camera_position: np.ndarray) -> np.ndarray:
+    """(4,) float64: a 3-vector eye gets w = 1; a 4-vector is kept."""
+    eye = np.asarray(camera_position, dtype=np.float64).ravel()
+    return np.append(eye, 1.0) if eye.size == 3 else eye
+
+
 def render_gbuffer(backend: BlenderGPUBackend, triangles: np.ndarray, view_proj: np.ndarray,
                    camera_position: np.ndarray, size: tuple[int, int]) -> GBuffer:
-    """Rasterise world-space triangles (T, 3, 3) into a G-buffer of `size` (W, H)."""
+    """Rasterise world-space triangles (T, 3, 3) into a G-buffer of `size` (W, H).
+
+    `camera_position` turns the normals towards the camera: the eye (3,), or
+    homogeneous (4,), w = 0 giving the direction towards an orthographic camera
+    (`CameraSpec.eye_homogeneous`).
+    """
     import gpu
     from gpu_extras.batch import batch_for_shader
 
@@ -65,7 +76,7 @@ def render_gbuffer(backend: BlenderGPUBackend, triangles: np.ndarray, view_proj:
         if len(tris):
             shader = backend.bind_program(GBUFFER_PROGRAM, {
                 "ow_view_proj": np.asarray(view_proj, dtype=np.float64),
-                "ow_camera_pos": np.asarray(camera_position, dtype=np.float64)})
+                "ow_camera_pos": _homogeneous_eye(camera_position)})
             batch = batch_for_shader(shader, "TRIS", {
                 "ow_world": tris.reshape(-1, 3).astype(np.float32),
                 "ow_face_normal": np.repeat(normal, 3, axis=0).astype(np.float32)})

@@ -16,6 +16,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ..core import frames, perspective, projection, tessellate
+from ..core import methods as method_registry
 from ..core.errors import InputError
 from ..core.frames import POINT_PARAMETERIZATIONS, PROJECTIVE_PARAMETERIZATIONS, Layer, Parameterization
 from ..core.plan import (
@@ -109,6 +110,19 @@ class ShadowSettings:
             raise InputError(f"resolution {self.resolution} out of range [{MIN_RESOLUTION}, {MAX_RESOLUTION}]")
 
 
+def settings_for(method: str, resolution: int, **fields) -> ShadowSettings:
+    """The `ShadowSettings` of a registered pipeline method (`core/methods.py`) at `resolution`.
+
+    `fields` sets the other settings (cull, bias, ...); the method's own ones
+    (parameterization, warp, cut, edge_aa) come from its registry entry only.
+    """
+    entry = method_registry.method(method)
+    if entry.parameterization is None:
+        raise InputError(f"{method} is measured outside the pipeline; it has no shadow-map settings")
+    return ShadowSettings(entry.parameterization, resolution, warp=entry.warp, cut=entry.cut,
+                          edge_aa=entry.edge_aa, **fields)
+
+
 # Largest importance weight one view sample may carry: weights travel in a float32
 # (the positions' w), exact for integers far beyond this, and relative weights need
 # no more range.
@@ -132,7 +146,7 @@ class ViewSamples:
     positions: np.ndarray  # (H, W, 3) world
     normals: np.ndarray  # (H, W, 3) world, unit
     hit: np.ndarray  # (H, W) bool
-    camera: CameraSpec | None  # None: no perspective camera, so no layer culling
+    camera: CameraSpec | None  # None: no camera (no view frustum), so no layer culling
     importance: np.ndarray | None = None  # (H, W) weights in [1, MAX_IMPORTANCE], rounded to integers
 
     def importance_weights(self) -> np.ndarray | None:

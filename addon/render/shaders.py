@@ -195,7 +195,7 @@ GBUFFER_PROGRAM = ProgramInterface(
     fragment_file="gbuffer.frag",
     vertex_in=(("vec3", "ow_world"), ("vec3", "ow_face_normal")),
     fragment_out=(("vec4", "ow_gb_position"), ("vec4", "ow_gb_normal")),
-    uniforms=(Uniform("mat4", "ow_view_proj"), Uniform("vec3", "ow_camera_pos")),
+    uniforms=(Uniform("mat4", "ow_view_proj"), Uniform("vec4", "ow_camera_pos")),  # homogeneous eye
     varyings=(Varying("vec3", "v_world"), Varying("vec3", "v_normal", flat=True)),
 )
 

@@ -24,6 +24,7 @@ import pytest
 bpy = pytest.importorskip("bpy", reason="the comparison panel needs bpy (scripts/setup_env.sh installs it)")
 
 from addon import compare  # noqa: E402
+from addon.core import methods as method_registry  # noqa: E402
 from addon.blender import comparison, registration  # noqa: E402
 from addon.core.presets import DEFAULT_PRESET, available_presets  # noqa: E402
 
@@ -194,7 +195,7 @@ def registered(monkeypatch: pytest.MonkeyPatch):
 
 
 def _untick_all(settings) -> None:
-    for method in compare.METHODS:
+    for method in method_registry.pipeline_methods():
         setattr(settings, comparison.method_prop(method), False)
 
 
@@ -217,9 +218,9 @@ def test_registered_classes_and_pointer(registered) -> None:
 
 def test_method_checkboxes_cover_every_method(registered) -> None:
     rna = comparison.OMNIWARP_PG_comparison.bl_rna.properties
-    names = {comparison.method_prop(m) for m in compare.METHODS}
+    names = {comparison.method_prop(m) for m in method_registry.pipeline_methods()}
     assert {"use_dpsm", "use_cube", "use_dpsm_notw", "use_cube_notw", "use_dpsm_rtw", "use_cube_rtw"} <= names
-    for method in compare.METHODS:
+    for method in method_registry.pipeline_methods():
         prop = rna[comparison.method_prop(method)]
         assert prop.type == "BOOLEAN" and prop.name == method
 
@@ -381,7 +382,7 @@ def test_panel_draws_every_control(registered) -> None:
         layout = _draw(settings, "PRESET")
         props = layout.of("prop")
         assert props[:3] == ["source", "preset", "camera_size"]
-        assert {comparison.method_prop(m) for m in compare.METHODS} <= set(props)
+        assert {comparison.method_prop(m) for m in method_registry.pipeline_methods()} <= set(props)
         assert {"resolutions", "frames", "cull", "export_path"} <= set(props)
         assert layout.of("operator") == ["omniwarp.build_preset", "omniwarp.compare", "omniwarp.export_results"]
         assert layout.of("template_list") == ["OMNIWARP_UL_results"]

@@ -161,3 +161,26 @@ def test_warp_lowers_the_peak_count(gl_backend, case, param, warp):
     dropped = [slot for slot in crowded if stats.after[slot].max() < stats.before[slot].max()]
     assert 2 * len(dropped) > len(crowded), (crowded, dropped)
     assert stats.texel_utilization > np.mean([np.count_nonzero(b) / b.size for b in stats.before.values()])
+
+
+@pytest.mark.parametrize("param, emission", [("dpsm", "omni"), ("dpsm", "hemi"), ("cube", "omni")])
+def test_receivers_beyond_the_occluders_stay_lit(gl_backend, param, emission):
+    """Only a small box blocks the light (the floor casts nothing, as with visible_shadow off):
+    the floor lies beyond the occluders' far plane, yet only the box's shadow falls on it."""
+    b = SceneBuilder("far_receiver", SIZE)
+    b.plane("floor", (0, 0, 0), 12, 12)
+    b.box("box", (0.6, 0.3, 2.2), (0.5, 0.5, 0.3))
+    if emission == "hemi":
+        b.hemi_light((0, 0, 3.0), (0, 0, -1))
+    else:
+        b.point_light((0, 0, 3.0))
+    b.camera((5, -5, 4), (0, 0, 0.3), fov_deg=60)
+    scene = b.finish()
+    box = next(m for m in scene.meshes if m.name == "box").world_triangles()
+    floor = next(m for m in scene.meshes if m.name == "floor").world_triangles()
+    samples, occluded_only_by_box, evaluable = view_samples(scene, occluders=box)
+    result = ShadowPipeline(gl_backend).render(scene.light, box, samples, ShadowSettings(param, 512))
+    figure = error_figure(result.visibility > 0.5, occluded_only_by_box, evaluable)
+    assert figure.error_pct < 0.5, figure
+    assert (~occluded_only_by_box & evaluable).sum() > 50  # the box's shadow is in view
+    assert len(floor) and figure.false_shadow_pct < 0.5

@@ -58,7 +58,7 @@ def _exec_run(bpy, comparison, out: Path, report: dict) -> None:
     settings = scene.omniwarp_compare
     settings.source = "PRESET"
     settings.preset = "room_omni"
-    for method in comparison.compare.METHODS:
+    for method in comparison.method_registry.pipeline_methods():
         setattr(settings, comparison.method_prop(method), method in METHODS)
     settings.resolutions = "512"
     settings.frames = 1
@@ -87,7 +87,7 @@ def _modal_run(bpy, comparison, report: dict) -> None:
     mouse = SimpleNamespace(type="MOUSEMOVE", value="NOTHING")
 
     settings.resolutions = "256,512"
-    for method in comparison.compare.METHODS:
+    for method in comparison.method_registry.pipeline_methods():
         setattr(settings, comparison.method_prop(method), method == "dpsm")
     fake = SimpleNamespace(report=Reports(), _timer=None)
     job = comparison.start_job(context, fake.report)
@@ -126,7 +126,7 @@ def _current_scene_run(bpy, comparison, report: dict) -> None:
     report["build_new_scene"] = scene != before
     current = scene.omniwarp_compare
     current.source = "CURRENT"
-    for method in comparison.compare.METHODS:
+    for method in comparison.method_registry.pipeline_methods():
         setattr(current, comparison.method_prop(method), method == "dpsm")
     current.resolutions = "512"
     current.frames = 1

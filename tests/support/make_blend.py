@@ -1,6 +1,10 @@
 """Writes a small .blend that was never a preset (run in a child process: it resets bpy's data).
 
     python tests/support/make_blend.py OUT.blend [--no-light] [--bad-geometry] [--light-type SUN|AREA] [--zero-energy]
+                                       [--omniwarp METHOD:RESOLUTION]
+
+--omniwarp saves OmniWarp settings on the light (enabled, the registry method's
+parameterization and warp, the resolution): the add-on is registered for that.
 """
 from __future__ import annotations
 
@@ -26,8 +30,22 @@ def add_bad_geometry(builder) -> None:
                  [[0, 1, 2], [0, 1, 3], [0, 1, 4]])
 
 
+def save_omniwarp_settings(light, spec: str) -> None:
+    """Enable OmniWarp on `light` (bpy Light data) with METHOD:RESOLUTION, e.g. cube+notw:512."""
+    from addon.core.methods import method
+
+    name, _, resolution = spec.partition(":")
+    entry = method(name)
+    props = light.omniwarp
+    props.enabled = True
+    props.parameterization = entry.parameterization.upper()
+    props.warp = entry.warp.upper()
+    if resolution:
+        props.resolution = int(resolution)
+
+
 def main(out: str, with_light: bool, bad_geometry: bool = False, light_type: str | None = None,
-         zero_energy: bool = False) -> None:
+         zero_energy: bool = False, omniwarp: str | None = None) -> None:
     import bpy
 
     from addon.core.scene import SceneBuilder
@@ -64,9 +82,24 @@ def main(out: str, with_light: bool, bad_geometry: bool = False, light_type: str
     bpy.context.window_manager.windows  # noqa: B018 - background: no window to switch
     for other in [s for s in bpy.data.scenes if s != scene]:
         bpy.data.scenes.remove(other)
-    bpy.ops.wm.save_as_mainfile(filepath=out)
+    if omniwarp is None:
+        bpy.ops.wm.save_as_mainfile(filepath=out)
+        return
+    from addon.blender import registration
+
+    registration.register()
+    try:
+        for obj in [o for o in scene.objects if o.type == "LIGHT"]:
+            save_omniwarp_settings(obj.data, omniwarp)
+        bpy.ops.wm.save_as_mainfile(filepath=out)
+    finally:
+        registration.unregister()
+
+
+def _option(name: str) -> str | None:
+    return sys.argv[sys.argv.index(name) + 1] if name in sys.argv else None
 
 
 if __name__ == "__main__":
-    light_type = sys.argv[sys.argv.index("--light-type") + 1] if "--light-type" in sys.argv else None
-    main(sys.argv[1], "--no-light" not in sys.argv, "--bad-geometry" in sys.argv, light_type, "--zero-energy" in sys.argv)
+    main(sys.argv[1], "--no-light" not in sys.argv, "--bad-geometry" in sys.argv, _option("--light-type"),
+         "--zero-energy" in sys.argv, _option("--omniwarp"))

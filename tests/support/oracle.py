@@ -1,8 +1,6 @@
 """Exact numpy ray casting: the test oracle for tiny scenes (no Cycles, no GPU)."""
 from __future__ import annotations
 
-import math
-
 import numpy as np
 
 from addon.core.scene import CameraSpec, SceneSpec
@@ -38,25 +36,18 @@ def ray_hits(origins: np.ndarray, dirs: np.ndarray, tris: np.ndarray, t_max=None
 
 
 def camera_rays(camera: CameraSpec):
-    """World origins and unit directions through pixel centres, row 0 at the top."""
-    width, height = camera.resolution
-    half = math.tan(math.radians(camera.fov_deg) / 2)
-    if width >= height:
-        hx, hy = half, half * height / width
-    else:
-        hx, hy = half * width / height, half
-    xs = ((np.arange(width) + 0.5) / width * 2 - 1) * hx
-    ys = (1 - (np.arange(height) + 0.5) / height * 2) * hy
-    gx, gy = np.meshgrid(xs, ys)
-    local = np.stack([gx, gy, -np.ones_like(gx)], axis=-1).reshape(-1, 3)
-    m = np.asarray(camera.matrix_world)
-    dirs = local @ m[:3, :3].T
-    dirs /= np.linalg.norm(dirs, axis=1, keepdims=True)
-    return np.repeat(m[None, :3, 3], len(dirs), axis=0), dirs
+    """World origins and unit directions through pixel centres, row 0 at the top, (H*W, 3)
+    each: the camera's own window (shift, fit, pixel aspect), perspective or orthographic."""
+    origins, dirs = camera.pixel_rays()
+    return origins.reshape(-1, 3), dirs.reshape(-1, 3)
 
 
-def view_samples(scene: SceneSpec):
-    """View samples plus exact visibility (H, W) and the evaluable mask."""
+def view_samples(scene: SceneSpec, occluders: np.ndarray | None = None):
+    """View samples plus exact visibility (H, W) and the evaluable mask.
+
+    `occluders` (T, 3, 3) replaces the scene's triangles for the shadow rays only
+    (what blocks the light, as with visible_shadow off); the camera sees the scene.
+    """
     camera = scene.camera
     width, height = camera.resolution
     tris = scene.world_triangles()
@@ -71,6 +62,8 @@ def view_samples(scene: SceneSpec):
     nrm[flip] *= -1
     light = scene.light.position
     scale = max(1.0, float(np.abs(tris).max()))
+    if occluders is not None:
+        tris = np.asarray(occluders, dtype=np.float64).reshape(-1, 3, 3)
     if scene.light.emission == "sun":
         # Parallel light along the axis: cast from just off the receiver towards the sun.
         ldir = np.broadcast_to(-scene.light.axis, pos.shape)

@@ -1,0 +1,156 @@
+"""The scene's triangles as the renderer evaluates them, sorted by the shadow rule.
+
+Cycles renders from a *render* depsgraph: modifiers at their render levels,
+`hide_render` applied to objects, collections and instanced collections,
+instancers shown or not as `show_instancer_for_render` says, particles at their
+render amount, objects hidden in the viewport included. The viewport depsgraph
+that `bpy.context.evaluated_depsgraph_get()` returns differs on each of those.
+Python cannot build a render depsgraph directly, but a render engine is handed
+one: `render_triangles` registers a tiny engine, "renders" one frame with it and
+reads `depsgraph.object_instances` inside its `render` call.
+
+Every instance is kept with the names of its original object and instancer
+(`Owner`), so one read serves any light's `ShadowRule`.
+"""
+from __future__ import annotations
+
+import logging
+from dataclasses import dataclass
+from typing import TYPE_CHECKING, Any, Callable
+
+import numpy as np
+
+from ..core.errors import ReferenceCaptureError
+
+if TYPE_CHECKING:  # pragma: no cover - typing only
+    import bpy
+
+log = logging.getLogger(__name__)
+
+# Object types whose evaluated geometry becomes triangles (to_mesh understands them);
+# the render depsgraph hands the non-mesh ones over as meshes (see `collect`).
+GEOMETRY_TYPES = frozenset({"MESH", "CURVE", "SURFACE", "META", "FONT"})
+_ENGINE_ID = "OMNIWARP_GEOMETRY"
+
+
+@dataclass(frozen=True)
+class Owner:
+    """Who a batch of triangles belongs to: the original object, and its instancer if instanced."""
+
+    name: str
+    parent: str | None = None
+
+
+@dataclass
+class SceneTriangles:
+    """World-space triangles (T, 3, 3) float32 grouped by owner."""
+
+    owners: list[Owner]
+    triangles: list[np.ndarray]
+
+    def select(self, keep: Callable[[str, str | None], bool], key: object = None) -> np.ndarray:
+        """The triangles of the owners `keep(name, parent)` accepts, concatenated.
+
+        `key` is accepted for the scene cache's signature and not used.
+        """
+        parts = [tris for owner, tris in zip(self.owners, self.triangles) if keep(owner.name, owner.parent)]
+        if not parts:
+            return np.zeros((0, 3, 3), dtype=np.float32)
+        return np.concatenate(parts, axis=0)
+
+    def everything(self) -> np.ndarray:
+        return self.select(lambda name, parent: True)
+
+    @property
+    def names(self) -> set[str]:
+        """Original objects that gave triangles (instancers for their instances)."""
+        return {owner.parent or owner.name for owner in self.owners}
+
+
+def local_triangles(obj: Any, depsgraph: Any) -> np.ndarray:
+    """Object-space triangles (n, 3, 3) float32 of an evaluated object."""
+    temporary = obj.type != "MESH"
+    mesh = obj.to_mesh(preserve_all_data_layers=False, depsgraph=depsgraph) if temporary else obj.data
+    try:
+        if mesh is None:
+            return np.zeros((0, 3, 3), dtype=np.float32)
+        if len(mesh.polygons) and not len(mesh.loop_triangles):
+            mesh.calc_loop_triangles()
+        n_tris = len(mesh.loop_triangles)
+        coords = np.empty(len(mesh.vertices) * 3, dtype=np.float32)
+        mesh.vertices.foreach_get("co", coords)
+        indices = np.empty(n_tris * 3, dtype=np.int32)
+        mesh.loop_triangles.foreach_get("vertices", indices)
+        return coords.reshape(-1, 3)[indices].reshape(n_tris, 3, 3)
+    finally:
+        if temporary:
+            obj.to_mesh_clear()
+
+
+def collect(depsgraph: Any) -> SceneTriangles:
+    """Every instance of an evaluated depsgraph that has surface triangles, in world space.
+
+    The object-space triangles of a source object are read once, however many
+    instances it has.
+    """
+    owners: list[Owner] = []
+    triangles: list[np.ndarray] = []
+    local_cache: dict[Any, np.ndarray] = {}
+    for inst in depsgraph.object_instances:
+        obj = inst.object
+        # Cycles renders evaluated meshes only. A curve, text, surface or metaball
+        # object comes twice: as itself (skipped) and as the mesh instance of its
+        # evaluated geometry, whose instancer is the object itself.
+        if obj.type != "MESH":
+            continue
+        parent = inst.parent if inst.is_instance else None
+        if parent is None and obj.is_instancer and not obj.original.show_instancer_for_render:
+            continue  # an emitter that Cycles does not draw itself
+        # Geometry-nodes instance geometry has no object of its own: key on its data.
+        key = obj.original.name_full if parent is None or obj.original != parent.original else \
+            ("data", obj.data.as_pointer() if obj.data is not None else obj.as_pointer())
+        local = local_cache.get(key)
+        if local is None:
+            local = local_cache[key] = local_triangles(obj, depsgraph)
+        if not len(local):
+            continue
+        matrix = np.array(inst.matrix_world, dtype=np.float64)
+        corners = local.reshape(-1, 3).astype(np.float64) @ matrix[:3, :3].T + matrix[:3, 3]
+        owners.append(Owner(obj.original.name_full, None if parent is None else parent.original.name_full))
+        triangles.append(corners.reshape(-1, 3, 3).astype(np.float32))
+    return SceneTriangles(owners, triangles)
+
+
+def render_triangles(scene: "bpy.types.Scene", view_layer: "bpy.types.ViewLayer") -> SceneTriangles:
+    """`collect` over the render depsgraph of one view layer (see the module docstring).
+
+    The scene's engine is switched for the call only and put back afterwards.
+    """
+    import bpy
+
+    found: dict[str, Any] = {}
+
+    class _Engine(bpy.types.RenderEngine):
+        bl_idname = _ENGINE_ID
+        bl_label = "OmniWarp geometry"
+
+        def render(self, depsgraph: "bpy.types.Depsgraph") -> None:
+            try:
+                found["triangles"] = collect(depsgraph)
+                found["mode"] = depsgraph.mode
+            except (RuntimeError, ReferenceError, ValueError) as exc:  # raised again outside the engine
+                found["error"] = exc
+
+    bpy.utils.register_class(_Engine)
+    engine = scene.render.engine
+    try:
+        scene.render.engine = _ENGINE_ID
+        bpy.ops.render.render(write_still=False, scene=scene.name, layer=view_layer.name)
+    finally:
+        scene.render.engine = engine
+        bpy.utils.unregister_class(_Engine)
+    if "error" in found:
+        raise ReferenceCaptureError(f"reading the render geometry of {scene.name!r} failed: {found['error']}")
+    if found.get("mode") != "RENDER":
+        raise ReferenceCaptureError(f"the render geometry of {scene.name!r} was not evaluated for render")
+    return found["triangles"]
