@@ -15,6 +15,9 @@ preview and the comparison panel. The rule follows Cycles 5.2:
   only included objects block; otherwise every object blocks except the excluded.
   An instance takes its instancer's linking when the instancer is named in any
   blocker collection of the scene, else its own.
+- **Camera visibility** (`seen`, for a preview's G-buffer): `visible_camera`, the
+  instancer's too, and indirect-only view-layer collections, whose objects cast
+  shadows but are not seen.
 - **Light linking's receivers** (`receiver_collection`), read the same way: pixels
   of objects the light does not light get no light in Cycles, so the reference
   never evaluates them; `lights()` tells the preview the same.
@@ -121,6 +124,23 @@ def _mentioned(objects: Iterable[Any], attr: str) -> frozenset[str]:
     return frozenset(names)
 
 
+def _indirect_only(view_layer: "bpy.types.ViewLayer | None") -> set[str]:
+    """Objects in the layer's indirect-only collections: Cycles' camera rays pass through them."""
+    names: set[str] = set()
+    if view_layer is None or view_layer.layer_collection is None:
+        return names
+
+    def walk(layer_collection: "bpy.types.LayerCollection", inherited: bool) -> None:
+        indirect = inherited or bool(getattr(layer_collection, "indirect_only", False))
+        if indirect:
+            names.update(obj.name_full for obj in layer_collection.collection.objects)
+        for child in layer_collection.children:
+            walk(child, indirect)
+
+    walk(view_layer.layer_collection, False)
+    return names
+
+
 def _see_through_material(material: "bpy.types.Material") -> str | None:
     """Why a material lets shadow rays through in Cycles, or None."""
     tree = material.node_tree  # None for a material without nodes (before 5.0: unless use_nodes)
@@ -160,20 +180,26 @@ class ShadowRule:
     blocker_named: frozenset[str] = frozenset()  # in some blocker collection: own shadow set
     receiver_named: frozenset[str] = frozenset()
     no_shadow: frozenset[str] = frozenset()  # visible_shadow off
-    no_camera: frozenset[str] = frozenset()  # visible_camera off
+    no_camera: frozenset[str] = frozenset()  # visible_camera off, or in an indirect-only collection
     notes: tuple[str, ...] = ()
 
     @classmethod
-    def for_light(cls, scene: "bpy.types.Scene", light_obj: "bpy.types.Object", notes: bool = True) -> "ShadowRule":
+    def for_light(cls, scene: "bpy.types.Scene", light_obj: "bpy.types.Object", notes: bool = True,
+                  view_layer: "bpy.types.ViewLayer | None" = None) -> "ShadowRule":
         """Read the rule of `light_obj` from the file's data.
 
         `notes=False` skips the scan for what the rule cannot follow (the viewport
-        asks every redraw; the capture asks once and logs the notes).
+        asks every redraw; the capture asks once and logs the notes). `view_layer`
+        (default: the first one enabled for rendering) holds the indirect-only
+        collections, whose objects cast shadows but are not seen by the camera.
         """
         import bpy
 
         light_obj = getattr(light_obj, "original", None) or light_obj
         objects = list(bpy.data.objects)  # instanced collections need not be in the scene
+        if view_layer is None:
+            view_layer = next((layer for layer in scene.view_layers if layer.use), None)
+        hidden_from_camera = {o.name_full for o in objects if not getattr(o, "visible_camera", True)}
         return cls(
             light=light_obj.name_full,
             casts_shadows=bool(getattr(light_obj.data, "use_shadow", True)),
@@ -184,7 +210,7 @@ class ShadowRule:
             blocker_named=_mentioned(objects, "blocker_collection"),
             receiver_named=_mentioned(objects, "receiver_collection"),
             no_shadow=frozenset(o.name_full for o in objects if not getattr(o, "visible_shadow", True)),
-            no_camera=frozenset(o.name_full for o in objects if not getattr(o, "visible_camera", True)),
+            no_camera=frozenset(hidden_from_camera | _indirect_only(view_layer)),
             notes=tuple(unfollowed(scene)) if notes else (),
         )
 

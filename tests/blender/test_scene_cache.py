@@ -387,3 +387,46 @@ def test_handler_marks_cache_and_wakes_viewport(world: World, monkeypatch) -> No
     finally:
         scene_cache.unregister()
         cache.clear()
+
+
+# ----------------------------------------------------------------------------
+# per light: the shadow rule over the cache
+# ----------------------------------------------------------------------------
+def test_shadow_inputs_follow_the_rule_per_light(world: World) -> None:
+    """The no-shadow cube is seen but blocks nothing; an instancer with visible_shadow off
+    drops its instances; a light with shadow linking sees only its included blocker."""
+    plane = world.mesh("rule_plane", PLANE_VERTS, PLANE_TRIS)
+    ghost = world.mesh("rule_ghost", CUBE_VERTS, CUBE_TRIS, location=(0.0, 0.0, 2.0), scale=(0.2, 0.2, 0.2))
+    ghost.visible_shadow = False
+    coll = bpy.data.collections.new("rule_props")
+    world.track(coll)
+    world.mesh("rule_prop", CUBE_VERTS, CUBE_TRIS, collection=coll, scale=(0.1, 0.1, 0.1))
+    for name, casts in (("rule_inst_on", True), ("rule_inst_off", False)):
+        empty = bpy.data.objects.new(name, None)
+        empty.instance_type, empty.instance_collection = "COLLECTION", coll
+        empty.location, empty.visible_shadow = (1.0, 0.0, 1.0) if casts else (-1.0, 0.0, 1.0), casts
+        world.scene.collection.objects.link(empty)
+        world.track(empty)
+    lamps = {}
+    for name in ("rule_lamp", "rule_linked"):
+        light = bpy.data.lights.new(name, "POINT")
+        lamps[name] = bpy.data.objects.new(name, light)
+        lamps[name].location = (0.0, 0.0, 4.0)
+        world.scene.collection.objects.link(lamps[name])
+        world.track(lamps[name])
+    blockers = bpy.data.collections.new("rule_blockers")
+    world.track(blockers)
+    blockers.objects.link(plane)
+    lamps["rule_linked"].light_linking.blocker_collection = blockers
+    world.evaluate()
+    seen, occluders = scene_cache.shadow_inputs(world.cache, world.scene, ["rule_lamp", "rule_linked"])
+    plain = expected(PLANE_VERTS, PLANE_TRIS, matrix())
+    ghost_tris = expected(CUBE_VERTS, CUBE_TRIS, matrix((0.0, 0.0, 2.0), (0.2, 0.2, 0.2)))
+    prop = matrix(scale=(0.1, 0.1, 0.1))
+    on, off = (expected(CUBE_VERTS, CUBE_TRIS, matrix(loc) @ prop) for loc in ((1.0, 0.0, 1.0), (-1.0, 0.0, 1.0)))
+    # (the props collection is not in the scene: its cube shows only through the instancers)
+    assert_same_triangles(seen, plain, ghost_tris, on, off)
+    assert_same_triangles(occluders["rule_lamp"], plain, on)
+    assert_same_triangles(occluders["rule_linked"], plain)
+    again = scene_cache.shadow_inputs(world.cache, world.scene, ["rule_lamp"])[1]["rule_lamp"]
+    assert again is occluders["rule_lamp"]  # an unchanged cache hands the same selection back

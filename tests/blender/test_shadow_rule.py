@@ -199,6 +199,23 @@ def test_lamp_b_receivers_exclude_the_slab(feature):
     assert not evaluable[on_slab].any()
 
 
+def test_camera_sees_through_indirect_only_objects(feature):
+    """Cycles' camera rays pass through the indirect-only box (it still casts, above); `seen` agrees."""
+    seen = dict(zip((tuple(o) for o in feature["listing"]["render"]), feature["listing"]["seen"]))
+    assert seen[("indirect_box", None)] is False
+    assert seen[("no_shadow_box", None)] is True and seen[("ground", None)] is True
+    ref = feature["refs"]["LampA"]
+    boxes = {name: tris for (name, _), tris in feature["readings"]["render"]}
+
+    def hits_on(name: str) -> int:
+        lo, hi = boxes[name].reshape(-1, 3).min(axis=0) - 1e-4, boxes[name].reshape(-1, 3).max(axis=0) + 1e-4
+        inside = np.all((ref.position >= lo) & (ref.position <= hi), axis=-1) & ref.hit
+        return int(inside.sum())
+
+    assert hits_on("indirect_box") == 0
+    assert hits_on("no_shadow_box") > 50
+
+
 def test_lamp_c_without_shadows_has_no_occluders(feature):
     ref = feature["refs"]["LampC"]
     assert len(ref.triangles) == 0 and ref.meta["light_casts_shadows"] is False

@@ -52,6 +52,7 @@ def main(argv: list[str]) -> int:
     rules = {light: ShadowRule.for_light(scene, bpy.data.objects[light]) for light in LIGHTS}
     listing["blocks"] = {light: [rule.blocks(name, parent) for name, parent in listing["render"]]
                          for light, rule in rules.items()}
+    listing["seen"] = [rules["LampA"].seen(name, parent) for name, parent in listing["render"]]
     listing["lights"] = {light: {name: rule.lights(name) for name in ("slab", "ground")}
                          for light, rule in rules.items()}
     np.savez_compressed(out / "readings.npz", **arrays)

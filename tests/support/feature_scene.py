@@ -21,7 +21,9 @@ the ground, so a test can tell which case a reading of the scene ignored:
   excludes `a_excluded`; `LampB` (hemispherical spot) whose blocker collection
   includes only a nested collection holding `pillar`, and whose receiver collection
   excludes `slab`; `LampC` (point) with `use_shadow` off;
-- cameras: `Camera` (the scene camera) and `ShiftCam` (lens shift, vertical sensor fit).
+- cameras: `Camera` (the scene camera), `ShiftCam` (lens shift, vertical sensor fit)
+  and `OrthoCam` (orthographic, shifted); the scene renders at 50 % of twice the
+  asked size, with a pixel aspect of 1.2.
 """
 from __future__ import annotations
 
@@ -90,8 +92,11 @@ def build(out: Path, size: tuple[int, int]) -> None:
     scene = bpy.context.scene
     scene.name = "features"
     root = scene.collection
-    scene.render.resolution_x, scene.render.resolution_y = size
-    scene.render.resolution_percentage = 100
+    # Stored at twice the size and rendered at 50 %, with pixels 1.2 times wider than tall:
+    # the camera must be read as the file has it.
+    scene.render.resolution_x, scene.render.resolution_y = 2 * size[0], 2 * size[1]
+    scene.render.resolution_percentage = 50
+    scene.render.pixel_aspect_x, scene.render.pixel_aspect_y = 1.2, 1.0
 
     ground = bpy.data.meshes.new("ground")
     ground.from_pydata([(-9, -9, 0), (9, -9, 0), (9, 9, 0), (-9, 9, 0)], [], [(0, 1, 2, 3)])
@@ -219,6 +224,12 @@ def build(out: Path, size: tuple[int, int]) -> None:
     shift.data.lens, shift.data.sensor_fit = 24.0, "VERTICAL"
     shift.data.shift_x, shift.data.shift_y = 0.12, -0.08
     root.objects.link(shift)
+    ortho = bpy.data.objects.new("OrthoCam", bpy.data.cameras.new("OrthoCam"))
+    ortho.location = (0.0, -8.0, 9.0)
+    ortho.rotation_euler = (math.radians(40.0), 0.0, 0.0)
+    ortho.data.type, ortho.data.ortho_scale = "ORTHO", 11.0
+    ortho.data.shift_y = 0.05
+    root.objects.link(ortho)
 
     # View-layer flags last: the layer collections exist once the collections are linked.
     layer = scene.view_layers[0]
