@@ -41,7 +41,7 @@ def main() -> int:
     out = Path(args.out).resolve()
     scene = ["--preset", args.preset] if args.preset else ["--blend", str(Path(args.blend).resolve())]
     scene += ["--light", args.light] if args.light else []
-    names = [m.name for m in registry.pipeline_methods() if m.fits(args.emission)]
+    names = list(registry.fitting(args.emission, pipeline_only=True))
     _omniwarp("compare", *scene, "--methods", ",".join(names), "--resolutions", args.resolution,
               "--no-images", "--out", str(out / "compare"))
     rows = {r["method"]: r for r in json.loads((out / "compare" / "results.json").read_text())}

@@ -82,6 +82,12 @@ def _has_nodes_modifier(obj: Any) -> bool:
     return any(mod.type == "NODES" and mod.show_viewport for mod in getattr(obj, "modifiers", ()))
 
 
+def _ray_flags(obj: Any) -> tuple[bool, bool]:
+    """The ray-visibility flags the shadow rule reads."""
+    original = getattr(obj, "original", None) or obj
+    return bool(getattr(original, "visible_shadow", True)), bool(getattr(original, "visible_camera", True))
+
+
 def _matrix(matrix: Any) -> np.ndarray:
     return np.array(matrix, dtype=np.float64).reshape(4, 4)
 
@@ -158,23 +164,32 @@ class SceneGeometryCache:
         self._stale: set[tuple[str, Key]] = set()  # parts whose world triangles changed
         self._world_valid = False
         self._selections: dict[Hashable, tuple[int, np.ndarray]] = {}
+        self._ray_flags: dict[Key, tuple[bool, bool]] = {}  # last seen (visible_shadow, visible_camera)
         self.stats: dict[str, int] = {
             "geometry_reads": 0, "matrix_updates": 0, "instance_collections": 0, "version": 0,
         }
 
     # ------------------------------------------------------------------ input
     def mark_dirty(self, update: Any) -> str | None:
-        """Record one `DepsgraphUpdate`; return "geometry", "transform" or None.
+        """Record one `DepsgraphUpdate`; return "geometry", "transform", "visibility" or None.
 
-        The update is only valid inside the handler, so its flags are copied now.
+        "visibility": an object's ray visibility (`visible_shadow`, `visible_camera`)
+        changed. Blender reports that as a shading update only; the triangles stay,
+        but what blocks each light (the shadow rule) changes. The update is only valid
+        inside the handler, so its flags are copied now.
         """
         geometry = bool(update.is_updated_geometry)
         transform = bool(update.is_updated_transform)
-        if not (geometry or transform):
-            return None
         id_data = update.id
         id_type = getattr(id_data, "id_type", "")
         key = id_key(id_data)
+        if not (geometry or transform):
+            if id_type == "OBJECT" and update.is_updated_shading:
+                flags = _ray_flags(id_data)
+                if self._ray_flags.get(key) != flags:
+                    self._ray_flags[key] = flags
+                    return "visibility"
+            return None
         if id_type == "OBJECT":
             flags = (GEOMETRY if geometry else 0) | (TRANSFORM if transform else 0)
             self._dirty.objects[key] = self._dirty.objects.get(key, 0) | flags
@@ -185,13 +200,13 @@ class SceneGeometryCache:
         return "geometry" if geometry else "transform"
 
     def mark_updates(self, updates: Iterable[Any]) -> tuple[bool, bool]:
-        """`mark_dirty` for every update; return (any geometry, any transform)."""
-        geometry = transform = False
+        """`mark_dirty` for every update; return (any geometry, any other change to redraw)."""
+        geometry = redraw = False
         for update in updates:
             kind = self.mark_dirty(update)
             geometry |= kind == "geometry"
-            transform |= kind == "transform"
-        return geometry, transform
+            redraw |= kind in ("transform", "visibility")
+        return geometry, redraw
 
     # ------------------------------------------------------------------ sync
     def update(self, depsgraph: "bpy.types.Depsgraph") -> None:
@@ -427,6 +442,7 @@ class SceneGeometryCache:
         self._world = None
         self._world_valid = False
         self._selections.clear()
+        self._ray_flags.clear()
         self._identity = None
         if had:
             self.stats["version"] += 1

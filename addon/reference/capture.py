@@ -496,6 +496,10 @@ def capture(scene: "bpy.types.Scene", samples: int = DEFAULT_SAMPLES, *, light: 
     camera_ortho = cam_obj.data.type == "ORTHO"
     camera_clip = (float(cam_obj.data.clip_start), float(cam_obj.data.clip_end))
 
+    # Read before the reference set-up turns shadow catchers and holdouts off: the
+    # notes must name what the file has.
+    rule = ShadowRule.for_light(scene, light_obj, view_layer=layer)
+
     tmpdir = Path(tempfile.mkdtemp(prefix="omniwarp_ref_"))
     overrides = _Overrides()
     try:
@@ -513,7 +517,6 @@ def capture(scene: "bpy.types.Scene", samples: int = DEFAULT_SAMPLES, *, light: 
         say("collecting triangles (render depsgraph)")
         # The render depsgraph: render-level modifiers, hide_render, instancer flags.
         scene_triangles = render_triangles(scene, layer)
-        rule = ShadowRule.for_light(scene, light_obj)
         triangles = scene_triangles.select(rule.blocks)
         empty = {o.name for o in scene.objects
                  if o.type in _GEOMETRY_TYPES and o.name_full in visible} - scene_triangles.names

@@ -274,7 +274,7 @@ def _apply_eevee_settings(scene, view_layer, light_obj, visible: set[str], engin
 
     light = light_obj.data
     s(light, "shadow_soft_size", 0.0)
-    s(light, "use_shadow", True)
+    # use_shadow stays the file's, as in the Cycles reference: off, nothing blocks the light.
     s(light, "use_shadow_jitter", False, optional=True)
     s(light, "shadow_jitter", False, optional=True)  # an older name
     s(light, "shadow_filter_radius", 0.0, optional=True)

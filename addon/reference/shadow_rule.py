@@ -49,6 +49,8 @@ INCLUDE = "INCLUDE"
 EXCLUDE = "EXCLUDE"
 # The first Blender version with light and shadow linking (Object.light_linking).
 LINKING_SINCE = (4, 0, 0)
+# Object types whose surfaces Cycles renders (the maps get triangles from the first five).
+_SURFACE_TYPES = {"MESH", "CURVE", "SURFACE", "META", "FONT", "CURVES", "POINTCLOUD", "VOLUME"}
 # Object types Cycles renders but that give the maps no triangles.
 _UNSUPPORTED_TYPES = {"CURVES": "hair curves", "POINTCLOUD": "a point cloud", "VOLUME": "a volume"}
 # Shader nodes that make a surface (partly) transparent to shadow rays.
@@ -58,6 +60,14 @@ _SEE_THROUGH_NODES = {"BSDF_TRANSPARENT", "BSDF_REFRACTION", "BSDF_GLASS", "HOLD
 def _name(obj: Any) -> str:
     """The original ID's full name (evaluated copies carry the same name)."""
     return (getattr(obj, "original", None) or obj).name_full
+
+
+def _names(obj: Any, parent: Any) -> tuple[str, str | None]:
+    """(object, instancer or None) as original names; strings pass through."""
+    name = obj if isinstance(obj, str) else _name(obj)
+    if parent is None or isinstance(parent, str):
+        return name, parent
+    return name, _name(parent)
 
 
 def collection_states(collection: "bpy.types.Collection | None") -> dict[str, str]:
@@ -105,6 +115,11 @@ class LinkSet:
 
     def key(self) -> tuple:
         return (self.linked, tuple(sorted(self.states.items())))
+
+    @classmethod
+    def of(cls, collection: "bpy.types.Collection | None") -> "LinkSet":
+        """The set a light's linking collection (None: not linked) admits."""
+        return cls(collection_states(collection), collection is not None)
 
 
 def _linking(obj: Any, attr: str) -> "bpy.types.Collection | None":
@@ -203,10 +218,8 @@ class ShadowRule:
         return cls(
             light=light_obj.name_full,
             casts_shadows=bool(getattr(light_obj.data, "use_shadow", True)),
-            blockers=LinkSet(collection_states(_linking(light_obj, "blocker_collection")),
-                             _linking(light_obj, "blocker_collection") is not None),
-            receivers=LinkSet(collection_states(_linking(light_obj, "receiver_collection")),
-                              _linking(light_obj, "receiver_collection") is not None),
+            blockers=LinkSet.of(_linking(light_obj, "blocker_collection")),
+            receivers=LinkSet.of(_linking(light_obj, "receiver_collection")),
             blocker_named=_mentioned(objects, "blocker_collection"),
             receiver_named=_mentioned(objects, "receiver_collection"),
             no_shadow=frozenset(o.name_full for o in objects if not getattr(o, "visible_shadow", True)),
@@ -216,8 +229,7 @@ class ShadowRule:
 
     def blocks(self, obj: Any, parent: Any = None) -> bool:
         """Whether an object (or an instance of it under `parent`) blocks this light."""
-        name = obj if isinstance(obj, str) else _name(obj)
-        parent_name = None if parent is None else (parent if isinstance(parent, str) else _name(parent))
+        name, parent_name = _names(obj, parent)
         if not self.casts_shadows or name in self.no_shadow:
             return False
         if parent_name is not None and parent_name != name and parent_name in self.no_shadow:
@@ -227,15 +239,13 @@ class ShadowRule:
 
     def lights(self, obj: Any, parent: Any = None) -> bool:
         """Whether this light lights the object at all (light linking's receivers)."""
-        name = obj if isinstance(obj, str) else _name(obj)
-        parent_name = None if parent is None else (parent if isinstance(parent, str) else _name(parent))
+        name, parent_name = _names(obj, parent)
         owner = parent_name if parent_name is not None and parent_name in self.receiver_named else name
         return self.receivers.admits(owner)
 
     def seen(self, obj: Any, parent: Any = None) -> bool:
         """Whether camera rays see the object (`visible_camera`, the instancer's too)."""
-        name = obj if isinstance(obj, str) else _name(obj)
-        parent_name = None if parent is None else (parent if isinstance(parent, str) else _name(parent))
+        name, parent_name = _names(obj, parent)
         return name not in self.no_camera and (parent_name is None or parent_name not in self.no_camera)
 
     def key(self) -> tuple:
@@ -272,10 +282,12 @@ def shadow_inputs(select: Callable[[Callable[[str, str | None], bool], Hashable]
 def unfollowed(scene: "bpy.types.Scene") -> list[str]:
     """One note per thing in the scene that the rule (and the reference capture) cannot follow."""
     notes: list[str] = []
-    catchers = sorted(o.name for o in scene.objects if getattr(o, "is_shadow_catcher", False))
+    # Only rendered surfaces: lights carry the flags too (is_shadow_catcher reads True on them).
+    surfaces = [o for o in scene.objects if o.type in _SURFACE_TYPES and not o.hide_render]
+    catchers = sorted(o.name for o in surfaces if getattr(o, "is_shadow_catcher", False))
     if catchers:
         notes.append(f"shadow catcher rendered as a plain surface: {', '.join(catchers)}")
-    holdouts = sorted(o.name for o in scene.objects if getattr(o, "is_holdout", False))
+    holdouts = sorted(o.name for o in surfaces if getattr(o, "is_holdout", False))
     if holdouts:
         notes.append(f"holdout rendered as a plain surface: {', '.join(holdouts)}")
     kinds: dict[str, list[str]] = {}

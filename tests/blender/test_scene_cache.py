@@ -430,3 +430,31 @@ def test_shadow_inputs_follow_the_rule_per_light(world: World) -> None:
     assert_same_triangles(occluders["rule_linked"], plain)
     again = scene_cache.shadow_inputs(world.cache, world.scene, ["rule_lamp"])[1]["rule_lamp"]
     assert again is occluders["rule_lamp"]  # an unchanged cache hands the same selection back
+
+
+def test_a_ray_visibility_change_asks_for_a_redraw(world: World) -> None:
+    """Blender reports visible_shadow as a shading update only; the cache turns it into "visibility"
+    once per change (a material-only shading update asks for nothing)."""
+    cube = world.mesh("rule_flagged", CUBE_VERTS, CUBE_TRIS)
+    world.evaluate()
+    kinds: list[str | None] = []
+
+    def handler(scene, depsgraph) -> None:
+        if scene.name_full == world.scene.name_full:
+            kinds.extend(world.cache.mark_dirty(update) for update in depsgraph.updates)
+
+    world.feed = False
+    bpy.app.handlers.depsgraph_update_post.append(handler)
+    try:
+        cube.visible_shadow = False
+        world.depsgraph.update()
+        assert "visibility" in kinds, kinds
+        kinds.clear()
+        cube.update_tag(refresh={"OBJECT"})  # no flag changed: nothing to redraw for
+        world.depsgraph.update()
+        assert "visibility" not in kinds, kinds
+        cube.visible_shadow = True
+        world.depsgraph.update()
+        assert "visibility" in kinds, kinds
+    finally:
+        bpy.app.handlers.depsgraph_update_post.remove(handler)

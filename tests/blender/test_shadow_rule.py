@@ -216,6 +216,13 @@ def test_camera_sees_through_indirect_only_objects(feature):
     assert hits_on("no_shadow_box") > 50
 
 
+def test_the_reference_names_what_the_rule_cannot_follow(feature):
+    """The slab is a shadow catcher: captured as a plain surface, and said so in the notes."""
+    for light in ("LampA", "LampB", "LampC"):
+        notes = feature["refs"][light].meta["notes"]
+        assert notes == ["shadow catcher rendered as a plain surface: slab"], notes
+
+
 def test_lamp_c_without_shadows_has_no_occluders(feature):
     ref = feature["refs"]["LampC"]
     assert len(ref.triangles) == 0 and ref.meta["light_casts_shadows"] is False
