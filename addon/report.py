@@ -1,8 +1,11 @@
 """Report outputs of `compare`: a markdown table and the error-vs-time Pareto plot."""
 from __future__ import annotations
 
+import logging
 from collections.abc import Sequence
 from pathlib import Path
+
+log = logging.getLogger(__name__)
 
 
 def _pareto(points: list[tuple[float, float]]) -> list[tuple[float, float]]:
@@ -67,9 +70,17 @@ def write_markdown(rows: Sequence[dict], path: Path, stamp: str, command: str = 
     path.write_text("\n".join(text), encoding="utf-8")
 
 
-def write_plot(rows: Sequence[dict], path: Path) -> None:
-    """Error % against total ms per frame, one colour per preset, a marker per method."""
-    import matplotlib
+def write_plot(rows: Sequence[dict], path: Path) -> bool:
+    """Error % against total ms per frame, one colour per preset, a marker per method.
+
+    Returns False, with one log line, where matplotlib is missing (a bare GPU machine
+    runs `scripts/gpu_bench.sh` with numpy and moderngl only): the table still counts.
+    """
+    try:
+        import matplotlib
+    except ImportError:
+        log.warning("matplotlib is not installed: %s not drawn (the table and results.json are)", path.name)
+        return False
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
@@ -110,3 +121,4 @@ def write_plot(rows: Sequence[dict], path: Path) -> None:
     fig.tight_layout()
     fig.savefig(path)
     plt.close(fig)
+    return True
