@@ -8,40 +8,77 @@
 
 The method names and what each fits come from `core/methods.py`.
 
-Bad input exits with status 2 and one line naming the problem; other known
-failures exit with status 1.
+The exit contract (`core/errors.py`), the same for every command: 0 done; 2 bad
+input or environment, with one line on stderr naming the problem and what to do;
+130 interrupted (Ctrl-C), one line, temporaries removed; 1 a bug only, with its
+traceback. Input is checked before any long work starts. Result lines go to stdout;
+progress, Blender's own log and errors go to stderr.
 """
 from __future__ import annotations
 
 import argparse
 import json
 import logging
+import os
 import sys
+import traceback
 from collections.abc import Callable, Sequence
 from pathlib import Path
+from typing import TextIO
 
+from .core import interrupt
 from .core import methods as method_registry
-from .core.errors import InputError, OmniWarpError, child_stderr_tail, report_error
-from .core.presets import DEFAULT_PRESET, available_presets, select_presets
+from .core.errors import (
+    EXIT_BAD_INPUT,
+    EXIT_BUG,
+    EXIT_CONTRACT,
+    ChildProcessCrash,
+    InputError,
+    OmniWarpError,
+    child_error_line,
+    child_stderr_tail,
+    report_error,
+    report_interrupt,
+)
+from .core.outputs import StagedOutput, check_output_dir
+from .core.presets import DEFAULT_PRESET, available_presets, build_preset, select_presets
 from .core.scene import parse_size
+# capture.py imports bpy only inside functions: this import needs no Blender.
+from .reference.capture import DEFAULT_SAMPLES
 
 log = logging.getLogger("omniwarp")
 
+PROGRAM = "omniwarp"
+MAX_FRAMES = 1000
+MAX_SAMPLES = 64
+
+
+class _Parser(argparse.ArgumentParser):
+    """argparse with the exit contract: a usage error is one line and status 2."""
+
+    def error(self, message: str) -> None:  # type: ignore[override]
+        self.exit(EXIT_BAD_INPUT, f"{self.prog}: error: {message} (see {self.prog} --help)\n")
+
 
 def _parser() -> argparse.ArgumentParser:
-    parser = argparse.ArgumentParser(prog="omniwarp", description="Omnidirectional shadow maps measured against Cycles.")
+    parser = _Parser(prog=PROGRAM, description="Omnidirectional shadow maps measured against Cycles. "
+                                                "Result lines go to stdout; progress and Blender's log to stderr.",
+                     epilog=EXIT_CONTRACT)
     parser.add_argument("-v", "--verbose", action="store_true", help="log progress details")
     sub = parser.add_subparsers(dest="command", required=True)
 
-    sub.add_parser("presets", help="list presets and what each stresses")
+    sub.add_parser("presets", help="list presets and what each stresses", epilog=EXIT_CONTRACT)
 
-    ref = sub.add_parser("reference", help="build or refresh the Cycles reference cache")
+    ref = sub.add_parser("reference", help="build or refresh the Cycles reference cache", epilog=EXIT_CONTRACT)
     ref.add_argument("--preset", required=True, help="a preset, a comma list, 'all' or 'stress_all'")
     ref.add_argument("--size", default="640x480", help="camera size WxH (default 640x480)")
     ref.add_argument("--refresh", action="store_true", help="render again even when cached")
-    ref.add_argument("--samples", type=int, default=2, help="Cycles samples per pixel (1-4 suffice)")
+    ref.add_argument("--samples", type=int, default=DEFAULT_SAMPLES,
+                     help=f"Cycles samples per pixel, 1-{MAX_SAMPLES} (default {DEFAULT_SAMPLES}: exact for a hard "
+                          f"point light, and the reference compare and preview read)")
 
-    cmp_ = sub.add_parser("compare", help="measure methods against Cycles: error %% and time per stage")
+    cmp_ = sub.add_parser("compare", help="measure methods against Cycles: error %% and time per stage",
+                          epilog=EXIT_CONTRACT)
     source = cmp_.add_mutually_exclusive_group(required=True)
     source.add_argument("--preset", help="a preset, a comma list, 'all' (non-stress) or 'stress_all'")
     source.add_argument("--blend", help="a saved .blend file (its scene camera and one point/spot light)")
@@ -57,10 +94,13 @@ def _parser() -> argparse.ArgumentParser:
                          help="measure every row with and without culling, in the same run")
     cmp_.add_argument("--out", default="out/compare", help="output folder (default out/compare)")
     cmp_.add_argument("--size", default="640x480", help="camera size WxH for presets (default 640x480)")
-    cmp_.add_argument("--frames", type=int, default=3, help="timed frames per row after one warm-up (default 3)")
-    cmp_.add_argument("--no-images", action="store_true", help="skip the mismatch images")
+    cmp_.add_argument("--frames", type=int, default=3,
+                      help=f"timed frames per row after one warm-up, 1-{MAX_FRAMES} (default 3)")
+    cmp_.add_argument("--no-images", action="store_true",
+                      help="skip the mismatch images (and remove the images/ of an earlier run)")
 
-    prev = sub.add_parser("preview", help="the viewport preview and map overlay, drawn headless with Blender's gpu")
+    prev = sub.add_parser("preview", help="the viewport preview and map overlay, drawn headless with Blender's gpu",
+                          epilog=EXIT_CONTRACT)
     psource = prev.add_mutually_exclusive_group(required=True)
     psource.add_argument("--preset", help="one preset name")
     psource.add_argument("--blend", help="a saved .blend file (its scene camera)")
@@ -100,9 +140,14 @@ def _say(message: str) -> None:
     print(message, file=sys.stderr, flush=True)
 
 
-def cmd_presets(_: argparse.Namespace) -> int:
+def _result(args: argparse.Namespace, line: str) -> None:
+    """One result line on the real stdout (fd 1 carries Blender's log to stderr meanwhile)."""
+    print(line, file=getattr(args, "results", None) or sys.stdout, flush=True)
+
+
+def cmd_presets(args: argparse.Namespace) -> int:
     for info in available_presets().values():
-        print(f"{info.name:14s} {info.description}\n{'':14s} stresses: {info.stresses}")
+        _result(args, f"{info.name:14s} {info.description}\n{'':14s} stresses: {info.stresses}")
     return 0
 
 
@@ -110,32 +155,46 @@ def cmd_reference(args: argparse.Namespace) -> int:
     from .reference.cache import load_or_capture
 
     size = parse_size(args.size)
-    if not 1 <= args.samples <= 64:
-        raise InputError(f"bad --samples {args.samples}: use 1-64")
-    for name in select_presets(args.preset):
+    if not 1 <= args.samples <= MAX_SAMPLES:
+        raise InputError(f"bad --samples {args.samples}: use 1-{MAX_SAMPLES}")
+    names = select_presets(args.preset)
+    if args.samples != DEFAULT_SAMPLES:
+        _say(f"note: compare and preview read the {DEFAULT_SAMPLES}-sample reference; "
+             f"this {args.samples}-sample one is cached beside it")
+    for name in names:
         ref = load_or_capture(name, size, refresh=args.refresh, samples=args.samples, log_progress=_say)
         seconds = ref.meta.get("render_seconds", {})
-        print(f"{name}: {size[0]}x{size[1]}, {int(ref.hit.sum())} hit pixels, {len(ref.triangles)} triangles, "
-              f"key {ref.meta.get('cache_key', '?')}, render s {seconds}")
+        _result(args, f"{name}: {size[0]}x{size[1]}, {int(ref.hit.sum())} hit pixels, {len(ref.triangles)} triangles, "
+                      f"key {ref.meta.get('cache_key', '?')}, render s {seconds}")
     return 0
 
 
-def _blend_reference(args: argparse.Namespace) -> Callable[[], object]:
-    path = Path(args.blend)
-    if not path.is_file():
-        raise InputError(f"--blend file not found: {path}")
-    if path.suffix.lower() != ".blend":
-        raise InputError(f"--blend expects a .blend file, got {path.name}")
+def _need_bpy(option: str) -> None:
+    """InputError (exit 2) when bpy is missing, before anything is loaded."""
+    import importlib.util
+
+    if importlib.util.find_spec("bpy") is None:
+        raise InputError(f"{option} needs the bpy module (pip install bpy==5.2.3)")
+
+
+def _blend_reference(args: argparse.Namespace, check: Callable[[str], None] | None = None) -> Callable[[], object]:
+    """The loader of a --blend reference; the file is checked now, before any long work.
+
+    `check(emission)` runs once the light is known and before Cycles renders.
+    """
+    from .reference.blend_file import check_blend_file
+
+    path = check_blend_file(args.blend)
+    _need_bpy("--blend")
 
     def load():
-        try:
-            import bpy
-        except ImportError:
-            raise InputError("--blend needs the bpy module (pip install bpy==5.2.3)") from None
+        import bpy
+
+        from .reference.blend_file import open_blend
         from .reference.capture import capture
 
         # Loading replaces bpy's in-memory data only; nothing is ever saved back.
-        bpy.ops.wm.open_mainfile(filepath=str(path.resolve()), load_ui=False)
+        open_blend(path)
         scene = bpy.context.scene
         if args.camera:
             cam = bpy.data.objects.get(args.camera)
@@ -144,113 +203,260 @@ def _blend_reference(args: argparse.Namespace) -> Callable[[], object]:
             scene.camera = cam
         if args.light and (bpy.data.objects.get(args.light) is None):
             raise InputError(f"--light {args.light!r}: no object of that name in {path.name}")
-        _say(f"rendering Cycles reference of {path.name}")
-        return capture(scene, light=args.light, progress=_say)
+        def checked(emission: str) -> None:
+            if check is not None:
+                check(emission)
+            # Said only once the file, its light and camera passed: bad input stays one line.
+            _say(f"rendering Cycles reference of {path.name}")
+
+        return capture(scene, light=args.light, progress=_say, check=checked)
 
     return load
 
 
 def cmd_compare(args: argparse.Namespace) -> int:
-    from .compare import CompareOptions, parse_resolutions, run_compare
+    from .compare import CompareOptions, check_methods_fit, parse_resolutions, run_compare
     from .render.moderngl_backend import ModernGLBackend
     from .render.pipeline import ShadowPipeline
 
+    # Everything the user typed is checked here, before any render or measurement.
     methods = method_registry.parse_methods(args.methods)
     resolutions = parse_resolutions(args.resolutions)
-    if args.frames < 1:
-        raise InputError(f"bad --frames {args.frames}: at least 1")
+    if not 1 <= args.frames <= MAX_FRAMES:
+        raise InputError(f"bad --frames {args.frames}: use 1-{MAX_FRAMES}")
     if args.preset is not None and (args.light or args.camera):
         raise InputError("--light and --camera apply to --blend only")
+    out = check_output_dir(args.out)
     if args.preset is not None:
         size = parse_size(args.size)
         from .reference.cache import load_or_capture
 
         names = select_presets(args.preset)
+        # Building a preset is cheap (no Blender): its light says which methods fit.
+        check_methods_fit(methods, {name: build_preset(name, size).light.emission for name in names})
         references = {name: (lambda n=name: load_or_capture(n, size, log_progress=_say)) for name in names}
         sources = {name: ["--preset", name, "--size", f"{size[0]}x{size[1]}"] for name in names}
     else:
-        references = {Path(args.blend).stem: _blend_reference(args)}
-        sources = {Path(args.blend).stem: ["--blend", str(Path(args.blend).resolve())]
+        stem = Path(args.blend).stem
+        references = {stem: _blend_reference(args, check=lambda emission: check_methods_fit(methods, {stem: emission}))}
+        sources = {stem: ["--blend", str(Path(args.blend).resolve())]
                    + (["--light", args.light] if args.light else [])
                    + (["--camera", args.camera] if args.camera else [])}
     options = CompareOptions(methods, resolutions, cull=not args.no_cull, cull_both=args.cull_both, frames=args.frames,
-                             out_dir=Path(args.out), write_images=not args.no_images,
+                             out_dir=out, write_images=not args.no_images,
                              command="omniwarp " + " ".join(args.argv))
     rows = run_compare(references, options, lambda: ShadowPipeline(ModernGLBackend()), sources)
     for row in rows:
-        print(f"{row['preset']:12s} {row['method']:6s} {row['resolution']:5d}  error {row['error_pct']:6.3f} %  "
-              f"total {row['time_ms']['total']:8.1f} ms  passes {row['passes']}")
+        _result(args, f"{row['preset']:12s} {row['method']:6s} {row['resolution']:5d}  "
+                      f"error {row['error_pct']:6.3f} %  total {row['time_ms']['total']:8.1f} ms  passes {row['passes']}")
     return 0
 
 
 def cmd_preview(args: argparse.Namespace) -> int:
     """Reference first (Cycles, this process), then the Blender gpu backend in a child process."""
-    import os
     import subprocess
-    import tempfile
 
     from .compare import parse_resolutions
 
     # The method is checked here, before any Cycles render: unknown or external (eevee) at
     # once, a misfit as soon as the light's emission is known (a preset's from its spec,
-    # a .blend's once its reference is rendered).
+    # a .blend's once its light is picked, before its reference renders).
     entry = _preview_method(args.method)  # None: chosen by the light (worker)
     resolution = parse_resolutions(str(args.resolution))[0]
+    out = check_output_dir(args.out)
+
+    def fits(emission: str) -> None:
+        if entry is not None:
+            method_registry.check_fits(entry.name, emission, pipeline_only=True)
+
     if args.preset is not None:
         if "," in args.preset or args.preset in ("all", "stress_all"):
             raise InputError("preview takes one preset name")
         name = select_presets(args.preset)[0]
         size = parse_size(args.size)
-        if entry is not None:
-            from .core.presets import build_preset
-
-            method_registry.check_fits(entry.name, build_preset(name, size).light.emission, pipeline_only=True)
+        fits(build_preset(name, size).light.emission)
+        _need_bpy("preview")
         from .reference.cache import load_or_capture
 
         reference = load_or_capture(name, size, log_progress=_say)
         source = ["--preset", name]
     else:
         args.camera = None
-        reference = _blend_reference(args)()
+
+        def check(emission: str) -> None:
+            fits(emission)
+            _check_stored_settings(args.light)
+
+        load = _blend_reference(args, check=check)
+        reference = load()
         source = ["--blend", str(Path(args.blend).resolve())] + (["--light", args.light] if args.light else [])
-    if entry is not None:
-        method_registry.check_fits(entry.name, reference.emission, pipeline_only=True)
+    fits(reference.emission)
     method = entry.name if entry is not None else None
-    out = Path(args.out)
-    out.mkdir(parents=True, exist_ok=True)
-    with tempfile.TemporaryDirectory(prefix="omniwarp_preview_") as tmp:
-        ref_path = reference.save(Path(tmp) / "reference.npz")
+    with StagedOutput(out) as stage, interrupt.temporary_dir("omniwarp_preview_") as tmp:
+        ref_path = reference.save(tmp / "reference.npz")
         env = dict(os.environ)
         repo_root = str(Path(__file__).resolve().parents[1])
         env["PYTHONPATH"] = repo_root + os.pathsep + env.get("PYTHONPATH", "")
+        # Blender's session folder goes inside ours: gone with it even if the child is killed.
+        env["TMPDIR"] = str(tmp)
+        _say("drawing the preview with Blender's gpu (child process)")
         # One GL owner per process: Blender's gpu runs in a child (DESIGN.md section 3).
-        proc = subprocess.run([sys.executable, "-m", "addon.blender.headless", *source,
-                               "--reference", str(ref_path), "--out", str(out.resolve()),
-                               *(["--method", method] if method else []), "--resolution", str(resolution)],
-                              env=env, cwd=repo_root, capture_output=True, text=True)
-    if proc.returncode != 0:
-        raise OmniWarpError(f"the preview process failed (exit {proc.returncode}):\n{child_stderr_tail(proc.stderr)}")
-    print(f"wrote {out / 'preview.png'}, {out / 'overlay.png'}, {out / 'preview.json'}")
+        proc: subprocess.Popen | None = None
+        try:
+            with interrupt.deferred():  # a Ctrl-C during the start must not orphan the child
+                proc = subprocess.Popen([sys.executable, "-m", "addon.blender.headless", *source,
+                                         "--reference", str(ref_path), "--out", str(stage.path),
+                                         *(["--method", method] if method else []), "--resolution", str(resolution)],
+                                        env=env, cwd=repo_root, stdout=subprocess.PIPE, stderr=subprocess.PIPE,
+                                        text=True, errors="replace")
+            _, stderr = proc.communicate()
+        except BaseException:
+            if proc is not None:
+                interrupt.stop_child(proc)  # Ctrl-C: the child goes too, and nothing is moved into place
+            raise
+        if proc.returncode == EXIT_BAD_INPUT and child_error_line(stderr):
+            raise InputError(child_error_line(stderr))
+        if proc.returncode != 0:
+            raise ChildProcessCrash(f"the preview process crashed (exit {proc.returncode}):\n"
+                                    f"{child_stderr_tail(stderr)}")
+        stage.commit()
+    _result(args, f"wrote {out / 'preview.png'}, {out / 'overlay.png'}, {out / 'preview.json'}")
     report = json.loads((out / "preview.json").read_text())
-    print(f"error {report['error_pct']:.3f} % of {report['evaluated_pixels']} px; "
-          f"total {report['time_ms']['total']:.1f} ms (+ G-buffer {report['time_ms']['gbuffer']:.1f} ms)")
+    _result(args, f"error {report['error_pct']:.3f} % of {report['evaluated_pixels']} px; "
+                  f"total {report['time_ms']['total']:.1f} ms (+ G-buffer {report['time_ms']['gbuffer']:.1f} ms)")
     return 0
+
+
+def _check_stored_settings(light_name: str | None) -> None:
+    """The OmniWarp settings saved on the loaded file's lights, checked with the
+    pipeline's own rules before the Cycles render: a NaN or infinite bias is refused
+    here rather than after the reference. Read raw (the ID properties under "omniwarp"):
+    the add-on is registered in the preview's child process only."""
+    import bpy
+
+    from .render.pipeline import BiasSettings
+
+    default = BiasSettings()
+    for obj in bpy.context.scene.objects:
+        if obj.type != "LIGHT" or (light_name and obj.name != light_name):
+            continue
+        # Blender 5 keeps bpy.props values as "system properties"; 4.x in the custom ones.
+        group = obj.data.bl_system_properties_get() if hasattr(obj.data, "bl_system_properties_get") else obj.data
+        stored = group.get("omniwarp") if group is not None else None
+        if stored is None or not stored.get("enabled", False):
+            continue
+        try:
+            BiasSettings(**{name: stored.get(f"bias_{name}", getattr(default, name))
+                            for name in ("constant", "slope", "normal")})
+        except InputError as exc:
+            raise InputError(f"light {obj.name!r}: {exc} (its OmniWarp settings)") from None
 
 
 COMMANDS = {"presets": cmd_presets, "reference": cmd_reference, "compare": cmd_compare, "preview": cmd_preview}
 
 
+class ResultStreams:
+    """While a command runs, file descriptor 1 is taken from the terminal, so that
+    Blender's log ("Read blend", "Saved: ...pass.exr", written from C to fd 1) never
+    mixes with the results: `results` writes to the real stdout.
+
+    Blender's log is kept in a temporary file (`log_tail()` shows its end after a bug)
+    or, with --verbose, goes to stderr. When sys.stdout is not descriptor 1 (a test's
+    capture), it is the results stream itself and only the descriptor is redirected.
+    """
+
+    def __init__(self, verbose: bool = False) -> None:
+        self.verbose = verbose
+        self.results: TextIO = sys.stdout
+        self._saved: int | None = None
+        self._log: TextIO | None = None
+
+    def __enter__(self) -> "ResultStreams":
+        import tempfile
+
+        stream = sys.stdout
+        try:
+            stream.flush()
+            own = stream.fileno() == 1
+        except (AttributeError, OSError, ValueError):
+            own = False
+        try:
+            self._saved = os.dup(1)
+        except OSError:
+            return self  # no descriptor 1 at all: nothing to keep apart
+        if self.verbose:
+            os.dup2(2, 1)
+        else:
+            self._log = tempfile.TemporaryFile(mode="w+", encoding="utf-8", errors="replace")
+            os.dup2(self._log.fileno(), 1)
+        if own:
+            self.results = os.fdopen(os.dup(self._saved), "w", buffering=1, errors="replace",
+                                     encoding=getattr(stream, "encoding", None) or "utf-8")
+        return self
+
+    def log_tail(self, limit: int = 4000) -> str:
+        """The end of Blender's captured log ("" with --verbose, where it went to stderr)."""
+        if self._log is None:
+            return ""
+        try:
+            sys.stdout.flush()
+            self._log.seek(0)
+            return self._log.read()[-limit:]
+        except (OSError, ValueError):
+            return ""
+
+    def __exit__(self, *exc_info) -> None:
+        if self._saved is None:
+            return
+        if self.results is not sys.stdout:
+            try:
+                self.results.close()
+            except OSError as exc:  # e.g. a closed pipe: the results are gone either way
+                log.debug("closing the results stream: %s", exc)
+        try:
+            sys.stdout.flush()
+        except (OSError, ValueError) as exc:
+            log.debug("flushing stdout: %s", exc)
+        os.dup2(self._saved, 1)
+        os.close(self._saved)
+        self._saved = None
+
+
 def main(argv: Sequence[str] | None = None) -> int:
-    """Entry point of the `omniwarp` console script."""
+    """Entry point of the `omniwarp` console script (and `python -m addon`).
+
+    Called without `argv` the process is the command's own: Ctrl-C during a Cycles
+    render then ends it at once (`core/interrupt.py`). Called with `argv` (from Python,
+    a test) an interrupt is raised when the render returns instead.
+    """
+    own_process = argv is None
     argv = list(sys.argv[1:] if argv is None else argv)
     args = _parser().parse_args(argv)
     args.argv = argv
     logging.basicConfig(level=logging.INFO if args.verbose else logging.WARNING,
                         format="%(levelname)s %(name)s: %(message)s")
+    streams = ResultStreams(verbose=args.verbose)
     try:
-        return COMMANDS[args.command](args)
+        with interrupt.handling(PROGRAM, exit_at_once=own_process), streams:
+            args.results = streams.results
+            try:
+                return COMMANDS[args.command](args)
+            except (KeyboardInterrupt, OmniWarpError):
+                raise
+            except Exception:  # noqa: BLE001 - re-raised below, with Blender's log
+                blender_log = streams.log_tail()
+                if blender_log.strip():
+                    print(f"--- the end of Blender's log ---\n{blender_log.rstrip()}\n---", file=sys.stderr)
+                raise
+    except KeyboardInterrupt as exc:  # Interrupted, or Python's own before the handler was in place
+        return report_interrupt(PROGRAM, exc)
     except OmniWarpError as exc:
-        return report_error("omniwarp", exc)
+        return report_error(PROGRAM, exc)
+    except Exception:  # noqa: BLE001 - the contract: anything unnamed is a bug, shown in full
+        traceback.print_exc()
+        print(f"{PROGRAM}: internal error: this is a bug; please report it with the traceback above",
+              file=sys.stderr, flush=True)
+        return EXIT_BUG
 
 
 if __name__ == "__main__":

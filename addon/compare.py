@@ -22,6 +22,7 @@ from .core import metrics
 from .core import methods as method_registry
 from .core.errors import InputError
 from .core.methods import DEFAULT_METHODS
+from .core.outputs import StagedOutput
 from .core.scene import POINT_EMISSIONS, PROJECTIVE_EMISSIONS, CameraSpec, LightSpec
 from .reference.data import ReferenceData
 from .render.blender_draw import pool_image
@@ -271,6 +272,16 @@ def check_rows(rows: Sequence[dict]) -> None:
             raise ValueError(f"non-finite value in row {row['preset']}/{row['method']}/{row['resolution']}")
 
 
+def check_methods_fit(methods: Sequence[str], emissions: dict[str, str]) -> None:
+    """InputError, before any render, when no requested method fits any of the lights
+    (`emissions`: preset or file -> the emission of its light). A method that fits only
+    some lights is not an error: the others skip it with a note."""
+    if any(method_registry.method(m).fits(emission) for m in methods for emission in emissions.values()):
+        return
+    raise InputError(f"no requested method fits the light of {', '.join(sorted(emissions))}; "
+                     f"{method_registry.fits_text('omni')}; {method_registry.fits_text('sun')}")
+
+
 def run_compare(references: dict[str, Callable[[], ReferenceData]], options: CompareOptions,
                 pipeline_factory: Callable[[], ShadowPipeline],
                 sources: dict[str, list[str]] | None = None) -> list[dict]:
@@ -278,9 +289,30 @@ def run_compare(references: dict[str, Callable[[], ReferenceData]], options: Com
 
     `sources` gives, per reference, the child-process arguments (`--preset NAME --size WxH`
     or `--blend FILE ...`) that the external `eevee` rows rebuild the scene from.
+    Everything is written into a staging folder beside `options.out_dir` and moved into
+    place at the end (`core/outputs.py`): a failed or interrupted run leaves the earlier
+    results as they were, and a finished one leaves no image of an earlier run.
     """
-    out = Path(options.out_dir)
-    out.mkdir(parents=True, exist_ok=True)
+    # A run without matplotlib draws no plot: an earlier run's plot must not stay beside it.
+    with StagedOutput(options.out_dir, replaces=("images", "error_vs_time.png")) as stage:
+        rows = _measure(references, options, pipeline_factory, sources, stage.path)
+        stamp = _dt.datetime.now(_dt.timezone.utc).strftime("%Y-%m-%d %H:%M UTC")
+        (stage.path / "results.json").write_text(json.dumps(rows, indent=1), encoding="utf-8")
+        from .report import write_markdown, write_plot
+
+        write_markdown(rows, stage.path / "report.md", stamp, options.command)
+        plotted = write_plot(rows, stage.path / "error_vs_time.png")
+        stage.commit()
+    out = stage.target
+    written = [out / "results.json", out / "report.md"] + ([out / "error_vs_time.png"] if plotted else [])
+    print(f"wrote {len(rows)} rows to {', '.join(str(p) for p in written)}", file=sys.stderr)
+    return rows
+
+
+def _measure(references: dict[str, Callable[[], ReferenceData]], options: CompareOptions,
+             pipeline_factory: Callable[[], ShadowPipeline], sources: dict[str, list[str]] | None,
+             out: Path) -> list[dict]:
+    """Every row of `run_compare`, with the mismatch images written under `out/images`."""
     image_dir = out / "images" if options.write_images else None
     pipeline_methods = [m for m in options.methods if method_registry.method(m).pipeline]
     external = [m for m in options.methods if method_registry.method(m).external]
@@ -325,12 +357,4 @@ def run_compare(references: dict[str, Callable[[], ReferenceData]], options: Com
         raise InputError(f"no requested method fits the light of {presets}; {method_registry.fits_text('omni')}; "
                          f"{method_registry.fits_text('sun')}")
     check_rows(rows)
-    stamp = _dt.datetime.now(_dt.timezone.utc).strftime("%Y-%m-%d %H:%M UTC")
-    (out / "results.json").write_text(json.dumps(rows, indent=1), encoding="utf-8")
-    from .report import write_markdown, write_plot
-
-    write_markdown(rows, out / "report.md", stamp, options.command)
-    write_plot(rows, out / "error_vs_time.png")
-    print(f"wrote {len(rows)} rows to {out / 'results.json'}, {out / 'report.md'}, {out / 'error_vs_time.png'}",
-          file=sys.stderr)
     return rows

@@ -223,7 +223,9 @@ def _load_scene(args: argparse.Namespace, reference: ReferenceData):
         from ..reference.blender_scene import build_blender_scene
 
         return build_blender_scene(build_preset(args.preset, reference.resolution))
-    bpy.ops.wm.open_mainfile(filepath=str(Path(args.blend).resolve()), load_ui=False)
+    from ..reference.blend_file import open_blend
+
+    open_blend(args.blend)
     return bpy.context.scene
 
 

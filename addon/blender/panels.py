@@ -15,6 +15,7 @@ from .properties import (
     enabled_light_objects,
     is_narrow_spot,
     is_supported_light,
+    settings_problem,
     stored_parameterization,
     takes_warp,
     valid_parameterizations,
@@ -78,6 +79,14 @@ class OMNIWARP_PT_light(bpy.types.Panel):
         layout.use_property_split = True
         layout.use_property_decorate = False
         layout.active = props.enabled
+
+        problem = settings_problem(light, getattr(context, "object", None))
+        if problem:
+            # A NaN or infinite value set from Python: the preview pauses instead of drawing it.
+            alert = layout.box()
+            alert.alert = True
+            alert.label(text="Cannot be drawn, preview paused:", icon="ERROR")
+            alert.label(text=problem[:120])
 
         emission = effective_emission(light)
         if light.type in _EMISSION_CHOICE_TYPES:

@@ -28,6 +28,7 @@ import numpy as np
 from bpy.props import BoolProperty, EnumProperty, FloatProperty, IntProperty
 
 from ..core import frames
+from ..core.errors import InputError
 from ..core.frames import POINT_PARAMETERIZATIONS, PROJECTIVE_PARAMETERIZATIONS
 from ..core.methods import PARAMETERIZATION_TEXT, WARP_TEXT
 from ..core.scene import PROJECTIVE_EMISSIONS, Emission, LightSpec, spot_emission
@@ -384,14 +385,19 @@ def shadow_settings_for(light: bpy.types.Light) -> ShadowSettings:
     """
     props = light.omniwarp
     parameterization = effective_parameterization(light)
-    return ShadowSettings(
-        parameterization=parameterization,
-        resolution=int(props.resolution),
-        bias=BiasSettings(
+    try:
+        bias = BiasSettings(
             constant=_ui_float(props.bias_constant),
             slope=_ui_float(props.bias_slope),
             normal=_ui_float(props.bias_normal),
-        ),
+        )
+    except InputError as exc:
+        # A NaN or infinite bias set from Python: named with its light, never drawn.
+        raise InputError(f"light {light.name!r}: {exc}") from None
+    return ShadowSettings(
+        parameterization=parameterization,
+        resolution=int(props.resolution),
+        bias=bias,
         cull=bool(props.cull),
         warp=effective_warp(light, parameterization),
     )
@@ -407,7 +413,22 @@ def light_spec_for(obj: bpy.types.Object) -> LightSpec:
     emission = effective_emission(light)
     # Only a spot cone has a cone angle; the other emissions keep LightSpec's default.
     cone = {"spot_size": float(light.spot_size)} if emission == "spot" else {}
-    return LightSpec(emission=emission, matrix_world=matrix, energy=float(light.energy), **cone)
+    try:
+        return LightSpec(emission=emission, matrix_world=matrix, energy=float(light.energy), **cone)
+    except InputError as exc:
+        raise InputError(f"light {obj.name!r}: {exc}") from None
+
+
+def settings_problem(light: bpy.types.Light, obj: bpy.types.Object | None = None) -> str:
+    """Why a light's OmniWarp settings (and, given its object, its energy and transform)
+    cannot be drawn, "" if they can: the pipeline's own checks, for the light panel."""
+    try:
+        shadow_settings_for(light)
+        if obj is not None and obj.data == light:
+            light_spec_for(obj)
+    except InputError as exc:
+        return str(exc)
+    return ""
 
 
 # ----------------------------------------------------------------------------

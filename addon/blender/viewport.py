@@ -25,6 +25,8 @@ from typing import Any
 import bpy
 import numpy as np
 
+from ..core import validate
+from ..core.errors import InputError
 from ..core.scene import camera_from_matrices
 from ..render.pipeline import ShadowPipeline, ViewSamples, count_statistics
 from . import properties
@@ -227,7 +229,9 @@ def draw_view(scene: bpy.types.Scene, depsgraph, view_matrix: np.ndarray, projec
     from .scene_cache import CACHE, shadow_inputs
 
     settings = scene.omniwarp
-    scale = settings.camera_resolution_scale
+    # NaN set from Python passes Blender's clamping: refuse it rather than draw garbage.
+    validate.finite_number("shadow strength", settings.shadow_strength, 0.0, 1.0)
+    scale = validate.finite_number("sample scale", settings.camera_resolution_scale, 0.1, 1.0)
     size = (max(8, int(target_size[0] * scale)), max(8, int(target_size[1] * scale)))
     key = _view_key(view_matrix, projection, size)
     cached = _STATE.results.get(region_key)
@@ -297,7 +301,15 @@ def _draw() -> None:
 
 
 def report_draw_error(exc: BaseException) -> None:
-    """Log a draw failure once (with its traceback) and keep it for the UI."""
+    """Log a draw failure once and keep it for the UI: a setting that cannot be drawn
+    (InputError, e.g. a NaN bias) as a warning naming it, anything else with its traceback."""
+    if isinstance(exc, InputError):
+        message = str(exc)
+        _STATE.last_error = message
+        if message not in _STATE.reported:
+            _STATE.reported.add(message)
+            log.warning("OmniWarp preview paused until the setting is fixed: %s", message)
+        return
     message = f"{type(exc).__name__}: {exc}"
     _STATE.last_error = message
     if message not in _STATE.reported:

@@ -1,7 +1,12 @@
-"""Named exceptions shared by every layer.
+"""Named exceptions shared by every layer, and the exit contract of the commands.
 
-Each carries a message meant for the user: it names the input at fault and what
-would fix it. The CLI turns them into a non-zero exit with that message.
+Each exception carries a message meant for the user: it names the input at fault and
+what would fix it. The commands (`omniwarp`, and its child processes) exit with:
+
+    0    done
+    2    bad input or environment: every OmniWarpError, as ONE line on stderr
+    130  interrupted (Ctrl-C or SIGTERM): one line; temporaries removed
+    1    a bug only: anything else, with its traceback, to be reported
 """
 from __future__ import annotations
 
@@ -32,21 +37,60 @@ class ReferenceCaptureError(OmniWarpError):
     """The Cycles reference could not be rendered, read or loaded from cache."""
 
 
-# Exit codes of the commands (omniwarp, and its child processes): bad input, other failure.
+class ChildProcessCrash(Exception):
+    """A child process (the EEVEE renderer, the preview) ended without its one-line
+    error: a bug, reported with the child's traceback. Not an OmniWarpError on purpose."""
+
+
+class Interrupted(KeyboardInterrupt):
+    """Ctrl-C (SIGINT) or SIGTERM reached a command (`core/interrupt.py`).
+
+    A KeyboardInterrupt, so that no `except Exception` on the way swallows it; the
+    message says where the run stopped.
+    """
+
+
+EXIT_OK = 0
 EXIT_BAD_INPUT = 2
-EXIT_FAILURE = 1
+EXIT_INTERRUPTED = 130  # 128 + SIGINT, what a shell reports for Ctrl-C
+EXIT_BUG = 1
+EXIT_FAILURE = EXIT_BUG  # the old name: since the exit contract, status 1 means a bug only
+
+# The contract as the commands' --help and the README state it.
+EXIT_CONTRACT = ("exit status: 0 done; 2 bad input or environment (one line on stderr names the problem "
+                 "and what to do); 130 interrupted (Ctrl-C; temporaries removed, earlier results untouched); "
+                 "1 a bug (with its traceback, please report it)")
+
+
+def one_line(text: str) -> str:
+    """A message on one line: its lines joined with '; ' (the contract allows one line)."""
+    return "; ".join(part.strip() for part in str(text).splitlines() if part.strip())
 
 
 def report_error(program: str, exc: OmniWarpError) -> int:
-    """Print a command's one-line error on stderr and return its exit code."""
-    if isinstance(exc, InputError):
-        print(f"{program}: error: {exc}", file=sys.stderr)
-        return EXIT_BAD_INPUT
-    print(f"{program}: failed: {exc}", file=sys.stderr)
-    return EXIT_FAILURE
+    """Print a command's one-line error on stderr and return its exit code (2)."""
+    print(f"{program}: error: {one_line(str(exc))}", file=sys.stderr, flush=True)
+    return EXIT_BAD_INPUT
+
+
+def report_interrupt(program: str, exc: BaseException) -> int:
+    """Print the one line of an interrupted command and return its exit code (130)."""
+    where = one_line(str(exc)) if isinstance(exc, Interrupted) and str(exc) else "interrupted"
+    print(f"{program}: {where}; temporary files removed, earlier results untouched", file=sys.stderr, flush=True)
+    return EXIT_INTERRUPTED
 
 
 def child_stderr_tail(text: str, limit: int = 2000) -> str:
     """The end of a child process's stderr for an error message, without Mesa's
     harmless EGL_BAD_MATCH lines."""
     return "\n".join(line for line in text.splitlines() if "EGL_BAD" not in line)[-limit:]
+
+
+def child_error_line(text: str) -> str | None:
+    """The one-line message of a child that exited with EXIT_BAD_INPUT: its last line
+    of the form 'PROGRAM: error: MESSAGE' gives MESSAGE; None when there is none."""
+    for line in reversed(text.splitlines()):
+        head, sep, message = line.partition(": error: ")
+        if sep and message.strip() and head.strip().startswith("omniwarp"):
+            return message.strip()
+    return None

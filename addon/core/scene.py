@@ -16,6 +16,7 @@ from typing import Literal
 
 import numpy as np
 
+from . import validate
 # CameraSpec lives in camera.py; it is re-exported here, where the other scene types are.
 from .camera import CameraSpec, blender_camera_window, camera_from_matrices  # noqa: F401
 from .errors import InputError
@@ -72,6 +73,11 @@ class LightSpec:
     def __post_init__(self) -> None:
         if self.emission not in ("omni", "hemi", "spot", "sun"):
             raise InputError(f"unknown light emission {self.emission!r}; use omni, hemi, spot or sun")
+        # A NaN or infinite transform would plan no layer and evaluate no pixel: refuse it here,
+        # where every caller (presets, references, the UI) passes.
+        self.matrix_world = validate.finite_matrix("the light's transform (matrix_world)", self.matrix_world)
+        self.energy = validate.finite_number("the light's energy", self.energy, low=0.0)
+        self.spot_size = validate.finite_number("the light's spot size (radians)", self.spot_size)
         if self.emission == "spot" and not (float(self.spot_size) > 0.0 and spot_emission(self.spot_size) == "spot"):
             raise InputError(f"spot cone {math.degrees(self.spot_size):.4g} degrees is outside (0, 179): "
                              "a cone of 179 degrees or more is the hemispherical light")

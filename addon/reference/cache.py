@@ -6,6 +6,12 @@ version, the resolution, the sample count and `capture.CAPTURE_VERSION`.
 
 Where: `cache_dir` if given, else the folder named by $OMNIWARP_CACHE, else
 `<repo>/.cache/reference/`. Files are `<preset>_<W>x<H>_<key>.npz`.
+
+The sample count stays in the key (later samples move off the pixel centre on 5.2, so
+they change the reference); every command defaults to `capture.DEFAULT_SAMPLES`, so
+`omniwarp reference` fills the file `compare` and `preview` read. Files are written
+under a temporary name and renamed (`ReferenceData.save`); a file that cannot be read
+is named in one warning and rendered again, which replaces it.
 """
 from __future__ import annotations
 
@@ -153,7 +159,9 @@ def load_or_capture(preset: str, resolution: tuple[int, int] = DEFAULT_RESOLUTIO
             except ReferenceCaptureError as exc:
                 if version is None:
                     raise
-                log.warning("cached reference unusable, rendering again: %s", exc)
+                # A damaged file (a run killed mid-write before writes were atomic, a full
+                # disk, a copy cut short) heals: one line, then rendered and replaced.
+                log.warning("%s; rendering it again", exc)
 
     if version is None:
         raise ReferenceCaptureError(
@@ -163,11 +171,31 @@ def load_or_capture(preset: str, resolution: tuple[int, int] = DEFAULT_RESOLUTIO
         )
     key = cache_key(fields)
     path = cache_path(preset, resolution, key, folder)
+    check_cache_dir(folder)  # before the render, not after it
     say = log_progress or (lambda message: None)
     say(f"rendering Cycles reference of {preset} at {resolution[0]}x{resolution[1]}")
     start = time.perf_counter()
     ref = _capture_preset(preset, resolution, samples, log_progress)
     ref.meta.update(preset=preset, cache_key=key, key_fields=fields)
-    ref.save(path)
+    try:
+        ref.save(path)  # a temporary name, renamed into place (ReferenceData.save)
+    except OSError as exc:
+        raise ReferenceCaptureError(f"cannot write the reference cache file {path}: {exc.strerror or exc}; "
+                                    f"set {CACHE_ENV} to a writable folder") from exc
     say(f"reference of {preset} cached in {time.perf_counter() - start:.1f} s: {path}")
     return ref
+
+
+def check_cache_dir(folder: Path) -> None:
+    """The cache folder exists (created if need be) and is writable; a one-line
+    ReferenceCaptureError naming $OMNIWARP_CACHE otherwise."""
+    if folder.exists() and not folder.is_dir():
+        raise ReferenceCaptureError(f"the reference cache folder {folder} is a file; set {CACHE_ENV} to a folder")
+    try:
+        folder.mkdir(parents=True, exist_ok=True)
+    except OSError as exc:
+        raise ReferenceCaptureError(f"cannot create the reference cache folder {folder}: "
+                                    f"{exc.strerror or exc}; set {CACHE_ENV} to a writable folder") from exc
+    if not os.access(folder, os.W_OK | os.X_OK):
+        raise ReferenceCaptureError(f"the reference cache folder {folder} is not writable; "
+                                    f"set {CACHE_ENV} to a writable folder")

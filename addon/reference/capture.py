@@ -27,15 +27,15 @@ from __future__ import annotations
 import logging
 import math
 import shutil
-import tempfile
 import time
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, Callable
 
 import numpy as np
 
+from ..core import interrupt, validate
 from ..core.camera import Window, blender_camera_window, window_fov_deg
-from ..core.errors import ReferenceCaptureError
+from ..core.errors import InputError, ReferenceCaptureError
 from ..core.scene import orthonormalize, spot_emission
 from .data import ReferenceData
 from .render_geometry import GEOMETRY_TYPES, render_triangles
@@ -402,16 +402,40 @@ def set_pass_output(render, filepath: str, overrides: _Overrides) -> None:
     s(image, "exr_codec", "ZIP", optional=True)
 
 
-def _render(scene, view_layer, path: Path) -> float:
-    """Render one still into `path` (multilayer EXR); return wall seconds."""
+def _render(scene, view_layer, path: Path, what: str = "Cycles render") -> float:
+    """Render one still into `path` (multilayer EXR); return wall seconds.
+
+    Python cannot interrupt the render: `interrupt.blocking` lets the command's own
+    process stop at once on Ctrl-C, and otherwise raises as soon as it returns.
+    """
     import bpy
 
+    # Blender removes its session folder when the process ends normally; an
+    # immediate exit on Ctrl-C must remove it as well.
+    if bpy.app.tempdir:
+        interrupt.register_temporary(Path(bpy.app.tempdir))
     start = time.perf_counter()
-    result = bpy.ops.render.render(write_still=True, scene=scene.name, layer=view_layer.name)
+    with interrupt.blocking(what):
+        result = bpy.ops.render.render(write_still=True, scene=scene.name, layer=view_layer.name)
     seconds = time.perf_counter() - start
     if "FINISHED" not in result or not path.exists():
         raise ReferenceCaptureError(f"Cycles render of scene {scene.name!r} failed (no {path.name} written)")
     return seconds
+
+
+def _check_finite_transforms(light_obj, cam_obj, depsgraph) -> None:
+    """A light or camera with a NaN or infinite transform renders nothing useful (and
+    the shadow maps evaluate no pixel): refuse it before any render, by name."""
+    for obj, what in ((light_obj, "light"), (cam_obj, "camera")):
+        matrix = np.array(obj.evaluated_get(depsgraph).matrix_world, dtype=np.float64)
+        try:
+            validate.finite_matrix(f"{what} {obj.name!r}: its transform", matrix)
+        except InputError as exc:
+            raise ReferenceCaptureError(str(exc)) from None
+    clip = (float(cam_obj.data.clip_start), float(cam_obj.data.clip_end))
+    if not all(math.isfinite(v) for v in clip) or not 0.0 < clip[0] < clip[1]:
+        raise ReferenceCaptureError(f"camera {cam_obj.name!r} has clip start/end {clip[0]:g}/{clip[1]:g}; "
+                                    "they must be finite with 0 < start < end")
 
 
 def _remove_dir(path: Path) -> None:
@@ -453,12 +477,14 @@ def _stack(channels: dict[str, np.ndarray], layer: str, name: str, comps: str) -
 
 
 def capture(scene: "bpy.types.Scene", samples: int = DEFAULT_SAMPLES, *, light: "bpy.types.Object | str | None" = None,
-            view_layer: str | None = None, progress: Progress | None = None) -> ReferenceData:
+            view_layer: str | None = None, progress: Progress | None = None,
+            check: Callable[[str], None] | None = None) -> ReferenceData:
     """Render the Cycles reference of `scene` from its camera; the scene is left as it was.
 
     `light` picks the point, spot or sun light when the scene has several (else exactly
     one rendered light of those types must exist); every other light is hidden from the
-    render.
+    render. `check(emission)` runs once the light is known and before any render, so a
+    caller can refuse it (e.g. no requested method fits) without waiting for Cycles.
     """
     import bpy
 
@@ -475,15 +501,22 @@ def capture(scene: "bpy.types.Scene", samples: int = DEFAULT_SAMPLES, *, light: 
     layer = pick_view_layer(scene, view_layer)
     # A new scene's view layer is synced lazily (layer_collection stays None until
     # the scene is evaluated once), so evaluate before reading its collections.
-    _evaluated_depsgraph(scene, layer)
+    depsgraph = _evaluated_depsgraph(scene, layer)
     visible = _render_visible_objects(layer)
     light_obj = _pick_light(scene, visible, light)
     if light_obj.name_full not in visible:
         raise ReferenceCaptureError(f"light {light_obj.name!r} is disabled for rendering")
-    if light_obj.data.energy <= 0.0 or max(light_obj.data.color) <= 0.0:
+    energy, colour = float(light_obj.data.energy), [float(c) for c in light_obj.data.color]
+    if not all(math.isfinite(v) for v in [energy, *colour]):
+        raise ReferenceCaptureError(f"light {light_obj.name!r} has a non-finite energy or colour "
+                                    f"({energy:g}, {', '.join(f'{c:g}' for c in colour)})")
+    if energy <= 0.0 or max(colour) <= 0.0:
         # For a sun the energy is its strength (W/m^2); zero is equally useless.
         raise ReferenceCaptureError(f"light {light_obj.name!r} emits nothing (energy or colour is zero)")
+    _check_finite_transforms(light_obj, cam_obj, depsgraph)
     emission = _emission_of(light_obj.data)
+    if check is not None:
+        check(emission)
     _warn_soft_light(light_obj)
     say = progress or (lambda message: None)
 
@@ -500,42 +533,41 @@ def capture(scene: "bpy.types.Scene", samples: int = DEFAULT_SAMPLES, *, light: 
     # notes must name what the file has.
     rule = ShadowRule.for_light(scene, light_obj, view_layer=layer)
 
-    tmpdir = Path(tempfile.mkdtemp(prefix="omniwarp_ref_"))
+    # A temporary the interrupt handling knows, so Ctrl-C during a render removes it;
+    # the scene's settings are restored before it goes.
     overrides = _Overrides()
-    try:
-        exr_path = tmpdir / "pass.exr"
-        _apply_render_settings(scene, layer, light_obj, visible, samples,
-                               str(tmpdir / "pass"), overrides)
-
-        depsgraph = _evaluated_depsgraph(scene, layer)
-        camera_matrix = _rigid(cam_obj.evaluated_get(depsgraph).matrix_world)
-        light_eval = light_obj.evaluated_get(depsgraph)
-        light_matrix = _rigid(light_eval.matrix_world)
-        scale = np.array(light_eval.matrix_world.to_scale())
-        if light_obj.data.type == "SPOT" and np.ptp(np.abs(scale)) > 1e-4:
-            log.warning("spot light %r has non-uniform scale %s: its cone is not circular", light_obj.name, scale)
-        say("collecting triangles (render depsgraph)")
-        # The render depsgraph: render-level modifiers, hide_render, instancer flags.
-        scene_triangles = render_triangles(scene, layer)
-        triangles = scene_triangles.select(rule.blocks)
-        empty = {o.name for o in scene.objects
-                 if o.type in _GEOMETRY_TYPES and o.name_full in visible} - scene_triangles.names
-        if empty:
-            log.info("rendered objects without triangles: %s", ", ".join(sorted(empty)))
-
-        say(f"Cycles render 1/2 (shadowed, {width}x{height}, {samples} spp)")
-        t_shadowed = _render(scene, layer, exr_path)
-        lit = read_exr_channels(exr_path)
-        exr_path.unlink()
-        _disable_shadows(scene, light_obj, overrides)
-        say(f"Cycles render 2/2 (unshadowed, {width}x{height}, {samples} spp)")
-        t_unshadowed = _render(scene, layer, exr_path)
-        free = read_exr_channels(exr_path)
-    finally:
+    with interrupt.temporary_dir("omniwarp_ref_") as tmpdir:
         try:
-            overrides.restore()
+            exr_path = tmpdir / "pass.exr"
+            _apply_render_settings(scene, layer, light_obj, visible, samples,
+                                   str(tmpdir / "pass"), overrides)
+
+            depsgraph = _evaluated_depsgraph(scene, layer)
+            camera_matrix = _rigid(cam_obj.evaluated_get(depsgraph).matrix_world)
+            light_eval = light_obj.evaluated_get(depsgraph)
+            light_matrix = _rigid(light_eval.matrix_world)
+            scale = np.array(light_eval.matrix_world.to_scale())
+            if light_obj.data.type == "SPOT" and np.ptp(np.abs(scale)) > 1e-4:
+                log.warning("spot light %r has non-uniform scale %s: its cone is not circular", light_obj.name, scale)
+            say("collecting triangles (render depsgraph)")
+            # The render depsgraph: render-level modifiers, hide_render, instancer flags.
+            scene_triangles = render_triangles(scene, layer)
+            triangles = scene_triangles.select(rule.blocks)
+            empty = {o.name for o in scene.objects
+                     if o.type in _GEOMETRY_TYPES and o.name_full in visible} - scene_triangles.names
+            if empty:
+                log.info("rendered objects without triangles: %s", ", ".join(sorted(empty)))
+
+            say(f"Cycles render 1/2 (shadowed, {width}x{height}, {samples} spp)")
+            t_shadowed = _render(scene, layer, exr_path, "Cycles render 1/2")
+            lit = read_exr_channels(exr_path)
+            exr_path.unlink()
+            _disable_shadows(scene, light_obj, overrides)
+            say(f"Cycles render 2/2 (unshadowed, {width}x{height}, {samples} spp)")
+            t_unshadowed = _render(scene, layer, exr_path, "Cycles render 2/2")
+            free = read_exr_channels(exr_path)
         finally:
-            _remove_dir(tmpdir)
+            overrides.restore()
 
     name = layer.name
     alpha = _channel(lit, name, "Combined.A")

@@ -28,6 +28,8 @@ import json
 import logging
 import math
 import os
+import zipfile
+import zlib
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -43,6 +45,9 @@ log = logging.getLogger(__name__)
 FORMAT_VERSION = 1
 
 _IMAGE_FIELDS = ("position", "normal", "hit", "shadowed", "unshadowed")
+# What numpy raises for a damaged .npz: a bad or truncated zip (BadZipFile, EOFError),
+# damaged deflate data (zlib.error), a truncated member or bad JSON (ValueError).
+_UNREADABLE = (OSError, KeyError, ValueError, EOFError, zipfile.BadZipFile, zlib.error)
 
 
 @dataclass
@@ -220,9 +225,8 @@ class ReferenceData:
                     spot_size=_stored_spot_size(npz, meta),
                     **_stored_camera(npz),
                 )
-        except (OSError, KeyError, ValueError) as exc:
-            # ValueError covers a truncated zip and bad JSON alike.
-            raise ReferenceCaptureError(f"cannot read reference file {path}: {exc}") from exc
+        except _UNREADABLE as exc:
+            raise ReferenceCaptureError(f"cannot read reference file {path}: {_reason(exc)}") from exc
 
 
 def _stored_camera(npz) -> dict[str, Any]:
@@ -251,5 +255,11 @@ def read_meta(path: str | os.PathLike) -> dict[str, Any]:
     try:
         with np.load(Path(path), allow_pickle=False) as npz:
             return json.loads(str(npz["meta"]))
-    except (OSError, KeyError, ValueError) as exc:
-        raise ReferenceCaptureError(f"cannot read reference file {path}: {exc}") from exc
+    except _UNREADABLE as exc:
+        raise ReferenceCaptureError(f"cannot read reference file {path}: {_reason(exc)}") from exc
+
+
+def _reason(exc: BaseException) -> str:
+    """One line for why a file could not be read (some numpy errors say nothing)."""
+    text = " ".join(str(exc).split())
+    return f"{type(exc).__name__}: {text}" if text else type(exc).__name__

@@ -50,8 +50,17 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from ..core import metrics
-from ..core.errors import InputError, OmniWarpError, ReferenceCaptureError, child_stderr_tail, report_error
+from ..core import interrupt, metrics
+from ..core.errors import (
+    EXIT_BAD_INPUT,
+    ChildProcessCrash,
+    InputError,
+    OmniWarpError,
+    ReferenceCaptureError,
+    child_error_line,
+    child_stderr_tail,
+    report_error,
+)
 from ..core.scene import CameraSpec, LightSpec, MeshSpec, SceneSpec, parse_size
 from .data import ReferenceData
 
@@ -437,9 +446,9 @@ def _open_blend(path: Path, camera: str | None, light: str | None):
     """Load a .blend (never saved back) and return its active scene."""
     import bpy
 
-    if not path.is_file():
-        raise InputError(f"--blend file not found: {path}")
-    bpy.ops.wm.open_mainfile(filepath=str(path.resolve()), load_ui=False)
+    from .blend_file import open_blend
+
+    open_blend(path)
     scene = bpy.context.scene
     if camera:
         cam = bpy.data.objects.get(camera)
@@ -452,7 +461,7 @@ def _open_blend(path: Path, camera: str | None, light: str | None):
 
 
 def main(argv: Sequence[str] | None = None) -> int:
-    """Entry of the EEVEE child process; exit 0 on success, 2 on bad input, 1 on failure."""
+    """Entry of the EEVEE child process: exit 0 done, 2 with one line (any OmniWarpError), 1 a bug."""
     parser = argparse.ArgumentParser(prog="python -m addon.reference.eevee",
                                      description="Render EEVEE's shadows for the eevee method row.")
     source = parser.add_mutually_exclusive_group(required=True)
@@ -524,25 +533,38 @@ def run_child(args: Sequence[str], out_dir: Path, progress: Progress | None = No
     summary_path.unlink(missing_ok=True)  # never read a stale summary
     env = dict(os.environ)
     env["PYTHONPATH"] = str(REPO_ROOT) + (os.pathsep + env["PYTHONPATH"] if env.get("PYTHONPATH") else "")
+    # Blender's session folder goes under out_dir: removed with it even if the child is
+    # killed (on Ctrl-C), which skips Blender's own clean-up.
+    env["TMPDIR"] = str(out_dir.resolve())
     command = [sys.executable, "-m", "addon.reference.eevee", *args, "--out", str(out_dir.resolve())]
     log.info("running %s", " ".join(command))
     with tempfile.TemporaryFile(mode="w+", encoding="utf-8", errors="replace") as err:
-        proc = subprocess.Popen(command, cwd=REPO_ROOT, env=env, stdout=subprocess.PIPE, stderr=err,
-                                text=True, errors="replace")
-        reader = threading.Thread(target=_forward_progress, args=(proc.stdout, progress), daemon=True)
-        reader.start()
+        proc: subprocess.Popen | None = None
+        reader: threading.Thread | None = None
         try:
+            with interrupt.deferred():  # a Ctrl-C during the start must not orphan the child
+                proc = subprocess.Popen(command, cwd=REPO_ROOT, env=env, stdout=subprocess.PIPE, stderr=err,
+                                        text=True, errors="replace")
+                reader = threading.Thread(target=_forward_progress, args=(proc.stdout, progress), daemon=True)
+                reader.start()
             proc.wait(timeout=timeout_s)
         except subprocess.TimeoutExpired:
-            proc.kill()
-            proc.wait()
+            interrupt.stop_child(proc)
             raise ReferenceCaptureError(f"the EEVEE process took longer than {timeout_s:.0f} s; killed") from None
+        except BaseException:
+            # Ctrl-C (Interrupted) or any failure here: the child must not outlive us.
+            if proc is not None:
+                interrupt.stop_child(proc)
+            raise
         finally:
-            reader.join(timeout=5.0)
+            if reader is not None:
+                reader.join(timeout=5.0)
         err.seek(0)
         stderr = err.read()
+    if proc.returncode == EXIT_BAD_INPUT and child_error_line(stderr):
+        raise ReferenceCaptureError(f"the EEVEE render failed: {child_error_line(stderr)}")
     if proc.returncode != 0:
-        raise ReferenceCaptureError(f"the EEVEE process failed (exit {proc.returncode}):\n{child_stderr_tail(stderr)}")
+        raise ChildProcessCrash(f"the EEVEE process crashed (exit {proc.returncode}):\n{child_stderr_tail(stderr)}")
     try:
         return json.loads(summary_path.read_text(encoding="utf-8"))
     except (OSError, ValueError) as exc:

@@ -15,7 +15,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from ..core import frames, perspective, projection, tessellate
+from ..core import frames, perspective, projection, tessellate, validate
 from ..core import methods as method_registry
 from ..core.errors import InputError
 from ..core.frames import POINT_PARAMETERIZATIONS, PROJECTIVE_PARAMETERIZATIONS, Layer, Parameterization
@@ -74,6 +74,11 @@ def analysis_size_for(resolution: int) -> int:
     return int(min(256, max(64, resolution // 8)))
 
 
+# The largest bias accepted, in texel footprints: far beyond any useful value (the UI's
+# soft range ends at 4), and below it Blender's FLT_MAX for an infinite value is refused.
+MAX_BIAS = 100.0
+
+
 @dataclass(frozen=True)
 class BiasSettings:
     """Bias in units of one texel's footprint at the sample (see shadow_test.frag)."""
@@ -81,6 +86,12 @@ class BiasSettings:
     constant: float = 0.3
     slope: float = 0.7
     normal: float = 0.7
+
+    def __post_init__(self) -> None:
+        # NaN or inf would shadow (or light) every pixel without a word: refuse it by name.
+        for name in ("constant", "slope", "normal"):
+            value = validate.finite_number(f"bias {name}", getattr(self, name), 0.0, MAX_BIAS)
+            object.__setattr__(self, name, value)
 
 
 @dataclass(frozen=True)
@@ -108,6 +119,9 @@ class ShadowSettings:
             raise InputError(f"unknown warp {self.warp!r}; use one of {', '.join(WARP_KINDS)}")
         if not (MIN_RESOLUTION <= int(self.resolution) <= MAX_RESOLUTION):
             raise InputError(f"resolution {self.resolution} out of range [{MIN_RESOLUTION}, {MAX_RESOLUTION}]")
+        if not isinstance(self.bias, BiasSettings):
+            raise InputError(f"bias must be a BiasSettings, got {type(self.bias).__name__}")
+        validate.finite_number("tessellation tolerance (texels)", self.tessellation_tolerance, 1e-3, 1e3)
 
 
 def settings_for(method: str, resolution: int, **fields) -> ShadowSettings:

@@ -100,7 +100,9 @@ def test_viewport_draw_path_robustness(tmp_path):
     a cube+NoTW light gives shadows and finite maps; 200 redraws recompute only when
     the view moves and hold a constant number of GPU objects; 20 register cycles and
     the final unregister leave no handler and no GPU object; a failure in the draw
-    path is caught, logged once, shown, and recovered from; deleting the light is safe."""
+    path is caught, logged once, shown, and recovered from; a NaN bias or strength pauses
+    the preview with a message naming it (also in the light panel's check) until fixed;
+    deleting the light is safe."""
     out = tmp_path / "viewport.json"
     _worker("viewport", out)
     r = json.loads(out.read_text())
@@ -112,6 +114,8 @@ def test_viewport_draw_path_robustness(tmp_path):
     assert r["recomputes"] == 20  # 10 moved views, each drawn once moved and once back
     assert r["live_after_200"] == r["live_first"] > 0
     assert r["error_caught"] and r["error_logged_once"] and r["recovered"]
+    assert r["nan_bias_paused"] and r["nan_bias_panel"] and r["nan_bias_warned_once"] and r["nan_bias_recovered"]
+    assert r["nan_strength_paused"] and r["nan_strength_recovered"]
     assert r["after_delete_lights"] == 0
     assert r["after_load_live"] == 0 and r["after_load_draw"] and r["undo_marks_stale"]
     assert r["handler_installed"] and r["handler_removed"]

@@ -19,6 +19,7 @@ import pytest
 bpy = pytest.importorskip("bpy")
 
 from addon.blender import panels, properties, registration  # noqa: E402
+from addon.core.errors import InputError  # noqa: E402
 from addon.render.pipeline import BiasSettings, ShadowSettings  # noqa: E402
 
 pytestmark = pytest.mark.blender
@@ -720,6 +721,20 @@ def test_light_panel_greys_out_warp(make_light, parameterization: str, greyed: b
     layout = draw_panel(panels.OMNIWARP_PT_light, SimpleNamespace(light=light))
     assert layout.layout_of("warp").active is not greyed
     assert any("takes no warp" in text for text in layout.labels()) is greyed
+
+
+@pytest.mark.parametrize("value", [float("nan"), float("inf")])
+def test_light_panel_names_a_bias_that_cannot_be_drawn(make_light, value: float) -> None:
+    """A NaN or infinite bias set from Python (Blender keeps NaN, stores inf as FLT_MAX)
+    is named in an alert box of the light panel; a finite one shows no alert."""
+    light = make_light("POINT")
+    labels = " | ".join(draw_panel(panels.OMNIWARP_PT_light, SimpleNamespace(light=light)).labels())
+    assert "Cannot be drawn" not in labels
+    light.omniwarp.bias_slope = value
+    labels = " | ".join(draw_panel(panels.OMNIWARP_PT_light, SimpleNamespace(light=light)).labels())
+    assert "Cannot be drawn, preview paused" in labels and "bias slope" in labels
+    with pytest.raises(InputError, match="bias slope"):
+        properties.shadow_settings_for(light)
 
 
 def test_light_panel_draw_sun(make_light) -> None:

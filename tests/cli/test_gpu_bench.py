@@ -38,4 +38,5 @@ def test_the_bench_runs_bare_from_prepared_references(tmp_path):
                                                                             ("room_omni", "cube+notw", 512)]
     assert all(0.0 <= r["error_pct"] < 5.0 for r in rows)
     assert "matplotlib is not installed" in measured.stderr  # the bare run really lacked it
+    assert not (tmp_path / "out" / "error_vs_time.png").exists()
     assert "| room_omni | cube+notw | 512 |" in (tmp_path / "out" / "report.md").read_text()

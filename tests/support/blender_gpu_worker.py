@@ -179,6 +179,29 @@ def viewport(out: str) -> None:
     vp.compute_view = original
     vp.request_update("test fixed")
     report["recovered"] = draw(view) and vp.last_error() == ""
+    # A NaN bias (or strength) set from Python: the preview pauses with a message naming
+    # it (a warning, no traceback), the light panel's check says the same, and fixing
+    # the value resumes drawing.
+    from addon.blender.properties import settings_problem
+
+    warned = []
+    vp.log.warning = lambda *a, **k: warned.append(a[1] if len(a) > 1 else a[0])
+    light_obj.data.omniwarp.bias_constant = float("nan")
+    vp.request_update("nan bias")
+    nan_draws = [draw(view) for _ in range(3)]
+    report["nan_bias_paused"] = nan_draws == [False] * 3 and "bias constant" in vp.last_error()
+    report["nan_bias_panel"] = "bias constant" in settings_problem(light_obj.data, light_obj)
+    report["nan_bias_warned_once"] = len(warned) == 1 and "bias constant" in str(warned[0]) and len(logged) == 1
+    light_obj.data.omniwarp.bias_constant = 0.3
+    vp.request_update("bias fixed")
+    report["nan_bias_recovered"] = (draw(view) and vp.last_error() == ""
+                                    and settings_problem(light_obj.data, light_obj) == "")
+    scene.omniwarp.shadow_strength = float("nan")
+    vp.request_update("nan strength")
+    report["nan_strength_paused"] = not draw(view) and "shadow strength" in vp.last_error()
+    scene.omniwarp.shadow_strength = 0.6
+    vp.request_update("strength fixed")
+    report["nan_strength_recovered"] = draw(view) and vp.last_error() == ""
     # File load and undo between draws: results are dropped or marked stale, never reused.
     vp._on_load_post()
     report["after_load_live"] = vp.live_resources()

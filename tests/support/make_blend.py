@@ -1,10 +1,13 @@
 """Writes a small .blend that was never a preset (run in a child process: it resets bpy's data).
 
     python tests/support/make_blend.py OUT.blend [--no-light] [--bad-geometry] [--light-type SUN|AREA] [--zero-energy]
-                                       [--omniwarp METHOD:RESOLUTION]
+                                       [--omniwarp METHOD:RESOLUTION] [--light-location X,Y,Z]
+                                       [--bias-constant VALUE]
 
 --omniwarp saves OmniWarp settings on the light (enabled, the registry method's
 parameterization and warp, the resolution): the add-on is registered for that.
+--light-location moves the light (nan and inf are accepted: bad-input tests);
+--bias-constant (with --omniwarp) stores that constant bias, e.g. nan.
 """
 from __future__ import annotations
 
@@ -45,7 +48,8 @@ def save_omniwarp_settings(light, spec: str) -> None:
 
 
 def main(out: str, with_light: bool, bad_geometry: bool = False, light_type: str | None = None,
-         zero_energy: bool = False, omniwarp: str | None = None) -> None:
+         zero_energy: bool = False, omniwarp: str | None = None, light_location: str | None = None,
+         bias_constant: str | None = None) -> None:
     import bpy
 
     from addon.core.scene import SceneBuilder
@@ -76,6 +80,8 @@ def main(out: str, with_light: bool, bad_geometry: bool = False, light_type: str
             obj.data.type = light_type
         if zero_energy:
             obj.data.energy = 0.0
+        if light_location:
+            obj.location = tuple(float(v) for v in light_location.split(","))
     if not with_light:
         for obj in [o for o in scene.objects if o.type == "LIGHT"]:
             bpy.data.objects.remove(obj)
@@ -91,6 +97,8 @@ def main(out: str, with_light: bool, bad_geometry: bool = False, light_type: str
     try:
         for obj in [o for o in scene.objects if o.type == "LIGHT"]:
             save_omniwarp_settings(obj.data, omniwarp)
+            if bias_constant is not None:
+                obj.data.omniwarp.bias_constant = float(bias_constant)
         bpy.ops.wm.save_as_mainfile(filepath=out)
     finally:
         registration.unregister()
@@ -102,4 +110,4 @@ def _option(name: str) -> str | None:
 
 if __name__ == "__main__":
     main(sys.argv[1], "--no-light" not in sys.argv, "--bad-geometry" in sys.argv, _option("--light-type"),
-         "--zero-energy" in sys.argv, _option("--omniwarp"))
+         "--zero-energy" in sys.argv, _option("--omniwarp"), _option("--light-location"), _option("--bias-constant"))

@@ -1,0 +1,157 @@
+"""Ctrl-C through the command line: inside a Cycles render, in the preview's child
+process and in the EEVEE child, the run stops with status 130 and one line, no
+traceback, no temporary left (TMPDIR stays empty), no cache file and no output
+written, and no child process left running."""
+from __future__ import annotations
+
+import os
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import pytest
+
+from addon.core import interrupt
+from addon.core.errors import EXIT_INTERRUPTED, Interrupted
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "support"))
+from cli_run import REPO, env_with, omniwarp, staging_left, stderr_lines, tree_digest  # noqa: E402
+
+
+def test_a_signal_inside_a_blocking_call_is_raised_when_it_returns():
+    """In-process (main() called from Python): the handler only records the signal while
+    a blocking call runs, and `Interrupted` comes when it returns; handlers are restored."""
+    before = signal.getsignal(signal.SIGINT)
+    with interrupt.handling("test"):
+        with pytest.raises(Interrupted, match="during the test call; stopped when it returned"):
+            with interrupt.blocking("test call"):
+                os.kill(os.getpid(), signal.SIGINT)
+                for _ in range(100):  # bytecodes, for the handler to run in (it only records)
+                    time.sleep(0.001)
+                assert interrupt.requested()
+    assert signal.getsignal(signal.SIGINT) is before and not interrupt.requested()
+    with interrupt.handling("test"):
+        finished = []
+        with pytest.raises(Interrupted, match="interrupted"):
+            with interrupt.deferred():  # e.g. moving outputs into place: not cut in two
+                os.kill(os.getpid(), signal.SIGINT)
+                for _ in range(100):
+                    time.sleep(0.001)
+                finished.append(True)
+        assert finished == [True]
+    assert signal.getsignal(signal.SIGINT) is before
+
+
+def _start(args: list[str], env: dict[str, str]) -> subprocess.Popen:
+    return subprocess.Popen([sys.executable, "-m", "addon", *args], cwd=REPO, env=env, text=True,
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE)
+
+
+def _interrupt_after(proc: subprocess.Popen, marker: str, settle_s: float = 0.0,
+                     child: bool = False) -> tuple[str, str, list[int]]:
+    """Read stderr up to the line containing `marker`, wait `settle_s` (to be well inside
+    what follows it) or, with `child`, until the process has a child, send SIGINT and
+    collect the rest; also return the children the process had when it was interrupted."""
+    seen = []
+    try:
+        for line in proc.stderr:
+            seen.append(line)
+            if marker in line:
+                break
+        time.sleep(settle_s)
+        children = _children(proc.pid)
+        for _ in range(2000):  # the child starts within moments; a bpy import takes far longer
+            if children or not child or proc.poll() is not None:
+                break
+            time.sleep(0.005)
+            children = _children(proc.pid)
+        proc.send_signal(signal.SIGINT)
+        stdout, rest = proc.communicate(timeout=120)  # a guard against a hang, not a timing assertion
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+            proc.wait()
+    return stdout, "".join(seen) + rest, children
+
+
+def _children(pid: int) -> list[int]:
+    try:
+        text = Path(f"/proc/{pid}/task/{pid}/children").read_text()
+    except OSError:
+        return []
+    return [int(v) for v in text.split()]
+
+
+def _gone(pid: int) -> bool:
+    try:
+        state = Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()[0]
+    except OSError:
+        return True
+    return state in ("Z", "X")
+
+
+def _assert_interrupted(proc: subprocess.Popen, stdout: str, stderr: str) -> str:
+    assert proc.returncode == EXIT_INTERRUPTED, (proc.returncode, stderr[-3000:])
+    assert "Traceback" not in stderr and "KeyboardInterrupt" not in stderr, stderr[-3000:]
+    last = stderr_lines(stderr)[-1]
+    assert last.startswith("omniwarp: interrupted") and "temporary files removed" in last, last
+    assert [line for line in stderr_lines(stderr) if "interrupted" in line] == [last]
+    assert stdout == ""
+    return last
+
+
+@pytest.fixture
+def earlier(tmp_path: Path) -> Path:
+    out = tmp_path / "out"
+    out.mkdir()
+    for name in ("results.json", "report.md", "preview.png", "preview.json"):
+        (out / name).write_text(f"earlier {name}\n")
+    return out
+
+
+@pytest.mark.blender
+@pytest.mark.gl
+def test_ctrl_c_inside_a_cycles_render_stops_at_once(tmp_path, earlier):
+    """A fresh cache, so the preset must render, at a size that takes seconds even on
+    many cores (stopped at once, it costs only the scene set-up here). The run ends
+    inside render 1/2 (never reaching 2/2), says so, and leaves no cache file, no
+    temporary and the earlier results as they were."""
+    pytest.importorskip("bpy", reason="the reference capture needs bpy (scripts/setup_env.sh installs it)")
+    tmpdir, cache = tmp_path / "tmp", tmp_path / "cache"
+    tmpdir.mkdir()
+    before = tree_digest(earlier)
+    proc = _start(["compare", "--preset", "room_omni", "--size", "2560x1920", "--methods", "dpsm", "--resolutions",
+                   "512", "--frames", "1", "--no-images", "--out", str(earlier)],
+                  env_with(OMNIWARP_CACHE=cache, TMPDIR=tmpdir))
+    stdout, stderr, _ = _interrupt_after(proc, "Cycles render 1/2", settle_s=0.2)
+    last = _assert_interrupted(proc, stdout, stderr)
+    assert "during the Cycles render 1/2; stopped at once" in last and "Cycles render 2/2" not in stderr
+    assert list(cache.iterdir()) == [] and list(tmpdir.iterdir()) == []
+    assert tree_digest(earlier) == before and staging_left(tmp_path) == []
+
+
+@pytest.mark.blender
+@pytest.mark.gl
+@pytest.mark.parametrize("args,marker", [
+    (["preview", "--preset", "room_hemi", "--size", "160x120"], "drawing the preview"),
+    (["compare", "--preset", "room_hemi", "--size", "160x120", "--methods", "eevee", "--frames", "1",
+      "--no-images"], "EEVEE renders in a child process"),
+], ids=["preview", "eevee"])
+def test_ctrl_c_with_a_child_process_ends_the_child_too(tmp_path, earlier, args, marker):
+    """The child (Blender's gpu for the preview, EEVEE for its row) is stopped with the
+    parent; nothing of it stays behind, not even Blender's session folder."""
+    pytest.importorskip("bpy", reason="the children need bpy (scripts/setup_env.sh installs it)")
+    tmpdir, cache = tmp_path / "tmp", tmp_path / "cache"
+    tmpdir.mkdir()
+    assert omniwarp("reference", "--preset", "room_hemi", "--size", "160x120",
+                    env=env_with(OMNIWARP_CACHE=cache)).returncode == 0
+    before, cached = tree_digest(earlier), sorted(cache.iterdir())
+    proc = _start([*args, "--out", str(earlier)], env_with(OMNIWARP_CACHE=cache, TMPDIR=tmpdir))
+    stdout, stderr, children = _interrupt_after(proc, marker, child=True)
+    _assert_interrupted(proc, stdout, stderr)
+    assert children, "the child process had not started"
+    assert all(_gone(pid) for pid in children)
+    assert list(tmpdir.iterdir()) == [] and sorted(cache.iterdir()) == cached
+    assert tree_digest(earlier) == before and staging_left(tmp_path) == []

@@ -1,0 +1,62 @@
+"""Helpers for the tests that run `omniwarp` as a user does: a subprocess, its exit
+status and its stderr (tests/cli/test_exit_contract.py and its neighbours)."""
+from __future__ import annotations
+
+import hashlib
+import os
+import subprocess
+import sys
+from pathlib import Path
+
+REPO = Path(__file__).resolve().parents[2]
+SUPPORT = REPO / "tests" / "support"
+
+
+def env_with(**values: str | os.PathLike) -> dict[str, str]:
+    """The current environment with some variables set (e.g. OMNIWARP_CACHE, TMPDIR)."""
+    env = dict(os.environ)
+    env.update({key: str(value) for key, value in values.items()})
+    return env
+
+
+def omniwarp(*args: str | os.PathLike, env: dict[str, str] | None = None,
+             prefix: tuple[str, ...] = (), timeout: float = 600) -> subprocess.CompletedProcess:
+    """Run `python -m addon ARGS` from the repository root; `prefix` wraps the command
+    (e.g. a mount namespace)."""
+    return subprocess.run([*prefix, sys.executable, "-m", "addon", *map(str, args)], capture_output=True,
+                          text=True, timeout=timeout, cwd=REPO, env=env)
+
+
+def stderr_lines(text: str) -> list[str]:
+    """Non-empty stderr lines, without Mesa's harmless EGL_BAD_MATCH noise."""
+    return [line for line in text.splitlines() if line.strip() and "EGL_BAD" not in line]
+
+
+def one_line(proc: subprocess.CompletedProcess, code: int = 2) -> str:
+    """Assert the exit contract for a refused run: status `code`, exactly one line on
+    stderr, no traceback, nothing on stdout; return that line."""
+    lines = stderr_lines(proc.stderr)
+    assert proc.returncode == code, (proc.returncode, proc.stderr[-3000:])
+    assert "Traceback" not in proc.stderr, proc.stderr[-3000:]
+    assert len(lines) == 1, lines
+    assert proc.stdout == "", proc.stdout
+    return lines[0]
+
+
+def make_blend(path: Path, *flags: str) -> Path:
+    """Write a small user .blend with tests/support/make_blend.py (a child: it resets bpy)."""
+    proc = subprocess.run([sys.executable, str(SUPPORT / "make_blend.py"), str(path), *flags],
+                          capture_output=True, text=True, timeout=600, cwd=REPO)
+    assert proc.returncode == 0 and path.is_file(), proc.stderr[-2000:]
+    return path
+
+
+def tree_digest(folder: Path) -> dict[str, str]:
+    """Relative path -> sha256 of every file under `folder` (to show it is untouched)."""
+    return {str(p.relative_to(folder)): hashlib.sha256(p.read_bytes()).hexdigest()
+            for p in sorted(folder.rglob("*")) if p.is_file()}
+
+
+def staging_left(parent: Path) -> list[str]:
+    """Staging folders a run left in `parent` (there must be none)."""
+    return sorted(p.name for p in parent.iterdir() if p.name.startswith(".omniwarp-staging-"))
