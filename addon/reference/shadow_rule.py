@@ -47,8 +47,6 @@ log = logging.getLogger(__name__)
 
 INCLUDE = "INCLUDE"
 EXCLUDE = "EXCLUDE"
-# The first Blender version with light and shadow linking (Object.light_linking).
-LINKING_SINCE = (4, 0, 0)
 # Object types whose surfaces Cycles renders (the maps get triangles from the first five).
 _SURFACE_TYPES = {"MESH", "CURVE", "SURFACE", "META", "FONT", "CURVES", "POINTCLOUD", "VOLUME"}
 # Object types Cycles renders but that give the maps no triangles.
