@@ -337,6 +337,13 @@ def _apply_render_settings(scene, view_layer, light_obj, visible: set[str], samp
     set_pass_output(render, filepath, overrides)
 
     s(scene, "world", _black_world(overrides))
+    # Depth of field would start each pixel's ray off the pinhole: its position would not
+    # lie on the ray through the pixel centre, which the planning frustum and a preview's
+    # G-buffer assume. The shadows themselves do not depend on it.
+    camera = scene.camera.data
+    if getattr(getattr(camera, "dof", None), "use_dof", False):
+        log.info("camera %r: depth of field is off for the reference", scene.camera.name)
+        s(camera.dof, "use_dof", False)
 
     s(view_layer, "use_pass_combined", True)
     s(view_layer, "use_pass_position", True)

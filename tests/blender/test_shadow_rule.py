@@ -231,6 +231,17 @@ def test_lamp_c_without_shadows_has_no_occluders(feature):
     assert metrics.reference_visibility(ref.shadowed, ref.unshadowed)[evaluable].all()
 
 
+def test_reference_pixels_lie_on_their_pinhole_rays(feature):
+    """The camera has a strong depth of field and pixels 1.2 times wider than tall, at 50 %:
+    every hit still projects back, through the stored camera, to its own pixel centre."""
+    ref = feature["refs"]["LampA"]
+    assert ref.resolution == (240, 180)
+    rows, cols = np.nonzero(ref.hit)
+    pixel = ref.camera().pixel_of(ref.position[rows, cols].astype(np.float64))
+    assert np.abs(pixel[:, 0] - (cols + 0.5)).max() < 0.05
+    assert np.abs(pixel[:, 1] - (rows + 0.5)).max() < 0.05
+
+
 def test_light_under_a_scaled_empty(feature):
     """LampA sits at local (0, 0, 1) under an empty at z = 2 scaled by 2: world z = 4, matrix without scale."""
     ref = feature["refs"]["LampA"]

@@ -22,7 +22,7 @@ the ground, so a test can tell which case a reading of the scene ignored:
   includes only a nested collection holding `pillar`, and whose receiver collection
   excludes `slab` (also a shadow catcher, which the rows name in a note); `LampC`
   (point) with `use_shadow` off;
-- cameras: `Camera` (the scene camera), `ShiftCam` (lens shift, vertical sensor fit)
+- cameras: `Camera` (the scene camera, with a strong depth of field), `ShiftCam` (lens shift, vertical sensor fit)
   and `OrthoCam` (orthographic, shifted); the scene renders at 50 % of twice the
   asked size, with a pixel aspect of 1.2.
 """
@@ -218,6 +218,7 @@ def build(out: Path, size: tuple[int, int]) -> None:
     camera.location = (0.0, -7.5, 7.5)
     camera.rotation_euler = (math.radians(42.0), 0.0, 0.0)
     camera.data.lens = 24.0
+    camera.data.dof.use_dof, camera.data.dof.focus_distance, camera.data.dof.aperture_fstop = True, 3.0, 0.2
     root.objects.link(camera)
     scene.camera = camera
     shift = bpy.data.objects.new("ShiftCam", bpy.data.cameras.new("ShiftCam"))
