@@ -13,7 +13,8 @@ the reference set-up of DESIGN.md section 5 and restores every setting it touche
   lights are hidden from the render;
 - every material is replaced by a white diffuse one (view-layer material override),
   which also writes the Geometry node's True Normal into a shader AOV;
-- a black world and a transparent film (its alpha is the hit mask).
+- a black world and a transparent film (its alpha is the hit mask);
+- the camera's depth of field off (every pixel's ray starts at the pinhole).
 
 It renders twice: once as is and once with the light's shadow casting off, which
 gives the `shadowed` and `unshadowed` Diffuse Direct passes. The stored triangles
