@@ -166,8 +166,7 @@ def test_each_case_matters_for_lamp_a(feature, case):
         if action == "swap":
             groups += _pick(readings, kind, name, parent)
     ignored = oracle.mismatch(groups)
-    print(f"{case}: {base} -> {ignored} mismatched pixels of {oracle.evaluable.sum()}")
-    assert ignored >= base + MIN_PIXELS, case
+    assert ignored >= base + MIN_PIXELS, f"{case}: {base} -> {ignored} mismatched pixels of {oracle.evaluable.sum()}"
 
 
 def test_lamp_b_follows_nested_include_linking(feature):
