@@ -1,0 +1,131 @@
+"""gpu_shaders/lib/footprint.glsl against its numpy statement (addon/core/footprint.py).
+
+A harness fragment program reads one triangle (and one ray) per texel column and
+writes the paraboloid box, the cube box or the inside test. The boxes must match the
+numpy ones to float32 rounding, and the inside test must agree wherever the ray is
+not within rounding of an edge plane.
+"""
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from addon.core import footprint as fp
+from addon.render.shaders import SHADER_DIR, ProgramInterface, Uniform, moderngl_sources
+from tests.core.test_footprint import KINDS, _random_rotation, _triangle
+
+pytestmark = pytest.mark.gl
+
+MODES = {"paraboloid": 0, "cube": 1, "inside": 2}
+HARNESS = """#include "lib/footprint.glsl"
+void main() {
+  int i = int(gl_FragCoord.x);
+  vec3 v0 = texelFetch(ow_input, ivec2(i, 0), 0).xyz;
+  vec3 v1 = texelFetch(ow_input, ivec2(i, 1), 0).xyz;
+  vec3 v2 = texelFetch(ow_input, ivec2(i, 2), 0).xyz;
+  vec4 extra = texelFetch(ow_input, ivec2(i, 3), 0);
+  if (ow_mode == 0) {
+    ow_out = ow_paraboloid_box(v0, v1, v2);
+  } else if (ow_mode == 1) {
+    ow_out = ow_cube_box(v0, v1, v2, extra.w);
+  } else {
+    vec3 n0, n1, n2;
+    float s = ow_edge_planes(v0, v1, v2, n0, n1, n2);
+    ow_out = vec4(ow_inside(extra.xyz, n0, n1, n2, s) ? 1.0 : 0.0, s, 0.0, 0.0);
+  }
+}
+"""
+
+
+def _run(gl_backend, tmp_path, mode: str, tris: np.ndarray, extra: np.ndarray) -> np.ndarray:
+    shader_dir = tmp_path / "gpu_shaders"
+    (shader_dir / "lib").mkdir(parents=True, exist_ok=True)
+    (shader_dir / "lib" / "footprint.glsl").write_text((SHADER_DIR / "lib" / "footprint.glsl").read_text())
+    (shader_dir / "fullscreen.vert").write_text((SHADER_DIR / "fullscreen.vert").read_text())
+    (shader_dir / "harness.frag").write_text(HARNESS)
+    iface = ProgramInterface(name="footprint_harness", vertex_file="fullscreen.vert", fragment_file="harness.frag",
+                             vertex_in=(("vec2", "ow_corner"),), fragment_out=(("vec4", "ow_out"),),
+                             uniforms=(Uniform("int", "ow_mode"),), samplers=("ow_input",))
+    vs, fs = moderngl_sources(iface, shader_dir)
+    n = len(tris)
+    data = np.zeros((4, n, 4), dtype="f4")
+    data[:3, :, :3] = np.transpose(tris, (1, 0, 2))
+    data[3] = extra
+    with gl_backend.ctx:
+        ctx = gl_backend.ctx
+        prog = ctx.program(vertex_shader=vs, fragment_shader=fs)
+        tex_in = ctx.texture((n, 4), 4, data.tobytes(), dtype="f4")
+        tex_out = ctx.texture((n, 1), 4, dtype="f4")
+        fbo = ctx.framebuffer(color_attachments=[tex_out])
+        vbo = ctx.buffer(np.array([[-1, -1], [3, -1], [-1, 3]], dtype="f4").tobytes())
+        vao = ctx.vertex_array(prog, [(vbo, "2f", "ow_corner")])
+        try:
+            prog["ow_mode"].value = MODES[mode]
+            tex_in.use(0)
+            prog["ow_input"].value = 0
+            fbo.use()
+            fbo.viewport = (0, 0, n, 1)
+            vao.render()
+            return np.frombuffer(tex_out.read(), dtype="f4").reshape(n, 4).astype(np.float64)
+        finally:
+            for obj in (vao, vbo, fbo, tex_out, tex_in, prog):
+                obj.release()
+
+
+def _triangles(seed: int, count: int) -> np.ndarray:
+    rng = np.random.default_rng(seed)
+    return np.array([_triangle(rng, KINDS[i % len(KINDS)]) @ _random_rotation(rng).T for i in range(count)])
+
+
+# Float32 boxes agree with the float64 ones to this, in map units (a texel at 1024 is
+# 2e-3). A vertex 1e-4 from the light, clipped at the seam, puts the crossing point's
+# direction at float32's relative error over 1e-4: about 1e-3, so those boxes need the
+# texel of dilation the GPU pass adds.
+TOLERANCE = {kind: 2e-3 if kind == "near_light" else 1e-4 for kind in KINDS}
+
+
+def _near(got: np.ndarray, want: np.ndarray) -> np.ndarray:
+    """Empty boxes agree when both are empty; others to the float32 tolerance of their kind."""
+    empty_got, empty_want = got[:, 0] > got[:, 1], ~np.isfinite(want[:, 0])
+    both = ~empty_got & ~empty_want
+    ok = empty_got == empty_want
+    tolerance = np.array([TOLERANCE[KINDS[i % len(KINDS)]] for i in range(len(got))])
+    ok[both] &= np.all(np.abs(got[both] - want[both]) <= tolerance[both, None], axis=1)
+    return ok
+
+
+def test_paraboloid_boxes_match_numpy(gl_backend, tmp_path):
+    tris = _triangles(1, 300)
+    got = _run(gl_backend, tmp_path, "paraboloid", tris, np.zeros((len(tris), 4)))
+    want = np.array([fp.paraboloid_box(t) for t in tris])
+    ok = _near(got, want)
+    assert ok.all(), np.flatnonzero(~ok)[:5]
+    assert (~np.isfinite(want[:, 0])).sum() < len(tris) // 2  # most triangles are seen
+
+
+def test_cube_boxes_match_numpy(gl_backend, tmp_path):
+    tris = _triangles(2, 300)
+    near = 1e-6 * np.abs(tris).reshape(len(tris), -1).max(axis=1)
+    extra = np.zeros((len(tris), 4))
+    extra[:, 3] = near
+    got = _run(gl_backend, tmp_path, "cube", tris, extra)
+    want = np.array([fp.cube_box(t, z) for t, z in zip(tris, near)])
+    ok = _near(got, want)
+    assert ok.all(), np.flatnonzero(~ok)[:5]
+
+
+def test_inside_test_matches_numpy(gl_backend, tmp_path):
+    rng = np.random.default_rng(3)
+    tris = np.repeat(_triangles(3, 50), 20, axis=0)
+    dirs = rng.normal(size=(len(tris), 3))
+    dirs /= np.linalg.norm(dirs, axis=1, keepdims=True)
+    extra = np.zeros((len(tris), 4))
+    extra[:, :3] = dirs
+    got = _run(gl_backend, tmp_path, "inside", tris, extra)
+    normals, sign = fp.edge_planes(tris)
+    want = np.array([fp.inside(d[None], n[None], s[None])[0, 0] for d, n, s in zip(dirs, normals, sign)])
+    unit = normals / np.maximum(np.linalg.norm(normals, axis=2, keepdims=True), 1e-300)
+    clear = (np.min(np.abs(np.einsum("tk,tek->te", dirs, unit)), axis=1) > 1e-5) & (sign != 0.0)
+    assert clear.sum() > 500
+    assert np.array_equal(got[clear, 0] > 0.5, want[clear])
+    assert want[clear].sum() > 20  # some rays do hit
