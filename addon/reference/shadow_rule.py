@@ -6,7 +6,8 @@ preview and the comparison panel. The rule follows Cycles 5.2:
 
 - **Ray visibility.** An object with `visible_shadow` off casts no shadow; it is
   still seen and still receives. An instance also needs its instancer's flag
-  (Cycles ANDs the instancer's ray visibility into the instance's).
+  (Cycles ANDs the top-level instancer's ray visibility into the instance's; an
+  instancer nested in between is not read).
 - **Shadow linking** (Blender 4.0+): the light's `light_linking.blocker_collection`.
   Entries of the collection are INCLUDE or EXCLUDE; an entry that is a collection
   passes its state to everything nested in it, and a later entry overrides an

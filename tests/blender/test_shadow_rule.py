@@ -146,6 +146,7 @@ CASES_A = {
     "collection instance": ("remove", "render", "prop_box", "props_a"),
     "instancer visible_shadow off": ("add", "render", "prop_box", "props_b"),
     "hide_render inside an instanced collection": ("add", "viewport", "prop_hidden", "props_a"),
+    "a nested instancer's visible_shadow is ignored": ("remove", "render", "prop_box", "nest"),
     "shadow linking EXCLUDE": ("add", "render", "a_excluded", None),
 }
 

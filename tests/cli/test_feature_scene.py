@@ -52,9 +52,9 @@ def test_every_camera_compares_with_safe_culling(blend, tmp_path, camera):
         culled, full = (next(r for r in rows if r["method"] == method and r["cull"] is cull) for cull in (True, False))
         assert culled["error_pct"] == full["error_pct"], (camera, method)
         assert culled["error_pct"] < MAX_ERROR_PCT, (camera, method, culled["error_pct"])
-    if camera != "Camera":  # these two views miss the +Z face; ortho views were never culled before
-        cube = next(r for r in rows if r["method"] == "cube" and r["cull"])
-        assert len(cube["layers"]) < 6, cube["layers"]
+    # Culling does leave geometry out with every camera (ortho views were never culled before).
+    culled, full = (next(r for r in rows if r["method"] == "cube" and r["cull"] is cull) for cull in (True, False))
+    assert culled["triangles_drawn"] < 0.5 * full["triangles_drawn"], (culled["triangles_drawn"], full["triangles_drawn"])
 
 
 @pytest.mark.parametrize("light", ["LampA", "LampB"])

@@ -13,7 +13,9 @@ the ground, so a test can tell which case a reading of the scene ignored:
   with `hide_render`;
 - `holdout_box` in a holdout collection, `indirect_box` in an indirect-only one;
 - `props` collection instanced twice: `props_a` (a scaled empty) and `props_b`, whose
-  `visible_shadow` is off; `prop_hidden` inside it has `hide_render`;
+  `visible_shadow` is off; `prop_hidden` inside it has `hide_render`; `nest` instances
+  a collection that holds an instancer of `props` with `visible_shadow` off, which
+  Cycles ignores (only the object and the top-level instancer count);
 - `tube` (a bevelled curve), `label` (extruded text), `blob` (a metaball);
 - `scatter`: geometry-nodes instances; `emitter`: particle instances whose emitter is
   not rendered (`show_instancer_for_render` off);
@@ -158,6 +160,17 @@ def build(out: Path, size: tuple[int, int]) -> None:
         empty.location, empty.scale = spot, (scale, scale, scale)
         empty.visible_shadow = casts
         root.objects.link(empty)
+    # A nested instance: `nest` instances `outer`, which holds an instancer of `props` whose
+    # visible_shadow is off. Cycles reads only the object and the top-level instancer.
+    outer = _collection(bpy, "outer", None)
+    middle = bpy.data.objects.new("middle", None)
+    middle.instance_type, middle.instance_collection = "COLLECTION", props
+    middle.visible_shadow = False
+    outer.objects.link(middle)
+    nest = bpy.data.objects.new("nest", None)
+    nest.instance_type, nest.instance_collection = "COLLECTION", outer
+    nest.location = (-0.6, -2.4, 2.3)
+    root.objects.link(nest)
     line = bpy.data.meshes.new("scatter")
     line.from_pydata([(0.0, 0.0, 0.0), (0.5, 0.3, 0.0), (1.0, 0.0, 0.0)], [], [])
     scatter = bpy.data.objects.new("scatter", line)
