@@ -13,6 +13,7 @@ import pytest
 from addon.core import footprint as fp
 from addon.render.shaders import SHADER_DIR, ProgramInterface, Uniform, moderngl_sources
 from tests.core.test_footprint import KINDS, _random_rotation, _triangle
+from tests.gl.test_glsl_oracle import _evaluate
 
 pytestmark = pytest.mark.gl
 
@@ -47,29 +48,11 @@ def _run(gl_backend, tmp_path, mode: str, tris: np.ndarray, extra: np.ndarray) -
                              vertex_in=(("vec2", "ow_corner"),), fragment_out=(("vec4", "ow_out"),),
                              uniforms=(Uniform("int", "ow_mode"),), samplers=("ow_input",))
     vs, fs = moderngl_sources(iface, shader_dir)
-    n = len(tris)
-    data = np.zeros((4, n, 4), dtype="f4")
+    data = np.zeros((4, len(tris), 4), dtype="f4")
     data[:3, :, :3] = np.transpose(tris, (1, 0, 2))
     data[3] = extra
     with gl_backend.ctx:
-        ctx = gl_backend.ctx
-        prog = ctx.program(vertex_shader=vs, fragment_shader=fs)
-        tex_in = ctx.texture((n, 4), 4, data.tobytes(), dtype="f4")
-        tex_out = ctx.texture((n, 1), 4, dtype="f4")
-        fbo = ctx.framebuffer(color_attachments=[tex_out])
-        vbo = ctx.buffer(np.array([[-1, -1], [3, -1], [-1, 3]], dtype="f4").tobytes())
-        vao = ctx.vertex_array(prog, [(vbo, "2f", "ow_corner")])
-        try:
-            prog["ow_mode"].value = MODES[mode]
-            tex_in.use(0)
-            prog["ow_input"].value = 0
-            fbo.use()
-            fbo.viewport = (0, 0, n, 1)
-            vao.render()
-            return np.frombuffer(tex_out.read(), dtype="f4").reshape(n, 4).astype(np.float64)
-        finally:
-            for obj in (vao, vbo, fbo, tex_out, tex_in, prog):
-                obj.release()
+        return _evaluate(gl_backend.ctx, vs, fs, data, (("int", "ow_mode", MODES[mode]),))
 
 
 def _triangles(seed: int, count: int) -> np.ndarray:

@@ -41,13 +41,18 @@ def _run(gl_backend, body: str, inputs: np.ndarray, tmp_path, uniforms=()) -> np
 
 
 def _evaluate(ctx, vs, fs, inputs, uniforms):
+    """Run the harness once per input column. `inputs` is (n, k <= 4), one texel per
+    column, or (rows, n, 4), a column of `rows` texels each; one RGBA result per column."""
     prog = ctx.program(vertex_shader=vs, fragment_shader=fs)
     for _, name, value in uniforms:
         prog[name].value = value
-    n = len(inputs)
-    data = np.zeros((1, n, 4), dtype="f4")
-    data[0, :, : inputs.shape[1]] = inputs
-    tex_in = ctx.texture((n, 1), 4, data.tobytes(), dtype="f4")
+    if inputs.ndim == 3:
+        data = np.ascontiguousarray(inputs, dtype="f4")
+    else:
+        data = np.zeros((1, len(inputs), 4), dtype="f4")
+        data[0, :, : inputs.shape[1]] = inputs
+    n = data.shape[1]
+    tex_in = ctx.texture((n, data.shape[0]), 4, data.tobytes(), dtype="f4")
     tex_out = ctx.texture((n, 1), 4, dtype="f4")
     fbo = ctx.framebuffer(color_attachments=[tex_out])
     vbo = ctx.buffer(np.array([[-1, -1], [3, -1], [-1, 3]], dtype="f4").tobytes())
