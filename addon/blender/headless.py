@@ -263,8 +263,7 @@ def main(argv: list[str] | None = None) -> int:
             # like the Cycles reference it is measured against; the interactive
             # viewport reads its own depsgraph (scene_cache.py).
             found = render_triangles(scene, layer)
-            seen, occluders = shadow_inputs(found.select, found.everything(),
-                                            rules_for(scene, [name for name, _, _ in lights]))
+            seen, occluders = shadow_inputs(found.select, rules_for(scene, [name for name, _, _ in lights]))
             report = run(reference, lights, seen, Path(args.out), occluders=occluders)
         finally:
             registration.unregister()

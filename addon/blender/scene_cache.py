@@ -45,8 +45,7 @@ from typing import Any, Callable, Hashable, Iterable
 import bpy
 import numpy as np
 
-from ..reference.render_geometry import GEOMETRY_TYPES as _GEOMETRY_TYPES
-from ..reference.render_geometry import local_triangles as _local_triangles
+from ..reference.render_geometry import GEOMETRY_TYPES, local_triangles
 from ..reference.shadow_rule import rules_for
 from ..reference.shadow_rule import shadow_inputs as _shadow_inputs
 
@@ -230,7 +229,7 @@ class SceneGeometryCache:
                 instancers[key] = obj
                 if obj.is_instancer and not obj.show_instancer_for_viewport:
                     continue
-            if obj.type not in _GEOMETRY_TYPES:
+            if obj.type not in GEOMETRY_TYPES:
                 continue
             part_key = ("object", key)
             seen.add(part_key)
@@ -311,7 +310,7 @@ class SceneGeometryCache:
             if group is None:
                 continue
             obj = inst.object
-            if obj.type not in _GEOMETRY_TYPES:
+            if obj.type not in GEOMETRY_TYPES:
                 continue
             source_key = id_key(obj)
             if source_key == parent_key:
@@ -367,7 +366,7 @@ class SceneGeometryCache:
         """Read one evaluated object's triangles (counted); a failed read gives none."""
         self.stats["geometry_reads"] += 1
         try:
-            return _local_triangles(obj, depsgraph)
+            return local_triangles(obj, depsgraph)
         except (RuntimeError, ReferenceError) as exc:
             log.warning("could not read the geometry of %r: %s; it casts no shadow", obj.name, exc)
             return _EMPTY_LOCAL
@@ -454,7 +453,7 @@ CACHE = SceneGeometryCache()
 def shadow_inputs(cache: SceneGeometryCache, scene: "bpy.types.Scene",
                   light_names: Iterable[str]) -> tuple[np.ndarray, dict[str, np.ndarray]]:
     """The camera's triangles and each light's occluders from the cache (`shadow_rule.shadow_inputs`)."""
-    return _shadow_inputs(cache.select, cache.world_triangles(), rules_for(scene, light_names))
+    return _shadow_inputs(cache.select, rules_for(scene, light_names))
 
 
 def _noop(_kind: str) -> None:

@@ -32,7 +32,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from .warping import Warp, family_offset, max_shear
+from .warping import LayerMapping, Warp, family_offset, max_shear
 
 # A triangle whose |det(v0, v1, v2)| is below this share of |v0| |v1| |v2| is seen edge-on.
 EDGE_ON = 1e-12
@@ -125,12 +125,12 @@ def cube_box(tri: np.ndarray, near: float) -> np.ndarray:
     return np.array([xy[:, 0].min(), xy[:, 0].max(), xy[:, 1].min(), xy[:, 1].max()])
 
 
-def cropped_box(box: np.ndarray, lo: np.ndarray, hi: np.ndarray) -> np.ndarray:
-    """A projection box (x0, x1, y0, y1) in the cropped layer's uv (the DV crop [lo, hi] of full uv)."""
-    scale = 1.0 / (np.asarray(hi, dtype=np.float64) - np.asarray(lo, dtype=np.float64))
-    u = ((np.asarray(box[:2]) * 0.5 + 0.5) - lo[0]) * scale[0]
-    v = ((np.asarray(box[2:]) * 0.5 + 0.5) - lo[1]) * scale[1]
-    return np.array([u[0], u[1], v[0], v[1]])
+def map_box(box: np.ndarray, mapping: LayerMapping) -> np.ndarray:
+    """A projection box (x0, x1, y0, y1) in the layer's map uv: through the DV crop, which
+    is affine and increasing (its corners), then the warp (`warp_box`)."""
+    crop = LayerMapping(mapping.lo, mapping.hi)
+    (u0, v0), (u1, v1) = crop.forward(np.array([[box[0], box[2]], [box[1], box[3]]], dtype=np.float64))
+    return warp_box(np.array([u0, u1, v0, v1]), mapping.warp)
 
 
 def warp_box(box: np.ndarray, warp: Warp | None) -> np.ndarray:

@@ -205,13 +205,6 @@ def register_temporary(path: Path) -> None:
         _STATE.temporaries.append(path)
 
 
-def forget_temporary(path: Path) -> None:
-    """`path` is no longer temporary (moved into place, or removed by its owner)."""
-    path = Path(path)
-    if path in _STATE.temporaries:
-        _STATE.temporaries.remove(path)
-
-
 def stop_child(proc: subprocess.Popen, grace_s: float = 3.0) -> None:
     """End a child process on an interrupt (or any failure of the parent): SIGTERM,
     then SIGKILL after `grace_s`; waits so that no zombie is left."""

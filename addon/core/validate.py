@@ -47,14 +47,6 @@ def finite_matrix(field: str, matrix, shape: tuple[int, ...] = (4, 4)) -> np.nda
     return array
 
 
-def finite_point(field: str, point) -> np.ndarray:
-    """A 3D point with finite coordinates; InputError naming `field` otherwise."""
-    array = np.asarray(point, dtype=np.float64).reshape(-1)
-    if array.shape != (3,) or not np.all(np.isfinite(array)) or np.any(np.abs(array) > HUGE):
-        raise InputError(f"{field} is not finite ({', '.join(f'{v:g}' for v in array)})")
-    return array
-
-
 def _describe(matrix: np.ndarray) -> str:
     """The translation column of a 4x4 (what a user sees as the location), else the values."""
     if matrix.shape == (4, 4):

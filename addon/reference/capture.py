@@ -56,7 +56,6 @@ CAPTURE_VERSION = 1
 DEFAULT_SAMPLES = 1
 AOV_NORMAL = "OmniWarpTrueNormal"
 PIXEL_FILTER_WIDTH = 0.01  # px; effectively no filter (Blender's minimum)
-_GEOMETRY_TYPES = GEOMETRY_TYPES
 # Light types the reference accepts. A SUN has a direction only: nothing in the capture
 # depends on its position (Cycles' culling is off, and there is no near/far to fit).
 _LIGHT_TYPES = {"POINT", "SPOT", "SUN"}
@@ -224,8 +223,6 @@ def _camera_window(camera: "bpy.types.Camera", render: "bpy.types.RenderSettings
                                  sensor_width=float(camera.sensor_width), sensor_height=float(camera.sensor_height),
                                  shift=shift, pixel_aspect=aspect)
 
-
-_pick_view_layer = pick_view_layer
 
 
 def _rigid(matrix) -> np.ndarray:
@@ -562,7 +559,7 @@ def capture(scene: "bpy.types.Scene", samples: int = DEFAULT_SAMPLES, *, light: 
             scene_triangles = render_triangles(scene, layer)
             triangles = scene_triangles.select(rule.blocks)
             empty = {o.name for o in scene.objects
-                     if o.type in _GEOMETRY_TYPES and o.name_full in visible} - scene_triangles.names
+                     if o.type in GEOMETRY_TYPES and o.name_full in visible} - scene_triangles.names
             if empty:
                 log.info("rendered objects without triangles: %s", ", ".join(sorted(empty)))
 

@@ -228,14 +228,14 @@ def _renderer_string() -> str:
 
 def light_reach(depsgraph, light_obj, visible: set[str]) -> float:
     """Distance from the light to the farthest bounding-box corner of the rendered geometry."""
-    from .capture import _GEOMETRY_TYPES
+    from .render_geometry import GEOMETRY_TYPES
 
     origin = np.array(light_obj.matrix_world.translation, dtype=np.float64)
     reach = 0.0
     for inst in depsgraph.object_instances:
         obj = inst.object
         owner = (inst.parent if inst.is_instance else obj).original
-        if obj.type not in _GEOMETRY_TYPES or owner.name_full not in visible:
+        if obj.type not in GEOMETRY_TYPES or owner.name_full not in visible:
             continue
         corners = np.array([tuple(c) for c in obj.bound_box], dtype=np.float64)
         matrix = np.array(inst.matrix_world, dtype=np.float64)
@@ -343,10 +343,10 @@ def render_eevee(scene: "bpy.types.Scene", out_dir: Path, settings: Sequence[str
         _emission_of,
         _Overrides,
         _pick_light,
-        _pick_view_layer,
         _remove_dir,
         _render_visible_objects,
         evaluated_depsgraph,
+        pick_view_layer,
         read_exr_channels,
     )
 
@@ -357,7 +357,7 @@ def render_eevee(scene: "bpy.types.Scene", out_dir: Path, settings: Sequence[str
     cam_obj = scene.camera
     if cam_obj is None or cam_obj.type != "CAMERA":
         raise ReferenceCaptureError(f"scene {scene.name!r} has no active camera; the eevee row needs one")
-    layer = _pick_view_layer(scene, view_layer)
+    layer = pick_view_layer(scene, view_layer)
     evaluated_depsgraph(scene, layer)  # syncs a new scene's layer collections
     visible = _render_visible_objects(layer)
     light_obj = _pick_light(scene, visible, light)

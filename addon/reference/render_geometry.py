@@ -58,9 +58,6 @@ class SceneTriangles:
             return np.zeros((0, 3, 3), dtype=np.float32)
         return np.concatenate(parts, axis=0)
 
-    def everything(self) -> np.ndarray:
-        return self.select(lambda name, parent: True)
-
     @property
     def names(self) -> set[str]:
         """Original objects that gave triangles (instancers for their instances)."""

@@ -37,6 +37,7 @@ from __future__ import annotations
 
 import logging
 from dataclasses import dataclass, field
+from functools import cached_property
 from typing import TYPE_CHECKING, Any, Callable, Hashable, Iterable
 
 import numpy as np
@@ -100,8 +101,9 @@ class LinkSet:
     states: dict[str, str] = field(default_factory=dict)
     linked: bool = False  # False: the light has no collection, every object is admitted
 
-    @property
+    @cached_property
     def has_include(self) -> bool:
+        # Asked for every owner of every triangle batch: scan the states once.
         return INCLUDE in self.states.values()
 
     def admits(self, name: str) -> bool:
@@ -264,15 +266,19 @@ def rules_for(scene: "bpy.types.Scene", light_names: Iterable[str]) -> dict[str,
     return rules
 
 
+def _everything(_name: str, _parent: str | None) -> bool:
+    return True
+
+
 def shadow_inputs(select: Callable[[Callable[[str, str | None], bool], Hashable], np.ndarray],
-                  everything: np.ndarray, rules: dict[str, ShadowRule]) -> tuple[np.ndarray, dict[str, np.ndarray]]:
+                  rules: dict[str, ShadowRule]) -> tuple[np.ndarray, dict[str, np.ndarray]]:
     """What the camera sees (a G-buffer's triangles) and, per light, what blocks it.
 
     `select(keep, key)` returns the triangles whose owners `keep(name, instancer)`
-    accepts (a scene cache or a `SceneTriangles`); without rules, `everything`.
+    accepts (a scene cache or a `SceneTriangles`); without rules, all of them.
     """
     if not rules:
-        return everything, {}
+        return select(_everything, ("all",)), {}
     first = next(iter(rules.values()))
     seen = select(first.seen, ("seen", first.no_camera))
     return seen, {name: select(rule.blocks, rule.key()) for name, rule in rules.items()}

@@ -16,7 +16,7 @@ from hypothesis import strategies as st
 
 from addon.core import footprint as fp
 from addon.core.projection import cube_unproject, paraboloid_unproject
-from addon.core.warping import Warp, build_notw
+from addon.core.warping import LayerMapping, Warp, build_notw
 from tests.support.oracle import ray_hits
 
 RES = 64
@@ -79,12 +79,10 @@ def _assert_inside_range(covered: np.ndarray, box: np.ndarray) -> tuple[int, int
     return cols.min(), cols.max(), rows.min(), rows.max()
 
 
-def _layer_dirs(unproject, uv_to_full) -> tuple[np.ndarray, np.ndarray]:
+def _layer_dirs(unproject, mapping: LayerMapping) -> tuple[np.ndarray, np.ndarray]:
     """Each texel centre's ray (RES, RES, 3), through the inverse map, and where it is defined."""
     u, v = np.meshgrid(CENTRES, CENTRES)  # [j, i]
-    full = uv_to_full(np.stack([u, v], axis=-1))
-    xy = full * 2.0 - 1.0
-    dirs = unproject(xy)
+    dirs = unproject(mapping.inverse(np.stack([u, v], axis=-1)))
     return dirs, np.all(np.isfinite(dirs), axis=-1)
 
 
@@ -114,14 +112,14 @@ def test_a_triangle_through_the_light_covers_nothing():
 @pytest.mark.parametrize("kind", KINDS)
 def test_paraboloid_footprint_covers_and_is_tight(kind):
     rng = np.random.default_rng(10 + KINDS.index(kind))
-    dirs, valid = _layer_dirs(paraboloid_unproject, lambda uv: uv)
+    dirs, valid = _layer_dirs(paraboloid_unproject, LayerMapping.identity())
     valid &= np.linalg.norm(dirs[..., :2] / (1.0 + dirs[..., 2:3]), axis=-1) <= 1.0  # the disk
     checked = 0
     for _ in range(25):
         tri = _triangle(rng, kind) @ _random_rotation(rng).T
         box = fp.paraboloid_box(tri)
         covered = _covered(dirs, valid, tri)
-        own = _assert_inside_range(covered, fp.cropped_box(box, np.zeros(2), np.ones(2)))
+        own = _assert_inside_range(covered, fp.map_box(box, LayerMapping.identity()))
         if own is None:
             continue
         checked += 1
@@ -159,13 +157,13 @@ def _assert_tight(box: np.ndarray, sampled: np.ndarray, tolerance: float = 0.01)
 @pytest.mark.parametrize("kind", ("front", "seam", "pole", "huge"))
 def test_cube_footprint_covers_and_is_tight(kind):
     rng = np.random.default_rng(20 + KINDS.index(kind))
-    dirs, valid = _layer_dirs(cube_unproject, lambda uv: uv)
+    dirs, valid = _layer_dirs(cube_unproject, LayerMapping.identity())
     checked = 0
     for _ in range(25):
         tri = _triangle(rng, kind) @ _random_rotation(rng).T
         box = fp.cube_box(tri, 1e-6 * np.abs(tri).max())
         covered = _covered(dirs, valid, tri)
-        own = _assert_inside_range(covered, fp.cropped_box(box, np.zeros(2), np.ones(2)))
+        own = _assert_inside_range(covered, fp.map_box(box, LayerMapping.identity()))
         if own is None:
             continue
         checked += 1
@@ -188,14 +186,11 @@ def test_warped_cropped_paraboloid_footprint_covers(seed, kind):
     warp = _warp(rng)
     lo = rng.uniform(0.0, 0.3, size=2)
     hi = lo + rng.uniform(0.3, 1.0 - lo.max(), size=2)
-
-    def to_full(uv_warped: np.ndarray) -> np.ndarray:
-        return lo + warp.inverse(uv_warped) * (hi - lo)
-
-    dirs, valid = _layer_dirs(paraboloid_unproject, to_full)
+    mapping = LayerMapping(lo, hi, warp)
+    dirs, valid = _layer_dirs(paraboloid_unproject, mapping)
     valid &= np.linalg.norm(dirs[..., :2] / (1.0 + dirs[..., 2:3]), axis=-1) <= 1.0
     tri = _triangle(rng, kind) @ _random_rotation(rng).T
-    box = fp.warp_box(fp.cropped_box(fp.paraboloid_box(tri), lo, hi), warp)
+    box = fp.map_box(fp.paraboloid_box(tri), mapping)
     _assert_inside_range(_covered(dirs, valid, tri), box)
 
 
@@ -206,9 +201,10 @@ def test_warped_footprints_cover_across_many_layers():
         rng = np.random.default_rng(1000 + seed)
         warp = _warp(rng)
         lo, hi = np.array([0.1, 0.05]), np.array([0.85, 0.9])
-        dirs, valid = _layer_dirs(paraboloid_unproject, lambda uv: lo + warp.inverse(uv) * (hi - lo))
+        mapping = LayerMapping(lo, hi, warp)
+        dirs, valid = _layer_dirs(paraboloid_unproject, mapping)
         valid &= np.linalg.norm(dirs[..., :2] / (1.0 + dirs[..., 2:3]), axis=-1) <= 1.0
         tri = _triangle(rng, KINDS[seed % len(KINDS)]) @ _random_rotation(rng).T
-        box = fp.warp_box(fp.cropped_box(fp.paraboloid_box(tri), lo, hi), warp)
+        box = fp.map_box(fp.paraboloid_box(tri), mapping)
         covering += _assert_inside_range(_covered(dirs, valid, tri), box) is not None
     assert covering >= 20
