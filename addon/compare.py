@@ -35,6 +35,7 @@ from .render.pipeline import (
     count_statistics,
     settings_for,
 )
+from .render.resident import ResidentScene
 
 log = logging.getLogger(__name__)
 
@@ -116,16 +117,22 @@ def _median_times(frames: Sequence[dict[str, float]]) -> dict[str, float]:
     return {k: float(statistics.median(f.get(k, 0.0) for f in frames)) for k in keys}
 
 
+def resident_scene(ref: ReferenceData) -> ResidentScene:
+    """The reference's triangles as one resident object: build it once per reference and
+    pass it to every row, so the GPU holds the scene across rows and frames."""
+    return ResidentScene.of_triangles(ref.triangles.astype(np.float64), key=f"reference:{id(ref)}")
+
+
 def run_row(pipeline: ShadowPipeline, ref: ReferenceData, preset: str, method: str, resolution: int,
-            options: CompareOptions, image_dir: Path | None) -> dict:
-    """Measure one (preset, method, resolution) row."""
+            options: CompareOptions, image_dir: Path | None, scene: ResidentScene | None = None) -> dict:
+    """Measure one (preset, method, resolution) row; `scene` is `resident_scene(ref)`, made here when not given."""
     light = light_from_reference(ref)
     samples = samples_from_reference(ref)
     settings = settings_for(method, resolution, cull=options.cull)
-    triangles = ref.triangles.astype(np.float64)
-    pipeline.render(light, triangles, samples, settings)  # warm-up: shader compile, allocation
+    scene = scene if scene is not None else resident_scene(ref)
+    pipeline.render(light, scene, samples, settings)  # warm-up: shader compile, allocation, upload
     count = max(1, options.frames)
-    frames = [pipeline.render(light, triangles, samples, settings, keep_atlas=(i == count - 1)) for i in range(count)]
+    frames = [pipeline.render(light, scene, samples, settings, keep_atlas=(i == count - 1)) for i in range(count)]
     last = frames[-1]
     counts = count_statistics(pipeline, light, settings, last, samples)  # measurement, not timed
     ref_lit = metrics.reference_visibility(ref.shadowed, ref.unshadowed)
@@ -326,6 +333,7 @@ def _measure(references: dict[str, Callable[[], ReferenceData]], options: Compar
     try:
         for preset, load in references.items():
             ref = load()
+            scene = resident_scene(ref)  # uploaded by the first row, kept by the rest
             first = len(rows)
             for method in options.methods:
                 entry = method_registry.method(method)
@@ -344,8 +352,9 @@ def _measure(references: dict[str, Callable[[], ReferenceData]], options: Compar
                 for resolution in options.resolutions:
                     for variant in _cull_variants(options):
                         progress.step(f"{preset} {method} @ {resolution}{'' if variant.cull else ' (no cull)'}")
-                        rows.append(run_row(pipeline, ref, preset, method, resolution, variant, image_dir))
+                        rows.append(run_row(pipeline, ref, preset, method, resolution, variant, image_dir, scene))
                         progress.advance()
+            pipeline.backend.release_scene(scene)
             # What the comparison cannot follow in this scene (shadow_rule.unfollowed), on every row.
             for row in rows[first:]:
                 if ref.meta.get("notes"):

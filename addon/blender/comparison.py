@@ -146,6 +146,7 @@ class _Job:
     keep_rows: list[dict] = field(default_factory=list)  # rows of earlier runs kept in the plot
     rows: list[dict] = field(default_factory=list)
     reference: Any = None  # ReferenceData once loaded
+    scene: Any = None  # its compare.resident_scene, kept on the GPU for every row
     pipeline: Any = None  # ShadowPipeline once the reference is loaded
     next_task: int = 0
     started: float = field(default_factory=time.perf_counter)
@@ -543,8 +544,10 @@ def step_job(job: _Job) -> str:
     else:
         method, resolution = job.tasks[job.next_task]
         start = time.perf_counter()
+        if job.scene is None:
+            job.scene = compare.resident_scene(job.reference)
         row = compare.run_row(job.pipeline, job.reference, job.preset, method, resolution, job.options,
-                              job.image_dir)
+                              job.image_dir, job.scene)
         job.row_seconds.append(time.perf_counter() - start)
         job.rows.append(_absolute_paths(row, job.out_dir))
         _ROWS.setdefault(scene.session_uid, []).append(row)

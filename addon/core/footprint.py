@@ -34,21 +34,27 @@ import numpy as np
 
 from .warping import LayerMapping, Warp, family_offset, max_shear
 
-# A triangle whose |det(v0, v1, v2)| is below this share of |v0| |v1| |v2| is seen edge-on.
+# A triangle is seen edge-on when |det(v0, v1, v2)| <= max(EDGE_ON |v0|, distance) |(v1 - v0) x
+# (v2 - v0)|: its plane passes within EDGE_ON |v0|, or an absolute `distance`, of the light.
 EDGE_ON = 1e-12
 EMPTY = np.array([np.inf, -np.inf, np.inf, -np.inf])  # (x0, x1, y0, y1) of nothing
 
 
-def edge_planes(tris: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+def edge_planes(tris: np.ndarray, edge_on_distance: float = 0.0) -> tuple[np.ndarray, np.ndarray]:
     """Light-centred triangles (T, 3, 3) -> edge-plane normals (T, 3, 3) and orientation (T,).
 
-    Orientation is the sign of det(v0, v1, v2), or 0 for a triangle seen edge-on.
+    Orientation is the sign of det(v0, v1, v2), or 0 for a triangle seen edge-on: its
+    plane within EDGE_ON |v0| or `edge_on_distance` of the light (the vertices' own
+    rounding, as the GPU pass has it: resident.ResidentObject.edge_on_distance).
     """
     v = np.asarray(tris, dtype=np.float64)
     normals = np.cross(v, np.roll(v, -1, axis=1))  # n_i = v_i x v_{i+1}
-    det = np.einsum("ti,ti->t", normals[:, 0], v[:, 2])
-    scale = np.prod(np.linalg.norm(v, axis=2), axis=1)
-    sign = np.where(np.abs(det) > EDGE_ON * scale, np.sign(det), 0.0)
+    # det from the edge vectors: rounding relative to the triangle's size, not its distance.
+    plane = np.cross(v[:, 1] - v[:, 0], v[:, 2] - v[:, 0])
+    det = np.einsum("ti,ti->t", v[:, 0], plane)
+    reach = np.maximum(EDGE_ON * np.linalg.norm(v[:, 0], axis=1), edge_on_distance)
+    scale = reach * np.linalg.norm(plane, axis=1)
+    sign = np.where(np.abs(det) > scale, np.sign(det), 0.0)
     return normals, sign
 
 
@@ -117,12 +123,17 @@ def paraboloid_box(tri: np.ndarray) -> np.ndarray:
 
 
 def cube_box(tri: np.ndarray, near: float) -> np.ndarray:
-    """(x0, x1, y0, y1) of a face-local triangle's image on the cube face (z >= near), clamped to [-1, 1]."""
+    """(x0, x1, y0, y1) of a face-local triangle's image on the cube face (z >= near), clamped
+    to [-1, 1]; EMPTY when the image lies beside the face."""
     poly = clip_polygon(np.asarray(tri, dtype=np.float64), near)
     if len(poly) < 3:
         return EMPTY.copy()
-    xy = np.clip(poly[:, :2] / poly[:, 2:3], -1.0, 1.0)
-    return np.array([xy[:, 0].min(), xy[:, 0].max(), xy[:, 1].min(), xy[:, 1].max()])
+    xy = poly[:, :2] / poly[:, 2:3]
+    lo, hi = xy.min(axis=0), xy.max(axis=0)
+    if np.any(lo > 1.0) or np.any(hi < -1.0):
+        return EMPTY.copy()
+    lo, hi = np.clip(lo, -1.0, 1.0), np.clip(hi, -1.0, 1.0)
+    return np.array([lo[0], hi[0], lo[1], hi[1]])
 
 
 def map_box(box: np.ndarray, mapping: LayerMapping) -> np.ndarray:

@@ -463,7 +463,12 @@ def _occluder_planes(light: LightSpec, corners: np.ndarray | None) -> np.ndarray
     return None if corners is None else hull_planes(np.vstack([corners, light.position[None]]))
 
 
-def outside_region(triangles: np.ndarray, planes: np.ndarray | None, slack: float = 1e-6) -> np.ndarray:
+# Relative slack of the occluder-region test: a corner counts as beyond a plane past
+# REGION_SLACK * (max |plane offset| + 1); the GPU's cull (footprint.vert) uses the same.
+REGION_SLACK = 1e-6
+
+
+def outside_region(triangles: np.ndarray, planes: np.ndarray | None, slack: float = REGION_SLACK) -> np.ndarray:
     """(T,) True where all three corners lie beyond one plane (by a relative slack)."""
     tris = np.asarray(triangles, dtype=np.float64)
     if planes is None or len(planes) == 0 or len(tris) == 0:

@@ -14,6 +14,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..core.errors import BackendError
+from .shaders import FOOTPRINT_VERTICES
 
 
 @dataclass(frozen=True)
@@ -64,10 +65,81 @@ class AtlasLayout:
 UniformValues = dict[str, object]
 
 
+@dataclass(frozen=True)
+class FootprintDraw:
+    """One object's triangles [first, first + count) drawn by the footprint pass, with the
+    object's own uniforms (ow_object_linear, ow_object_offset)."""
+
+    key: str
+    first: int
+    count: int
+    uniforms: UniformValues
+
+
 class ShadowBackend(ABC):
     """What a GPU backend provides to the pipeline."""
 
     name: str = "abstract"
+    # Bytes of scene geometry uploaded since the backend was made (sync_scene): a frame
+    # with nothing changed adds none.
+    geometry_bytes: int = 0
+
+    def sync_scene(self, scene) -> None:
+        """Make the GPU hold exactly `scene`'s objects (a `resident.ResidentScene`).
+
+        Uploads the vertex texture of each object that is new or whose geometry changed
+        (by revision) and frees those of the objects removed from it. A moved object
+        keeps its texture: its matrix travels as a uniform. Objects of other scenes stay
+        resident until `release_scene`.
+        """
+        held = self._resident_revisions()
+        for key in scene.removed:
+            if key in held:
+                self._drop_vertices(key)
+        scene.removed.clear()
+        for key, obj in scene.objects.items():
+            if held.get(key) != obj.revision:
+                texels = obj.vertex_texels()
+                self._upload_vertices(key, obj.revision, texels)
+                self.geometry_bytes += int(texels.nbytes)
+
+    def release_scene(self, scene) -> None:
+        """Free the vertex textures of every object of `scene`."""
+        held = self._resident_revisions()
+        for key in list(scene.objects) + list(scene.removed):
+            if key in held:
+                self._drop_vertices(key)
+
+    def resident_objects(self) -> int:
+        """Objects whose vertex textures this backend holds."""
+        return len(self._resident_revisions())
+
+    @abstractmethod
+    def _resident_revisions(self) -> dict[str, int]:
+        """Object key -> revision of the vertex texture this backend holds."""
+
+    @abstractmethod
+    def _upload_vertices(self, key: str, revision: int, texels: np.ndarray) -> None:
+        """Hold `texels` ((rows, VERTEX_TEXTURE_WIDTH, 4) float32) as the object's vertex texture."""
+
+    @abstractmethod
+    def _drop_vertices(self, key: str) -> None:
+        """Free the object's vertex texture."""
+
+    @abstractmethod
+    def build_ray_table(self, tile: int, uniforms: UniformValues) -> None:
+        """Fill one tile of the ray table (RAY_TABLE_PROGRAM, RG32F, the atlas's size), bound
+        as `ow_ray_table` for the footprint pass: the projection point of every texel of a
+        warped layer. Call after begin_atlas and set_warp_tables."""
+
+    @abstractmethod
+    def draw_footprints(self, tile: int, draws: list[FootprintDraw], uniforms: UniformValues,
+                        scissor: tuple[int, int, int, int] | None = None) -> None:
+        """Draw resident objects into one tile with the footprint program (FOOTPRINT_PROGRAM).
+
+        FOOTPRINT_VERTICES vertices per triangle (corner_indices); `uniforms` are the
+        layer's, each draw adds its object's. `scissor` is as for `draw_layer`.
+        """
 
     @abstractmethod
     def renderer(self) -> str:
@@ -153,6 +225,22 @@ class ShadowBackend(ABC):
 
     def __exit__(self, *exc) -> None:
         self.release()
+
+
+def corner_indices(triangles: int) -> np.ndarray:
+    """The footprint pass's corner buffer for `triangles` triangles: vertex i holds i % 6.
+
+    Backends keep one, grown by doubling, and draw a range of it per object.
+    """
+    return np.tile(np.arange(FOOTPRINT_VERTICES, dtype=np.float32), max(int(triangles), 1))
+
+
+def corner_capacity(triangles: int, held: int) -> int:
+    """Triangles a corner buffer must hold for a draw of `triangles`: `held` while it is
+    enough, else the next power of two (so a growing scene reallocates rarely)."""
+    if triangles <= held:
+        return held
+    return 1 << max(int(triangles) - 1, 1).bit_length()
 
 
 def pack_warp_table(table: np.ndarray | None) -> np.ndarray:

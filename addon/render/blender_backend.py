@@ -15,10 +15,21 @@ from typing import Any
 import numpy as np
 
 from ..core.errors import BackendError
-from .backend import AtlasLayout, ShadowBackend, UniformValues, pack_warp_table
+from .backend import (
+    AtlasLayout,
+    FootprintDraw,
+    ShadowBackend,
+    UniformValues,
+    corner_capacity,
+    corner_indices,
+    pack_warp_table,
+)
 from .shaders import (
     DEPTH_PROGRAM,
     EDGE_PROGRAM,
+    FOOTPRINT_PROGRAM,
+    FOOTPRINT_VERTICES,
+    RAY_TABLE_PROGRAM,
     SHADOW_TEST_PROGRAM,
     ComputeInterface,
     ProgramInterface,
@@ -185,8 +196,13 @@ class BlenderGPUBackend(ShadowBackend):
         self._overlay_dummy = None
         self._edge_fbs: tuple = ()
         self._edge_size: tuple[int, int] | None = None
+        self._vertices: dict[str, tuple[int, Any]] = {}  # object key -> (revision, vertex texture)
+        self._ray_fb = None  # framebuffer of the ray table, the atlas's size
+        self._corner_triangles = 0  # triangles the footprint batch's corner buffer holds
         self._released = False
         self.set_warp_tables(None, None)
+        # Read only by warped footprint draws, after build_ray_table replaced it.
+        self._textures["ow_ray_table"] = _float_texture((1, 1), "RG32F", np.zeros(2, np.float32))
 
     # shaders ----------------------------------------------------------------
     def shader(self, iface: ProgramInterface | ComputeInterface):
@@ -356,6 +372,83 @@ class BlenderGPUBackend(ShadowBackend):
                 if scissor is not None:
                     gpu.state.scissor_test_set(False)
 
+    def _resident_revisions(self) -> dict[str, int]:
+        return {key: revision for key, (revision, _) in self._vertices.items()}
+
+    def _upload_vertices(self, key: str, revision: int, texels: np.ndarray) -> None:
+        rows, width = texels.shape[:2]
+        self._vertices[key] = (revision, _float_texture((width, rows), "RGBA32F", texels))
+
+    def _drop_vertices(self, key: str) -> None:
+        self._vertices.pop(key, None)  # Blender frees the texture with its last reference
+
+    def _corner_batch(self, shader, triangles: int):
+        """The footprint pass's batch over a corner buffer of at least `triangles`."""
+        from gpu_extras.batch import batch_for_shader
+
+        capacity = corner_capacity(triangles, self._corner_triangles)
+        batch = self._batches.get("footprint")
+        if batch is None or capacity != self._corner_triangles:
+            batch = batch_for_shader(shader, "TRIS", {"ow_corner": corner_indices(capacity)})
+            self._batches["footprint"] = batch
+            self._corner_triangles = capacity
+        return batch
+
+    def build_ray_table(self, tile: int, uniforms: UniformValues) -> None:
+        import gpu
+        from gpu_extras.batch import batch_for_shader
+
+        if self._layout is None:
+            raise BackendError("build_ray_table called before begin_atlas")
+        size = self._layout.size
+        table = self._textures["ow_ray_table"]
+        if (table.width, table.height) != size or self._ray_fb is None:
+            table = self._textures["ow_ray_table"] = _float_texture(size, "RG32F")
+            self._ray_fb = _framebuffer(color_slots=(table,))
+        with self._ray_fb.bind():
+            shader = self._bind(RAY_TABLE_PROGRAM, uniforms)
+            batch = self._batches.get("fullscreen")
+            if batch is None:
+                batch = batch_for_shader(shader, "TRIS", {"ow_corner": _FULLSCREEN})
+                self._batches["fullscreen"] = batch
+            gpu.state.viewport_set(*self._layout.span_viewport(tile, 1))
+            gpu.state.depth_test_set("NONE")
+            batch.draw(shader)
+
+    def draw_footprints(self, tile: int, draws: list[FootprintDraw], uniforms: UniformValues,
+                        scissor: tuple[int, int, int, int] | None = None) -> None:
+        import gpu
+        from gpu_extras.batch import batch_for_shader
+
+        if self._layout is None:
+            raise BackendError("draw_footprints called before begin_atlas")
+        viewport = self._layout.span_viewport(tile, 1)
+        iface = program_variant(FOOTPRINT_PROGRAM, uniforms)
+        with self._atlas_fb.bind():
+            gpu.state.viewport_set(*viewport)
+            if scissor is not None:
+                gpu.state.scissor_set(*self._layout.scissor_rect(tile, scissor))
+                gpu.state.scissor_test_set(True)
+            gpu.state.depth_test_set("LESS")
+            gpu.state.depth_mask_set(True)
+            gpu.state.face_culling_set("NONE")  # footprint quads have either winding
+            try:
+                for draw in draws:
+                    if draw.count <= 0:
+                        continue  # instance_count=0 would mean "all instances" to gpu
+                    held = self._vertices.get(draw.key)
+                    if held is None:
+                        raise BackendError(f"object {draw.key!r} is not resident; call sync_scene first")
+                    shader = self._bind(iface, {**uniforms, **draw.uniforms}, {"ow_vertices": held[1]})
+                    batch = self._corner_batch(shader, draw.first + draw.count)
+                    batch.draw_range(shader, elem_start=draw.first * FOOTPRINT_VERTICES,
+                                     elem_count=draw.count * FOOTPRINT_VERTICES)
+            finally:
+                gpu.state.depth_test_set("NONE")
+                gpu.state.depth_mask_set(False)
+                if scissor is not None:
+                    gpu.state.scissor_test_set(False)
+
     def upload_samples(self, positions: np.ndarray, normals: np.ndarray) -> None:
         import gpu
 
@@ -466,6 +559,7 @@ class BlenderGPUBackend(ShadowBackend):
         count += sum(obj is not None for obj in (self._atlas_depth, self._atlas_fb))
         count += 1 if getattr(self, "_overlay_dummy", None) is not None else 0
         count += len(self._edge_fbs)
+        count += len(self._vertices) + (self._ray_fb is not None)
         return count
 
     def release(self) -> None:
@@ -483,4 +577,7 @@ class BlenderGPUBackend(ShadowBackend):
         self._overlay_dummy = None
         self._edge_fbs = ()
         self._edge_size = None
+        self._vertices.clear()
+        self._ray_fb = None
+        self._corner_triangles = 0
         self._released = True

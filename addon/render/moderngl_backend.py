@@ -11,10 +11,21 @@ import logging
 import numpy as np
 
 from ..core.errors import BackendError
-from .backend import AtlasLayout, ShadowBackend, UniformValues, pack_warp_table
+from .backend import (
+    AtlasLayout,
+    FootprintDraw,
+    ShadowBackend,
+    UniformValues,
+    corner_capacity,
+    corner_indices,
+    pack_warp_table,
+)
 from .shaders import (
     DEPTH_PROGRAM,
     EDGE_PROGRAM,
+    FOOTPRINT_PROGRAM,
+    FOOTPRINT_VERTICES,
+    RAY_TABLE_PROGRAM,
     SHADOW_TEST_PROGRAM,
     ComputeInterface,
     ProgramInterface,
@@ -94,8 +105,14 @@ class ModernGLBackend(ShadowBackend):
             self._fullscreen_vbo = self.ctx.buffer(_FULLSCREEN.tobytes())
             self._set_table("ow_warp_rows", None)
             self._set_table("ow_warp_cols", None)
+            # Read only by warped footprint draws, after build_ray_table replaced it.
+            self._textures["ow_ray_table"] = self._float_texture((1, 1), 2, np.zeros(2, "f4").tobytes())
         self._vaos: dict[str, object] = {}
         self._edge_fbos: tuple | None = None
+        self._vertices: dict[str, tuple[int, object]] = {}  # object key -> (revision, vertex texture)
+        self._ray_fbo = None  # framebuffer of the ray table, the atlas's size
+        self._corners = None  # corner buffer of the footprint pass (backend.corner_indices)
+        self._corner_triangles = 0  # triangles it holds
 
     # programs ---------------------------------------------------------------
     @_current
@@ -216,6 +233,89 @@ class ModernGLBackend(ShadowBackend):
             vbo.release()
             self.ctx.disable(self._mgl.DEPTH_TEST)
             self._atlas_fbo.scissor = None  # whole framebuffer again
+
+    def _resident_revisions(self) -> dict[str, int]:
+        return {key: revision for key, (revision, _) in self._vertices.items()}
+
+    @_current
+    def _upload_vertices(self, key: str, revision: int, texels: np.ndarray) -> None:
+        self._drop_vertices(key)
+        rows, width = texels.shape[:2]
+        self._vertices[key] = (revision, self._float_texture((width, rows), 4, texels.tobytes()))
+
+    @_current
+    def _drop_vertices(self, key: str) -> None:
+        held = self._vertices.pop(key, None)
+        if held is not None:
+            held[1].release()
+
+    def _ensure_corners(self, triangles: int) -> None:
+        """A corner buffer for at least `triangles` (the footprint vertex arrays use it)."""
+        capacity = corner_capacity(triangles, self._corner_triangles)
+        if capacity == self._corner_triangles:
+            return
+        for name in [n for n in self._vaos if n.startswith(FOOTPRINT_PROGRAM.name)]:
+            self._vaos.pop(name).release()  # they point at the old buffer
+        if self._corners is not None:
+            self._corners.release()
+        self._corners = self.ctx.buffer(corner_indices(capacity).tobytes())
+        self._corner_triangles = capacity
+
+    @_current
+    def build_ray_table(self, tile: int, uniforms: UniformValues) -> None:
+        if self._atlas_layout is None:
+            raise BackendError("build_ray_table called before begin_atlas")
+        size = self._atlas_layout.size
+        table = self._textures["ow_ray_table"]
+        if table.size != size:
+            if self._ray_fbo is not None:
+                self._ray_fbo.release()
+            table.release()
+            table = self._textures["ow_ray_table"] = self._float_texture(size, 2)
+            self._ray_fbo = self.ctx.framebuffer(color_attachments=[table])
+        prog = self._use(RAY_TABLE_PROGRAM, uniforms)
+        vao = self._vaos.get(RAY_TABLE_PROGRAM.name)
+        if vao is None:
+            vao = self.ctx.vertex_array(prog, [(self._fullscreen_vbo, "2f", "ow_corner")])
+            self._vaos[RAY_TABLE_PROGRAM.name] = vao
+        self._ray_fbo.use()
+        self._ray_fbo.viewport = self._atlas_layout.span_viewport(tile, 1)
+        self.ctx.disable(self._mgl.DEPTH_TEST)
+        vao.render(self._mgl.TRIANGLES)
+
+    @_current
+    def draw_footprints(self, tile: int, draws: list[FootprintDraw], uniforms: UniformValues,
+                        scissor: tuple[int, int, int, int] | None = None) -> None:
+        if self._atlas_layout is None:
+            raise BackendError("draw_footprints called before begin_atlas")
+        viewport = self._atlas_layout.span_viewport(tile, 1)
+        iface = program_variant(FOOTPRINT_PROGRAM, uniforms)
+        self._atlas_fbo.use()
+        self._atlas_fbo.viewport = viewport
+        self._atlas_fbo.scissor = viewport if scissor is None else self._atlas_layout.scissor_rect(tile, scissor)
+        self.ctx.enable(self._mgl.DEPTH_TEST)
+        self.ctx.disable(self._mgl.CULL_FACE)  # footprint quads have either winding
+        self.ctx.depth_func = "<"
+        try:
+            for draw in draws:
+                if draw.count <= 0:
+                    continue
+                held = self._vertices.get(draw.key)
+                if held is None:
+                    raise BackendError(f"object {draw.key!r} is not resident; call sync_scene first")
+                self._textures["ow_vertices"] = held[1]
+                self._ensure_corners(draw.first + draw.count)
+                prog = self._use(iface, {**uniforms, **draw.uniforms})
+                vao = self._vaos.get(iface.name)
+                if vao is None:
+                    vao = self.ctx.vertex_array(prog, [(self._corners, "1f", "ow_corner")])
+                    self._vaos[iface.name] = vao
+                vao.render(self._mgl.TRIANGLES, vertices=draw.count * FOOTPRINT_VERTICES,
+                           first=draw.first * FOOTPRINT_VERTICES)
+        finally:
+            self._textures.pop("ow_vertices", None)
+            self.ctx.disable(self._mgl.DEPTH_TEST)
+            self._atlas_fbo.scissor = None
 
     @_current
     def upload_samples(self, positions: np.ndarray, normals: np.ndarray) -> None:
@@ -355,10 +455,19 @@ class ModernGLBackend(ShadowBackend):
             if self._test_target is not None:
                 for obj in reversed(self._test_target):
                     obj.release()
+            if self._ray_fbo is not None:
+                self._ray_fbo.release()
+                self._ray_fbo = None
+            for _, texture in self._vertices.values():
+                texture.release()
+            self._vertices.clear()
             for tex in self._textures.values():
                 tex.release()
             self._textures.clear()
             self._fullscreen_vbo.release()
+            if self._corners is not None:
+                self._corners.release()
+                self._corners = None
             for prog in self._programs.values():
                 prog.release()
             self._programs.clear()

@@ -11,15 +11,19 @@ from __future__ import annotations
 import logging
 import math
 import time
+import weakref
+from collections import OrderedDict
+from collections.abc import Callable
 from dataclasses import dataclass, field
 
 import numpy as np
 
-from ..core import frames, perspective, projection, tessellate, validate
+from ..core import footprint, frames, perspective, projection, tessellate, validate
 from ..core import methods as method_registry
 from ..core.errors import InputError
 from ..core.frames import POINT_PARAMETERIZATIONS, PROJECTIVE_PARAMETERIZATIONS, Layer, Parameterization
 from ..core.plan import (
+    REGION_SLACK,
     SCISSOR_EDGE_POINTS,
     Plan,
     hit_points,
@@ -36,12 +40,15 @@ from ..core.warping import (
     Warp,
     WarpParams,
     dv_crop_from_counts,
+    max_shear,
     notw_cols,
     notw_rows,
     rtw_from_counts,
     singular_values_2x2,
 )
-from .backend import AtlasLayout, ShadowBackend
+from .backend import AtlasLayout, FootprintDraw, ShadowBackend
+from .resident import ResidentScene
+from .shaders import REGION_PLANES
 
 log = logging.getLogger(__name__)
 
@@ -190,18 +197,36 @@ class ViewSamples:
 
 @dataclass
 class PreparedGeometry:
-    """Per-layer float32 vertex streams and counts, ready to draw."""
+    """What a frame drew: the depth range, and either resident footprints or (unfold)
+    host-built vertex streams."""
 
-    streams: dict[int, np.ndarray]  # slot -> (n, VERTEX_FLOATS) float32 (unfold: both halves under slot 0)
+    streams: dict[int, np.ndarray]  # unfold: slot 0 -> (n, VERTEX_FLOATS) float32, both halves
     near: float
     far: float
-    skipped_triangles: int
-    tessellated_triangles: int  # triangles added by tessellation
+    skipped_at_upload: int  # unfold: every sanitised triangle; resident: non-finite and zero-area ones
+    tessellated_triangles: int  # triangles added by tessellation (unfold only)
     unfold_split: int = -1  # unfold: the first vertex of half 1 in the one stream; -1 otherwise
+    # Resident frames: counts, on the host and only when asked (a measurement, never part
+    # of a timed frame), the triangles past the GPU's culling and those seen edge-on.
+    measure: Callable[[], tuple[int, int]] | None = None
+    _measured: tuple[int, int] | None = None
+
+    def _counts(self) -> tuple[int, int]:
+        if self._measured is None:
+            self._measured = self.measure()
+        return self._measured
 
     @property
     def triangles_drawn(self) -> int:
-        return int(sum(len(s) for s in self.streams.values()) // 3)
+        """Triangles drawn, summed over the layers (after culling and, for unfold, tessellation)."""
+        if self.measure is None:
+            return int(sum(len(s) for s in self.streams.values()) // 3)
+        return self._counts()[0]
+
+    @property
+    def skipped_triangles(self) -> int:
+        """Triangles that cannot cast a shadow: non-finite, zero-area, or seen edge-on from the light."""
+        return self.skipped_at_upload + (self._counts()[1] if self.measure is not None else 0)
 
 
 @dataclass
@@ -234,14 +259,6 @@ def _vertex_stream(tris_centred: np.ndarray) -> np.ndarray:
     per_tri = np.concatenate([normal, offset[:, None]], axis=1)
     stream = np.concatenate([tris_centred, np.repeat(per_tri[:, None, :], 3, axis=1)], axis=2)
     return stream.reshape(-1, VERTEX_FLOATS).astype(np.float32)
-
-
-def _cull_to_face(local_tris: np.ndarray) -> np.ndarray:
-    """Keep triangles not entirely outside one side plane of a 90 degree face frustum."""
-    x, y, z = local_tris[..., 0], local_tris[..., 1], local_tris[..., 2]
-    outside = (np.all(x > z, axis=1) | np.all(-x > z, axis=1) | np.all(y > z, axis=1)
-               | np.all(-y > z, axis=1) | np.all(z <= 0.0, axis=1))
-    return ~outside
 
 
 def _map_texels(kind: int, mapping: LayerMapping, res: int):
@@ -289,98 +306,22 @@ def texel_angle_floor(kind: int, mapping: LayerMapping, res: int) -> float:
     return base / stretch
 
 
-def prepare_geometry(light: LightSpec, triangles: np.ndarray, plan: Plan, settings: ShadowSettings,
-                     mappings: dict[int, LayerMapping] | None = None,
-                     depth_range: tuple[float, float] | None = None) -> PreparedGeometry:
-    """Sanitise, split, tessellate and cull the scene's triangles for every drawn layer.
+def prepare_unfold(light: LightSpec, triangles: np.ndarray, plan: Plan, settings: ShadowSettings,
+                   depth_range: tuple[float, float]) -> PreparedGeometry:
+    """The unfold method's one vertex stream, built on the host: sanitised, culled, split
+    and tessellated (the other point methods draw resident footprints instead).
 
-    `depth_range` is the (near, far) of `projection.depth_range`, when the caller has it.
+    The unfold draw picks each triangle's half in the vertex stage and interpolates its
+    projection, so its coverage still comes from tessellated chords (docs/unfold_psm.md).
     """
-    light_pos = light.position
-    near, far = depth_range if depth_range is not None else projection.depth_range(triangles, light_pos)
-    tris, report = tessellate.sanitize(triangles, light_pos, scale=max(far, 1e-30))
+    near, far = depth_range
+    tris, report = tessellate.sanitize(triangles, light.position, scale=max(far, 1e-30))
     if settings.cull:
         # Object culling: only triangles inside conv(light, view frustum) can shadow
         # something in view (docs/culling.md).
         tris = tris[~outside_region(tris, plan.occluder_planes)]
-    centred = tris - light_pos
-    streams: dict[int, np.ndarray] = {}
-    added = 0
-    res = settings.resolution
-    mappings = mappings or {}
-    if plan.projective is not None:
-        # A projective map is linear in homogeneous space: the GPU clips and
-        # interpolates it exactly, so nothing is split or tessellated.
-        stream = _vertex_stream(centred)
-        return PreparedGeometry({0: stream}, near, far, report.skipped, 0)
-    if plan.parameterization == "unfold":
-        stream, split, added = _unfold_stream(centred, plan, settings)
-        return PreparedGeometry({0: stream} if plan.drawn else {}, near, far, report.skipped, added, split)
-    if plan.parameterization == "ipsm":
-        # One paraboloid along the cone axis: only the half-space in front of it can
-        # hold an occluder of a sample inside the cone (half-angle < 90 degrees).
-        layer = plan.drawn[0]
-        front, _ = tessellate.split_at_seam(layer.to_local(centred))
-        mapping = mappings.get(layer.slot, LayerMapping.identity())
-        refined, added = tessellate.tessellate(front, _map_texels(layer.kind, mapping, res),
-                                               settings.tessellation_tolerance, window=float(res),
-                                               texel_angle_floor=texel_angle_floor(layer.kind, mapping, res))
-        streams[layer.slot] = _vertex_stream(refined @ layer.rotation)
-    elif plan.parameterization == "dpsm":
-        # Split once at the seam plane of side 0 (whose +z is the light's -Z axis).
-        side0 = frames.light_layers(light, "dpsm")[0]
-        front, back = tessellate.split_at_seam(side0.to_local(centred), seam_overlap(projection.PARABOLOID, res))
-        # Side 1's frame is diag(1, -1, -1) times side 0's, so flip y and z of the back pieces.
-        pieces = {0: front, 1: back * np.array([1.0, -1.0, -1.0])}
-        for layer in plan.drawn:
-            mapping = mappings.get(layer.slot, LayerMapping.identity())
-            refined, n_added = tessellate.tessellate(pieces[layer.slot], _map_texels(layer.kind, mapping, res),
-                                                     settings.tessellation_tolerance, window=float(res),
-                                                     texel_angle_floor=texel_angle_floor(layer.kind, mapping, res))
-            added += n_added
-            streams[layer.slot] = _vertex_stream(refined @ layer.rotation)  # layer local -> world
-    else:
-        for layer in plan.drawn:
-            local = layer.to_local(centred)
-            keep = _cull_to_face(local) if settings.cull else np.ones(len(local), dtype=bool)
-            mapping = mappings.get(layer.slot)
-            if mapping is None or mapping.is_identity:
-                streams[layer.slot] = _vertex_stream(centred[keep])
-                continue
-            # A cropped or warped face is no longer a linear projection: clip to the
-            # front of the face on the CPU (the GPU clips linearly) and tessellate.
-            clipped = tessellate.clip_halfspace(local[keep], local[keep][..., 2] - far * CLIP_NEAR_RELATIVE)
-            clipped = _clip_to_crop(clipped, mapping, res)
-            refined, n_added = tessellate.tessellate(clipped, _map_texels(layer.kind, mapping, res),
-                                                     settings.tessellation_tolerance, window=float(res),
-                                                     texel_angle_floor=texel_angle_floor(layer.kind, mapping, res))
-            added += n_added
-            streams[layer.slot] = _vertex_stream(refined @ layer.rotation)
-    return PreparedGeometry(streams, near, far, report.skipped, added)
-
-
-# Texels of margin kept around a cropped cube face when clipping to it: rasterised
-# coverage reaches half a texel past an edge, and the shadow test clamps to the map.
-CROP_CLIP_MARGIN_TEXELS = 2.0
-
-
-def _clip_to_crop(local_tris: np.ndarray, mapping: LayerMapping, res: int) -> np.ndarray:
-    """Clip face-local triangles (z > 0) to the frustum of a cube face's crop box, plus a margin.
-
-    Nothing outside the box is stored (a whole face's box is the face itself). A
-    triangle reaching far outside would cross the warp with straight, untessellated
-    edges; inside the box tessellation follows the warp, so the depth pass's
-    interpolated projection point stays near the truth.
-    """
-    margin = CROP_CLIP_MARGIN_TEXELS / (res * mapping.scale)  # in uncropped uv
-    lo = mapping.lo - margin
-    hi = mapping.hi + margin
-    tris = local_tris
-    for axis in (0, 1):
-        # uv = (x / z) / 2 + 1/2 >= lo  <=>  x - (2 lo - 1) z >= 0 (z > 0); likewise <= hi.
-        tris = tessellate.clip_halfspace(tris, tris[..., axis] - (2.0 * lo[axis] - 1.0) * tris[..., 2])
-        tris = tessellate.clip_halfspace(tris, (2.0 * hi[axis] - 1.0) * tris[..., 2] - tris[..., axis])
-    return tris
+    stream, split, added = _unfold_stream(tris - light.position, plan, settings)
+    return PreparedGeometry({0: stream} if plan.drawn else {}, near, far, report.skipped, added, split)
 
 
 def _contains_ray(tris: np.ndarray, direction: np.ndarray) -> np.ndarray:
@@ -447,12 +388,16 @@ def _unfold_stream(centred: np.ndarray, plan: Plan, settings: ShadowSettings) ->
 
 def _layer_uniforms(layer: Layer, geometry: PreparedGeometry, res: int, origin: tuple[int, int],
                     mapping: LayerMapping, warp_size: int) -> dict:
+    """The uniforms of one layer's depth draw (both depth programs take them)."""
+    warp = mapping.warp
     return {
         "ow_layer_rot": layer.rotation,
         "ow_layer_kind": layer.kind,
         "ow_layer_slot": layer.slot,
         "ow_mapped": 0 if mapping.is_identity else 1,
-        "ow_warp_size": warp_size if mapping.warp is not None else 0,
+        "ow_warp_size": warp_size if warp is not None else 0,
+        "ow_warp_shear": (max_shear(warp.rows), max_shear(warp.cols)) if warp is not None else (0.0, 0.0),
+        "ow_dilate": FOOTPRINT_DILATE_TEXELS,
         "ow_crop": mapping.crop_vec4(),
         "ow_near": geometry.near,
         "ow_far": geometry.far,
@@ -467,6 +412,75 @@ def _layer_uniforms(layer: Layer, geometry: PreparedGeometry, res: int, origin: 
     }
 
 
+# Texels a footprint box grows by on each side: its float32 corners may fall short of the
+# exact box by rounding (about 1e-4 map units, 2e-3 next to the light), and a texel
+# centre left outside would lose its triangle (lib/footprint.glsl).
+FOOTPRINT_DILATE_TEXELS = 1.0
+
+
+def footprint_draws(scene: ResidentScene, light: LightSpec) -> list[FootprintDraw]:
+    """One draw per resident object: its matrix, light-centred in float64 on the host."""
+    return [FootprintDraw(key, 0, obj.triangles, {"ow_object_linear": obj.matrix[:3, :3],
+                                                  "ow_object_offset": obj.offset(light.position),
+                                                  "ow_edge_on_distance": obj.edge_on_distance(light.position)})
+            for key, obj in scene.objects.items() if obj.triangles]
+
+
+def _region_uniforms(plan: Plan, light: LightSpec, cull: bool) -> dict:
+    """The occluder region (plan.occluder_planes) light-centred, for the GPU's object culling.
+
+    A triangle with all corners beyond one plane (by outside_region's slack) is not drawn.
+    """
+    planes = plan.occluder_planes if cull else None
+    table = np.zeros((REGION_PLANES, 4))
+    if planes is None or len(planes) == 0:
+        return {"ow_region_planes": table, "ow_region_count": 0, "ow_region_slack": 0.0}
+    if len(planes) > REGION_PLANES:
+        log.debug("occluder region has %d planes, more than the GPU table's %d: not culled",
+                  len(planes), REGION_PLANES)
+        return {"ow_region_planes": table, "ow_region_count": 0, "ow_region_slack": 0.0}
+    planes = np.asarray(planes, dtype=np.float64)
+    table[:len(planes), :3] = planes[:, :3]
+    table[:len(planes), 3] = planes[:, 3] - planes[:, :3] @ light.position
+    slack = REGION_SLACK * (float(np.abs(planes[:, 3]).max()) + 1.0)
+    return {"ow_region_planes": table, "ow_region_count": len(planes), "ow_region_slack": slack}
+
+
+def _measurer(scene: ResidentScene, light: LightSpec, plan: Plan, settings: ShadowSettings):
+    """Host counts of a resident frame, for measurement only: the triangles the footprint
+    pass keeps, summed over the drawn layers (not edge-on, inside the occluder region,
+    in front of the layer: a paraboloid's hemisphere, a cube face's frustum), and the
+    triangles seen edge-on, which cover nothing."""
+
+    def measure() -> tuple[int, int]:
+        kept, edge_on = [], 0
+        for obj in scene.objects.values():
+            tris = obj.world_triangles() - light.position
+            if plan.projective is None and len(tris):
+                _, orientation = footprint.edge_planes(tris, obj.edge_on_distance(light.position))
+                edge_on += int(np.count_nonzero(orientation == 0.0))
+                tris = tris[orientation != 0.0]
+            kept.append(tris)
+        tris = np.concatenate(kept) if kept else np.zeros((0, 3, 3))
+        if settings.cull and len(tris):
+            tris = tris[~outside_region(tris + light.position, plan.occluder_planes)]
+        if plan.projective is not None:
+            return len(tris), edge_on
+        total = 0
+        for layer in plan.drawn:
+            local = tris @ layer.rotation.T
+            z = local[..., 2]
+            front = np.any(z > 0.0, axis=1)
+            if layer.kind == projection.CUBE:
+                x, y = local[..., 0], local[..., 1]
+                front &= ~(np.all(x > z, axis=1) | np.all(-x > z, axis=1) | np.all(y > z, axis=1)
+                           | np.all(-y > z, axis=1))
+            total += int(np.count_nonzero(front))
+        return total, edge_on
+
+    return measure
+
+
 def _stack_tables(mappings: dict[int, LayerMapping], size: int) -> tuple[np.ndarray, np.ndarray]:
     """Slot-major (6 * A, A + 1) tables of every layer's row and column offsets."""
     rows = np.zeros((6 * size, size + 1), dtype=np.float32)
@@ -478,11 +492,45 @@ def _stack_tables(mappings: dict[int, LayerMapping], size: int) -> tuple[np.ndar
     return rows, cols
 
 
+# Read-only triangle arrays a pipeline keeps resident at once (ShadowPipeline._scene_of):
+# a few lights, each with its own selection of blockers.
+MAX_HELD_SOUPS = 8
+
+
 class ShadowPipeline:
     """Runs frames on one backend."""
 
     def __init__(self, backend: ShadowBackend) -> None:
         self.backend = backend
+        # Read-only triangle arrays seen lately (the viewport's per-light selections, which
+        # stay the same object while the scene is unchanged) -> their resident scenes.
+        self._soups: OrderedDict[int, tuple[weakref.ref, ResidentScene]] = OrderedDict()
+
+    def _scene_of(self, triangles: np.ndarray) -> tuple[ResidentScene, bool]:
+        """A resident scene for a triangle array, and whether it is for this frame only.
+
+        A read-only array cannot change in place, so the same array object gets the same
+        scene (nothing uploaded again); any other array is uploaded for one frame.
+        """
+        array = np.asarray(triangles)
+        if array is not triangles or array.flags.writeable:
+            return ResidentScene.of_triangles(array), True
+        held = self._soups.get(id(array))
+        if held is not None and held[0]() is array:
+            self._soups.move_to_end(id(array))
+            return held[1], False
+        scene = ResidentScene.of_triangles(array)
+        self._soups[id(array)] = (weakref.ref(array), scene)
+        while len(self._soups) > MAX_HELD_SOUPS:
+            _, (_, old) = self._soups.popitem(last=False)
+            self.backend.release_scene(old)
+        return scene, False
+
+    def release(self) -> None:
+        """Free the resident scenes this pipeline made for read-only arrays."""
+        for _, scene in self._soups.values():
+            self.backend.release_scene(scene)
+        self._soups.clear()
 
     def count_maps(self, light: LightSpec, plan: Plan, mappings: dict[int, LayerMapping], size: int,
                    mode: int, weighted: bool = False) -> dict[int, np.ndarray]:
@@ -543,9 +591,26 @@ class ShadowPipeline:
         self.backend.set_warp_tables(*_stack_tables(mappings, size))
         return mappings, counts
 
-    def render(self, light: LightSpec, triangles: np.ndarray, samples: ViewSamples, settings: ShadowSettings,
-               keep_atlas: bool = False) -> FrameResult:
-        """One frame: plan, analysis, maps, test. Times each stage with a GPU sync."""
+    def render(self, light: LightSpec, scene: ResidentScene | np.ndarray, samples: ViewSamples,
+               settings: ShadowSettings, keep_atlas: bool = False) -> FrameResult:
+        """One frame: plan, analysis, maps, test. Times each stage with a GPU sync.
+
+        `scene` is a `ResidentScene`, whose unchanged objects stay on the GPU between
+        frames, or a (T, 3, 3) world triangle array: a read-only one stays resident for
+        as long as the same array comes back (the viewport's per-light selections), any
+        other is uploaded for this frame only.
+        """
+        one_frame = False
+        if not isinstance(scene, ResidentScene):
+            scene, one_frame = self._scene_of(scene)
+        try:
+            return self._render(light, scene, samples, settings, keep_atlas)
+        finally:
+            if one_frame:
+                self.backend.release_scene(scene)
+
+    def _render(self, light: LightSpec, scene: ResidentScene, samples: ViewSamples, settings: ShadowSettings,
+                keep_atlas: bool) -> FrameResult:
         backend = self.backend
         timings: dict[str, float] = {}
         t0 = time.perf_counter()
@@ -555,9 +620,10 @@ class ShadowPipeline:
 
         t1 = time.perf_counter()
         check_light_fits(light, settings.parameterization)
-        bounds = projection.finite_bounds(triangles)  # one scan of the triangles per frame
-        near_far = projection.depth_range(triangles, light.position, bounds=bounds)
-        far_estimate = near_far[1]
+        backend.sync_scene(scene)  # uploads only objects whose geometry changed
+        bounds = scene.bounds()  # per object, from its box and matrix
+        near_far = (projection.depth_range(None, light.position, bounds=bounds) if bounds is not None
+                    else (0.0, 1.0))
         if settings.parameterization in PROJECTIVE_PARAMETERIZATIONS:
             # With nothing finite to draw, any box around the light will do.
             scene_lo, scene_hi = bounds if bounds is not None else (light.position - 1.0, light.position + 1.0)
@@ -565,7 +631,7 @@ class ShadowPipeline:
                                    samples.hit, scene_lo, scene_hi, settings.resolution, cull=settings.cull)
         else:
             plan = plan_frame(light, settings.parameterization, samples.camera, samples.positions, samples.hit,
-                              far_estimate, cull=settings.cull, cut=settings.cut)
+                              near_far[1], cull=settings.cull, cut=settings.cut)
         t_plan = time.perf_counter() - t1
 
         t2 = time.perf_counter()
@@ -582,17 +648,23 @@ class ShadowPipeline:
         t3 = time.perf_counter()
         timings["analysis"] = (t3 - t2) * 1e3
 
-        geometry = prepare_geometry(light, triangles, plan, settings, mappings, near_far)
-        t4 = time.perf_counter()
-        timings["prepare"] = (t4 - t3 + t_plan) * 1e3
-
+        if plan.parameterization == "unfold":
+            geometry = prepare_unfold(light, scene.world_triangles(), plan, settings, near_far)
+        else:
+            geometry = PreparedGeometry({}, near_far[0], near_far[1], scene.skipped, 0,
+                                        measure=_measurer(scene, light, plan, settings))
         res = settings.resolution
+        size = settings.analysis_size or analysis_size_for(res)
         tile_of_slot = {layer.slot: i for i, layer in enumerate(plan.drawn)}
         layout = AtlasLayout.for_tiles(res, len(plan.drawn), backend.max_texture_size())
         boxes = readable_boxes(plan, light, settings, mappings)
+        draws = footprint_draws(scene, light)
+        region = _region_uniforms(plan, light, settings.cull)
+        t4 = time.perf_counter()
+        timings["prepare"] = (t4 - t3 + t_plan) * 1e3
+
         # Texels outside a layer's box are neither cleared nor drawn (map-space culling).
         backend.begin_atlas(layout, {tile_of_slot[slot]: box for slot, box in boxes.items()})
-        size = settings.analysis_size or analysis_size_for(res)
         if plan.parameterization == "unfold" and plan.drawn:
             # Both halves in one draw over two side-by-side tiles; the vertex stage
             # picks the half from the vertex index (Stockli Contreras et al.).
@@ -602,17 +674,18 @@ class ShadowPipeline:
             backend.draw_layer(0, geometry.streams.get(0, np.zeros((0, VERTEX_FLOATS), np.float32)), uniforms,
                                span=len(plan.drawn))
         elif plan.projective is not None:
-            uniforms = _layer_uniforms(plan.drawn[0], geometry, res, layout.origin(0), LayerMapping.identity(), 0)
-            uniforms.update(ow_projective=1, ow_map_inverted=int(plan.projective.inverted),
-                            ow_map_matrix=plan.projective.matrix)
-            backend.draw_layer(0, geometry.streams[0], uniforms)
+            uniforms = {**_layer_uniforms(plan.drawn[0], geometry, res, layout.origin(0), LayerMapping.identity(), 0),
+                        **region, "ow_projective": 1, "ow_map_inverted": int(plan.projective.inverted),
+                        "ow_map_matrix": plan.projective.matrix}
+            backend.draw_footprints(0, draws, uniforms)
         else:
             for layer in plan.drawn:
                 origin = layout.origin(tile_of_slot[layer.slot])
                 mapping = mappings.get(layer.slot, LayerMapping.identity())
-                backend.draw_layer(tile_of_slot[layer.slot], geometry.streams[layer.slot],
-                                   _layer_uniforms(layer, geometry, res, origin, mapping, size),
-                                   scissor=boxes.get(layer.slot))
+                uniforms = {**_layer_uniforms(layer, geometry, res, origin, mapping, size), **region}
+                if mapping.warp is not None:
+                    backend.build_ray_table(tile_of_slot[layer.slot], uniforms)
+                backend.draw_footprints(tile_of_slot[layer.slot], draws, uniforms, scissor=boxes.get(layer.slot))
         edge_radius = 0
         if settings.edge_aa and plan.drawn:
             edge_radius, edge_eps = edge_aa_parameters(res, geometry.near, geometry.far)

@@ -135,6 +135,71 @@ DEPTH_PROGRAM = ProgramInterface(
     writes_depth=True,
 )
 
+# Vertex texture of the footprint pass: vertex i of an object at texel (i % W, i // W).
+VERTEX_TEXTURE_WIDTH = 2048
+# Vertices the footprint pass draws per triangle: one quad as two triangles.
+FOOTPRINT_VERTICES = 6
+# Planes of the occluder region the footprint pass culls against (conv(light, frustum)
+# of 8 corners and the light has at most 2 * 9 - 4 = 14 faces).
+REGION_PLANES = 16
+
+FOOTPRINT_PROGRAM = ProgramInterface(
+    name="omniwarp_footprint",
+    vertex_file="footprint.vert",
+    fragment_file="footprint.frag",
+    vertex_in=(("float", "ow_corner"),),
+    fragment_out=(("float", "ow_depth"),),
+    uniforms=(
+        Uniform("mat3", "ow_layer_rot"),
+        Uniform("mat3", "ow_object_linear"),
+        Uniform("vec3", "ow_object_offset"),
+        Uniform("float", "ow_edge_on_distance"),
+        Uniform("int", "ow_layer_kind"),
+        Uniform("int", "ow_layer_slot"),
+        Uniform("int", "ow_warp_size"),
+        Uniform("vec2", "ow_warp_shear"),
+        Uniform("vec4", "ow_crop"),
+        Uniform("float", "ow_near"),
+        Uniform("float", "ow_far"),
+        Uniform("float", "ow_clip_near"),
+        Uniform("float", "ow_resolution"),
+        Uniform("float", "ow_dilate"),
+        Uniform("vec2", "ow_tile_origin"),
+        Uniform("vec4", "ow_region_planes", REGION_PLANES),
+        Uniform("int", "ow_region_count"),
+        Uniform("float", "ow_region_slack"),
+        Uniform("int", "ow_projective"),
+        Uniform("int", "ow_map_inverted"),
+        Uniform("mat4", "ow_map_matrix"),
+    ),
+    samplers=_WARP_SAMPLERS + ("ow_vertices", "ow_ray_table"),
+    varyings=(
+        Varying("vec4", "v_plane", flat=True),
+        Varying("vec3", "v_edge0", flat=True),
+        Varying("vec3", "v_edge1", flat=True),
+        Varying("vec3", "v_edge2", flat=True),
+    ),
+    writes_depth=True,
+    defines={"OW_VERTEX_WIDTH": str(VERTEX_TEXTURE_WIDTH), "OW_REGION_PLANES": str(REGION_PLANES),
+             "OW_FOOTPRINT_VERTICES": str(FOOTPRINT_VERTICES)},
+)
+
+RAY_TABLE_PROGRAM = ProgramInterface(
+    name="omniwarp_ray_table",
+    vertex_file="fullscreen.vert",
+    fragment_file="ray_table.frag",
+    vertex_in=(("vec2", "ow_corner"),),
+    fragment_out=(("vec2", "ow_ray_xy"),),
+    uniforms=(
+        Uniform("int", "ow_layer_slot"),
+        Uniform("int", "ow_warp_size"),
+        Uniform("vec4", "ow_crop"),
+        Uniform("float", "ow_resolution"),
+        Uniform("vec2", "ow_tile_origin"),
+    ),
+    samplers=_WARP_SAMPLERS,
+)
+
 SHADOW_TEST_PROGRAM = ProgramInterface(
     name="omniwarp_shadow_test",
     vertex_file="fullscreen.vert",
@@ -248,7 +313,8 @@ FIXED_KIND_DEFINE = "OW_FIXED_KIND"
 # Layer kinds with a fixed-kind variant; the values mirror core.projection's
 # PARABOLOID and CUBE (lib/projection.glsl's OW_KIND_PARABOLOID, OW_KIND_CUBE).
 FIXED_KIND_NAMES = {0: "paraboloid", 1: "cube"}
-_VARIANT_BASES = {DEPTH_PROGRAM.name: DEPTH_PROGRAM, SHADOW_TEST_PROGRAM.name: SHADOW_TEST_PROGRAM}
+_VARIANT_BASES = {DEPTH_PROGRAM.name: DEPTH_PROGRAM, SHADOW_TEST_PROGRAM.name: SHADOW_TEST_PROGRAM,
+                  FOOTPRINT_PROGRAM.name: FOOTPRINT_PROGRAM}
 
 
 @functools.cache
@@ -318,7 +384,7 @@ VARIANT_PROGRAMS = tuple(_variant(base, warped, kind) for base in _VARIANT_BASES
                          for kind in (None, *FIXED_KIND_NAMES))
 
 
-PROGRAMS = (*VARIANT_PROGRAMS, GBUFFER_PROGRAM, PREVIEW_PROGRAM, OVERLAY_PROGRAM, EDGE_PROGRAM)
+PROGRAMS = (*VARIANT_PROGRAMS, RAY_TABLE_PROGRAM, GBUFFER_PROGRAM, PREVIEW_PROGRAM, OVERLAY_PROGRAM, EDGE_PROGRAM)
 COMPUTE_PROGRAMS = (SCATTER_PROGRAM, *(_scatter_variant(mode, kind) for mode in SCATTER_MODES
                                        for kind in (None, *FIXED_KIND_NAMES)))
 

@@ -6,23 +6,33 @@
 // In float32 the boxes match the float64 ones to 1e-4 map units, except where a
 // vertex lies within about 1e-4 of the light and the triangle is clipped at the seam:
 // the crossing point's direction is then good to about 1e-3. A depth pass built on
-// these boxes must dilate them by a texel (tests/gl/test_footprint_glsl.py). Not yet
-// used by a program: the GPU-resident depth pass of issue 17 will include it.
+// these boxes must dilate them by a texel (tests/gl/test_footprint_glsl.py); the
+// footprint depth pass (footprint.vert) does.
+
+#include "lib/warp.glsl"
 
 const vec4 OW_EMPTY_BOX = vec4(1.0, -1.0, 1.0, -1.0);
-// A triangle whose |det(v0, v1, v2)| is below this share of |v0| |v1| |v2| is seen
-// edge-on (the numpy side uses 1e-12; float32 needs a wider margin).
+// A triangle is seen edge-on when its plane passes within max(OW_EDGE_ON |v0|,
+// edge_on_distance) of the light: |det(v0, v1, v2)| <= that times |(v1 - v0) x (v2 - v0)|.
+// The determinant is formed from the edge vectors, whose float32 rounding is relative to
+// the triangle's own size, so a tiny triangle far from the light keeps its orientation.
+// `edge_on_distance` is the rounding of the stored vertices themselves: a vertex placed
+// at the light lands up to that far from it, and must not then cover half the sphere
+// (the numpy side uses 1e-12 for the relative part; float32 needs a wider margin).
 const float OW_EDGE_ON = 1e-6;
 
 // Edge-plane normals n_i = v_i x v_{i+1}; returns det's sign, 0 for a triangle seen edge-on.
-float ow_edge_planes(vec3 v0, vec3 v1, vec3 v2, out vec3 n0, out vec3 n1, out vec3 n2)
+// A neighbour computes its shared edge's normal from the same two vertices, so the two
+// inside tests split the rays along that edge without a gap.
+float ow_edge_planes(vec3 v0, vec3 v1, vec3 v2, float edge_on_distance, out vec3 n0, out vec3 n1, out vec3 n2)
 {
   n0 = cross(v0, v1);
   n1 = cross(v1, v2);
   n2 = cross(v2, v0);
-  float det = dot(n0, v2);
-  float scale = length(v0) * length(v1) * length(v2);
-  return (abs(det) > OW_EDGE_ON * scale) ? sign(det) : 0.0;
+  vec3 normal = cross(v1 - v0, v2 - v0);
+  float det = dot(v0, normal);
+  float reach = max(OW_EDGE_ON * length(v0), edge_on_distance);
+  return (abs(det) > reach * length(normal)) ? sign(det) : 0.0;
 }
 
 // The ray direction d lies inside the triangle's three edge planes (and not behind the light).
@@ -97,6 +107,12 @@ void ow_arc_extend(vec3 a, vec3 b, inout vec4 box)
   }
 }
 
+// Chords (in map units) below which a paraboloid box bounds the arcs by their sag:
+// great circles map to circles of radius >= 1 in the map, and an arc inside the unit
+// disk is at most half of its circle, so it strays at most c^2 / 4 from its chord c.
+// Beyond this the arcs' exact extremes are cheaper than the slack (at 0.05 it is 6e-4).
+const float OW_SAG_CHORD = 0.05;
+
 // Box of the triangle's image in a paraboloid layer (its part with z >= 0).
 vec4 ow_paraboloid_box(vec3 v0, vec3 v1, vec3 v2)
 {
@@ -106,20 +122,40 @@ vec4 ow_paraboloid_box(vec3 v0, vec3 v1, vec3 v2)
     return OW_EMPTY_BOX;
   }
   vec4 box = vec4(1e30, -1e30, 1e30, -1e30);
+  vec2 image[4];
+  float chord = 0.0;
   for (int i = 0; i < 4; i++) {
     if (i >= count) {
       break;
     }
-    vec3 q = p[(i + 1) % count];
+    image[i] = (length(p[i]) > 0.0) ? ow_stereographic(p[i]) : vec2(0.0);
+  }
+  for (int i = 0; i < 4; i++) {
+    if (i >= count) {
+      break;
+    }
     if (length(p[i]) > 0.0) {
-      ow_box_add(ow_stereographic(p[i]), box);
-      ow_arc_extend(p[i], q, box);
+      ow_box_add(image[i], box);
+    }
+    chord = max(chord, length(image[(i + 1) % count] - image[i]));
+  }
+  if (chord < OW_SAG_CHORD && min(min(length(p[0]), length(p[1])), length(p[2])) > 0.0) {
+    float sag = 0.25 * chord * chord;
+    return clamp(box + vec4(-sag, sag, -sag, sag), -1.0, 1.0);
+  }
+  for (int i = 0; i < 4; i++) {
+    if (i >= count) {
+      break;
+    }
+    if (length(p[i]) > 0.0) {
+      ow_arc_extend(p[i], p[(i + 1) % count], box);
     }
   }
   return box;
 }
 
-// Box of the triangle's image on a cube face (its part with z >= near), clamped to the face.
+// Box of the triangle's image on a cube face (its part with z >= near), clamped to the
+// face; empty when the image misses the face.
 vec4 ow_cube_box(vec3 v0, vec3 v1, vec3 v2, float near)
 {
   vec3 p[4];
@@ -130,8 +166,31 @@ vec4 ow_cube_box(vec3 v0, vec3 v1, vec3 v2, float near)
   vec4 box = vec4(1e30, -1e30, 1e30, -1e30);
   for (int i = 0; i < 4; i++) {
     if (i < count) {
-      ow_box_add(p[i].xy / p[i].z, box);
+      vec2 xy = p[i].xy / p[i].z;
+      box = vec4(min(box.x, xy.x), max(box.y, xy.x), min(box.z, xy.y), max(box.w, xy.y));
     }
   }
-  return box;
+  if (box.x > 1.0 || box.y < -1.0 || box.z > 1.0 || box.w < -1.0) {
+    return OW_EMPTY_BOX;  // beside the face: no texel of it sees the triangle
+  }
+  return clamp(box, -1.0, 1.0);
 }
+
+#ifndef OW_NO_WARP
+// A conservative box of the warped image of the uv box (u0, u1, v0, v1): the warp grows
+// along each axis, and its offsets change across by at most `shear` (rows, columns)
+// per unit (footprint.warp_box in addon/core/footprint.py).
+vec4 ow_warp_box(sampler2D rows, sampler2D cols, int slot, int size, vec4 box, vec2 shear)
+{
+  float slope;
+  float v_mid = 0.5 * (box.z + box.w);
+  float v_half = 0.5 * (box.w - box.z);
+  float w0 = box.x + ow_family_offset(rows, slot, size, box.x, v_mid, slope) - shear.x * v_half;
+  float w1 = box.y + ow_family_offset(rows, slot, size, box.y, v_mid, slope) + shear.x * v_half;
+  float w_mid = 0.5 * (w0 + w1);
+  float w_half = 0.5 * (w1 - w0);
+  float z0 = box.z + ow_family_offset(cols, slot, size, box.z, w_mid, slope) - shear.y * w_half;
+  float z1 = box.w + ow_family_offset(cols, slot, size, box.w, w_mid, slope) + shear.y * w_half;
+  return vec4(w0, w1, z0, z1);
+}
+#endif

@@ -59,41 +59,6 @@ def test_floor_depth_is_exact_radial_distance(gl_backend, param, slot):
     assert np.allclose(tile[inside], expected[inside], atol=2e-6)
 
 
-@pytest.mark.parametrize("warp", ["none", "notw"])
-def test_depth_comes_from_the_plane_unclamped(gl_backend, monkeypatch, warp):
-    """Every covered texel stores the distance at which its own ray meets the stream's
-    plane, not clamped to the triangle's distances: a texel just off a tessellated
-    triangle sees the plane's continuation (clamping it to the farthest corner stored
-    depths too near on grazing receivers). Checked by moving every plane three times
-    as far from the light: the depths must follow, past every vertex's distance."""
-    import addon.render.pipeline as pipeline_module
-
-    scene = _floor_scene()
-    samples = _samples(scene, (0.3, 0.2, -1.0))
-    settings = ShadowSettings("dpsm", 32, cull=False, warp=warp)
-    exact = ShadowPipeline(gl_backend).render(scene.light, scene.world_triangles(), samples, settings,
-                                              keep_atlas=True)
-    prepare = pipeline_module.prepare_geometry
-
-    def planes_moved_out(*args, **kwargs):
-        geometry = prepare(*args, **kwargs)
-        for stream in geometry.streams.values():
-            stream[:, 6] *= 3.0  # the plane offset: n . p = 3c
-        return geometry
-
-    monkeypatch.setattr(pipeline_module, "prepare_geometry", planes_moved_out)
-    moved = ShadowPipeline(gl_backend).render(scene.light, scene.world_triangles(), samples, settings,
-                                              keep_atlas=True)
-    tile, exact_tile = _tile(moved, 0), _tile(exact, 0)
-    covered = exact_tile < 1.0
-    near, far = exact.geometry.near, exact.geometry.far
-    exact_t = near + exact_tile * (far - near)
-    expected = np.minimum((3.0 * exact_t - near) / (far - near), 1.0)
-    beyond = covered & (3.0 * exact_t < far)  # still inside [near, far]: not clamped to 1
-    assert beyond.sum() > 100
-    assert np.allclose(tile[covered], expected[covered], atol=1e-5)
-
-
 def test_empty_texels_hold_far_and_opposite_side_is_empty(gl_backend):
     """Texels no triangle covers stay at depth 1; the upper side sees nothing of a floor below."""
     scene = _floor_scene()
@@ -107,8 +72,7 @@ def test_empty_texels_hold_far_and_opposite_side_is_empty(gl_backend):
 
 # (parameterization, slot, centres of the two sample clusters on the floor z = -1).
 # The cube face is +X, which sees the floor edge-on towards its horizon: the floor's
-# triangles pass behind the light and are clipped at the near plane, so their edges
-# reach millions of texels off the map, where tessellation never looks.
+# triangles pass behind the light, and their footprints are clipped at the near plane.
 WARPED_FLOOR_CASES = [("dpsm", 0, [[0.6, 0.4], [-0.9, -0.7]]), ("cube", 0, [[2.0, 0.6], [5.0, -1.5]])]
 
 
@@ -118,8 +82,9 @@ def test_warped_floor_depth_follows_the_exact_inverse_warp(gl_backend, param, sl
     """Through a strong warp, every covered texel stores the floor's radial distance on
     the ray of its own centre, taken back through numpy's exact inverse warp.
 
-    The depth pass finds that ray by Newton steps from interpolated vertex data, so
-    this bounds its error. The floor is two triangles, 100 times their height across.
+    The footprint pass reads that ray from the layer's ray table (the GLSL exact
+    inverse), so this bounds the float32 search against numpy's float64 one. The floor
+    is two triangles, 100 times their height across.
     """
     scene = _floor_scene(size=200.0)
     res = 64
@@ -148,48 +113,8 @@ def test_warped_floor_depth_follows_the_exact_inverse_warp(gl_backend, param, sl
     assert hit.sum() > res * res // 8
     assert np.all(np.isfinite(tile))
     error = np.abs(tile[hit] - expected[hit])
-    # A 64^2 map with a warp node every texel is far harsher than the presets (at
-    # 1024 the frames match the exact search pixel for pixel). Even the exact search
-    # leaves a few outliers: texels just off a tessellated piece clamp to its depth
-    # range. Measured on llvmpipe over the four cases, the 90th percentile error and
-    # the texels (of 4096) off by more than 1e-4: exact search <= 1.1e-8 and 0-37; two
-    # Newton steps <= 8.5e-9 and 2-60; one step >= 6.4e-6 and 75-123.
+    # A 64^2 map with a warp node every texel is far harsher than the presets. Measured
+    # on llvmpipe over the four cases: 90th percentile error <= 1.1e-8, and no texel off
+    # by more than 1e-4 (the tessellated pass before the footprints left up to 60 of 4096).
     assert np.percentile(error, 90) < 1e-7
-    assert np.mean(error > 1e-4) < 0.025
-
-
-def test_clip_to_crop_keeps_exactly_the_crop_frustum():
-    """Clipped pieces project inside the crop box plus its margin, and cover it as the input did."""
-    from addon.core.warping import LayerMapping
-    from addon.render.pipeline import CROP_CLIP_MARGIN_TEXELS, _clip_to_crop
-
-    rng = np.random.default_rng(5)
-    tris = rng.uniform(-3.0, 3.0, size=(300, 3, 3))
-    tris[..., 2] = rng.uniform(0.01, 4.0, size=(300, 3))  # in front of the face (z > 0)
-    mapping = LayerMapping(np.array([0.2, 0.0]), np.array([0.55, 0.7]))
-    res = 128
-    clipped = _clip_to_crop(tris, mapping, res)
-    uv = clipped[..., :2] / clipped[..., 2:3] * 0.5 + 0.5
-    margin = CROP_CLIP_MARGIN_TEXELS / (res * mapping.scale)
-    assert np.all(uv >= mapping.lo - margin - 1e-9)
-    assert np.all(uv <= mapping.hi + margin + 1e-9)
-    # The side at the face's edge (v = 0) keeps the same margin beyond it.
-    assert np.any(uv[..., 1] < 0.0)
-    # Coverage is kept: rays through the box cross as many triangles before and after.
-    rays = np.stack([rng.uniform(0.22, 0.53, 400), rng.uniform(0.02, 0.68, 400)], axis=1) * 2.0 - 1.0
-    dirs = np.concatenate([rays, np.ones((400, 1))], axis=1)
-
-    def hit_count(triangles):
-        # Möller-Trumbore from the origin: how many triangles each ray crosses.
-        e1 = triangles[:, 1] - triangles[:, 0]
-        e2 = triangles[:, 2] - triangles[:, 0]
-        p = np.cross(dirs[:, None, :], e2[None])
-        det = np.einsum("tk,rtk->rt", e1, p)
-        inv = 1.0 / np.where(np.abs(det) < 1e-15, np.nan, det)
-        s = -triangles[:, 0]
-        u = np.einsum("tk,rtk->rt", s, p) * inv
-        q = np.cross(s, e1)
-        v = np.einsum("rk,tk->rt", dirs, q) * inv
-        return np.sum((u > 1e-9) & (v > 1e-9) & (u + v < 1 - 1e-9), axis=1)
-
-    assert np.array_equal(hit_count(tris), hit_count(clipped))
+    assert np.count_nonzero(error > 1e-4) <= 2

@@ -31,7 +31,7 @@ void main() {
     ow_out = ow_cube_box(v0, v1, v2, extra.w);
   } else {
     vec3 n0, n1, n2;
-    float s = ow_edge_planes(v0, v1, v2, n0, n1, n2);
+    float s = ow_edge_planes(v0, v1, v2, 0.0, n0, n1, n2);
     ow_out = vec4(ow_inside(extra.xyz, n0, n1, n2, s) ? 1.0 : 0.0, s, 0.0, 0.0);
   }
 }
@@ -41,7 +41,8 @@ void main() {
 def _run(gl_backend, tmp_path, mode: str, tris: np.ndarray, extra: np.ndarray) -> np.ndarray:
     shader_dir = tmp_path / "gpu_shaders"
     (shader_dir / "lib").mkdir(parents=True, exist_ok=True)
-    (shader_dir / "lib" / "footprint.glsl").write_text((SHADER_DIR / "lib" / "footprint.glsl").read_text())
+    for lib in (SHADER_DIR / "lib").glob("*.glsl"):
+        (shader_dir / "lib" / lib.name).write_text(lib.read_text())
     (shader_dir / "fullscreen.vert").write_text((SHADER_DIR / "fullscreen.vert").read_text())
     (shader_dir / "harness.frag").write_text(HARNESS)
     iface = ProgramInterface(name="footprint_harness", vertex_file="fullscreen.vert", fragment_file="harness.frag",
@@ -77,12 +78,28 @@ def _near(got: np.ndarray, want: np.ndarray) -> np.ndarray:
     return ok
 
 
-def test_paraboloid_boxes_match_numpy(gl_backend, tmp_path):
+# A small triangle's GLSL box bounds its arcs by their sag instead of their extremes
+# (OW_SAG_CHORD in lib/footprint.glsl): it may exceed the exact box by c^2 / 4, c < 0.05.
+SAG_SLACK = 0.25 * 0.05 ** 2
+
+
+def _contains(got: np.ndarray, want: np.ndarray) -> np.ndarray:
+    """Boxes that hold the exact one (to float32 tolerance) and exceed it by at most the sag slack."""
+    empty_got, empty_want = got[:, 0] > got[:, 1], ~np.isfinite(want[:, 0])
+    both = ~empty_got & ~empty_want
+    ok = empty_got == empty_want
+    tolerance = np.array([TOLERANCE[KINDS[i % len(KINDS)]] for i in range(len(got))])[both, None]
+    outward = (got[both] - want[both]) * np.array([-1.0, 1.0, -1.0, 1.0])  # > 0 where got is larger
+    ok[both] &= np.all((outward >= -tolerance) & (outward <= SAG_SLACK + tolerance), axis=1)
+    return ok
+
+
+def test_paraboloid_boxes_hold_the_exact_boxes(gl_backend, tmp_path):
     tris = _triangles(1, 300)
     got = _run(gl_backend, tmp_path, "paraboloid", tris, np.zeros((len(tris), 4)))
     want = np.array([fp.paraboloid_box(t) for t in tris])
-    ok = _near(got, want)
-    assert ok.all(), np.flatnonzero(~ok)[:5]
+    ok = _contains(got, want)
+    assert ok.all(), (np.flatnonzero(~ok)[:5], got[~ok][:3], want[~ok][:3])
     assert (~np.isfinite(want[:, 0])).sum() < len(tris) // 2  # most triangles are seen
 
 

@@ -114,17 +114,20 @@ def test_vertex_at_light_is_skipped_and_counted(gl_backend):
     assert result.geometry.skipped_triangles == 4
 
 
-def test_huge_floor_is_tessellated_only_where_needed(gl_backend):
-    """The 1 km floor is subdivided, and a finer map needs more triangles."""
+def test_huge_floor_is_tessellated_only_by_unfold(gl_backend):
+    """The footprint pass draws the 1 km floor whole on every paraboloid and cube layer;
+    only the unfold method, which still interpolates its projection, subdivides it, and
+    more for a finer map."""
     scene = _huge_floor()
     samples, _, _ = view_samples(scene)
     pipe = ShadowPipeline(gl_backend)
-    coarse = pipe.render(scene.light, scene.world_triangles(), samples, ShadowSettings("dpsm", 256))
-    fine = pipe.render(scene.light, scene.world_triangles(), samples, ShadowSettings("dpsm", 1024))
+    for param in ("dpsm", "cube", "ipsm"):
+        result = pipe.render(scene.light, scene.world_triangles(), samples, ShadowSettings(param, 1024))
+        assert result.geometry.tessellated_triangles == 0, param
+    coarse = pipe.render(scene.light, scene.world_triangles(), samples, ShadowSettings("unfold", 256))
+    fine = pipe.render(scene.light, scene.world_triangles(), samples, ShadowSettings("unfold", 1024))
     assert coarse.geometry.tessellated_triangles > 0
     assert fine.geometry.tessellated_triangles > coarse.geometry.tessellated_triangles
-    cube = pipe.render(scene.light, scene.world_triangles(), samples, ShadowSettings("cube", 1024))
-    assert cube.geometry.tessellated_triangles == 0  # perspective keeps lines straight
 
 
 def test_resolution_lowers_error(gl_backend):

@@ -63,7 +63,7 @@ def test_variant_choice_fixes_only_paraboloid_and_cube_frames(base, warp_size):
 
 def test_every_variant_has_its_own_name():
     names = [iface.name for iface in VARIANT_PROGRAMS]
-    assert len(set(names)) == len(names) == 12
+    assert len(set(names)) == len(names) == 18  # 3 programs x (generic, 2 kinds) x (warped, plain)
     scatter_names = [iface.name for iface in COMPUTE_PROGRAMS]
     assert len(set(scatter_names)) == len(scatter_names) == 10  # the generic one and 3 modes x 3 kinds
 

@@ -1,0 +1,189 @@
+"""The scene as the GPU keeps it: triangles per object, uploaded once per change (issue 17).
+
+An object is a float32 vertex array in its own frame (relative to its bounding box's
+centre, so float32 keeps its relative precision at any scene scale) and a float64
+affine matrix. A frame uploads nothing for an object whose geometry is unchanged; a
+moved object changes only its matrix, a uniform. The depth pass places each vertex
+light-centred with `linear @ v + offset`, where the offset (the object's origin minus
+the light) is formed in float64 on the host.
+
+What the frame needs from the scene on the host is per object, not per triangle:
+the bounding box (the depth range) and the triangle count.
+"""
+from __future__ import annotations
+
+import logging
+from dataclasses import dataclass, field
+from itertools import count
+
+import numpy as np
+
+from ..core.errors import InputError
+from ..core.projection import MAX_COORDINATE
+from .shaders import VERTEX_TEXTURE_WIDTH
+
+log = logging.getLogger(__name__)
+
+_revisions = count(1)  # geometry revisions, unique across scenes: a backend keys uploads on them
+_soups = count(1)  # keys of triangle-soup objects, unique across scenes
+# Rounding of a stored vertex, relative to the object's size plus its distance from the
+# light (float32 local coordinates, then a float32 offset): about 16 ulps. A triangle
+# whose plane passes this close to the light is taken as seen edge-on (lib/footprint.glsl).
+EDGE_ON_ROUNDING = 1e-6
+
+
+@dataclass(frozen=True)
+class SanitizeCounts:
+    """Triangles left out at upload: they can never cast a shadow or be projected."""
+
+    nonfinite: int = 0  # a corner NaN, inf or beyond projection.MAX_COORDINATE
+    degenerate: int = 0  # zero area, relative to the object's size
+
+    @property
+    def skipped(self) -> int:
+        return self.nonfinite + self.degenerate
+
+
+@dataclass
+class ResidentObject:
+    """One object's triangles in its own frame, and where the frame lies in the world."""
+
+    key: str
+    local: np.ndarray  # (T, 3, 3) float32, relative to `origin`
+    origin: np.ndarray  # (3,) float64, in the object's frame
+    matrix: np.ndarray  # (4, 4) float64 object -> world
+    revision: int
+    counts: SanitizeCounts = SanitizeCounts()
+    _local_lo: np.ndarray = field(default_factory=lambda: np.zeros(3))
+    _local_hi: np.ndarray = field(default_factory=lambda: np.zeros(3))
+
+    @property
+    def triangles(self) -> int:
+        return int(len(self.local))
+
+    def offset(self, light_position: np.ndarray) -> np.ndarray:
+        """Light-centred world position of the object's origin, in float64."""
+        return self.matrix[:3, :3] @ self.origin + self.matrix[:3, 3] - np.asarray(light_position, np.float64)
+
+    def edge_on_distance(self, light_position: np.ndarray) -> float:
+        """The absolute edge-on distance of this object's triangles from this light."""
+        radius = float(np.max(np.abs(np.concatenate([self._local_lo, self._local_hi])))) if len(self.local) else 0.0
+        scale = float(np.max(np.abs(self.matrix[:3, :3]))) * radius + float(np.linalg.norm(self.offset(light_position)))
+        return EDGE_ON_ROUNDING * scale
+
+    def world_bounds(self) -> tuple[np.ndarray, np.ndarray] | None:
+        """World box of the transformed local box (8 corners), or None when empty."""
+        if not len(self.local):
+            return None
+        lo, hi = self._local_lo, self._local_hi
+        corners = np.array([[x, y, z] for x in (lo[0], hi[0]) for y in (lo[1], hi[1]) for z in (lo[2], hi[2])])
+        world = (corners + self.origin) @ self.matrix[:3, :3].T + self.matrix[:3, 3]
+        return world.min(axis=0), world.max(axis=0)
+
+    def world_triangles(self) -> np.ndarray:
+        """(T, 3, 3) float64 world triangles (for measurement and the unfold path)."""
+        local = self.local.astype(np.float64) + self.origin
+        return local @ self.matrix[:3, :3].T + self.matrix[:3, 3]
+
+    def vertex_texels(self) -> np.ndarray:
+        """The vertex texture: (rows, VERTEX_TEXTURE_WIDTH, 4) float32, vertex i at texel i."""
+        return vertex_texels(self.local)
+
+
+def vertex_texels(local: np.ndarray) -> np.ndarray:
+    """(T, 3, 3) vertices -> (rows, VERTEX_TEXTURE_WIDTH, 4) float32, xyz and w = 0."""
+    flat = np.asarray(local, dtype=np.float32).reshape(-1, 3)
+    rows = max(1, -(-len(flat) // VERTEX_TEXTURE_WIDTH))
+    texels = np.zeros((rows * VERTEX_TEXTURE_WIDTH, 4), dtype=np.float32)
+    texels[:len(flat), :3] = flat
+    return texels.reshape(rows, VERTEX_TEXTURE_WIDTH, 4)
+
+
+def _sanitized(triangles: np.ndarray) -> tuple[np.ndarray, SanitizeCounts]:
+    """Drop non-finite and zero-area triangles (tessellate.sanitize's scene-only rules).
+
+    Triangles whose plane passes through the light cover no texel; the depth pass's
+    inside test leaves them out per light, so they are not dropped here.
+    """
+    tris = np.asarray(triangles, dtype=np.float64).reshape(-1, 3, 3)
+    finite = np.all(np.isfinite(tris) & (np.abs(tris) < MAX_COORDINATE), axis=(1, 2))
+    tris = tris[finite]
+    if not len(tris):
+        return tris, SanitizeCounts(int(np.count_nonzero(~finite)), 0)
+    scale = float(np.max(np.abs(tris))) or 1.0
+    area2 = np.linalg.norm(np.cross(tris[:, 1] - tris[:, 0], tris[:, 2] - tris[:, 0]), axis=1)
+    degenerate = area2 <= (1e-12 * scale) ** 2
+    return tris[~degenerate], SanitizeCounts(int(np.count_nonzero(~finite)), int(np.count_nonzero(degenerate)))
+
+
+class ResidentScene:
+    """Objects keyed by name; what the backends upload and the depth pass draws."""
+
+    def __init__(self) -> None:
+        self.objects: dict[str, ResidentObject] = {}
+        self.removed: set[str] = set()  # keys removed since the last sync: the backend frees them
+        self._world: tuple[tuple, np.ndarray] | None = None
+
+    @classmethod
+    def of_triangles(cls, triangles: np.ndarray, key: str | None = None) -> "ResidentScene":
+        """A scene of one object holding a world-space triangle soup (identity matrix).
+
+        Its key is unique unless given, so several soups can be resident at once.
+        """
+        scene = cls()
+        scene.set_geometry(key if key is not None else f"soup{next(_soups)}", triangles)
+        return scene
+
+    def set_geometry(self, key: str, triangles: np.ndarray, matrix: np.ndarray | None = None) -> ResidentObject:
+        """Add or replace an object's triangles (in its own frame); the next frame uploads them."""
+        tris, counts = _sanitized(triangles)
+        if len(tris):
+            lo, hi = tris.reshape(-1, 3).min(axis=0), tris.reshape(-1, 3).max(axis=0)
+        else:
+            lo = hi = np.zeros(3)
+        origin = 0.5 * (lo + hi)
+        obj = ResidentObject(key, (tris - origin).astype(np.float32), origin,
+                             self._matrix(matrix), next(_revisions), counts, lo - origin, hi - origin)
+        self.objects[key] = obj
+        self.removed.discard(key)
+        return obj
+
+    def set_matrix(self, key: str, matrix: np.ndarray) -> None:
+        """Move an object: no upload, only its uniforms change."""
+        self.objects[key].matrix = self._matrix(matrix)
+
+    def remove(self, key: str) -> None:
+        """Drop an object; the next sync frees its vertex texture."""
+        if self.objects.pop(key, None) is not None:
+            self.removed.add(key)
+
+    @staticmethod
+    def _matrix(matrix: np.ndarray | None) -> np.ndarray:
+        m = np.eye(4) if matrix is None else np.asarray(matrix, dtype=np.float64)
+        if m.shape != (4, 4) or not np.all(np.isfinite(m)):
+            raise InputError(f"an object matrix must be a finite 4x4, got shape {m.shape}")
+        return m
+
+    @property
+    def triangles(self) -> int:
+        return sum(obj.triangles for obj in self.objects.values())
+
+    @property
+    def skipped(self) -> int:
+        return sum(obj.counts.skipped for obj in self.objects.values())
+
+    def bounds(self) -> tuple[np.ndarray, np.ndarray] | None:
+        """World box of every object's box, or None for an empty scene."""
+        boxes = [b for b in (obj.world_bounds() for obj in self.objects.values()) if b is not None]
+        if not boxes:
+            return None
+        return np.min([b[0] for b in boxes], axis=0), np.max([b[1] for b in boxes], axis=0)
+
+    def world_triangles(self) -> np.ndarray:
+        """All objects' triangles in world space, (T, 3, 3) float64: a host copy, for
+        measurement and the unfold method (kept until an object changes or moves)."""
+        state = tuple((key, obj.revision, obj.matrix.tobytes()) for key, obj in self.objects.items())
+        if self._world is None or self._world[0] != state:
+            parts = [obj.world_triangles() for obj in self.objects.values() if obj.triangles]
+            self._world = (state, np.concatenate(parts) if parts else np.zeros((0, 3, 3)))
+        return self._world[1]

@@ -1,0 +1,94 @@
+// Footprint depth pass, vertex stage (vertex pulling; issue 17). Six vertices per
+// triangle, two triangles of one quad: vertex i belongs to triangle i / 6, and the
+// corner buffer holds i % 6 (a plain draw: software rasterisers run instanced draws
+// of a few vertices each far slower). The triangle's vertices come from the object's
+// vertex texture, are placed light-centred by the object's matrix, and give the flat
+// inputs of the exact per-texel test: the three edge planes through the light and the
+// triangle's plane. The corners span a conservative box of the triangle's curved image
+// in the cropped, warped layer (lib/footprint.glsl), dilated by `ow_dilate` texels for
+// float32 rounding. Triangles seen edge-on, outside the occluder region or outside the
+// layer draw nothing: all four corners go to one point outside the clip volume.
+#include "lib/projection.glsl"
+#include "lib/mapping.glsl"
+#include "lib/footprint.glsl"
+
+vec3 ow_pull(int index)
+{
+  ivec2 at = ivec2(index % OW_VERTEX_WIDTH, index / OW_VERTEX_WIDTH);
+  return ow_object_linear * texelFetch(ow_vertices, at, 0).xyz + ow_object_offset;
+}
+
+// All three corners beyond one plane of the occluder region (plan.outside_region).
+bool ow_outside_region(vec3 v0, vec3 v1, vec3 v2)
+{
+  for (int i = 0; i < OW_REGION_PLANES; i++) {
+    if (i >= ow_region_count) {
+      break;
+    }
+    vec4 p = ow_region_planes[i];
+    float slack = ow_region_slack;
+    if (dot(p.xyz, v0) - p.w > slack && dot(p.xyz, v1) - p.w > slack && dot(p.xyz, v2) - p.w > slack) {
+      return true;
+    }
+  }
+  return false;
+}
+
+// The quad's corner (bit 0: high x, bit 1: high y) of each of the six vertices.
+const int OW_QUAD_CORNER[OW_FOOTPRINT_VERTICES] = int[OW_FOOTPRINT_VERTICES](0, 1, 2, 2, 1, 3);
+
+void main()
+{
+  int corner = OW_QUAD_CORNER[clamp(int(ow_corner + 0.5), 0, OW_FOOTPRINT_VERTICES - 1)];
+  int base = 3 * (gl_VertexID / OW_FOOTPRINT_VERTICES);
+  vec3 v0 = ow_pull(base);
+  vec3 v1 = ow_pull(base + 1);
+  vec3 v2 = ow_pull(base + 2);
+  vec3 normal = cross(v1 - v0, v2 - v0);
+  normal /= max(length(normal), 1e-30);
+  v_plane = vec4(normal, dot(normal, v0));
+  vec3 n0, n1, n2;
+  float orientation = ow_edge_planes(v0, v1, v2, ow_edge_on_distance, n0, n1, n2);
+  v_edge0 = n0 * orientation;
+  v_edge1 = n1 * orientation;
+  v_edge2 = n2 * orientation;
+  const vec4 parked = vec4(2.0, 2.0, 2.0, 1.0);  // outside the clip volume: nothing drawn
+  if (orientation == 0.0 || ow_outside_region(v0, v1, v2)) {
+    gl_Position = parked;
+    return;
+  }
+#ifndef OW_FIXED_KIND
+  if (ow_projective != 0) {
+    // Spot or sun map: the triangle itself, projected linearly (exact); the quad's
+    // fourth corner repeats the third, so its second triangle has no area.
+    vec3 v = (corner == 0) ? v0 : ((corner == 1) ? v1 : v2);
+    gl_Position = ow_map_matrix * vec4(v, 1.0);
+    return;
+  }
+#endif
+  vec3 l0 = ow_layer_rot * v0;
+  vec3 l1 = ow_layer_rot * v1;
+  vec3 l2 = ow_layer_rot * v2;
+  vec4 box = (OW_KIND(ow_layer_kind) == OW_KIND_PARABOLOID) ? ow_paraboloid_box(l0, l1, l2)
+                                                          : ow_cube_box(l0, l1, l2, ow_clip_near);
+  if (box.x > box.y) {
+    gl_Position = parked;  // behind the layer's half-space, or beside the cube face
+    return;
+  }
+  // Projection xy -> uncropped uv -> cropped uv (affine, increasing) -> warped uv.
+  box = (box * 0.5 + 0.5 - ow_crop.xxyy) * ow_crop.zzww;
+#ifndef OW_NO_WARP
+  if (ow_warp_size > 0) {
+    box = ow_warp_box(ow_warp_rows, ow_warp_cols, ow_layer_slot, ow_warp_size, box, ow_warp_shear);
+  }
+#endif
+  float grow = ow_dilate / ow_resolution;
+  box += vec4(-grow, grow, -grow, grow);
+  if (box.x > 1.0 || box.y < 0.0 || box.z > 1.0 || box.w < 0.0) {
+    gl_Position = parked;  // outside the (cropped) map
+    return;
+  }
+  box = clamp(box, 0.0, 1.0);
+  vec2 uv = vec2(((corner & 1) != 0) ? box.y : box.x, ((corner & 2) != 0) ? box.w : box.z);
+  gl_Position = vec4(uv * 2.0 - 1.0, 0.0, 1.0);
+}
