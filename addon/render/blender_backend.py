@@ -418,7 +418,6 @@ class BlenderGPUBackend(ShadowBackend):
     def draw_footprints(self, tile: int, draws: list[FootprintDraw], uniforms: UniformValues,
                         scissor: tuple[int, int, int, int] | None = None) -> None:
         import gpu
-        from gpu_extras.batch import batch_for_shader
 
         if self._layout is None:
             raise BackendError("draw_footprints called before begin_atlas")

@@ -101,7 +101,7 @@ def test_a_lookup_outside_the_box_reads_empty(monkeypatch):
     """The shadow test's guard: a lookup outside a layer's readable box counts as lit (an
     empty texel), never as whatever a previous frame left there. A deliberately wrong
     1x1 box puts every lookup outside it."""
-    from addon.render import pipeline as pipeline_module
+    from addon.render import parameterizations
     from addon.render.moderngl_backend import ModernGLBackend
 
     scene = build_preset("courtyard", (128, 96))
@@ -112,8 +112,8 @@ def test_a_lookup_outside_the_box_reads_empty(monkeypatch):
         pipe = ShadowPipeline(backend)
         stale = pipe.render(scene.light, tris, samples, ShadowSettings("ipsm", 256))
         assert np.any(stale.visibility[stale.flags == 0] < 0.5)  # the stale map shadows something
-        real = pipeline_module.readable_boxes
-        monkeypatch.setattr(pipeline_module, "readable_boxes",
+        real = parameterizations.scissor_boxes
+        monkeypatch.setattr(parameterizations, "scissor_boxes",
                             lambda *a: {slot: (0, 0, 1, 1) for slot in real(*a)})
         result = pipe.render(scene.light, tris, samples, ShadowSettings("dpsm", 256))
     finally:

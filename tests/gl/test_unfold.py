@@ -9,7 +9,7 @@ from addon.core.plan import plan_frame
 from addon.core import projection, tessellate
 from addon.core.errors import InputError
 from addon.core.scene import LightSpec, SceneBuilder, look_at
-from addon.render import pipeline as pl
+from addon.render import unfold as pl
 from addon.render.pipeline import ShadowPipeline, ShadowSettings
 from tests.support.oracle import view_samples
 

@@ -1,0 +1,219 @@
+"""The data of one shadow frame: its settings, its view samples, and what it produced.
+
+`ShadowSettings` names a registered method's parameterization, resolution, warp and
+options; `ViewSamples` are the camera's per-pixel receivers; `PreparedGeometry` and
+`FrameResult` are what `pipeline.ShadowPipeline.render` returns.
+"""
+from __future__ import annotations
+
+from collections.abc import Callable
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from ..core import frames, validate
+from ..core import methods as method_registry
+from ..core.errors import InputError
+from ..core.frames import POINT_PARAMETERIZATIONS, PROJECTIVE_PARAMETERIZATIONS, Parameterization
+from ..core.plan import Plan
+from ..core.scene import CameraSpec, LightSpec
+from ..core.warping import LayerMapping
+from .backend import AtlasLayout
+
+MIN_RESOLUTION = 16
+
+
+MAX_RESOLUTION = 4096
+
+
+WARP_KINDS = ("none", "notw", "rtw")
+
+
+def analysis_size_for(resolution: int) -> int:
+    """Count-map side A for a map resolution: an eighth of the map, within [64, 256].
+
+    The chosen smoothing windows span tens of rows even at A = 128 (docs/warping.md),
+    so a finer count map adds cost (scatter, read-back, per-row work, tessellation
+    against more kinks) without changing the measured error beyond noise.
+    """
+    return int(min(256, max(64, resolution // 8)))
+
+
+# The largest bias accepted, in texel footprints: far beyond any useful value (the UI's
+# soft range ends at 4), and below it Blender's FLT_MAX for an infinite value is refused.
+MAX_BIAS = 100.0
+
+
+@dataclass(frozen=True)
+class BiasSettings:
+    """Bias in units of one texel's footprint at the sample (see shadow_test.frag)."""
+
+    constant: float = 0.3
+    slope: float = 0.7
+    normal: float = 0.7
+
+    def __post_init__(self) -> None:
+        # NaN or inf would shadow (or light) every pixel without a word: refuse it by name.
+        for name in ("constant", "slope", "normal"):
+            value = validate.finite_number(f"bias {name}", getattr(self, name), 0.0, MAX_BIAS)
+            object.__setattr__(self, name, value)
+
+
+@dataclass(frozen=True)
+class ShadowSettings:
+    parameterization: Parameterization
+    resolution: int
+    bias: BiasSettings = BiasSettings()
+    cull: bool = True
+    tessellation_tolerance: float = 1.0  # texels of chord-to-arc bend
+    warp: str = "none"  # "none", "notw" or "rtw"
+    analysis_size: int | None = None  # count-map side A; None = analysis_size_for(resolution)
+    cut: bool = False  # ipsm only: skewed axis and a crop fitted to the frustum (thesis 4.1.4)
+    edge_aa: bool = False  # unfold only: the paper's edge-distance antialiasing (edge_aa_parameters)
+
+    def __post_init__(self) -> None:
+        known = POINT_PARAMETERIZATIONS + PROJECTIVE_PARAMETERIZATIONS
+        if self.parameterization not in known:
+            raise InputError(f"unknown parameterization {self.parameterization!r}; use one of {', '.join(known)}")
+        if self.warp != "none" and not frames.takes_warp(self.parameterization):
+            raise InputError(f"{self.parameterization} takes no warp; warps apply to "
+                             f"{', '.join(frames.WARPABLE_PARAMETERIZATIONS)}")
+        if self.edge_aa and self.parameterization != "unfold":
+            raise InputError("edge-distance antialiasing is the unfold method's option (unfold+aa)")
+        if self.warp not in WARP_KINDS:
+            raise InputError(f"unknown warp {self.warp!r}; use one of {', '.join(WARP_KINDS)}")
+        if not (MIN_RESOLUTION <= int(self.resolution) <= MAX_RESOLUTION):
+            raise InputError(f"resolution {self.resolution} out of range [{MIN_RESOLUTION}, {MAX_RESOLUTION}]")
+        if not isinstance(self.bias, BiasSettings):
+            raise InputError(f"bias must be a BiasSettings, got {type(self.bias).__name__}")
+        validate.finite_number("tessellation tolerance (texels)", self.tessellation_tolerance, 1e-3, 1e3)
+
+
+def settings_for(method: str, resolution: int, **fields) -> ShadowSettings:
+    """The `ShadowSettings` of a registered pipeline method (`core/methods.py`) at `resolution`.
+
+    `fields` sets the other settings (cull, bias, ...); the method's own ones
+    (parameterization, warp, cut, edge_aa) come from its registry entry only.
+    """
+    entry = method_registry.method(method)
+    if entry.parameterization is None:
+        raise InputError(f"{method} is measured outside the pipeline; it has no shadow-map settings")
+    return ShadowSettings(entry.parameterization, resolution, warp=entry.warp, cut=entry.cut,
+                          edge_aa=entry.edge_aa, **fields)
+
+
+# Largest importance weight one view sample may carry: weights travel in a float32
+# (the positions' w), exact for integers far beyond this, and relative weights need
+# no more range.
+MAX_IMPORTANCE = 65536.0
+
+
+# The scatter sums weights in 32-bit unsigned counters; all samples may land in one
+# texel (stress_one_texel), so the total over the frame must fit one.
+MAX_IMPORTANCE_TOTAL = 2**32 - 1
+
+
+@dataclass
+class ViewSamples:
+    """Per-pixel view samples; row 0 is the TOP image row (as the reference stores it).
+
+    `importance` weights each sample in the warp analysis (thesis 4.2.1: the warp
+    follows an importance, and the count map is its plain stand-in): a sample of
+    weight k counts as k samples in the count maps the warps are built from. None
+    means 1 everywhere, the thesis's count map. The count statistics of a frame
+    (max_count_before/after) always count samples, not weights.
+    """
+
+    positions: np.ndarray  # (H, W, 3) world
+    normals: np.ndarray  # (H, W, 3) world, unit
+    hit: np.ndarray  # (H, W) bool
+    camera: CameraSpec | None  # None: no camera (no view frustum), so no layer culling
+    importance: np.ndarray | None = None  # (H, W) weights in [1, MAX_IMPORTANCE], rounded to integers
+
+    def importance_weights(self) -> np.ndarray | None:
+        """The importance as rounded float32 weights, checked; None when not given.
+
+        Raises InputError naming the problem: a shape other than the hit mask's, a
+        weight that is not finite or lies outside [1, MAX_IMPORTANCE] on a hit pixel,
+        or hit weights that sum past MAX_IMPORTANCE_TOTAL.
+        """
+        if self.importance is None:
+            return None
+        weights = np.asarray(self.importance, dtype=np.float64)
+        if weights.shape != self.hit.shape:
+            raise InputError(f"importance has shape {weights.shape}; the view samples are {self.hit.shape}")
+        used = weights[self.hit]
+        bad = ~(np.isfinite(used) & (used >= 1.0) & (used <= MAX_IMPORTANCE))
+        if bad.any():
+            raise InputError(f"importance weights must be finite and in [1, {MAX_IMPORTANCE:g}]; "
+                             f"{int(bad.sum())} hit pixels are not (first: {used[bad][0]!r})")
+        rounded = np.rint(weights)
+        total = float(rounded[self.hit].sum())
+        if total > MAX_IMPORTANCE_TOTAL:
+            raise InputError(f"importance weights sum to {total:.0f}; a count-map texel holds at most "
+                             f"{MAX_IMPORTANCE_TOTAL} (2^32 - 1), and every sample may land in one")
+        return rounded.astype(np.float32)
+
+
+@dataclass
+class PreparedGeometry:
+    """What a frame drew: the depth range, and either resident footprints or (unfold)
+    host-built vertex streams."""
+
+    streams: dict[int, np.ndarray]  # unfold: slot 0 -> (n, VERTEX_FLOATS) float32, both halves
+    near: float
+    far: float
+    skipped_at_upload: int  # unfold: every sanitised triangle; resident: non-finite and zero-area ones
+    tessellated_triangles: int  # triangles added by tessellation (unfold only)
+    unfold_split: int = -1  # unfold: the first vertex of half 1 in the one stream; -1 otherwise
+    # Resident frames: counts, on the host and only when asked (a measurement, never part
+    # of a timed frame), the triangles past the GPU's culling and those seen edge-on.
+    measure: Callable[[], tuple[int, int]] | None = None
+    _measured: tuple[int, int] | None = None
+
+    def _counts(self) -> tuple[int, int]:
+        if self._measured is None:
+            self._measured = self.measure()
+        return self._measured
+
+    @property
+    def triangles_drawn(self) -> int:
+        """Triangles drawn, summed over the layers (after culling and, for unfold, tessellation)."""
+        if self.measure is None:
+            return int(sum(len(s) for s in self.streams.values()) // 3)
+        return self._counts()[0]
+
+    @property
+    def skipped_triangles(self) -> int:
+        """Triangles that cannot cast a shadow: non-finite, zero-area, or seen edge-on from the light."""
+        return self.skipped_at_upload + (self._counts()[1] if self.measure is not None else 0)
+
+
+@dataclass
+class FrameResult:
+    visibility: np.ndarray  # (H, W) float32, 1 lit / 0 shadowed, row 0 at the top
+    flags: np.ndarray  # (H, W) int8: 0 tested, 1 no geometry, 2 outside emission, 3 layer not drawn
+    time_ms: dict[str, float]
+    plan: Plan
+    geometry: PreparedGeometry
+    layout: AtlasLayout | None
+    texels: int
+    atlas: np.ndarray | None = None
+    tile_of_slot: dict[int, int] = field(default_factory=dict)
+    mappings: dict[int, LayerMapping] = field(default_factory=dict)
+    count_maps: dict[int, np.ndarray] = field(default_factory=dict)  # analysis count map per slot
+    boxes: dict[int, tuple[int, int, int, int]] = field(default_factory=dict)  # slot -> readable texel box
+
+    @property
+    def passes(self) -> int:
+        return self.plan.passes
+
+
+def check_light_fits(light: LightSpec, parameterization: str) -> None:
+    """InputError unless the method suits the light: the omnidirectional methods take a
+    point light (omni or hemi), sm and psm a spot (cone below 180 degrees) or a sun."""
+    fitting = frames.parameterizations_for(light.emission)
+    if parameterization not in fitting:
+        needs = ("a spot (cone below 180 degrees) or sun light" if parameterization in PROJECTIVE_PARAMETERIZATIONS
+                 else "a point light (omni or 180 degree spot)")
+        raise InputError(f"{parameterization} needs {needs}; a {light.emission} light takes {', '.join(fitting)}")

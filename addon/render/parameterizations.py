@@ -1,0 +1,358 @@
+"""One object per parameterization: how each plans a frame, maps and draws its layers,
+and what its shadow test needs (issue 17).
+
+A `Parameterization` has the same few methods for every method family:
+
+- `plan`: the frame's layers from the light and the view (core.plan);
+- `base_mappings`: the layer mappings a frame without a warp uses (IPSM's zoom or cut);
+- `prepare`: the geometry of the frame (resident footprints, or unfold's host stream);
+- `scissor`: per-layer texel boxes the shadow test can read (map-space culling);
+- `draw`: the depth pass into the atlas, returning the edge-distance radius (0: none);
+- `test_uniforms`: what the shadow test needs beyond the shared layer tables.
+
+The dual paraboloid, cube and IPSM draw resident footprints (footprint.vert); unfold
+draws its host-built stream (unfold.py); the spot and sun maps draw the resident
+triangles through one projective matrix. Adding a parameterization means one class
+here, one entry in `PARAMETERIZATIONS` and its code in PARAM_CODES (lib/layers.glsl).
+"""
+from __future__ import annotations
+
+import logging
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..core import footprint, projection
+from ..core.frames import Layer
+from ..core.plan import (
+    REGION_SLACK,
+    SCISSOR_EDGE_POINTS,
+    Plan,
+    layer_scissor,
+    outside_region,
+    plan_frame,
+    plan_projective,
+)
+from ..core.scene import LightSpec
+from ..core.warping import LayerMapping, max_shear
+from .backend import AtlasLayout, FootprintDraw, ShadowBackend
+from .frame import PreparedGeometry, ShadowSettings, ViewSamples
+from .resident import ResidentScene
+from .shaders import REGION_PLANES
+from .unfold import VERTEX_FLOATS, edge_aa_parameters, prepare_unfold
+
+log = logging.getLogger(__name__)
+
+# Near clip of cube faces, relative to far: geometry closer to the light than this
+# is lost to clipping; 1e-6 keeps it far below a texel at any supported resolution.
+CLIP_NEAR_RELATIVE = 1e-6
+
+PARAM_CODES = {"dpsm": 0, "cube": 1, "ipsm": 2, "unfold": 3, "sm": 4, "psm": 5}  # ow_param (lib/layers.glsl)
+
+
+# Layer slots the GLSL tables hold (ow_layer_rot[6] and the like): a cube's six faces.
+SLOTS = 6
+
+
+# Texels a footprint box grows by on each side: its float32 corners may fall short of the
+# exact box by rounding (about 1e-4 map units, 2e-3 next to the light), and a texel
+# centre left outside would lose its triangle (lib/footprint.glsl).
+FOOTPRINT_DILATE_TEXELS = 1.0
+
+
+@dataclass(frozen=True)
+class DrawInputs:
+    """What a parameterization's depth pass draws from (made by the pipeline per frame)."""
+
+    plan: Plan
+    settings: ShadowSettings
+    geometry: PreparedGeometry
+    layout: AtlasLayout
+    tile_of_slot: dict[int, int]
+    mappings: dict[int, LayerMapping]
+    warp_size: int  # the count-map side A of the warp tables
+    boxes: dict[int, tuple[int, int, int, int]]
+    draws: list[FootprintDraw]  # the resident objects
+    region: dict  # the occluder region's uniforms (region_uniforms)
+
+
+class Parameterization:
+    """The point-light defaults: plan_frame, no base mapping, resident footprints."""
+
+    name = "abstract"
+
+    def plan(self, light: LightSpec, settings: ShadowSettings, samples: ViewSamples,
+             near_far: tuple[float, float], bounds: tuple[np.ndarray, np.ndarray] | None) -> Plan:
+        return plan_frame(light, self.name, samples.camera, samples.positions, samples.hit, near_far[1],
+                          cull=settings.cull, cut=settings.cut)
+
+    def base_mappings(self, plan: Plan, light: LightSpec, settings: ShadowSettings) -> dict[int, LayerMapping]:
+        return {}
+
+    def prepare(self, light: LightSpec, scene: ResidentScene, plan: Plan, settings: ShadowSettings,
+                near_far: tuple[float, float]) -> PreparedGeometry:
+        return PreparedGeometry({}, near_far[0], near_far[1], scene.skipped, 0,
+                                measure=_measurer(scene, light, plan, settings))
+
+    def scissor(self, plan: Plan, light: LightSpec, settings: ShadowSettings,
+                mappings: dict[int, LayerMapping]) -> dict[int, tuple[int, int, int, int]]:
+        return scissor_boxes(plan, light, settings, mappings)
+
+    def draw(self, backend: ShadowBackend, inputs: DrawInputs) -> int:
+        """One footprint draw per layer; a warped layer first gets its ray table."""
+        res = inputs.settings.resolution
+        for layer in inputs.plan.drawn:
+            tile = inputs.tile_of_slot[layer.slot]
+            mapping = inputs.mappings.get(layer.slot, LayerMapping.identity())
+            uniforms = {**layer_uniforms(layer, inputs.geometry, res, inputs.layout.origin(tile), mapping,
+                                         inputs.warp_size), **inputs.region}
+            if mapping.warp is not None:
+                backend.build_ray_table(tile, uniforms)
+            backend.draw_footprints(tile, inputs.draws, uniforms, scissor=inputs.boxes.get(layer.slot))
+        return 0
+
+    def test_uniforms(self, plan: Plan) -> dict:
+        return {}
+
+
+class DualParaboloid(Parameterization):
+    """Two paraboloids back to back (Brabec et al. 2002)."""
+
+    name = "dpsm"
+
+
+class Cube(Parameterization):
+    """Six 90 degree faces."""
+
+    name = "cube"
+
+
+class Ipsm(Parameterization):
+    """One paraboloid along the axis of the cone that holds the view (Vanek et al.):
+    without a warp its map is zoomed to the cone, or to the skewed cut."""
+
+    name = "ipsm"
+
+    def base_mappings(self, plan: Plan, light: LightSpec, settings: ShadowSettings) -> dict[int, LayerMapping]:
+        if plan.ipsm_half_angle is None:
+            return {}
+        return {0: (cut_mapping(plan, light, settings.resolution) if settings.cut
+                    else ipsm_mapping(plan.ipsm_half_angle, settings.resolution))}
+
+
+class Unfold(Parameterization):
+    """Dual sphere-unfolding: both halves in one draw of a host-built stream (unfold.py)."""
+
+    name = "unfold"
+
+    def prepare(self, light: LightSpec, scene: ResidentScene, plan: Plan, settings: ShadowSettings,
+                near_far: tuple[float, float]) -> PreparedGeometry:
+        return prepare_unfold(light, scene.world_triangles(), plan, settings, near_far)
+
+    def scissor(self, plan: Plan, light: LightSpec, settings: ShadowSettings,
+                mappings: dict[int, LayerMapping]) -> dict[int, tuple[int, int, int, int]]:
+        return {}  # the draw spans both halves
+
+    def draw(self, backend: ShadowBackend, inputs: DrawInputs) -> int:
+        plan, geometry, res = inputs.plan, inputs.geometry, inputs.settings.resolution
+        if not plan.drawn:
+            return 0
+        # The vertex stage picks the half from the vertex index (Stockli Contreras et al.).
+        uniforms = layer_uniforms(plan.drawn[0], geometry, res, inputs.layout.origin(0), LayerMapping.identity(), 0)
+        uniforms["ow_unfold_split"] = geometry.unfold_split
+        uniforms["ow_unfold_halves"] = len(plan.drawn)
+        backend.draw_layer(0, geometry.streams.get(0, np.zeros((0, VERTEX_FLOATS), np.float32)), uniforms,
+                           span=len(plan.drawn))
+        if not inputs.settings.edge_aa:
+            return 0
+        radius, eps = edge_aa_parameters(res, geometry.near, geometry.far)
+        backend.edge_distance(radius, eps)
+        return radius
+
+
+class Projective(Parameterization):
+    """A spot or sun map (sm, psm): one layer through one 4x4 projective matrix, which the
+    GPU clips and interpolates exactly."""
+
+    def __init__(self, name: str) -> None:
+        self.name = name
+
+    def plan(self, light: LightSpec, settings: ShadowSettings, samples: ViewSamples,
+             near_far: tuple[float, float], bounds: tuple[np.ndarray, np.ndarray] | None) -> Plan:
+        # With nothing finite to draw, any box around the light will do.
+        lo, hi = bounds if bounds is not None else (light.position - 1.0, light.position + 1.0)
+        return plan_projective(light, self.name, samples.camera, samples.positions, samples.hit, lo, hi,
+                               settings.resolution, cull=settings.cull)
+
+    def scissor(self, plan: Plan, light: LightSpec, settings: ShadowSettings,
+                mappings: dict[int, LayerMapping]) -> dict[int, tuple[int, int, int, int]]:
+        return {}  # the matrix already fits the map to the view
+
+    def draw(self, backend: ShadowBackend, inputs: DrawInputs) -> int:
+        plan = inputs.plan
+        uniforms = {**layer_uniforms(plan.drawn[0], inputs.geometry, inputs.settings.resolution,
+                                     inputs.layout.origin(0), LayerMapping.identity(), 0),
+                    **inputs.region, **self.test_uniforms(plan)}
+        backend.draw_footprints(0, inputs.draws, uniforms)
+        return 0
+
+    def test_uniforms(self, plan: Plan) -> dict:
+        return {"ow_projective": 1, "ow_map_inverted": int(plan.projective.inverted),
+                "ow_map_matrix": plan.projective.matrix, "ow_depth_offset": plan.projective.depth_offset}
+
+
+PARAMETERIZATIONS: dict[str, Parameterization] = {
+    p.name: p for p in (DualParaboloid(), Cube(), Ipsm(), Unfold(), Projective("sm"), Projective("psm"))}
+
+
+def parameterization(name: str) -> Parameterization:
+    """The object of a parameterization name (a Plan's, or a ShadowSettings')."""
+    return PARAMETERIZATIONS[name]
+
+
+def layer_uniforms(layer: Layer, geometry: PreparedGeometry, res: int, origin: tuple[int, int],
+                    mapping: LayerMapping, warp_size: int) -> dict:
+    """The uniforms of one layer's depth draw (both depth programs take them)."""
+    warp = mapping.warp
+    return {
+        "ow_layer_rot": layer.rotation,
+        "ow_layer_kind": layer.kind,
+        "ow_layer_slot": layer.slot,
+        "ow_mapped": 0 if mapping.is_identity else 1,
+        "ow_warp_size": warp_size if warp is not None else 0,
+        "ow_warp_shear": (max_shear(warp.rows), max_shear(warp.cols)) if warp is not None else (0.0, 0.0),
+        "ow_dilate": FOOTPRINT_DILATE_TEXELS,
+        "ow_crop": mapping.crop_vec4(),
+        "ow_near": geometry.near,
+        "ow_far": geometry.far,
+        "ow_clip_near": geometry.far * CLIP_NEAR_RELATIVE,
+        "ow_resolution": float(res),
+        "ow_tile_origin": (float(origin[0]), float(origin[1])),
+        "ow_unfold_split": -1,
+        "ow_unfold_halves": 1,
+        "ow_projective": 0,
+        "ow_map_inverted": 0,
+        "ow_map_matrix": np.eye(4),
+    }
+
+
+def footprint_draws(scene: ResidentScene, light: LightSpec) -> list[FootprintDraw]:
+    """One draw per resident object: its matrix, light-centred in float64 on the host."""
+    return [FootprintDraw(key, 0, obj.triangles, {"ow_object_linear": obj.matrix[:3, :3],
+                                                  "ow_object_offset": obj.offset(light.position),
+                                                  "ow_edge_on_distance": obj.edge_on_distance(light.position)})
+            for key, obj in scene.objects.items() if obj.triangles]
+
+
+def region_uniforms(plan: Plan, light: LightSpec, cull: bool) -> dict:
+    """The occluder region (plan.occluder_planes) light-centred, for the GPU's object culling.
+
+    A triangle with all corners beyond one plane (by outside_region's slack) is not drawn.
+    """
+    planes = plan.occluder_planes if cull else None
+    table = np.zeros((REGION_PLANES, 4))
+    if planes is None or len(planes) == 0:
+        return {"ow_region_planes": table, "ow_region_count": 0, "ow_region_slack": 0.0}
+    if len(planes) > REGION_PLANES:
+        log.debug("occluder region has %d planes, more than the GPU table's %d: not culled",
+                  len(planes), REGION_PLANES)
+        return {"ow_region_planes": table, "ow_region_count": 0, "ow_region_slack": 0.0}
+    planes = np.asarray(planes, dtype=np.float64)
+    table[:len(planes), :3] = planes[:, :3]
+    table[:len(planes), 3] = planes[:, 3] - planes[:, :3] @ light.position
+    slack = REGION_SLACK * (float(np.abs(planes[:, 3]).max()) + 1.0)
+    return {"ow_region_planes": table, "ow_region_count": len(planes), "ow_region_slack": slack}
+
+
+def _measurer(scene: ResidentScene, light: LightSpec, plan: Plan, settings: ShadowSettings):
+    """Host counts of a resident frame, for measurement only: the triangles the footprint
+    pass keeps, summed over the drawn layers (not edge-on, inside the occluder region,
+    in front of the layer: a paraboloid's hemisphere, a cube face's frustum), and the
+    triangles seen edge-on, which cover nothing."""
+
+    def measure() -> tuple[int, int]:
+        kept, edge_on = [], 0
+        for obj in scene.objects.values():
+            tris = obj.world_triangles() - light.position
+            if plan.projective is None and len(tris):
+                _, orientation = footprint.edge_planes(tris, obj.edge_on_distance(light.position))
+                edge_on += int(np.count_nonzero(orientation == 0.0))
+                tris = tris[orientation != 0.0]
+            kept.append(tris)
+        tris = np.concatenate(kept) if kept else np.zeros((0, 3, 3))
+        if settings.cull and len(tris):
+            tris = tris[~outside_region(tris + light.position, plan.occluder_planes)]
+        if plan.projective is not None:
+            return len(tris), edge_on
+        total = 0
+        for layer in plan.drawn:
+            local = tris @ layer.rotation.T
+            z = local[..., 2]
+            front = np.any(z > 0.0, axis=1)
+            if layer.kind == projection.CUBE:
+                x, y = local[..., 0], local[..., 1]
+                front &= ~(np.all(x > z, axis=1) | np.all(-x > z, axis=1) | np.all(y > z, axis=1)
+                           | np.all(-y > z, axis=1))
+            total += int(np.count_nonzero(front))
+        return total, edge_on
+
+    return measure
+
+
+def slot_rotations_and_crops(plan: Plan, mappings: dict[int, LayerMapping]) -> tuple[np.ndarray, np.ndarray]:
+    """Per-slot layer rotations (6, 3, 3) and crop vec4s (6, 4) for the GLSL tables.
+
+    Unused slots keep the identity rotation and the whole map; a layer missing from
+    `mappings` is uncropped.
+    """
+    rotations = np.tile(np.eye(3), (SLOTS, 1, 1))
+    crops = np.tile([0.0, 0.0, 1.0, 1.0], (SLOTS, 1))
+    for layer in plan.all_layers:
+        rotations[layer.slot] = layer.rotation
+    for slot, mapping in mappings.items():
+        crops[slot] = mapping.crop_vec4()
+    return rotations, crops
+
+
+def scissor_boxes(plan: Plan, light: LightSpec, settings: ShadowSettings,
+                  mappings: dict[int, LayerMapping]) -> dict[int, tuple[int, int, int, int]]:
+    """Slot -> texel box the shadow test can read, for the plain layers culling bounds
+    (plan.layer_scissor); only with culling. A crop or warp already fits the map to the
+    samples, so mapped layers get none."""
+    if not settings.cull:
+        return {}
+    boxes = {}
+    for layer in plan.drawn:
+        if mappings.get(layer.slot, LayerMapping.identity()).is_identity:
+            box = layer_scissor(layer, light.position, plan.sample_polytope, settings.resolution)
+            if box is not None:
+                boxes[layer.slot] = box
+    return boxes
+
+
+def ipsm_mapping(half_angle: float, resolution: int) -> LayerMapping:
+    """IPSM's zoom 1/tan(theta/2) as a centred crop: the cone's edge lands on the map's rim.
+
+    A paraboloid maps a ray at angle a from its axis to radius tan(a/2), so cropping
+    to [-t, t]^2 with t = tan(theta/2) scales the coordinates by 1/t. The crop grows by
+    2 % and 4 texels so the shadow test's normal offset stays inside the map.
+    """
+    t = min(1.0, math.tan(half_angle / 2.0) * 1.02 + 4.0 / resolution)
+    return LayerMapping(np.full(2, 0.5 - 0.5 * t), np.full(2, 0.5 + 0.5 * t), None)
+
+
+def cut_mapping(plan: Plan, light: LightSpec, resolution: int) -> LayerMapping:
+    """Cut parameters (min/max x, y) of the skewed cut: the bounding box of the sample
+    polytope's edges projected into the skewed paraboloid, grown by 2 % and 4 texels.
+
+    The image of a convex body seen from outside is bounded by the images of its
+    edges, so the box holds every view sample.
+    """
+    layer = plan.drawn[0]
+    edges = plan.sample_polytope.edge_points(SCISSOR_EDGE_POINTS)
+    xy = projection.paraboloid_project(layer.to_local(edges - light.position))
+    lo, hi = xy.min(axis=0) * 0.5 + 0.5, xy.max(axis=0) * 0.5 + 0.5
+    grow = (hi - lo) * 0.02 + 4.0 / resolution
+    lo, hi = np.clip(lo - grow, 0.0, 1.0), np.clip(hi + grow, 0.0, 1.0)
+    return LayerMapping(lo, hi, None)
