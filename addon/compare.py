@@ -155,6 +155,7 @@ def run_row(pipeline: ShadowPipeline, ref: ReferenceData, preset: str, method: s
         "time_ms": times,
         "passes": last.passes,
         "triangles_drawn": last.geometry.triangles_drawn,
+        "scene_triangles": scene.triangles,  # resident, after dropping non-finite and zero-area ones
         "texels": last.texels,
         "renderer": pipeline.backend.renderer(),
         "backend": pipeline.backend.name,

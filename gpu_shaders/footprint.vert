@@ -1,7 +1,9 @@
 // Footprint depth pass, vertex stage (vertex pulling; issue 17). Six vertices per
 // triangle, two triangles of one quad: vertex i belongs to triangle i / 6, and the
 // corner buffer holds i % 6 (a plain draw: software rasterisers run instanced draws
-// of a few vertices each far slower). The triangle's vertices come from the object's
+// of a few vertices each far slower). Built with OW_POINTS, one vertex per triangle
+// instead: a point sprite over the box, for triangles whose box the host has bounded
+// below OW_MAX_POINT_SIZE texels (parameterizations.footprint_ranges). The triangle's vertices come from the object's
 // vertex texture, are placed light-centred by the object's matrix, and give the flat
 // inputs of the exact per-texel test: the three edge planes through the light and the
 // triangle's plane. The corners span a conservative box of the triangle's curved image
@@ -40,7 +42,11 @@ const int OW_QUAD_CORNER[OW_FOOTPRINT_VERTICES] = int[OW_FOOTPRINT_VERTICES](0, 
 void main()
 {
   int corner = OW_QUAD_CORNER[clamp(int(ow_corner + 0.5), 0, OW_FOOTPRINT_VERTICES - 1)];
+#ifdef OW_POINTS
+  int base = 3 * gl_VertexID;
+#else
   int base = 3 * (gl_VertexID / OW_FOOTPRINT_VERTICES);
+#endif
   vec3 v0 = ow_pull(base);
   vec3 v1 = ow_pull(base + 1);
   vec3 v2 = ow_pull(base + 2);
@@ -89,6 +95,16 @@ void main()
     return;
   }
   box = clamp(box, 0.0, 1.0);
+#ifdef OW_POINTS
+  // The square of side extent + 1 texel around the box's centre holds the box; its
+  // centre lies in the tile, so the point is not clipped, and the scissor keeps it there.
+  gl_PointSize = min(max(box.y - box.x, box.w - box.z) * ow_resolution + 1.0, float(OW_MAX_POINT_SIZE));
+  if (corner < 0) {
+    gl_PointSize = 0.0;  // never (corners are >= 0): keeps the corner attribute in the program
+  }
+  gl_Position = vec4(vec2(box.x + box.y, box.z + box.w) - 1.0, 0.0, 1.0);
+#else
   vec2 uv = vec2(((corner & 1) != 0) ? box.y : box.x, ((corner & 2) != 0) ? box.w : box.z);
   gl_Position = vec4(uv * 2.0 - 1.0, 0.0, 1.0);
+#endif
 }

@@ -68,12 +68,14 @@ UniformValues = dict[str, object]
 @dataclass(frozen=True)
 class FootprintDraw:
     """One object's triangles [first, first + count) drawn by the footprint pass, with the
-    object's own uniforms (ow_object_linear, ow_object_offset)."""
+    object's own uniforms (ow_object_linear, ow_object_offset); as point sprites when
+    `points` (each triangle's box is known to fit MAX_POINT_SIZE), else as quads."""
 
     key: str
     first: int
     count: int
     uniforms: UniformValues
+    points: bool = False
 
 
 class ShadowBackend(ABC):

@@ -162,6 +162,13 @@ def framebuffer(**slots):
     return _framebuffer(**slots)
 
 
+def _backend_type() -> str:
+    import gpu
+
+    getter = getattr(gpu.platform, "backend_type_get", None)
+    return getter() if getter is not None else "OPENGL"
+
+
 def _components(fmt: str) -> int:
     return {"R32F": 1, "RG32F": 2, "RGBA32F": 4}[fmt]
 
@@ -199,6 +206,9 @@ class BlenderGPUBackend(ShadowBackend):
         self._vertices: dict[str, tuple[int, Any]] = {}  # object key -> (revision, vertex texture)
         self._ray_fb = None  # framebuffer of the ray table, the atlas's size
         self._corner_triangles = 0  # triangles the footprint batch's corner buffer holds
+        # Point sprites need the shader's point size, which the gpu module takes on OpenGL;
+        # other GPU backends draw every footprint as a quad (the same texels).
+        self.point_sprites = _backend_type() == "OPENGL"
         self._released = False
         self.set_warp_tables(None, None)
         # Read only by warped footprint draws, after build_ray_table replaced it.
@@ -382,16 +392,22 @@ class BlenderGPUBackend(ShadowBackend):
     def _drop_vertices(self, key: str) -> None:
         self._vertices.pop(key, None)  # Blender frees the texture with its last reference
 
-    def _corner_batch(self, shader, triangles: int):
-        """The footprint pass's batch over a corner buffer of at least `triangles`."""
+    def _corner_batch(self, shader, triangles: int, points: bool):
+        """The footprint pass's batch (quads, or points) over a corner buffer of at least
+        `triangles`; both are rebuilt when it grows."""
         from gpu_extras.batch import batch_for_shader
 
         capacity = corner_capacity(triangles, self._corner_triangles)
-        batch = self._batches.get("footprint")
-        if batch is None or capacity != self._corner_triangles:
-            batch = batch_for_shader(shader, "TRIS", {"ow_corner": corner_indices(capacity)})
-            self._batches["footprint"] = batch
+        if capacity != self._corner_triangles:
+            self._batches.pop("footprint_points", None)
+            self._batches.pop("footprint", None)
             self._corner_triangles = capacity
+        key = "footprint_points" if points else "footprint"
+        batch = self._batches.get(key)
+        if batch is None:
+            batch = batch_for_shader(shader, "POINTS" if points else "TRIS",
+                                     {"ow_corner": corner_indices(self._corner_triangles)})
+            self._batches[key] = batch
         return batch
 
     def build_ray_table(self, tile: int, uniforms: UniformValues) -> None:
@@ -422,31 +438,37 @@ class BlenderGPUBackend(ShadowBackend):
         if self._layout is None:
             raise BackendError("draw_footprints called before begin_atlas")
         viewport = self._layout.span_viewport(tile, 1)
-        iface = program_variant(FOOTPRINT_PROGRAM, uniforms)
+        # Always scissored: point sprites may reach past the tile's edge.
+        rect = self._layout.scissor_rect(tile, scissor) if scissor is not None else viewport
         with self._atlas_fb.bind():
             gpu.state.viewport_set(*viewport)
-            if scissor is not None:
-                gpu.state.scissor_set(*self._layout.scissor_rect(tile, scissor))
-                gpu.state.scissor_test_set(True)
+            gpu.state.scissor_set(*rect)
+            gpu.state.scissor_test_set(True)
             gpu.state.depth_test_set("LESS")
             gpu.state.depth_mask_set(True)
             gpu.state.face_culling_set("NONE")  # footprint quads have either winding
             try:
                 for draw in draws:
                     if draw.count <= 0:
-                        continue  # instance_count=0 would mean "all instances" to gpu
+                        continue  # a count of 0 would mean "all" to gpu
                     held = self._vertices.get(draw.key)
                     if held is None:
                         raise BackendError(f"object {draw.key!r} is not resident; call sync_scene first")
+                    points = draw.points and self.point_sprites
+                    iface = program_variant(FOOTPRINT_PROGRAM, uniforms, points)
                     shader = self._bind(iface, {**uniforms, **draw.uniforms}, {"ow_vertices": held[1]})
-                    batch = self._corner_batch(shader, draw.first + draw.count)
-                    batch.draw_range(shader, elem_start=draw.first * FOOTPRINT_VERTICES,
-                                     elem_count=draw.count * FOOTPRINT_VERTICES)
+                    batch = self._corner_batch(shader, draw.first + draw.count, points)
+                    if points:
+                        gpu.state.program_point_size_set(True)
+                        batch.draw_range(shader, elem_start=draw.first, elem_count=draw.count)
+                        gpu.state.program_point_size_set(False)
+                    else:
+                        batch.draw_range(shader, elem_start=draw.first * FOOTPRINT_VERTICES,
+                                         elem_count=draw.count * FOOTPRINT_VERTICES)
             finally:
                 gpu.state.depth_test_set("NONE")
                 gpu.state.depth_mask_set(False)
-                if scissor is not None:
-                    gpu.state.scissor_test_set(False)
+                gpu.state.scissor_test_set(False)
 
     def upload_samples(self, positions: np.ndarray, normals: np.ndarray) -> None:
         import gpu

@@ -289,7 +289,6 @@ class ModernGLBackend(ShadowBackend):
         if self._atlas_layout is None:
             raise BackendError("draw_footprints called before begin_atlas")
         viewport = self._atlas_layout.span_viewport(tile, 1)
-        iface = program_variant(FOOTPRINT_PROGRAM, uniforms)
         self._atlas_fbo.use()
         self._atlas_fbo.viewport = viewport
         self._atlas_fbo.scissor = viewport if scissor is None else self._atlas_layout.scissor_rect(tile, scissor)
@@ -305,16 +304,23 @@ class ModernGLBackend(ShadowBackend):
                     raise BackendError(f"object {draw.key!r} is not resident; call sync_scene first")
                 self._textures["ow_vertices"] = held[1]
                 self._ensure_corners(draw.first + draw.count)
+                iface = program_variant(FOOTPRINT_PROGRAM, uniforms, draw.points)
                 prog = self._use(iface, {**uniforms, **draw.uniforms})
                 vao = self._vaos.get(iface.name)
                 if vao is None:
                     vao = self.ctx.vertex_array(prog, [(self._corners, "1f", "ow_corner")])
                     self._vaos[iface.name] = vao
-                vao.render(self._mgl.TRIANGLES, vertices=draw.count * FOOTPRINT_VERTICES,
-                           first=draw.first * FOOTPRINT_VERTICES)
+                if draw.points:
+                    # One vertex per triangle: vertex i of the corner buffer is triangle i.
+                    self.ctx.enable(self._mgl.PROGRAM_POINT_SIZE)
+                    vao.render(self._mgl.POINTS, vertices=draw.count, first=draw.first)
+                else:
+                    vao.render(self._mgl.TRIANGLES, vertices=draw.count * FOOTPRINT_VERTICES,
+                               first=draw.first * FOOTPRINT_VERTICES)
         finally:
             self._textures.pop("ow_vertices", None)
             self.ctx.disable(self._mgl.DEPTH_TEST)
+            self.ctx.disable(self._mgl.PROGRAM_POINT_SIZE)
             self._atlas_fbo.scissor = None
 
     @_current

@@ -38,8 +38,8 @@ from ..core.scene import LightSpec
 from ..core.warping import LayerMapping, max_shear
 from .backend import AtlasLayout, FootprintDraw, ShadowBackend
 from .frame import PreparedGeometry, ShadowSettings, ViewSamples
-from .resident import ResidentScene
-from .shaders import REGION_PLANES
+from .resident import CHUNK_TRIANGLES, ResidentScene
+from .shaders import FOOTPRINT_VERTICES, MAX_POINT_SIZE, REGION_PLANES
 from .unfold import VERTEX_FLOATS, edge_aa_parameters, prepare_unfold
 
 log = logging.getLogger(__name__)
@@ -75,6 +75,8 @@ class DrawInputs:
     boxes: dict[int, tuple[int, int, int, int]]
     draws: list[FootprintDraw]  # the resident objects
     region: dict  # the occluder region's uniforms (region_uniforms)
+    scene: ResidentScene
+    light: LightSpec
 
 
 class Parameterization:
@@ -100,7 +102,7 @@ class Parameterization:
         return scissor_boxes(plan, light, settings, mappings)
 
     def draw(self, backend: ShadowBackend, inputs: DrawInputs) -> int:
-        """One footprint draw per layer; a warped layer first gets its ray table."""
+        """One footprint draw per layer and object run; a warped layer first gets its ray table."""
         res = inputs.settings.resolution
         for layer in inputs.plan.drawn:
             tile = inputs.tile_of_slot[layer.slot]
@@ -109,7 +111,10 @@ class Parameterization:
                                          inputs.warp_size), **inputs.region}
             if mapping.warp is not None:
                 backend.build_ray_table(tile, uniforms)
-            backend.draw_footprints(tile, inputs.draws, uniforms, scissor=inputs.boxes.get(layer.slot))
+            draws = [run for draw in inputs.draws
+                     for run in footprint_ranges(draw, inputs.scene.objects[draw.key], inputs.light, layer,
+                                                 mapping, res, inputs.region)]
+            backend.draw_footprints(tile, draws, uniforms, scissor=inputs.boxes.get(layer.slot))
         return 0
 
     def test_uniforms(self, plan: Plan) -> dict:
@@ -235,6 +240,144 @@ def layer_uniforms(layer: Layer, geometry: PreparedGeometry, res: int, origin: t
         "ow_map_inverted": 0,
         "ow_map_matrix": np.eye(4),
     }
+
+
+# Most draw calls one object gets per layer (runs of points and quads); beyond it the
+# shortest point runs are drawn as quads, which are right for any triangle.
+MAX_RUNS = 32
+
+
+def _slopes(table: np.ndarray) -> np.ndarray:
+    """(A,) each function's steepest d(offset)/d(along), at least 0."""
+    return np.maximum(np.diff(table, axis=1).max(axis=1) * table.shape[0], 0.0)
+
+
+def map_stretch(mapping: LayerMapping) -> float:
+    """An upper bound of how much the crop and warp widen a box of the plain map (map uv
+    per plain uv), as footprint.warp_box widens it: the crop's scale times, per axis, one
+    plus the warp's steepest slope plus its shear bound."""
+    stretch = float(np.max(mapping.scale))
+    warp = mapping.warp
+    if warp is not None:
+        stretch *= ((1.0 + float(_slopes(warp.rows).max()) + max_shear(warp.rows))
+                    * (1.0 + float(_slopes(warp.cols).max()) + max_shear(warp.cols)))
+    return stretch
+
+
+def _chunk_spheres(obj, light: LightSpec) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Light-centred chunk centres (C, 3), radii and longest edges (C,), in world units."""
+    chunks = obj.chunks
+    linear = obj.matrix[:3, :3]
+    scale = float(np.linalg.norm(linear, 2))
+    return chunks.centres @ linear.T + obj.offset(light.position), chunks.radii * scale, chunks.edges * scale
+
+
+def _chunk_texels(centres: np.ndarray, radii: np.ndarray, edges: np.ndarray, layer: Layer,
+                  stretch: np.ndarray | float, res: int) -> np.ndarray:
+    """(C,) a bound of each chunk's triangles' footprint boxes, in texels a side, on this
+    layer; inf where the bound does not apply."""
+    distance = np.maximum(np.linalg.norm(centres, axis=1) - radii, 0.0)
+    with np.errstate(divide="ignore"):
+        # Two points of a triangle with edges <= e, all >= d from the light, are at most
+        # 2 atan(e / 2d) apart as seen from it.
+        angle = np.where(distance > 0.0, 2.0 * np.arctan(edges / np.maximum(2.0 * distance, 1e-300)), np.pi)
+    if layer.kind == projection.PARABOLOID:
+        # Conformal, scale 1 / (1 + z) <= 1 on the layer's hemisphere: uv moves at most
+        # half the angle (and the box's arcs and sag stay within the image's hull).
+        per_radian = 0.5
+    else:
+        # Where |x|, |y| <= k z the gnomonic map stretches at most 1 + 2 k^2 (sec^2 at the
+        # corner): 1.5 uv per radian on the face (k = 1), 4.5 out to k = 2. A chunk wholly
+        # inside that frustum has its clamped box bounded so; outside it, not at all.
+        local = centres @ layer.rotation.T
+        x, y, z = np.abs(local[:, 0]), np.abs(local[:, 1]), local[:, 2]
+        per_radian = np.full(len(radii), np.inf)
+        for k, bound in ((2.0, 4.5), (1.0, 1.5)):
+            inside = (np.minimum(k * z - x, k * z - y) / np.sqrt(1.0 + k * k)) > radii
+            per_radian = np.where(inside, bound, per_radian)
+    return res * stretch * per_radian * angle + 2.0 * FOOTPRINT_DILATE_TEXELS + 2.0
+
+
+def _chunks_outside(centres: np.ndarray, radii: np.ndarray, layer: Layer, region: dict) -> np.ndarray:
+    """(C,) chunks no triangle of which the footprint pass would draw on this layer: wholly
+    behind the paraboloid's hemisphere or beside the cube face, or beyond a plane of the
+    occluder region (the same tests the vertex stage makes per triangle)."""
+    local = centres @ layer.rotation.T
+    x, y, z = local[:, 0], local[:, 1], local[:, 2]
+    outside = z < -radii
+    if layer.kind == projection.CUBE:
+        for side in (x - z, -x - z, y - z, -y - z):
+            outside |= side / np.sqrt(2.0) > radii
+    count = int(region.get("ow_region_count", 0))
+    if count:
+        planes = np.asarray(region["ow_region_planes"], dtype=np.float64)[:count]
+        distance = centres @ planes[:, :3].T - planes[:, 3] - float(region["ow_region_slack"])
+        outside |= np.any(distance / np.linalg.norm(planes[:, :3], axis=1) > radii[:, None], axis=1)
+    return outside
+
+
+SKIP, POINTS, QUADS = 0, 1, 2  # how a chunk is drawn on a layer
+
+
+_VERTEX_COST = np.array([0, 1, FOOTPRINT_VERTICES])  # vertices a triangle costs, by kind (SKIP, POINTS, QUADS)
+
+
+def _run_bounds(kinds: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Start and end (exclusive) chunk of each run of equal kinds."""
+    edges = np.flatnonzero(np.diff(kinds)) + 1
+    return np.concatenate([[0], edges]), np.concatenate([edges, [len(kinds)]])
+
+
+def _runs(kinds: np.ndarray) -> list[tuple[int, int, int]]:
+    """(start, end, kind) runs of equal kinds, merged down to about MAX_RUNS drawn runs at
+    little added vertex work: a skipped run between drawn ones takes its cheaper
+    neighbour's kind (its triangles are culled per triangle anyway), and a point run
+    becomes quads, which are right for any triangle. Vectorised: a few passes, each
+    converting the cheapest runs at once."""
+    kinds = np.asarray(kinds, dtype=np.int64).copy()
+    for _ in range(16):
+        start, end = _run_bounds(kinds)
+        kind = kinds[start]
+        excess = int(np.count_nonzero(kind != SKIP)) - MAX_RUNS
+        if excess <= 0:
+            break
+        before = np.concatenate([[QUADS], kind[:-1]])
+        after = np.concatenate([kind[1:], [QUADS]])
+        neighbour = np.where(_VERTEX_COST[before] <= _VERTEX_COST[after], before, after)
+        inner = (np.arange(len(kind)) > 0) & (np.arange(len(kind)) < len(kind) - 1)
+        target = np.where(kind == SKIP, neighbour, QUADS)
+        cost = np.where(kind == QUADS, np.inf, (end - start) * (_VERTEX_COST[target] - _VERTEX_COST[kind]))
+        cost = np.where((kind == SKIP) & ~inner, np.inf, cost)
+        chosen = np.argsort(cost, kind="stable")[:max(1, excess // 2)]
+        chosen = chosen[np.isfinite(cost[chosen])]
+        if not len(chosen):
+            break
+        for i in chosen:
+            kinds[start[i]:end[i]] = target[i]
+    start, end = _run_bounds(kinds)
+    return [(int(a), int(b), int(kinds[a])) for a, b in zip(start, end)]
+
+
+def footprint_ranges(draw: FootprintDraw, obj, light: LightSpec, layer: Layer, mapping: LayerMapping,
+                     res: int, region: dict | None = None) -> list[FootprintDraw]:
+    """One object's draw on one layer, by chunks of CHUNK_TRIANGLES: chunks that cannot
+    reach the layer are left out; chunks whose footprint bound fits MAX_POINT_SIZE draw
+    one point sprite a triangle instead of a six-vertex quad. Host work per chunk, not
+    per triangle; the vertex stage still culls each triangle."""
+    if obj.chunks is None or not len(obj.chunks):
+        return [draw]
+    centres, radii, edges = _chunk_spheres(obj, light)
+    small = _chunk_texels(centres, radii, edges, layer, map_stretch(mapping), res) <= MAX_POINT_SIZE
+    kinds = np.where(small, POINTS, QUADS)
+    kinds[_chunks_outside(centres, radii, layer, region or {})] = SKIP
+    total = draw.first + draw.count
+    out = []
+    for a, b, kind in _runs(kinds):
+        first = draw.first + a * CHUNK_TRIANGLES
+        count = min(b * CHUNK_TRIANGLES, total - draw.first) - a * CHUNK_TRIANGLES
+        if kind != SKIP and count > 0:
+            out.append(FootprintDraw(draw.key, first, count, draw.uniforms, kind == POINTS))
+    return out
 
 
 def footprint_draws(scene: ResidentScene, light: LightSpec) -> list[FootprintDraw]:

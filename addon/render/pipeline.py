@@ -247,7 +247,7 @@ class ShadowPipeline:
         layout = AtlasLayout.for_tiles(res, len(plan.drawn), backend.max_texture_size())
         boxes = scheme.scissor(plan, light, settings, mappings)
         inputs = DrawInputs(plan, settings, geometry, layout, tile_of_slot, mappings, size, boxes,
-                            footprint_draws(scene, light), region_uniforms(plan, light, settings.cull))
+                            footprint_draws(scene, light), region_uniforms(plan, light, settings.cull), scene, light)
         t4 = time.perf_counter()
         timings["prepare"] = (t4 - t3 + t_plan) * 1e3
 

@@ -44,16 +44,65 @@ class SanitizeCounts:
         return self.nonfinite + self.degenerate
 
 
+# Triangles per chunk: the unit of the depth pass's choice between points and quads
+# (parameterizations.footprint_ranges). Triangles are stored in Morton order of their
+# centroids, so a chunk is a compact cluster with a small bounding sphere.
+CHUNK_TRIANGLES = 256
+
+
+@dataclass(frozen=True)
+class Chunks:
+    """Bounding spheres (in the object's frame, relative to its origin) and longest edges
+    of consecutive runs of CHUNK_TRIANGLES triangles."""
+
+    centres: np.ndarray  # (C, 3)
+    radii: np.ndarray  # (C,)
+    edges: np.ndarray  # (C,) the longest triangle edge of the chunk
+
+    def __len__(self) -> int:
+        return len(self.radii)
+
+
+def morton_order(tris: np.ndarray) -> np.ndarray:
+    """Indices that sort triangles by the Morton code of their centroids (10 bits an axis)."""
+    if len(tris) < 2:
+        return np.arange(len(tris))
+    centroids = tris.mean(axis=1)
+    lo, hi = centroids.min(axis=0), centroids.max(axis=0)
+    cells = ((centroids - lo) / np.maximum(hi - lo, 1e-300) * 1023.0).astype(np.uint64)
+    code = np.zeros(len(tris), dtype=np.uint64)
+    for bit in range(10):
+        for axis in range(3):
+            code |= ((cells[:, axis] >> np.uint64(bit)) & np.uint64(1)) << np.uint64(3 * bit + axis)
+    return np.argsort(code, kind="stable")
+
+
+def chunk_bounds(local: np.ndarray) -> Chunks:
+    """Per chunk of CHUNK_TRIANGLES consecutive triangles: bounding sphere and longest edge."""
+    tris = np.asarray(local, dtype=np.float64)
+    count = -(-len(tris) // CHUNK_TRIANGLES)
+    if not count:
+        return Chunks(np.zeros((0, 3)), np.zeros(0), np.zeros(0))
+    # Pad the last chunk with copies of its last triangle: boxes and edges are unchanged.
+    padded = np.concatenate([tris, np.repeat(tris[-1:], count * CHUNK_TRIANGLES - len(tris), axis=0)])
+    lengths = np.linalg.norm(padded - np.roll(padded, -1, axis=1), axis=2).max(axis=1)
+    points = padded.reshape(count, CHUNK_TRIANGLES * 3, 3)
+    centres = 0.5 * (points.min(axis=1) + points.max(axis=1))
+    radii = np.sqrt(((points - centres[:, None, :]) ** 2).sum(axis=2).max(axis=1))
+    return Chunks(centres, radii, lengths.reshape(count, CHUNK_TRIANGLES).max(axis=1))
+
+
 @dataclass
 class ResidentObject:
     """One object's triangles in its own frame, and where the frame lies in the world."""
 
     key: str
-    local: np.ndarray  # (T, 3, 3) float32, relative to `origin`
+    local: np.ndarray  # (T, 3, 3) float32, relative to `origin`, in Morton order (chunks)
     origin: np.ndarray  # (3,) float64, in the object's frame
     matrix: np.ndarray  # (4, 4) float64 object -> world
     revision: int
     counts: SanitizeCounts = SanitizeCounts()
+    chunks: Chunks | None = None
     _local_lo: np.ndarray = field(default_factory=lambda: np.zeros(3))
     _local_hi: np.ndarray = field(default_factory=lambda: np.zeros(3))
 
@@ -142,8 +191,9 @@ class ResidentScene:
         else:
             lo = hi = np.zeros(3)
         origin = 0.5 * (lo + hi)
-        obj = ResidentObject(key, (tris - origin).astype(np.float32), origin,
-                             self._matrix(matrix), next(_revisions), counts, lo - origin, hi - origin)
+        local = (tris[morton_order(tris)] - origin).astype(np.float32)
+        obj = ResidentObject(key, local, origin, self._matrix(matrix), next(_revisions), counts,
+                             chunk_bounds(local), lo - origin, hi - origin)
         self.objects[key] = obj
         self.removed.discard(key)
         return obj

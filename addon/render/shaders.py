@@ -139,6 +139,9 @@ DEPTH_PROGRAM = ProgramInterface(
 VERTEX_TEXTURE_WIDTH = 2048
 # Vertices the footprint pass draws per triangle: one quad as two triangles.
 FOOTPRINT_VERTICES = 6
+# Largest point sprite (texels a side) the footprint pass draws instead of a quad: every
+# desktop GL driver supports 64 (llvmpipe 255; Vulkan's minimum is 64 too).
+MAX_POINT_SIZE = 64
 # Planes of the occluder region the footprint pass culls against (conv(light, frustum)
 # of 8 corners and the light has at most 2 * 9 - 4 = 14 faces).
 REGION_PLANES = 16
@@ -181,7 +184,7 @@ FOOTPRINT_PROGRAM = ProgramInterface(
     ),
     writes_depth=True,
     defines={"OW_VERTEX_WIDTH": str(VERTEX_TEXTURE_WIDTH), "OW_REGION_PLANES": str(REGION_PLANES),
-             "OW_FOOTPRINT_VERTICES": str(FOOTPRINT_VERTICES)},
+             "OW_FOOTPRINT_VERTICES": str(FOOTPRINT_VERTICES), "OW_MAX_POINT_SIZE": str(MAX_POINT_SIZE)},
 )
 
 RAY_TABLE_PROGRAM = ProgramInterface(
@@ -310,6 +313,7 @@ EDGE_PROGRAM = ProgramInterface(
 #   trivial fragment stage.
 NO_WARP_DEFINE = "OW_NO_WARP"
 FIXED_KIND_DEFINE = "OW_FIXED_KIND"
+POINTS_DEFINE = "OW_POINTS"  # the footprint pass as point sprites
 # Layer kinds with a fixed-kind variant; the values mirror core.projection's
 # PARABOLOID and CUBE (lib/projection.glsl's OW_KIND_PARABOLOID, OW_KIND_CUBE).
 FIXED_KIND_NAMES = {0: "paraboloid", 1: "cube"}
@@ -317,13 +321,20 @@ _VARIANT_BASES = {DEPTH_PROGRAM.name: DEPTH_PROGRAM, SHADOW_TEST_PROGRAM.name: S
                   FOOTPRINT_PROGRAM.name: FOOTPRINT_PROGRAM}
 
 
+def _variant(base_name: str, warped: bool, kind: int | None, points: bool = False) -> ProgramInterface:
+    return _cached_variant(base_name, bool(warped), kind, bool(points))  # one cache key per variant
+
+
 @functools.cache
-def _variant(base_name: str, warped: bool, kind: int | None) -> ProgramInterface:
+def _cached_variant(base_name: str, warped: bool, kind: int | None, points: bool) -> ProgramInterface:
     base = _VARIANT_BASES[base_name]
-    if warped and kind is None:
+    if warped and kind is None and not points:
         return base
     defines = dict(base.defines)
     name = base.name
+    if points:
+        defines[POINTS_DEFINE] = "1"
+        name += "_points"
     if not warped:
         defines[NO_WARP_DEFINE] = "1"
         name += "_plain"
@@ -333,7 +344,7 @@ def _variant(base_name: str, warped: bool, kind: int | None) -> ProgramInterface
     return replace(base, name=name, defines=defines)
 
 
-def program_variant(iface: ProgramInterface, uniforms: dict) -> ProgramInterface:
+def program_variant(iface: ProgramInterface, uniforms: dict, points: bool = False) -> ProgramInterface:
     """The variant of the depth or shadow-test program that `uniforms` need.
 
     With the warp only when they set one (ow_warp_size > 0), and fixed to the layer
@@ -347,7 +358,9 @@ def program_variant(iface: ProgramInterface, uniforms: dict) -> ProgramInterface
     kind = int(uniforms.get("ow_layer_kind", -1))
     generic = (kind not in FIXED_KIND_NAMES or int(uniforms.get("ow_projective", 0)) != 0
                or int(uniforms.get("ow_unfold_split", -1)) >= 0)
-    return _variant(iface.name, warped, None if generic else kind)
+    if points and iface.name != FOOTPRINT_PROGRAM.name:
+        raise BackendError(f"program {iface.name!r} has no point-sprite variant")
+    return _variant(iface.name, warped, None if generic else kind, points)
 
 
 SCATTER_MODE_DEFINE = "OW_SCATTER_MODE"
@@ -381,7 +394,8 @@ def scatter_variant(uniforms: dict) -> ComputeInterface:
 DEPTH_PLAIN_PROGRAM = _variant(DEPTH_PROGRAM.name, False, None)
 SHADOW_TEST_PLAIN_PROGRAM = _variant(SHADOW_TEST_PROGRAM.name, False, None)
 VARIANT_PROGRAMS = tuple(_variant(base, warped, kind) for base in _VARIANT_BASES for warped in (True, False)
-                         for kind in (None, *FIXED_KIND_NAMES))
+                         for kind in (None, *FIXED_KIND_NAMES)) + tuple(
+    _variant(FOOTPRINT_PROGRAM.name, warped, kind, True) for warped in (True, False) for kind in FIXED_KIND_NAMES)
 
 
 PROGRAMS = (*VARIANT_PROGRAMS, RAY_TABLE_PROGRAM, GBUFFER_PROGRAM, PREVIEW_PROGRAM, OVERLAY_PROGRAM, EDGE_PROGRAM)

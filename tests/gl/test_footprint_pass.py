@@ -197,3 +197,40 @@ def test_object_matrix_places_geometry_as_world_triangles_do(gl_backend):
     assert 20 < shadowed.sum() < shadowed.size - 20  # a real shadow on the floor
     assert np.count_nonzero(by_matrix.visibility != by_world.visibility) <= 2
     gl_backend.release_scene(scene)
+
+
+@pytest.mark.parametrize("param,warp", [("dpsm", "none"), ("dpsm", "notw"), ("cube", "none")])
+def test_point_sprites_store_what_quads_store(gl_backend, monkeypatch, param, warp):
+    """Chunks of small triangles drawn as point sprites give the same atlas, texel for
+    texel, as the same triangles drawn as quads; and points are really used (on the
+    warped layer only where the warp's global stretch bound allows)."""
+    from addon.render import parameterizations
+
+    rng = np.random.default_rng(9)
+    # A dense cluster below the light (chunks of it are small and far), and a few big
+    # triangles around it (quads).
+    centres = rng.normal(size=(20000, 1, 3)) * 0.8 + np.array([0.3, -0.2, -6.0])
+    small = centres + rng.normal(size=(20000, 3, 3)) * 0.03  # a few texels each at 256
+    tris = np.concatenate([small, rng.normal(size=(40, 3, 3)) * 4.0])
+    light, pipeline = _light(), ShadowPipeline(gl_backend)
+    scene = ResidentScene.of_triangles(tris, key="cloud")
+    samples = _samples(np.array([[-6.0, -6.0, -9.0], [6.0, -6.0, -9.0], [0.0, 7.0, -9.0]]), rng)
+    settings = ShadowSettings(param, 256, cull=False, warp=warp)
+    used = []
+    real = parameterizations.footprint_ranges
+
+    def spy(*args, **kwargs):
+        runs = real(*args, **kwargs)
+        used.extend(run.points for run in runs)
+        return runs
+
+    monkeypatch.setattr(parameterizations, "footprint_ranges", spy)
+    sprites = pipeline.render(light, scene, samples, settings, keep_atlas=True)
+    assert any(used) or warp != "none"
+    monkeypatch.setattr(parameterizations, "MAX_POINT_SIZE", 0)  # no chunk fits: all quads
+    used.clear()
+    quads = pipeline.render(light, scene, samples, settings, keep_atlas=True)
+    assert not any(used)
+    assert np.array_equal(sprites.atlas, quads.atlas)
+    assert np.count_nonzero(sprites.atlas < 1.0) > 1000
+    gl_backend.release_scene(scene)

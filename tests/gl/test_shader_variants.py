@@ -63,7 +63,8 @@ def test_variant_choice_fixes_only_paraboloid_and_cube_frames(base, warp_size):
 
 def test_every_variant_has_its_own_name():
     names = [iface.name for iface in VARIANT_PROGRAMS]
-    assert len(set(names)) == len(names) == 18  # 3 programs x (generic, 2 kinds) x (warped, plain)
+    # 3 programs x (generic, 2 kinds) x (warped, plain), and the footprint point sprites x 2 kinds x 2
+    assert len(set(names)) == len(names) == 22
     scatter_names = [iface.name for iface in COMPUTE_PROGRAMS]
     assert len(set(scatter_names)) == len(scatter_names) == 10  # the generic one and 3 modes x 3 kinds
 
@@ -157,7 +158,8 @@ def test_fixed_kind_variants_match_the_generic_programs(gl_backend, settings, mo
     try:
         # Keep the warp choice, drop the kind: every frame takes the generic kind code.
         monkeypatch.setattr(moderngl_backend, "program_variant",
-                            lambda iface, uniforms: program_variant(iface, {**uniforms, "ow_layer_kind": -1}))
+                            lambda iface, uniforms, points=False: program_variant(iface, {**uniforms, "ow_layer_kind": -1},
+                                                                                  points))
         generic = ShadowPipeline(backend).render(scene.light, tris, samples, settings, keep_atlas=True)
     finally:
         backend.release()
