@@ -1,11 +1,13 @@
-"""Row-by-row error of two `omniwarp compare` runs, against a regression bound.
+"""Row-by-row error (or times) of two `omniwarp compare` runs, against a regression bound.
 
     python scripts/regression_table.py BEFORE/results.json AFTER/results.json [--factor 1.05] [--points 0.003]
+    python scripts/regression_table.py BEFORE/results.json AFTER/results.json --times
 
 Prints a markdown table of every row both runs have (preset, method, resolution): the
 error % before and after, the bound factor * before + points, and whether the row keeps
 to it; then a summary line. Exit status 1 when any row exceeds its bound. Both runs must
-use the same Cycles references for the figures to be comparable.
+use the same Cycles references for the figures to be comparable. `--times` prints the
+stage times (total, prepare, maps) and the error before and after instead.
 """
 from __future__ import annotations
 
@@ -26,12 +28,16 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("after", type=Path)
     parser.add_argument("--factor", type=float, default=1.05)
     parser.add_argument("--points", type=float, default=0.003)
+    parser.add_argument("--times", action="store_true", help="print stage times instead of the bound")
     args = parser.parse_args(argv)
     before, after = _rows(args.before), _rows(args.after)
-    shared = sorted(set(before) & set(after))
+    shared = [key for key in after if key in before]  # in the after run's order
     if not shared:
         print(f"regression_table: {args.before} and {args.after} share no row", file=sys.stderr)
         return 2
+    if args.times:
+        _times(before, after, shared)
+        return 0
     print("| preset | method | res | error % before | error % after | bound | kept |")
     print("|---|---|---|---|---|---|---|")
     over = better = worse = 0
@@ -46,6 +52,18 @@ def main(argv: list[str] | None = None) -> int:
     print(f"\n{len(shared)} rows: {better} lower, {worse} higher, {len(shared) - better - worse} equal; "
           f"{over} over the bound {args.factor:g} x before + {args.points:g} points.")
     return 1 if over else 0
+
+
+def _times(before: dict, after: dict, shared: list) -> None:
+    print("| preset | method | res | total ms before | total ms after | prepare ms before | prepare ms after "
+          "| maps ms before | maps ms after | error % before | error % after |")
+    print("|---|---|---|---|---|---|---|---|---|---|---|")
+    for key in shared:
+        old, new = before[key], after[key]
+        t0, t1 = old["time_ms"], new["time_ms"]
+        print(f"| {key[0]} | {key[1]} | {key[2]} | {t0['total']:.0f} | {t1['total']:.0f} | {t0['prepare']:.1f} "
+              f"| {t1['prepare']:.1f} | {t0['shadow_maps']:.0f} | {t1['shadow_maps']:.0f} | {old['error_pct']:.3f} "
+              f"| {new['error_pct']:.3f} |")
 
 
 if __name__ == "__main__":
