@@ -26,6 +26,7 @@ from ..core.errors import OmniWarpError, report_error
 from ..core.scene import LightSpec
 from ..reference.data import ReferenceData
 from ..render.pipeline import ShadowPipeline, ShadowSettings, ViewSamples, count_statistics, settings_for
+from ..render.resident import ResidentScene
 
 log = logging.getLogger(__name__)
 
@@ -126,8 +127,9 @@ def run(reference: ReferenceData, lights: list[tuple[str, LightSpec, ShadowSetti
                               gbuffer.hit, camera)
         per_light = []
         for name, light, settings in lights:
-            blockers = (occluders or {}).get(name, triangles)
-            pipeline.render(light, blockers, samples, settings)  # warm-up (shader compile)
+            # Resident once per light, as compare has it: the warm-up frame uploads it.
+            blockers = ResidentScene.of_triangles((occluders or {}).get(name, triangles))
+            pipeline.render(light, blockers, samples, settings)  # warm-up (shader compile, upload)
             result = pipeline.render(light, blockers, samples, settings, keep_atlas=True)
             stats = count_statistics(pipeline, light, settings, result, samples)
             raw = np.stack([result.visibility, result.flags.astype(np.float32)], axis=-1)

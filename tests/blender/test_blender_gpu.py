@@ -17,12 +17,15 @@ import pytest
 pytest.importorskip("bpy", reason="the Blender gpu backend needs bpy (scripts/setup_env.sh installs it)")
 
 from addon.cli import main  # noqa: E402
+from addon.core.scene import LightSpec  # noqa: E402
 from addon.render.pipeline import ShadowPipeline, ShadowSettings  # noqa: E402
 from tests.gl.test_pipeline_extremes import _seam_straddler  # noqa: E402
 from tests.gl.test_projective import _street  # noqa: E402
+from tests.gl.test_footprint_pass import point_cloud  # noqa: E402
 from tests.support.blender_gpu_worker import (  # noqa: E402
     BOXED_CASES,
     CASES,
+    POINT_CASES,
     PROJECTIVE_CASES,
     boxed_scene,
     case_key,
@@ -93,6 +96,13 @@ def test_blender_backend_matches_moderngl(gl_backend, tmp_path, monkeypatch):
                                keep_atlas=True)
         assert np.array_equal(ours.visibility, theirs[f"{light}_{method}_visibility"]), (light, method)
         assert np.allclose(ours.atlas, theirs[f"{light}_{method}_atlas"], atol=1e-6), (light, method)
+    # Point sprites: Blender draws them on OpenGL (this machine), and stores what moderngl stores.
+    assert bool(theirs["point_sprites"])
+    cloud, cloud_samples = point_cloud()
+    for param in POINT_CASES:
+        ours = pipeline.render(LightSpec("omni", np.eye(4)), cloud, cloud_samples,
+                               ShadowSettings(param, 256, cull=False), keep_atlas=True)
+        assert np.allclose(ours.atlas, theirs[f"cloud_{param}_atlas"], atol=1e-6), param
 
 
 def test_viewport_draw_path_robustness(tmp_path):

@@ -199,6 +199,16 @@ def test_object_matrix_places_geometry_as_world_triangles_do(gl_backend):
     gl_backend.release_scene(scene)
 
 
+def point_cloud() -> tuple[np.ndarray, ViewSamples]:
+    """A dense cluster of small triangles below a light at the origin (chunks of it are
+    small and far: point sprites), a few big triangles around it (quads), and samples."""
+    rng = np.random.default_rng(9)
+    centres = rng.normal(size=(20000, 1, 3)) * 0.8 + np.array([0.3, -0.2, -6.0])
+    small = centres + rng.normal(size=(20000, 3, 3)) * 0.03  # a few texels each at 256
+    tris = np.concatenate([small, rng.normal(size=(40, 3, 3)) * 4.0])
+    return tris, _samples(np.array([[-6.0, -6.0, -9.0], [6.0, -6.0, -9.0], [0.0, 7.0, -9.0]]), rng)
+
+
 @pytest.mark.parametrize("param,warp", [("dpsm", "none"), ("dpsm", "notw"), ("cube", "none")])
 def test_point_sprites_store_what_quads_store(gl_backend, monkeypatch, param, warp):
     """Chunks of small triangles drawn as point sprites give the same atlas, texel for
@@ -206,15 +216,9 @@ def test_point_sprites_store_what_quads_store(gl_backend, monkeypatch, param, wa
     warped layer only where the warp's global stretch bound allows)."""
     from addon.render import parameterizations
 
-    rng = np.random.default_rng(9)
-    # A dense cluster below the light (chunks of it are small and far), and a few big
-    # triangles around it (quads).
-    centres = rng.normal(size=(20000, 1, 3)) * 0.8 + np.array([0.3, -0.2, -6.0])
-    small = centres + rng.normal(size=(20000, 3, 3)) * 0.03  # a few texels each at 256
-    tris = np.concatenate([small, rng.normal(size=(40, 3, 3)) * 4.0])
+    tris, samples = point_cloud()
     light, pipeline = _light(), ShadowPipeline(gl_backend)
     scene = ResidentScene.of_triangles(tris, key="cloud")
-    samples = _samples(np.array([[-6.0, -6.0, -9.0], [6.0, -6.0, -9.0], [0.0, 7.0, -9.0]]), rng)
     settings = ShadowSettings(param, 256, cull=False, warp=warp)
     used = []
     real = parameterizations.footprint_ranges

@@ -22,6 +22,7 @@ PROJECTIVE_CASES = (("spot", "sm"), ("spot", "psm"), ("sun", "psm"))
 # Culled plain layers with readable boxes (scissored clears and draws): the courtyard
 # preset at test size, light outside the view, after an ipsm frame fills the atlas.
 BOXED_CASES = ("dpsm", "cube")
+POINT_CASES = ("dpsm", "cube")  # the point-sprite cloud (tests/gl/test_footprint_pass.point_cloud)
 
 
 def boxed_scene():
@@ -50,6 +51,8 @@ def backends(out: str, reference: str | None = None) -> None:
     from addon.reference.data import ReferenceData
     from addon.render.blender_backend import BlenderGPUBackend, ensure_gpu
     from addon.render.pipeline import ShadowPipeline, ShadowSettings
+    from addon.core.scene import LightSpec
+    from tests.gl.test_footprint_pass import point_cloud
     from tests.gl.test_pipeline_extremes import _seam_straddler
     from tests.gl.test_projective import _street
     from tests.support.oracle import view_samples
@@ -84,6 +87,13 @@ def backends(out: str, reference: str | None = None) -> None:
                                  keep_atlas=True)
         arrays[f"boxed_{param}_visibility"] = result.visibility
         arrays[f"boxed_{param}_atlas"] = result.atlas
+    # Point sprites (the footprint pass's small-triangle chunks) on Blender's backend.
+    cloud, cloud_samples = point_cloud()
+    arrays["point_sprites"] = np.array(backend.point_sprites)
+    for param in POINT_CASES:
+        result = pipeline.render(LightSpec("omni", np.eye(4)), cloud, cloud_samples,
+                                 ShadowSettings(param, 256, cull=False), keep_atlas=True)
+        arrays[f"cloud_{param}_atlas"] = result.atlas
     if reference:
         ref = ReferenceData.load(reference)
         for param, warp, aa in CASES:
