@@ -14,10 +14,17 @@
 #include "lib/mapping.glsl"
 #include "lib/footprint.glsl"
 
+// Vertex `index`, light-centred: its double-single parts (texels 2i and 2i + 1) minus the
+// light's in the object's frame, hi from hi and lo from lo, before the object's matrix
+// (resident.py). `precise` keeps the compiler from reassociating the sums.
 vec3 ow_pull(int index)
 {
-  ivec2 at = ivec2(index % OW_VERTEX_WIDTH, index / OW_VERTEX_WIDTH);
-  return ow_object_linear * texelFetch(ow_vertices, at, 0).xyz + ow_object_offset;
+  int texel = 2 * index;
+  vec3 hi = texelFetch(ow_vertices, ivec2(texel % OW_VERTEX_WIDTH, texel / OW_VERTEX_WIDTH), 0).xyz;
+  texel += 1;
+  vec3 lo = texelFetch(ow_vertices, ivec2(texel % OW_VERTEX_WIDTH, texel / OW_VERTEX_WIDTH), 0).xyz;
+  precise vec3 local = (hi - ow_light_hi) + (lo - ow_light_lo);
+  return ow_object_linear * local;
 }
 
 // All three corners beyond one plane of the occluder region (plan.outside_region).

@@ -34,26 +34,32 @@ import numpy as np
 
 from .warping import LayerMapping, Warp, family_offset, max_shear
 
-# A triangle is seen edge-on when |det(v0, v1, v2)| <= max(EDGE_ON |v0|, distance) |(v1 - v0) x
-# (v2 - v0)|: its plane passes within EDGE_ON |v0|, or an absolute `distance`, of the light.
+# A triangle is seen edge-on when |det(v0, v1, v2)| <= EDGE_ON |v0| |(v1 - v0) x (v2 - v0)|:
+# its plane passes within EDGE_ON |v0| of the light.
 EDGE_ON = 1e-12
+# The float32 depth pass's margin (OW_EDGE_ON in gpu_shaders/lib/footprint.glsl, which a
+# test checks against this): host counts of what the GPU draws use it.
+GPU_EDGE_ON = 1e-6
+# The scene's own edge-on distance, relative to the depth range's far end (the host
+# sanitiser's 1e-9 far): a vertex within this of the light counts as at it.
+EDGE_ON_SCENE = 1e-9
 EMPTY = np.array([np.inf, -np.inf, np.inf, -np.inf])  # (x0, x1, y0, y1) of nothing
 
 
-def edge_planes(tris: np.ndarray, edge_on_distance: float = 0.0) -> tuple[np.ndarray, np.ndarray]:
+def edge_planes(tris: np.ndarray, edge_on: float = EDGE_ON,
+                distance: float = 0.0) -> tuple[np.ndarray, np.ndarray]:
     """Light-centred triangles (T, 3, 3) -> edge-plane normals (T, 3, 3) and orientation (T,).
 
     Orientation is the sign of det(v0, v1, v2), or 0 for a triangle seen edge-on: its
-    plane within EDGE_ON |v0| or `edge_on_distance` of the light (the vertices' own
-    rounding, as the GPU pass has it: resident.ResidentObject.edge_on_distance).
+    plane within max(`edge_on` |v0|, `distance`) of the light (the GPU pass uses
+    GPU_EDGE_ON, and EDGE_ON_SCENE times far).
     """
     v = np.asarray(tris, dtype=np.float64)
     normals = np.cross(v, np.roll(v, -1, axis=1))  # n_i = v_i x v_{i+1}
     # det from the edge vectors: rounding relative to the triangle's size, not its distance.
     plane = np.cross(v[:, 1] - v[:, 0], v[:, 2] - v[:, 0])
     det = np.einsum("ti,ti->t", v[:, 0], plane)
-    reach = np.maximum(EDGE_ON * np.linalg.norm(v[:, 0], axis=1), edge_on_distance)
-    scale = reach * np.linalg.norm(plane, axis=1)
+    scale = np.maximum(edge_on * np.linalg.norm(v[:, 0], axis=1), distance) * np.linalg.norm(plane, axis=1)
     sign = np.where(np.abs(det) > scale, np.sign(det), 0.0)
     return normals, sign
 

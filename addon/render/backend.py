@@ -68,7 +68,7 @@ UniformValues = dict[str, object]
 @dataclass(frozen=True)
 class FootprintDraw:
     """One object's triangles [first, first + count) drawn by the footprint pass, with the
-    object's own uniforms (ow_object_linear, ow_object_offset); as point sprites when
+    object's own uniforms (ow_object_linear, ow_light_hi, ow_light_lo); as point sprites when
     `points` (each triangle's box is known to fit MAX_POINT_SIZE), else as quads."""
 
     key: str

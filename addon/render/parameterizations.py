@@ -95,7 +95,7 @@ class Parameterization:
     def prepare(self, light: LightSpec, scene: ResidentScene, plan: Plan, settings: ShadowSettings,
                 near_far: tuple[float, float]) -> PreparedGeometry:
         return PreparedGeometry({}, near_far[0], near_far[1], scene.skipped, 0,
-                                measure=_measurer(scene, light, plan, settings))
+                                measure=_measurer(scene, light, plan, settings, near_far[1]))
 
     def scissor(self, plan: Plan, light: LightSpec, settings: ShadowSettings,
                 mappings: dict[int, LayerMapping]) -> dict[int, tuple[int, int, int, int]]:
@@ -228,6 +228,7 @@ def layer_uniforms(layer: Layer, geometry: PreparedGeometry, res: int, origin: t
         "ow_warp_size": warp_size if warp is not None else 0,
         "ow_warp_shear": (max_shear(warp.rows), max_shear(warp.cols)) if warp is not None else (0.0, 0.0),
         "ow_dilate": FOOTPRINT_DILATE_TEXELS,
+        "ow_edge_on_distance": footprint.EDGE_ON_SCENE * geometry.far,
         "ow_crop": mapping.crop_vec4(),
         "ow_near": geometry.near,
         "ow_far": geometry.far,
@@ -381,11 +382,14 @@ def footprint_ranges(draw: FootprintDraw, obj, light: LightSpec, layer: Layer, m
 
 
 def footprint_draws(scene: ResidentScene, light: LightSpec) -> list[FootprintDraw]:
-    """One draw per resident object: its matrix, light-centred in float64 on the host."""
-    return [FootprintDraw(key, 0, obj.triangles, {"ow_object_linear": obj.matrix[:3, :3],
-                                                  "ow_object_offset": obj.offset(light.position),
-                                                  "ow_edge_on_distance": obj.edge_on_distance(light.position)})
-            for key, obj in scene.objects.items() if obj.triangles]
+    """One draw per resident object: its matrix, and the light in its frame as double-single."""
+    draws = []
+    for key, obj in scene.objects.items():
+        if obj.triangles:
+            hi, lo = obj.light_split(light.position)
+            draws.append(FootprintDraw(key, 0, obj.triangles, {"ow_object_linear": obj.matrix[:3, :3],
+                                                               "ow_light_hi": hi, "ow_light_lo": lo}))
+    return draws
 
 
 def region_uniforms(plan: Plan, light: LightSpec, cull: bool) -> dict:
@@ -408,7 +412,7 @@ def region_uniforms(plan: Plan, light: LightSpec, cull: bool) -> dict:
     return {"ow_region_planes": table, "ow_region_count": len(planes), "ow_region_slack": slack}
 
 
-def _measurer(scene: ResidentScene, light: LightSpec, plan: Plan, settings: ShadowSettings):
+def _measurer(scene: ResidentScene, light: LightSpec, plan: Plan, settings: ShadowSettings, plan_far: float):
     """Host counts of a resident frame, for measurement only: the triangles the footprint
     pass keeps, summed over the drawn layers (not edge-on, inside the occluder region,
     in front of the layer: a paraboloid's hemisphere, a cube face's frustum), and the
@@ -417,9 +421,10 @@ def _measurer(scene: ResidentScene, light: LightSpec, plan: Plan, settings: Shad
     def measure() -> tuple[int, int]:
         kept, edge_on = [], 0
         for obj in scene.objects.values():
-            tris = obj.world_triangles() - light.position
+            tris = obj.light_centred(light.position)
             if plan.projective is None and len(tris):
-                _, orientation = footprint.edge_planes(tris, obj.edge_on_distance(light.position))
+                _, orientation = footprint.edge_planes(tris, footprint.GPU_EDGE_ON,
+                                                       footprint.EDGE_ON_SCENE * plan_far)
                 edge_on += int(np.count_nonzero(orientation == 0.0))
                 tris = tris[orientation != 0.0]
             kept.append(tris)

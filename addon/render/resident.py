@@ -1,11 +1,15 @@
 """The scene as the GPU keeps it: triangles per object, uploaded once per change (issue 17).
 
-An object is a float32 vertex array in its own frame (relative to its bounding box's
-centre, so float32 keeps its relative precision at any scene scale) and a float64
-affine matrix. A frame uploads nothing for an object whose geometry is unchanged; a
-moved object changes only its matrix, a uniform. The depth pass places each vertex
-light-centred with `linear @ v + offset`, where the offset (the object's origin minus
-the light) is formed in float64 on the host.
+An object is its vertices in its own frame (relative to its bounding box's centre) and a
+float64 affine matrix. A frame uploads nothing for an object whose geometry is unchanged;
+a moved object changes only its matrix, a uniform.
+
+Each vertex is stored double-single: hi = float32(p) and lo = float32(p - hi), two
+texels. The frame passes the light in the object's frame, split the same way, and the
+depth pass forms p - light = (hi - light_hi) + (lo - light_lo) before the matrix: the
+light-centred vertex is as precise as float32 allows at its own distance from the light,
+however large the object or far the scene is from the origin (a 0.1 mm plate 1 mm from
+the light in a 110 m scene keeps its shape), as the host's float64 light-centring did.
 
 What the frame needs from the scene on the host is per object, not per triangle:
 the bounding box (the depth range) and the triangle count.
@@ -26,10 +30,6 @@ log = logging.getLogger(__name__)
 
 _revisions = count(1)  # geometry revisions, unique across scenes: a backend keys uploads on them
 _soups = count(1)  # keys of triangle-soup objects, unique across scenes
-# Rounding of a stored vertex, relative to the object's size plus its distance from the
-# light (float32 local coordinates, then a float32 offset): about 16 ulps. A triangle
-# whose plane passes this close to the light is taken as seen edge-on (lib/footprint.glsl).
-EDGE_ON_ROUNDING = 1e-6
 
 
 @dataclass(frozen=True)
@@ -97,7 +97,7 @@ class ResidentObject:
     """One object's triangles in its own frame, and where the frame lies in the world."""
 
     key: str
-    local: np.ndarray  # (T, 3, 3) float32, relative to `origin`, in Morton order (chunks)
+    local: np.ndarray  # (T, 3, 3) float64, relative to `origin`, in Morton order (chunks)
     origin: np.ndarray  # (3,) float64, in the object's frame
     matrix: np.ndarray  # (4, 4) float64 object -> world
     revision: int
@@ -114,11 +114,22 @@ class ResidentObject:
         """Light-centred world position of the object's origin, in float64."""
         return self.matrix[:3, :3] @ self.origin + self.matrix[:3, 3] - np.asarray(light_position, np.float64)
 
-    def edge_on_distance(self, light_position: np.ndarray) -> float:
-        """The absolute edge-on distance of this object's triangles from this light."""
-        radius = float(np.max(np.abs(np.concatenate([self._local_lo, self._local_hi])))) if len(self.local) else 0.0
-        scale = float(np.max(np.abs(self.matrix[:3, :3]))) * radius + float(np.linalg.norm(self.offset(light_position)))
-        return EDGE_ON_ROUNDING * scale
+    def light_local(self, light_position: np.ndarray) -> np.ndarray:
+        """The light in the object's frame, relative to `origin` (float64)."""
+        linear = self.matrix[:3, :3]
+        return np.linalg.solve(linear, np.asarray(light_position, np.float64) - self.matrix[:3, 3]) - self.origin
+
+    def light_split(self, light_position: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """`light_local` as double-single (hi, lo), as the depth pass takes it."""
+        local = self.light_local(light_position)
+        hi = local.astype(np.float32)
+        return hi, (local - hi.astype(np.float64)).astype(np.float32)
+
+    def light_centred(self, light_position: np.ndarray) -> np.ndarray:
+        """(T, 3, 3) float64 light-centred world triangles, formed as the depth pass forms
+        them (the light subtracted in the object's frame, then the matrix): a vertex placed
+        at the light is exactly 0 here and on the GPU."""
+        return (self.local - self.light_local(light_position)) @ self.matrix[:3, :3].T
 
     def world_bounds(self) -> tuple[np.ndarray, np.ndarray] | None:
         """World box of the transformed local box (8 corners), or None when empty."""
@@ -131,8 +142,7 @@ class ResidentObject:
 
     def world_triangles(self) -> np.ndarray:
         """(T, 3, 3) float64 world triangles (for measurement and the unfold path)."""
-        local = self.local.astype(np.float64) + self.origin
-        return local @ self.matrix[:3, :3].T + self.matrix[:3, 3]
+        return (self.local + self.origin) @ self.matrix[:3, :3].T + self.matrix[:3, 3]
 
     def vertex_texels(self) -> np.ndarray:
         """The vertex texture: (rows, VERTEX_TEXTURE_WIDTH, 4) float32, vertex i at texel i."""
@@ -140,11 +150,15 @@ class ResidentObject:
 
 
 def vertex_texels(local: np.ndarray) -> np.ndarray:
-    """(T, 3, 3) vertices -> (rows, VERTEX_TEXTURE_WIDTH, 4) float32, xyz and w = 0."""
-    flat = np.asarray(local, dtype=np.float32).reshape(-1, 3)
-    rows = max(1, -(-len(flat) // VERTEX_TEXTURE_WIDTH))
+    """(T, 3, 3) vertices -> (rows, VERTEX_TEXTURE_WIDTH, 4) float32: vertex i is texels 2i
+    (hi = float32(p)) and 2i + 1 (lo = float32(p - hi)), w = 0."""
+    points = np.asarray(local, dtype=np.float64).reshape(-1, 3)
+    hi = points.astype(np.float32)
+    lo = (points - hi.astype(np.float64)).astype(np.float32)
+    rows = max(1, -(-2 * len(points) // VERTEX_TEXTURE_WIDTH))
     texels = np.zeros((rows * VERTEX_TEXTURE_WIDTH, 4), dtype=np.float32)
-    texels[:len(flat), :3] = flat
+    texels[0:2 * len(points):2, :3] = hi
+    texels[1:2 * len(points):2, :3] = lo
     return texels.reshape(rows, VERTEX_TEXTURE_WIDTH, 4)
 
 
@@ -191,7 +205,7 @@ class ResidentScene:
         else:
             lo = hi = np.zeros(3)
         origin = 0.5 * (lo + hi)
-        local = (tris[morton_order(tris)] - origin).astype(np.float32)
+        local = tris[morton_order(tris)] - origin
         obj = ResidentObject(key, local, origin, self._matrix(matrix), next(_revisions), counts,
                              chunk_bounds(local), lo - origin, hi - origin)
         self.objects[key] = obj

@@ -135,7 +135,8 @@ DEPTH_PROGRAM = ProgramInterface(
     writes_depth=True,
 )
 
-# Vertex texture of the footprint pass: vertex i of an object at texel (i % W, i // W).
+# Vertex texture of the footprint pass: texel t of an object at (t % W, t // W); vertex i
+# is texels 2i and 2i + 1 (double-single, resident.vertex_texels).
 VERTEX_TEXTURE_WIDTH = 2048
 # Vertices the footprint pass draws per triangle: one quad as two triangles.
 FOOTPRINT_VERTICES = 6
@@ -155,7 +156,8 @@ FOOTPRINT_PROGRAM = ProgramInterface(
     uniforms=(
         Uniform("mat3", "ow_layer_rot"),
         Uniform("mat3", "ow_object_linear"),
-        Uniform("vec3", "ow_object_offset"),
+        Uniform("vec3", "ow_light_hi"),
+        Uniform("vec3", "ow_light_lo"),
         Uniform("float", "ow_edge_on_distance"),
         Uniform("int", "ow_layer_kind"),
         Uniform("int", "ow_layer_slot"),

@@ -12,27 +12,27 @@
 #include "lib/warp.glsl"
 
 const vec4 OW_EMPTY_BOX = vec4(1.0, -1.0, 1.0, -1.0);
-// A triangle is seen edge-on when its plane passes within max(OW_EDGE_ON |v0|,
-// edge_on_distance) of the light: |det(v0, v1, v2)| <= that times |(v1 - v0) x (v2 - v0)|.
-// The determinant is formed from the edge vectors, whose float32 rounding is relative to
-// the triangle's own size, so a tiny triangle far from the light keeps its orientation.
-// `edge_on_distance` is the rounding of the stored vertices themselves: a vertex placed
-// at the light lands up to that far from it, and must not then cover half the sphere
-// (the numpy side uses 1e-12 for the relative part; float32 needs a wider margin).
+// A triangle is seen edge-on when its plane passes within max(OW_EDGE_ON |v0|, distance)
+// of the light: |det(v0, v1, v2)| <= that times |(v1 - v0) x (v2 - v0)|. The determinant is
+// formed from the edge vectors, whose float32 rounding is relative to the triangle's own
+// size, so a tiny triangle far from the light keeps its orientation (the numpy side uses
+// 1e-12 for the relative part; float32 needs a wider margin). `distance` is the scene's
+// own tolerance (1e-9 of the depth range's far end, as the host's sanitiser had it): a
+// vertex placed "at" the light lands within rounding of it, and must not then cover half
+// the sphere.
 const float OW_EDGE_ON = 1e-6;
 
 // Edge-plane normals n_i = v_i x v_{i+1}; returns det's sign, 0 for a triangle seen edge-on.
 // A neighbour computes its shared edge's normal from the same two vertices, so the two
 // inside tests split the rays along that edge without a gap.
-float ow_edge_planes(vec3 v0, vec3 v1, vec3 v2, float edge_on_distance, out vec3 n0, out vec3 n1, out vec3 n2)
+float ow_edge_planes(vec3 v0, vec3 v1, vec3 v2, float distance, out vec3 n0, out vec3 n1, out vec3 n2)
 {
   n0 = cross(v0, v1);
   n1 = cross(v1, v2);
   n2 = cross(v2, v0);
   vec3 normal = cross(v1 - v0, v2 - v0);
   float det = dot(v0, normal);
-  float reach = max(OW_EDGE_ON * length(v0), edge_on_distance);
-  return (abs(det) > reach * length(normal)) ? sign(det) : 0.0;
+  return (abs(det) > max(OW_EDGE_ON * length(v0), distance) * length(normal)) ? sign(det) : 0.0;
 }
 
 // The ray direction d lies inside the triangle's three edge planes (and not behind the light).

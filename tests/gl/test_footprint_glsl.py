@@ -129,3 +129,12 @@ def test_inside_test_matches_numpy(gl_backend, tmp_path):
     assert clear.sum() > 500
     assert np.array_equal(got[clear, 0] > 0.5, want[clear])
     assert want[clear].sum() > 20  # some rays do hit
+
+
+def test_edge_on_margin_is_the_same_number_on_both_sides():
+    """The host's count of what the GPU draws (parameterizations._measurer) uses OW_EDGE_ON's value."""
+    import re
+
+    text = (SHADER_DIR / "lib" / "footprint.glsl").read_text()
+    value = float(re.search(r"const float OW_EDGE_ON = ([0-9.eE+-]+);", text).group(1))
+    assert value == fp.GPU_EDGE_ON
