@@ -1,15 +1,17 @@
-// Footprint depth pass, vertex stage (vertex pulling; issue 17). Six vertices per
-// triangle, two triangles of one quad: vertex i belongs to triangle i / 6, and the
-// corner buffer holds i % 6 (a plain draw: software rasterisers run instanced draws
-// of a few vertices each far slower). Built with OW_POINTS, one vertex per triangle
-// instead: a point sprite over the box, for triangles whose box the host has bounded
-// below OW_MAX_POINT_SIZE texels (parameterizations.footprint_ranges). The triangle's vertices come from the object's
-// vertex texture, are placed light-centred by the object's matrix, and give the flat
-// inputs of the exact per-texel test: the three edge planes through the light and the
-// triangle's plane. The corners span a conservative box of the triangle's curved image
-// in the cropped, warped layer (lib/footprint.glsl), dilated by `ow_dilate` texels for
-// float32 rounding. Triangles seen edge-on, outside the occluder region or outside the
-// layer draw nothing: all four corners go to one point outside the clip volume.
+// Footprint depth pass, vertex stage (vertex pulling; issue 17).
+//
+// Six vertices per triangle, two triangles of one quad: vertex i belongs to triangle
+// i / 6, and the corner buffer holds i % 6 (a plain draw: software rasterisers run
+// instanced draws of a few vertices each far slower). Built with OW_POINTS, one vertex
+// per triangle instead: a point sprite over the box, for the chunks whose boxes the host
+// has bounded below OW_MAX_POINT_SIZE texels (parameterizations.footprint_ranges).
+//
+// The triangle's vertices come from the object's vertex texture, light-centred, and give
+// the flat inputs of the exact per-texel test: the three edge planes through the light
+// and the triangle's plane. The corners span a conservative box of the triangle's curved
+// image in the cropped, warped layer (lib/footprint.glsl), dilated by `ow_dilate` texels
+// for float32 rounding. Triangles seen edge-on, outside the occluder region or outside
+// the layer draw nothing: every vertex goes to one point outside the clip volume.
 #include "lib/projection.glsl"
 #include "lib/mapping.glsl"
 #include "lib/footprint.glsl"

@@ -17,9 +17,16 @@ import sys
 from pathlib import Path
 
 
+class TableError(Exception):
+    """A results file that cannot be read as compare's rows."""
+
+
 def _rows(path: Path) -> dict[tuple, dict]:
-    return {(r["preset"], r["method"], r["resolution"], r.get("cull", True)): r
-            for r in json.loads(path.read_text())}
+    try:
+        rows = json.loads(path.read_text())
+        return {(r["preset"], r["method"], r["resolution"], r.get("cull", True)): r for r in rows}
+    except (OSError, ValueError, KeyError, TypeError) as exc:
+        raise TableError(f"{path}: not a compare results.json ({exc.__class__.__name__}: {exc})") from None
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -30,7 +37,11 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--points", type=float, default=0.003)
     parser.add_argument("--times", action="store_true", help="print stage times instead of the bound")
     args = parser.parse_args(argv)
-    before, after = _rows(args.before), _rows(args.after)
+    try:
+        before, after = _rows(args.before), _rows(args.after)
+    except TableError as exc:
+        print(f"regression_table: {exc}", file=sys.stderr)
+        return 2
     shared = [key for key in after if key in before]  # in the after run's order
     if not shared:
         print(f"regression_table: {args.before} and {args.after} share no row", file=sys.stderr)

@@ -36,3 +36,10 @@ def test_times_table_and_no_shared_rows(tmp_path):
     assert times.returncode == 0 and "| room_omni | dpsm | 1024 | 200 | 50 |" in times.stdout
     none = _run(tmp_path, [_row("dpsm", 0.1)], [_row("cube", 0.1)])
     assert none.returncode == 2 and "share no row" in none.stderr
+
+
+def test_a_missing_file_is_one_line(tmp_path):
+    proc = subprocess.run([sys.executable, str(SCRIPT), str(tmp_path / "none.json"), str(tmp_path / "none.json")],
+                          capture_output=True, text=True)
+    assert proc.returncode == 2
+    assert proc.stderr.count("\n") == 1 and "not a compare results.json" in proc.stderr
