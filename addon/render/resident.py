@@ -44,6 +44,11 @@ class SanitizeCounts:
         return self.nonfinite + self.degenerate
 
 
+# Most triangles one vertex texture holds: 2^21 triangles are 6 * 2^21 texels, 6144 rows of
+# VERTEX_TEXTURE_WIDTH, within every GL 4.5 GPU's 16384. A larger object is stored as
+# several parts (consecutive in Morton order), drawn alike.
+MAX_PART_TRIANGLES = 2 ** 21
+
 # Triangles per chunk: the unit of the depth pass's choice between points and quads
 # (parameterizations.footprint_ranges). Triangles are stored in Morton order of their
 # centroids, so a chunk is a compact cluster with a small bounding sphere.
@@ -185,6 +190,7 @@ class ResidentScene:
     def __init__(self) -> None:
         self.objects: dict[str, ResidentObject] = {}
         self.removed: set[str] = set()  # keys removed since the last sync: the backend frees them
+        self._parts: dict[str, list[str]] = {}  # object key -> its parts' keys (set_geometry)
         self._world: tuple[tuple, np.ndarray] | None = None
 
     @classmethod
@@ -198,28 +204,42 @@ class ResidentScene:
         return scene
 
     def set_geometry(self, key: str, triangles: np.ndarray, matrix: np.ndarray | None = None) -> ResidentObject:
-        """Add or replace an object's triangles (in its own frame); the next frame uploads them."""
+        """Add or replace an object's triangles (in its own frame); the next frame uploads them.
+
+        Beyond MAX_PART_TRIANGLES the object is kept as parts "key", "key#1", ... (one
+        texture each); `set_matrix` and `remove` take the key and act on all of them.
+        """
+        self.remove(key)
         tris, counts = _sanitized(triangles)
-        if len(tris):
-            lo, hi = tris.reshape(-1, 3).min(axis=0), tris.reshape(-1, 3).max(axis=0)
-        else:
-            lo = hi = np.zeros(3)
-        origin = 0.5 * (lo + hi)
-        local = tris[morton_order(tris)] - origin
-        obj = ResidentObject(key, local, origin, self._matrix(matrix), next(_revisions), counts,
-                             chunk_bounds(local), lo - origin, hi - origin)
-        self.objects[key] = obj
-        self.removed.discard(key)
-        return obj
+        tris = tris[morton_order(tris)]
+        matrix = self._matrix(matrix)
+        parts = [tris[start:start + MAX_PART_TRIANGLES] for start in range(0, max(len(tris), 1), MAX_PART_TRIANGLES)]
+        keys = [key] + [f"{key}#{index}" for index in range(1, len(parts))]
+        for index, (part_key, part) in enumerate(zip(keys, parts)):
+            if len(part):
+                lo, hi = part.reshape(-1, 3).min(axis=0), part.reshape(-1, 3).max(axis=0)
+            else:
+                lo = hi = np.zeros(3)
+            origin = 0.5 * (lo + hi)
+            local = part - origin
+            self.objects[part_key] = ResidentObject(part_key, local, origin, matrix.copy(), next(_revisions),
+                                                    counts if index == 0 else SanitizeCounts(),
+                                                    chunk_bounds(local), lo - origin, hi - origin)
+            self.removed.discard(part_key)
+        self._parts[key] = keys
+        return self.objects[key]
 
     def set_matrix(self, key: str, matrix: np.ndarray) -> None:
         """Move an object: no upload, only its uniforms change."""
-        self.objects[key].matrix = self._matrix(matrix)
+        matrix = self._matrix(matrix)
+        for part_key in self._parts[key]:
+            self.objects[part_key].matrix = matrix.copy()
 
     def remove(self, key: str) -> None:
-        """Drop an object; the next sync frees its vertex texture."""
-        if self.objects.pop(key, None) is not None:
-            self.removed.add(key)
+        """Drop an object; the next sync frees its vertex textures."""
+        for part_key in self._parts.pop(key, ()):
+            if self.objects.pop(part_key, None) is not None:
+                self.removed.add(part_key)
 
     @staticmethod
     def _matrix(matrix: np.ndarray | None) -> np.ndarray:

@@ -238,3 +238,24 @@ def test_point_sprites_store_what_quads_store(gl_backend, monkeypatch, param, wa
     assert np.array_equal(sprites.atlas, quads.atlas)
     assert np.count_nonzero(sprites.atlas < 1.0) > 1000
     gl_backend.release_scene(scene)
+
+
+def test_a_large_object_is_stored_as_parts_and_shadows_as_one(gl_backend, monkeypatch):
+    """Beyond MAX_PART_TRIANGLES an object becomes several textures; it draws, moves and
+    goes away as one object."""
+    from addon.render import resident
+
+    pipeline, light, tris = ShadowPipeline(gl_backend), _light(), _room()
+    samples, settings = _view(tris), ShadowSettings("dpsm", RES)
+    one = ResidentScene.of_triangles(tris)
+    assert len(one.objects) == 1
+    whole = pipeline.render(light, one, samples, settings)
+    monkeypatch.setattr(resident, "MAX_PART_TRIANGLES", 64)
+    scene = ResidentScene.of_triangles(tris, key="room")
+    assert len(scene.objects) == -(-len(tris) // 64) and "room#1" in scene.objects
+    parted = pipeline.render(light, scene, samples, settings)
+    assert np.array_equal(parted.visibility, whole.visibility)
+    scene.set_matrix("room", np.eye(4))
+    scene.remove("room")
+    assert not scene.objects and {"room", "room#1"} <= scene.removed
+    gl_backend.release_scene(scene)
