@@ -87,7 +87,7 @@ class ShadowBackend(ABC):
     geometry_bytes: int = 0
 
     def sync_scene(self, scene) -> None:
-        """Make the GPU hold exactly `scene`'s objects (a `resident.ResidentScene`).
+        """Make the GPU hold `scene`'s objects as they are now (a `resident.ResidentScene`).
 
         Uploads the vertex texture of each object that is new or whose geometry changed
         (by revision) and frees those of the objects removed from it. A moved object

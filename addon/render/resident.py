@@ -150,7 +150,7 @@ class ResidentObject:
         return (self.local + self.origin) @ self.matrix[:3, :3].T + self.matrix[:3, 3]
 
     def vertex_texels(self) -> np.ndarray:
-        """The vertex texture: (rows, VERTEX_TEXTURE_WIDTH, 4) float32, vertex i at texel i."""
+        """The vertex texture: (rows, VERTEX_TEXTURE_WIDTH, 4) float32 (`vertex_texels`)."""
         return vertex_texels(self.local)
 
 
@@ -209,10 +209,10 @@ class ResidentScene:
         Beyond MAX_PART_TRIANGLES the object is kept as parts "key", "key#1", ... (one
         texture each); `set_matrix` and `remove` take the key and act on all of them.
         """
-        self.remove(key)
+        matrix = self._matrix(matrix)  # checked first: a refused matrix leaves the object as it was
         tris, counts = _sanitized(triangles)
         tris = tris[morton_order(tris)]
-        matrix = self._matrix(matrix)
+        self.remove(key)
         parts = [tris[start:start + MAX_PART_TRIANGLES] for start in range(0, max(len(tris), 1), MAX_PART_TRIANGLES)]
         keys = [key] + [f"{key}#{index}" for index in range(1, len(parts))]
         for index, (part_key, part) in enumerate(zip(keys, parts)):
@@ -243,9 +243,15 @@ class ResidentScene:
 
     @staticmethod
     def _matrix(matrix: np.ndarray | None) -> np.ndarray:
+        """A finite, invertible 4x4: the depth pass takes the light into the object's frame."""
         m = np.eye(4) if matrix is None else np.asarray(matrix, dtype=np.float64)
         if m.shape != (4, 4) or not np.all(np.isfinite(m)):
             raise InputError(f"an object matrix must be a finite 4x4, got shape {m.shape}")
+        linear = m[:3, :3]
+        if abs(np.linalg.det(linear)) <= 1e-12 * max(float(np.abs(linear).max()), 1e-300) ** 3:
+            # A zero scale flattens the object: pass its world triangles with no matrix.
+            raise InputError("an object matrix must be invertible (a zero scale flattens it); "
+                             "pass its world-space triangles with the identity instead")
         return m
 
     @property

@@ -259,3 +259,18 @@ def test_a_large_object_is_stored_as_parts_and_shadows_as_one(gl_backend, monkey
     scene.remove("room")
     assert not scene.objects and {"room", "room#1"} <= scene.removed
     gl_backend.release_scene(scene)
+
+
+def test_object_matrices_are_checked():
+    """A matrix that is not finite and invertible is refused by name, before any upload."""
+    from addon.core.errors import InputError
+
+    scene = ResidentScene()
+    scene.set_geometry("plate", _room()[:4])
+    kept = scene.objects["plate"]
+    flat = np.diag([1.0, 1.0, 0.0, 1.0])
+    with pytest.raises(InputError, match="invertible"):
+        scene.set_geometry("plate", _room()[:8], flat)
+    with pytest.raises(InputError, match="finite 4x4"):
+        scene.set_matrix("plate", np.full((4, 4), np.nan))
+    assert scene.objects == {"plate": kept} and np.array_equal(kept.matrix, np.eye(4))  # nothing lost
