@@ -103,6 +103,8 @@ class Parameterization:
 
     def draw(self, backend: ShadowBackend, inputs: DrawInputs) -> int:
         """One footprint draw per layer and object run; a warped layer first gets its ray table."""
+        if not inputs.draws:
+            return 0  # nothing to draw (no blockers): the cleared atlas is the map
         res = inputs.settings.resolution
         for layer in inputs.plan.drawn:
             tile = inputs.tile_of_slot[layer.slot]
