@@ -442,6 +442,7 @@ class BlenderGPUBackend(ShadowBackend):
         rect = self._layout.scissor_rect(tile, scissor) if scissor is not None else viewport
         with self._atlas_fb.bind():
             gpu.state.viewport_set(*viewport)
+            scissor_before = gpu.state.scissor_get()
             gpu.state.scissor_set(*rect)
             gpu.state.scissor_test_set(True)
             gpu.state.depth_test_set("LESS")
@@ -461,14 +462,16 @@ class BlenderGPUBackend(ShadowBackend):
                     if points:
                         gpu.state.program_point_size_set(True)
                         batch.draw_range(shader, elem_start=draw.first, elem_count=draw.count)
-                        gpu.state.program_point_size_set(False)
                     else:
+                        gpu.state.program_point_size_set(False)
                         batch.draw_range(shader, elem_start=draw.first * FOOTPRINT_VERTICES,
                                          elem_count=draw.count * FOOTPRINT_VERTICES)
             finally:
+                gpu.state.program_point_size_set(False)
                 gpu.state.depth_test_set("NONE")
                 gpu.state.depth_mask_set(False)
                 gpu.state.scissor_test_set(False)
+                gpu.state.scissor_set(*scissor_before)
 
     def upload_samples(self, positions: np.ndarray, normals: np.ndarray) -> None:
         import gpu
