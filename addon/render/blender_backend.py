@@ -393,22 +393,21 @@ class BlenderGPUBackend(ShadowBackend):
         self._vertices.pop(key, None)  # Blender frees the texture with its last reference
 
     def _corner_batch(self, shader, triangles: int, points: bool):
-        """The footprint pass's batch (quads, or points) over a corner buffer of at least
-        `triangles`; both are rebuilt when it grows."""
-        from gpu_extras.batch import batch_for_shader
+        """The footprint pass's batch (quads, or points) over one corner buffer of at least
+        `triangles`: both batches share its vertex buffer, uploaded once per growth."""
+        import gpu
 
         capacity = corner_capacity(triangles, self._corner_triangles)
-        if capacity != self._corner_triangles:
-            self._batches.pop("footprint_points", None)
-            self._batches.pop("footprint", None)
+        if capacity != self._corner_triangles or "footprint" not in self._batches:
+            corners = corner_indices(capacity)
+            fmt = gpu.types.GPUVertFormat()
+            fmt.attr_add(id="ow_corner", comp_type="F32", len=1, fetch_mode="FLOAT")
+            buffer = gpu.types.GPUVertBuf(fmt, len(corners))
+            buffer.attr_fill("ow_corner", corners)
+            self._batches["footprint"] = gpu.types.GPUBatch(type="TRIS", buf=buffer)
+            self._batches["footprint_points"] = gpu.types.GPUBatch(type="POINTS", buf=buffer)
             self._corner_triangles = capacity
-        key = "footprint_points" if points else "footprint"
-        batch = self._batches.get(key)
-        if batch is None:
-            batch = batch_for_shader(shader, "POINTS" if points else "TRIS",
-                                     {"ow_corner": corner_indices(self._corner_triangles)})
-            self._batches[key] = batch
-        return batch
+        return self._batches["footprint_points" if points else "footprint"]
 
     def build_ray_table(self, tile: int, uniforms: UniformValues) -> None:
         import gpu

@@ -106,6 +106,8 @@ class Parameterization:
         if not inputs.draws:
             return 0  # nothing to draw (no blockers): the cleared atlas is the map
         res = inputs.settings.resolution
+        # Per object, the chunks' light-centred spheres, the same on every layer.
+        spheres = {draw.key: _chunk_spheres(inputs.scene.objects[draw.key], inputs.light) for draw in inputs.draws}
         for layer in inputs.plan.drawn:
             tile = inputs.tile_of_slot[layer.slot]
             mapping = inputs.mappings.get(layer.slot, LayerMapping.identity())
@@ -113,9 +115,9 @@ class Parameterization:
                                          inputs.warp_size), **inputs.region}
             if mapping.warp is not None:
                 backend.build_ray_table(tile, uniforms)
+            stretch = map_stretch(mapping)
             draws = [run for draw in inputs.draws
-                     for run in footprint_ranges(draw, inputs.scene.objects[draw.key], inputs.light, layer,
-                                                 mapping, res, inputs.region)]
+                     for run in footprint_ranges(draw, spheres[draw.key], layer, stretch, res, inputs.region)]
             backend.draw_footprints(tile, draws, uniforms, scissor=inputs.boxes.get(layer.slot))
         return 0
 
@@ -267,9 +269,12 @@ def map_stretch(mapping: LayerMapping) -> float:
     return stretch
 
 
-def _chunk_spheres(obj, light: LightSpec) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Light-centred chunk centres (C, 3), radii and longest edges (C,), in world units."""
+def _chunk_spheres(obj, light: LightSpec) -> tuple[np.ndarray, np.ndarray, np.ndarray] | None:
+    """Light-centred chunk centres (C, 3), radii and longest edges (C,), in world units;
+    None for an object without chunks."""
     chunks = obj.chunks
+    if chunks is None:
+        return None
     linear = obj.matrix[:3, :3]
     scale = float(np.linalg.norm(linear, 2))
     return chunks.centres @ linear.T + obj.offset(light.position), chunks.radii * scale, chunks.edges * scale
@@ -361,16 +366,17 @@ def _runs(kinds: np.ndarray) -> list[tuple[int, int, int]]:
     return [(int(a), int(b), int(kinds[a])) for a, b in zip(start, end)]
 
 
-def footprint_ranges(draw: FootprintDraw, obj, light: LightSpec, layer: Layer, mapping: LayerMapping,
-                     res: int, region: dict | None = None) -> list[FootprintDraw]:
+def footprint_ranges(draw: FootprintDraw, spheres: tuple[np.ndarray, np.ndarray, np.ndarray] | None,
+                     layer: Layer, stretch: float, res: int, region: dict | None = None) -> list[FootprintDraw]:
     """One object's draw on one layer, by chunks of CHUNK_TRIANGLES: chunks that cannot
     reach the layer are left out; chunks whose footprint bound fits MAX_POINT_SIZE draw
-    one point sprite a triangle instead of a six-vertex quad. Host work per chunk, not
-    per triangle; the vertex stage still culls each triangle."""
-    if obj.chunks is None or not len(obj.chunks):
+    one point sprite a triangle instead of a six-vertex quad. `spheres` are the object's
+    `_chunk_spheres` (None: draw it whole as quads), `stretch` the layer's `map_stretch`.
+    Host work per chunk, not per triangle; the vertex stage still culls each triangle."""
+    if spheres is None or not len(spheres[1]):
         return [draw]
-    centres, radii, edges = _chunk_spheres(obj, light)
-    small = _chunk_texels(centres, radii, edges, layer, map_stretch(mapping), res) <= MAX_POINT_SIZE
+    centres, radii, edges = spheres
+    small = _chunk_texels(centres, radii, edges, layer, stretch, res) <= MAX_POINT_SIZE
     kinds = np.where(small, POINTS, QUADS)
     kinds[_chunks_outside(centres, radii, layer, region or {})] = SKIP
     total = draw.first + draw.count
