@@ -25,7 +25,7 @@ from ..core import methods as method_registry
 from ..core.errors import OmniWarpError, report_error
 from ..core.scene import LightSpec
 from ..reference.data import ReferenceData
-from ..render.pipeline import ShadowPipeline, ShadowSettings, ViewSamples, count_statistics, settings_for
+from ..render.pipeline import ShadowPipeline, ShadowSettings, count_statistics, settings_for
 from ..render.resident import ResidentScene
 
 log = logging.getLogger(__name__)
@@ -122,9 +122,9 @@ def run(reference: ReferenceData, lights: list[tuple[str, LightSpec, ShadowSetti
         pipeline = ShadowPipeline(backend)
         t0 = time.perf_counter()
         gbuffer = render_gbuffer(backend, triangles, view_proj, camera.eye_homogeneous(), camera.resolution)
+        backend.finish()
         gbuffer_ms = (time.perf_counter() - t0) * 1e3
-        samples = ViewSamples(gbuffer.positions[..., :3].astype(np.float64), gbuffer.normals[..., :3].astype(np.float64),
-                              gbuffer.hit, camera)
+        samples = gbuffer.samples(camera)  # stays on the GPU, as in the viewport
         per_light = []
         for name, light, settings in lights:
             # Resident once per light, as compare has it: the warm-up frame uploads it.

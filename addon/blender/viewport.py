@@ -28,7 +28,7 @@ import numpy as np
 from ..core import validate
 from ..core.errors import InputError
 from ..core.scene import camera_from_matrices
-from ..render.pipeline import ShadowPipeline, ViewSamples, count_statistics
+from ..render.pipeline import ShadowPipeline, count_statistics
 from . import properties
 
 log = logging.getLogger(__name__)
@@ -179,8 +179,7 @@ def compute_view(backend, pipeline: ShadowPipeline, triangles: np.ndarray, view_
     camera = camera_from_matrices(view_matrix, projection, size)
     eye = np.linalg.inv(view_matrix)[:3, 3] if camera is None else camera.eye_homogeneous()
     gbuffer = render_gbuffer(backend, triangles, view_proj, eye, size)
-    samples = ViewSamples(gbuffer.positions[..., :3].astype(np.float64),
-                          gbuffer.normals[..., :3].astype(np.float64), gbuffer.hit, camera)
+    samples = gbuffer.samples(camera)  # stays on the GPU
     results = []
     for name, light, settings in lights:
         result = pipeline.render(light, (occluders or {}).get(name, triangles), samples, settings, keep_atlas=True)

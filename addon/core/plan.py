@@ -26,6 +26,7 @@ from .frames import Layer, Parameterization, ipsm_layer, light_layers, pick_slot
 from .perspective import hull_planes  # one convex-hull routine for culling and PSM
 from .polytope import Polytope, sample_polytope
 from .projection import CUBE, PARABOLOID
+from .samples import CULL_DEPTH_PERCENTILE, FULL_WINDOW, SampleStats, Window
 from .scene import CameraSpec, LightSpec
 
 log = logging.getLogger(__name__)
@@ -35,8 +36,6 @@ _SLACK = 1e-6
 # IPSM needs the cone to stay well inside a hemisphere: beyond this half-angle the
 # paraboloid's rim samples too coarsely, and both sides are used instead.
 IPSM_MAX_HALF_ANGLE = math.radians(80.0)
-# Layer culling cuts the view frustum at these depth percentiles (docs/culling.md).
-CULL_DEPTH_PERCENTILE = 0.5
 
 
 @dataclass
@@ -73,12 +72,6 @@ class Plan:
         return len(self.drawn)
 
 
-# Screen window of a frustum: (x0, x1, y0, y1) in normalised device coordinates,
-# (-1, 1, -1, 1) being the whole camera frame.
-Window = tuple[float, float, float, float]
-FULL_WINDOW: Window = (-1.0, 1.0, -1.0, 1.0)
-
-
 def frustum_corners(camera: CameraSpec, near_depth: float, far_depth: float,
                     window: Window = FULL_WINDOW) -> np.ndarray:
     """World-space corners (8, 3) of the camera frustum between two view depths: the
@@ -95,70 +88,40 @@ def frustum_corners(camera: CameraSpec, near_depth: float, far_depth: float,
     return camera.world_points(ndc, depth)
 
 
-def sample_window(camera: CameraSpec, hit: np.ndarray) -> Window:
-    """The frame rectangle holding every pixel with a sample, grown by one pixel.
-
-    The truncated frustum is cut at the samples' depths, and also at the sides of
-    the image that see only sky: a view sample lies on a ray through its own pixel
-    (with a reconstruction filter, within a pixel of it), so the frustum through
-    this rectangle still holds every sample. The whole frame when `hit` is not an
-    (H, W) mask of the camera's image, or has no sample.
-    """
-    mask = np.asarray(hit, dtype=bool)
-    width, height = camera.resolution
-    if mask.shape != (height, width) or not mask.any():
-        return FULL_WINDOW
-    rows = np.flatnonzero(mask.any(axis=1))  # row 0 is the top of the image
-    cols = np.flatnonzero(mask.any(axis=0))
-    x0 = 2.0 * (cols[0] - 1) / width - 1.0
-    x1 = 2.0 * (cols[-1] + 2) / width - 1.0
-    y0 = 1.0 - 2.0 * (rows[-1] + 2) / height
-    y1 = 1.0 - 2.0 * (rows[0] - 1) / height
-    return (max(x0, -1.0), min(x1, 1.0), max(y0, -1.0), min(y1, 1.0))
-
-
 def hit_points(positions: np.ndarray, hit: np.ndarray) -> np.ndarray:
     """The finite world positions (N, 3) of the samples that hit geometry."""
     pts = np.asarray(positions, dtype=np.float64)
     return pts[np.asarray(hit, dtype=bool) & projection.finite_points(pts)]  # one mask, one copy
 
 
-def view_depths(camera: CameraSpec, points: np.ndarray) -> np.ndarray:
-    """Depth along the camera's view axis of world points (N, 3)."""
-    return camera.view_depths(points)  # camera looks along its local -Z, ortho or not
-
-
-def frustum_from_depths(camera: CameraSpec, depths: np.ndarray, margin: float = 0.02,
-                        percentile: float = 0.0, window: Window = FULL_WINDOW) -> np.ndarray | None:
-    """`truncated_frustum` from precomputed view depths (None when there are none)."""
-    if len(depths) == 0:
+def frustum_from_range(camera: CameraSpec, depth: tuple[float, float] | None, margin: float = 0.02,
+                       window: Window = FULL_WINDOW) -> np.ndarray | None:
+    """The camera frustum between two view depths (None for no range), grown by `margin`
+    of them and narrowed to `window`."""
+    if depth is None:
         return None
-    low, high = (np.percentile(depths, [percentile, 100.0 - percentile]) if percentile > 0
-                 else (depths.min(), depths.max()))
+    low, high = float(depth[0]), float(depth[1])
     if camera.ortho:
         # A box: depths may be zero or negative (Blender's orthographic viewport puts its
         # near plane behind the view point), so the margin is absolute here.
-        low, high = float(low), float(high)
         pad = margin * max(high - low, abs(low), abs(high)) + 1e-9
         return frustum_corners(camera, low - pad, high + pad, window)
-    near = max(float(low) * (1.0 - margin), 1e-9)
-    far = float(high) * (1.0 + margin) + 1e-9
+    near = max(low * (1.0 - margin), 1e-9)
+    far = high * (1.0 + margin) + 1e-9
     return frustum_corners(camera, near, far, window)
 
 
-def truncated_frustum(camera: CameraSpec, positions: np.ndarray, hit: np.ndarray,
-                      margin: float = 0.02, percentile: float = 0.0) -> np.ndarray | None:
-    """Camera frustum cut at the view depths of the hit samples (with a 2 % margin), and
-    narrowed to the image rectangle that holds them (`sample_window`) when `hit` is the
-    (H, W) mask of the camera's image.
+def truncated_frustum(camera: CameraSpec, stats: SampleStats, margin: float = 0.02,
+                      cut: bool = False) -> np.ndarray | None:
+    """Camera frustum cut at the view depths of the samples (with a 2 % margin), and
+    narrowed to the image rectangle that holds them (`samples.sample_window`).
 
-    `percentile` p cuts at the p-th and (100 - p)-th depth percentiles instead of the
-    strict min and max, so a few stray samples (a distant sky-line object, a speck
-    near the lens) do not stretch the frustum. Returns None when no sample hits
-    geometry (nothing needs a map).
+    With `cut`, at the percentile depths (`SampleStats.cull_depth`) instead of the
+    strict range, so a few stray samples (a distant sky-line object, a speck near the
+    lens) do not stretch the frustum. None when no sample hits geometry (nothing needs
+    a map).
     """
-    return frustum_from_depths(camera, view_depths(camera, hit_points(positions, hit)), margin, percentile,
-                               sample_window(camera, hit))
+    return frustum_from_range(camera, stats.cull_depth if cut else stats.depth, margin, stats.window)
 
 
 def _hull_axes(corners: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -251,55 +214,45 @@ def skewed_axis(light_position: np.ndarray, corners: np.ndarray, camera: CameraS
 
 @dataclass
 class _ViewRegion:
-    """A frame's view samples, filtered once, and what planning derives from them.
+    """A frame's view samples as planning sees them, and what it derives from them.
 
     IPSM falls back to the dual paraboloid when the light is among the samples, and the
-    fallback plans from the same region instead of filtering the samples again.
+    fallback plans from the same region.
     """
 
     camera: CameraSpec
-    points: np.ndarray  # finite hit positions (N, 3)
-    window: Window
-
-    @functools.cached_property
-    def depths(self) -> np.ndarray:
-        return view_depths(self.camera, self.points)
+    stats: SampleStats
 
     @functools.cached_property
     def strict(self) -> np.ndarray | None:
         """The strictly truncated frustum: it holds every sample."""
-        return frustum_from_depths(self.camera, self.depths, window=self.window)
+        return truncated_frustum(self.camera, self.stats)
 
     @functools.cached_property
     def polytope(self) -> Polytope | None:
-        return None if self.strict is None else sample_polytope(self.strict, self.points)
-
-
-def _view_region(camera: CameraSpec, positions: np.ndarray, hit: np.ndarray) -> _ViewRegion:
-    return _ViewRegion(camera, hit_points(positions, hit), sample_window(camera, hit))
+        return None if self.strict is None else sample_polytope(self.strict, self.stats.box)
 
 
 def plan_frame(light: LightSpec, parameterization: Parameterization, camera: CameraSpec | None,
-               positions: np.ndarray, hit: np.ndarray, far: float, cull: bool = True, cut: bool = False) -> Plan:
-    """Decide which layers to draw for one frame.
+               stats: SampleStats, far: float, cull: bool = True, cut: bool = False) -> Plan:
+    """Decide which layers to draw for one frame, from its samples' statistics.
 
     Without a camera (a projection `camera_from_matrices` cannot describe) there is no
     view frustum to test against, so every layer is drawn.
     """
     if parameterization == "ipsm":
-        return _plan_ipsm(light, camera, positions, hit, far, cull, cut)
+        return _plan_ipsm(light, camera, stats, far, cull, cut)
     if camera is None:
         layers = light_layers(light, parameterization)
         return Plan(parameterization, layers, list(layers), None)
-    return _plan_layers(light, parameterization, _view_region(camera, positions, hit), far, cull)
+    return _plan_layers(light, parameterization, _ViewRegion(camera, stats), far, cull)
 
 
 def _plan_layers(light: LightSpec, parameterization: Parameterization, region: _ViewRegion, far: float,
                  cull: bool) -> Plan:
     """`plan_frame` for the layered parameterizations, from the view region."""
     layers = light_layers(light, parameterization)
-    corners = frustum_from_depths(region.camera, region.depths, percentile=CULL_DEPTH_PERCENTILE,
-                                  window=region.window)
+    corners = truncated_frustum(region.camera, region.stats, cut=True)
     if not cull:
         return Plan(parameterization, layers, list(layers), corners)
     if corners is None:
@@ -313,14 +266,14 @@ def _plan_layers(light: LightSpec, parameterization: Parameterization, region: _
     if len(meets) < len(layers):
         # The percentile frustum may miss a stray sample; a layer that holds any sample
         # is always drawn, so culling never changes a shadow.
-        meets |= occupied_slots(light, parameterization, region.points)
+        meets |= region.stats.occupied(parameterization)
     drawn = [layer for layer in layers if layer.slot in meets]
     return Plan(parameterization, layers, drawn, corners, [layer.name for layer in layers if layer.slot not in meets],
                 occluder_planes=_occluder_planes(light, region.strict), sample_polytope=region.polytope)
 
 
 def plan_projective(light: LightSpec, parameterization: Parameterization, camera: CameraSpec | None,
-                    positions: np.ndarray, hit: np.ndarray, scene_lo: np.ndarray, scene_hi: np.ndarray,
+                    stats: SampleStats, scene_lo: np.ndarray, scene_hi: np.ndarray,
                     resolution: int, cull: bool = True) -> Plan:
     """The one map of a spot or sun light: `sm` (uniform) or `psm` (Stamminger and
     Drettakis 2002, in the camera's post-perspective space).
@@ -331,7 +284,7 @@ def plan_projective(light: LightSpec, parameterization: Parameterization, camera
     with an orthographic camera: its post-perspective space is an affine image of the
     world, so a PSM there would only be a uniform map seen through a skewed frame.
     """
-    corners = truncated_frustum(camera, positions, hit) if camera is not None else None
+    corners = truncated_frustum(camera, stats) if camera is not None else None
     layer = projective_layer(parameterization)
     if parameterization == "psm" and camera is not None and camera.ortho:
         log.info("psm with an orthographic camera is the uniform map: using sm")
@@ -390,23 +343,8 @@ def layer_scissor(layer: Layer, light_position: np.ndarray, polytope: Polytope |
     return x0, y0, x1, y1
 
 
-def occupied_slots(light: LightSpec, parameterization: Parameterization, points: np.ndarray) -> set[int]:
-    """Slots that some hit view sample (finite world `points`, N x 3) in the emission domain falls into."""
-    pts = np.asarray(points, dtype=np.float64)
-    # Light-local z = (p - light) . (light's +Z axis in world); (p - light) @ R is local.
-    local_z = pts @ light.rotation[:, 2] - float(light.position @ light.rotation[:, 2])
-    in_domain = local_z < 0.0 if light.emission == "hemi" else np.ones(len(pts), dtype=bool)
-    if parameterization in ("dpsm", "unfold"):
-        # The sides split at local z = 0 (pick_slot): only z is needed, a third of the work.
-        sides = [local_z[in_domain] <= 0.0, local_z[in_domain] > 0.0]
-        return {slot for slot, side in enumerate(sides) if side.any()}
-    local = (pts[in_domain] - light.position) @ light.rotation  # world -> light local
-    counts = np.bincount(pick_slot(parameterization, local), minlength=slot_count(parameterization))
-    return set(int(s) for s in np.flatnonzero(counts))
-
-
-def _plan_ipsm(light: LightSpec, camera: CameraSpec | None, positions: np.ndarray, hit: np.ndarray,
-               far: float, cull: bool, cut: bool = False) -> Plan:
+def _plan_ipsm(light: LightSpec, camera: CameraSpec | None, stats: SampleStats, far: float, cull: bool,
+               cut: bool = False) -> Plan:
     """IPSM (thesis 4.1): one paraboloid along the cone over the samples when the light is
     outside them; otherwise (or without culling) the dual paraboloid. With `cut`, the axis
     is skewed towards the camera and the map cropped to the samples' image.
@@ -415,7 +353,7 @@ def _plan_ipsm(light: LightSpec, camera: CameraSpec | None, positions: np.ndarra
     sample polytope (that frustum cut by the samples' box): it holds every sample too,
     and is often much smaller, so the cone is narrower and the zoom higher.
     """
-    region = _view_region(camera, positions, hit) if camera is not None else None
+    region = _ViewRegion(camera, stats) if camera is not None else None
     corners = region.strict if region is not None else None
     polytope = region.polytope if region is not None else None
     # Every sample lies in the sample polytope; a light outside it (a convex body) sees
@@ -434,22 +372,9 @@ def _plan_ipsm(light: LightSpec, camera: CameraSpec | None, positions: np.ndarra
                             occluder_planes=_occluder_planes(light, corners),
                             sample_polytope=polytope)
     fallback = (_plan_layers(light, "dpsm", region, far, cull) if region is not None
-                else plan_frame(light, "dpsm", camera, positions, hit, far, cull))
+                else plan_frame(light, "dpsm", camera, stats, far, cull))
     fallback.requested = "ipsm"
     return fallback
-
-
-def occluder_region(light: LightSpec, camera: CameraSpec | None, positions: np.ndarray,
-                    hit: np.ndarray) -> np.ndarray | None:
-    """Planes of the region that can hold an occluder of a visible receiver.
-
-    The occluder of a receiver lies on the segment from the light to it, so inside the
-    convex hull of the light and the (strictly) truncated view frustum; a triangle
-    wholly outside one of its planes can shadow nothing in view.
-    """
-    if camera is None:
-        return None
-    return _occluder_planes(light, truncated_frustum(camera, positions, hit))
 
 
 def _occluder_planes(light: LightSpec, corners: np.ndarray | None) -> np.ndarray | None:

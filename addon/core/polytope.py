@@ -104,19 +104,16 @@ def polytope_of_planes(planes: np.ndarray) -> Polytope | None:
     return Polytope(planes, vertices, np.stack([i, j], axis=1))
 
 
-def sample_polytope(corners: np.ndarray, points: np.ndarray) -> Polytope | None:
-    """The frustum `corners` cut by the axis-aligned box of `points` (N, 3).
+def sample_polytope(corners: np.ndarray, box: tuple[np.ndarray, np.ndarray] | None) -> Polytope | None:
+    """The frustum `corners` cut by the samples' axis-aligned `box` (lo, hi).
 
     The box is grown by a millionth of the scene's coordinates, so samples on its faces
-    stay inside after rounding. None without points.
+    stay inside after rounding. None without a box (no samples).
     """
-    pts = np.asarray(points, dtype=np.float64)
-    if len(pts) == 0:
+    if box is None:
         return None
-    # Column by column: numpy reduces an (N, 3) array along axis 0 some 20 times slower.
-    lo = np.array([pts[:, k].min() for k in range(3)])
-    hi = np.array([pts[:, k].max() for k in range(3)])
-    reach = 1e-6 * (float(np.abs(corners).max()) + float(np.abs(pts).max())) + 1e-30
+    lo, hi = (np.asarray(v, dtype=np.float64) for v in box)
+    reach = 1e-6 * (float(np.abs(corners).max()) + max(float(np.abs(lo).max()), float(np.abs(hi).max()))) + 1e-30
     frustum = frustum_planes(corners)
     polytope = polytope_of_planes(np.concatenate([frustum, box_planes(lo - reach, hi + reach)]))
     # The samples lie in both, so an empty cut can only come from rounding: keep the frustum.

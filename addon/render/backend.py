@@ -198,6 +198,15 @@ class ShadowBackend(ABC):
         """
 
     @abstractmethod
+    def reduce_samples(self, uniforms: UniformValues, clear: bool) -> np.ndarray:
+        """One pass of the planning statistics over the uploaded samples (SAMPLE_STATS_PROGRAM).
+
+        The reduction image (core.samples.STAT_TEXELS R32UI texels) is zeroed first when
+        `clear`; pass 1 adds its histogram beside pass 0's fields. Returns the image as
+        (STAT_TEXELS,) uint32.
+        """
+
+    @abstractmethod
     def shadow_test(self, uniforms: UniformValues) -> np.ndarray:
         """Run the shadow test on the uploaded samples.
 

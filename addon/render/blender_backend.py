@@ -15,6 +15,7 @@ from typing import Any
 import numpy as np
 
 from ..core.errors import BackendError
+from ..core.samples import STAT_SPAN, STAT_TEXELS
 from .backend import (
     AtlasLayout,
     FootprintDraw,
@@ -29,7 +30,9 @@ from .shaders import (
     EDGE_PROGRAM,
     FOOTPRINT_PROGRAM,
     FOOTPRINT_VERTICES,
+    GBUFFER_SAMPLES_PROGRAM,
     RAY_TABLE_PROGRAM,
+    SAMPLE_STATS_PROGRAM,
     SHADOW_TEST_PROGRAM,
     ComputeInterface,
     ProgramInterface,
@@ -198,6 +201,8 @@ class BlenderGPUBackend(ShadowBackend):
         self._sample_size: tuple[int, int] | None = None
         self._test_target = None
         self._count_targets: dict[int, Any] = {}  # count-map size -> R32UI strip of its tiles
+        self._stats_target = None  # R32UI row of the planning statistics (reduce_samples)
+        self._gbuffer_target = None  # (size, texture, framebuffer) of samples_from_gbuffer
         self._batches: dict[str, Any] = {}
         self._active: dict[str, frozenset[str]] = {}  # program name -> uniforms it kept
         self._overlay_dummy = None
@@ -411,7 +416,6 @@ class BlenderGPUBackend(ShadowBackend):
 
     def build_ray_table(self, tile: int, uniforms: UniformValues) -> None:
         import gpu
-        from gpu_extras.batch import batch_for_shader
 
         if self._layout is None:
             raise BackendError("build_ray_table called before begin_atlas")
@@ -422,10 +426,7 @@ class BlenderGPUBackend(ShadowBackend):
             self._ray_fb = _framebuffer(color_slots=(table,))
         with self._ray_fb.bind():
             shader = self._bind(RAY_TABLE_PROGRAM, uniforms)
-            batch = self._batches.get("fullscreen")
-            if batch is None:
-                batch = batch_for_shader(shader, "TRIS", {"ow_corner": _FULLSCREEN})
-                self._batches["fullscreen"] = batch
+            batch = self._fullscreen_batch(shader)
             gpu.state.viewport_set(*self._layout.span_viewport(tile, 1))
             gpu.state.depth_test_set("NONE")
             batch.draw(shader)
@@ -472,16 +473,55 @@ class BlenderGPUBackend(ShadowBackend):
                 gpu.state.scissor_test_set(False)
                 gpu.state.scissor_set(*scissor_before)
 
-    def upload_samples(self, positions: np.ndarray, normals: np.ndarray) -> None:
-        import gpu
+    def _fullscreen_batch(self, shader):
+        """The one screen-covering triangle, built once (every program names it ow_corner)."""
+        from gpu_extras.batch import batch_for_shader
 
+        batch = self._batches.get("fullscreen")
+        if batch is None:
+            batch = batch_for_shader(shader, "TRIS", {"ow_corner": _FULLSCREEN})
+            self._batches["fullscreen"] = batch
+        return batch
+
+    def _set_sample_size(self, size: tuple[int, int]) -> None:
+        if self._sample_size != size:
+            out = _float_texture(size, "RG32F")
+            self._test_target = (out, _framebuffer(color_slots=(out,)))
+            self._sample_size = size
+
+    def upload_samples(self, positions: np.ndarray, normals: np.ndarray) -> None:
         height, width = positions.shape[:2]
         self._textures["ow_positions"] = _float_texture((width, height), "RGBA32F", positions)
         self._textures["ow_normals"] = _float_texture((width, height), "RGBA32F", normals)
-        if self._sample_size != (width, height):
-            out = _float_texture((width, height), "RG32F")
-            self._test_target = (out, _framebuffer(color_slots=(out,)))
-            self._sample_size = (width, height)
+        self._set_sample_size((width, height))
+
+    def samples_from_gbuffer(self, textures: dict[str, Any], light_position: np.ndarray) -> None:
+        """Make a G-buffer (blender_draw.render_gbuffer) the view samples without a read-back.
+
+        GBUFFER_SAMPLES_PROGRAM light-centres its positions into a texture kept per size;
+        the normals are the G-buffer's own texture (zero where no geometry was hit, as
+        `upload_samples` expects).
+        """
+        import gpu
+
+        position = textures["ow_gb_position"]
+        size = (position.width, position.height)
+        if self._gbuffer_target is None or self._gbuffer_target[0] != size:
+            texture = _float_texture(size, "RGBA32F")
+            self._gbuffer_target = (size, texture, _framebuffer(color_slots=(texture,)))
+        _, texture, target = self._gbuffer_target
+        light = np.asarray(light_position, dtype=np.float64)
+        hi = light.astype(np.float32)
+        lo = (light - hi.astype(np.float64)).astype(np.float32)
+        with target.bind():
+            shader = self._bind(GBUFFER_SAMPLES_PROGRAM, {"ow_light_hi": hi, "ow_light_lo": lo},
+                                {"ow_gb_position": position})
+            gpu.state.viewport_set(0, 0, *size)
+            gpu.state.depth_test_set("NONE")
+            self._fullscreen_batch(shader).draw(shader)
+        self._textures["ow_positions"] = texture
+        self._textures["ow_normals"] = textures["ow_gb_normal"]
+        self._set_sample_size(size)
 
     def set_warp_tables(self, rows: np.ndarray | None, cols: np.ndarray | None) -> None:
         for name, table in (("ow_warp_rows", rows), ("ow_warp_cols", cols)):
@@ -510,9 +550,25 @@ class BlenderGPUBackend(ShadowBackend):
         raw = np.asarray(target.read(), dtype=np.uint32)
         return raw.reshape(size, size * tiles).astype(np.float32)
 
+    def reduce_samples(self, uniforms: UniformValues, clear: bool) -> np.ndarray:
+        import gpu
+
+        if self._sample_size is None:
+            raise BackendError("reduce_samples called before upload_samples")
+        if self._stats_target is None:
+            CREATED["texture"] += 1
+            self._stats_target = gpu.types.GPUTexture((STAT_TEXELS, 1), format="R32UI")
+        if clear:
+            self._stats_target.clear(format="UINT", value=(0,))
+        shader = self._bind(SAMPLE_STATS_PROGRAM, uniforms)
+        shader.image("ow_stats", self._stats_target)
+        width, height = self._sample_size
+        gpu.compute.dispatch(shader, SAMPLE_STATS_PROGRAM.groups(-(-width * height // STAT_SPAN)), 1, 1)
+        # dispatch() ends with an image-access barrier; read() waits for the GPU.
+        return np.asarray(self._stats_target.read(), dtype=np.uint32).ravel().copy()
+
     def shadow_test(self, uniforms: UniformValues) -> np.ndarray:
         import gpu
-        from gpu_extras.batch import batch_for_shader
 
         if self._atlas is None or self._sample_size is None:
             raise BackendError("shadow_test needs an atlas and uploaded samples")
@@ -523,10 +579,7 @@ class BlenderGPUBackend(ShadowBackend):
             self._textures["ow_edges"] = _float_texture((1, 1), "R32F", np.zeros(1, np.float32))
         with fb.bind():
             shader = self._bind(program_variant(SHADOW_TEST_PROGRAM, uniforms), uniforms)
-            batch = self._batches.get("fullscreen")
-            if batch is None:
-                batch = batch_for_shader(shader, "TRIS", {"ow_corner": _FULLSCREEN})
-                self._batches["fullscreen"] = batch
+            batch = self._fullscreen_batch(shader)
             gpu.state.viewport_set(0, 0, width, height)
             gpu.state.depth_test_set("NONE")
             batch.draw(shader)
@@ -578,6 +631,8 @@ class BlenderGPUBackend(ShadowBackend):
     def live_resources(self) -> int:
         """GPU objects this backend holds now (textures, framebuffers, shaders, batches)."""
         count = len(self._shaders) + len(self._textures) + len(self._batches) + len(self._count_targets)
+        count += self._stats_target is not None
+        count += 2 * (self._gbuffer_target is not None)
         count += 2 if self._test_target is not None else 0
         count += sum(obj is not None for obj in (self._atlas_depth, self._atlas_fb))
         count += 1 if getattr(self, "_overlay_dummy", None) is not None else 0
@@ -591,6 +646,8 @@ class BlenderGPUBackend(ShadowBackend):
             return
         self._batches.clear()
         self._count_targets.clear()
+        self._stats_target = None
+        self._gbuffer_target = None
         self._test_target = None
         self._textures.clear()
         self._atlas = self._atlas_depth = self._atlas_fb = None

@@ -8,15 +8,17 @@ lazily so that this module imports without Blender.
 """
 from __future__ import annotations
 
+import functools
 import logging
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
 
-from ..core.scene import LightSpec
+from ..core.scene import CameraSpec, LightSpec
 
 from .blender_backend import BlenderGPUBackend, float_texture, framebuffer, read_texture
+from .frame import GBufferSamples, ViewSamples
 from .shaders import GBUFFER_PROGRAM, OVERLAY_PROGRAM, PREVIEW_PROGRAM
 
 log = logging.getLogger(__name__)
@@ -27,19 +29,34 @@ _QUAD = [(0.0, 0.0), (1.0, 0.0), (1.0, 1.0), (0.0, 0.0), (1.0, 1.0), (0.0, 1.0)]
 
 @dataclass
 class GBuffer:
-    """World position (w = 1 on geometry) and camera-facing geometric normal per pixel."""
+    """World position (w = 1 on geometry) and camera-facing geometric normal per pixel,
+    as RGBA32F textures; read back as arrays (row 0 at the TOP) only when asked."""
 
-    positions: np.ndarray  # (H, W, 4) float32, row 0 at the TOP
-    normals: np.ndarray  # (H, W, 4) float32, row 0 at the TOP
-    textures: dict[str, Any] = field(default_factory=dict)  # "ow_gb_position", "ow_gb_normal"
+    textures: dict[str, Any]  # "ow_gb_position", "ow_gb_normal"
+    size: tuple[int, int]  # (W, H)
 
-    @property
-    def size(self) -> tuple[int, int]:
-        return self.positions.shape[1], self.positions.shape[0]
+    @functools.cached_property
+    def positions(self) -> np.ndarray:
+        """(H, W, 4) float32, row 0 at the TOP (a read-back)."""
+        return read_texture(self.textures["ow_gb_position"], "RGBA32F")[::-1].copy()
+
+    @functools.cached_property
+    def normals(self) -> np.ndarray:
+        """(H, W, 4) float32, row 0 at the TOP (a read-back)."""
+        return read_texture(self.textures["ow_gb_normal"], "RGBA32F")[::-1].copy()
 
     @property
     def hit(self) -> np.ndarray:
         return self.positions[..., 3] > 0.5
+
+    def view_samples(self, camera: CameraSpec | None) -> ViewSamples:
+        """The samples as host arrays (a read-back)."""
+        return ViewSamples(self.positions[..., :3].astype(np.float64), self.normals[..., :3].astype(np.float64),
+                           self.hit, camera)
+
+    def samples(self, camera: CameraSpec | None) -> GBufferSamples:
+        """The samples as they stay on the GPU, for `ShadowPipeline.render`."""
+        return GBufferSamples(self.textures, self.size, camera, lambda: self.view_samples(camera))
 
 
 def _homogeneous_eye(camera_position: np.ndarray) -> np.ndarray:
@@ -88,9 +105,7 @@ def render_gbuffer(backend: BlenderGPUBackend, triangles: np.ndarray, view_proj:
             finally:
                 gpu.state.depth_test_set("NONE")
                 gpu.state.depth_mask_set(False)
-    positions = read_texture(pos_tex, "RGBA32F")[::-1].copy()
-    normals = read_texture(nrm_tex, "RGBA32F")[::-1].copy()
-    return GBuffer(positions, normals, {"ow_gb_position": pos_tex, "ow_gb_normal": nrm_tex})
+    return GBuffer({"ow_gb_position": pos_tex, "ow_gb_normal": nrm_tex}, (width, height))
 
 
 def _static_batch(backend: BlenderGPUBackend, key: str, shader, corners: list[tuple[float, float]]):

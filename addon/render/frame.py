@@ -8,6 +8,7 @@ from __future__ import annotations
 
 from collections.abc import Callable
 from dataclasses import dataclass, field
+from typing import Any
 
 import numpy as np
 
@@ -130,6 +131,10 @@ class ViewSamples:
     camera: CameraSpec | None  # None: no camera (no view frustum), so no layer culling
     importance: np.ndarray | None = None  # (H, W) weights in [1, MAX_IMPORTANCE], rounded to integers
 
+    @property
+    def shape(self) -> tuple[int, ...]:
+        return self.hit.shape
+
     def importance_weights(self) -> np.ndarray | None:
         """The importance as rounded float32 weights, checked; None when not given.
 
@@ -153,6 +158,27 @@ class ViewSamples:
             raise InputError(f"importance weights sum to {total:.0f}; a count-map texel holds at most "
                              f"{MAX_IMPORTANCE_TOTAL} (2^32 - 1), and every sample may land in one")
         return rounded.astype(np.float32)
+
+
+@dataclass
+class GBufferSamples:
+    """View samples that stay on the GPU: a Blender G-buffer's position and normal
+    textures (blender_draw.GBuffer), world positions with w = 1 on geometry.
+
+    The pipeline makes them the shadow test's samples on the GPU
+    (`BlenderGPUBackend.samples_from_gbuffer`): nothing is read back or uploaded. Every
+    sample weighs 1. `read_back` gives them as arrays, for measurements that need them
+    on the host (the count statistics of a spot or sun map), never for a frame.
+    """
+
+    textures: dict[str, Any]  # "ow_gb_position", "ow_gb_normal"
+    size: tuple[int, int]  # (W, H)
+    camera: CameraSpec | None
+    read_back: Callable[[], ViewSamples]
+
+    @property
+    def shape(self) -> tuple[int, int]:
+        return self.size[1], self.size[0]
 
 
 @dataclass

@@ -11,6 +11,7 @@ import logging
 import numpy as np
 
 from ..core.errors import BackendError
+from ..core.samples import STAT_SPAN, STAT_TEXELS
 from .backend import (
     AtlasLayout,
     FootprintDraw,
@@ -26,6 +27,7 @@ from .shaders import (
     FOOTPRINT_PROGRAM,
     FOOTPRINT_VERTICES,
     RAY_TABLE_PROGRAM,
+    SAMPLE_STATS_PROGRAM,
     SHADOW_TEST_PROGRAM,
     ComputeInterface,
     ProgramInterface,
@@ -101,6 +103,7 @@ class ModernGLBackend(ShadowBackend):
         self._sample_size: tuple[int, int] | None = None
         self._test_target = None  # (texture, framebuffer) of the sample size
         self._count_targets: dict[int, object] = {}  # count-map size -> R32UI strip of its tiles
+        self._stats_target = None  # R32UI row of the planning statistics (reduce_samples)
         with self.ctx:
             self._fullscreen_vbo = self.ctx.buffer(_FULLSCREEN.tobytes())
             self._set_table("ow_warp_rows", None)
@@ -369,6 +372,22 @@ class ModernGLBackend(ShadowBackend):
         return counts.astype(np.float32)
 
     @_current
+    def reduce_samples(self, uniforms: UniformValues, clear: bool) -> np.ndarray:
+        if self._sample_size is None:
+            raise BackendError("reduce_samples called before upload_samples")
+        if self._stats_target is None:
+            self._stats_target = self.ctx.texture((STAT_TEXELS, 1), 1, dtype="u4")
+            self._stats_target.filter = (self._mgl.NEAREST, self._mgl.NEAREST)
+        if clear:
+            self._stats_target.write(np.zeros(STAT_TEXELS, dtype="u4").tobytes())
+        prog = self._use(SAMPLE_STATS_PROGRAM, uniforms)
+        self._stats_target.bind_to_image(0, read=True, write=True)
+        width, height = self._sample_size
+        prog.run(group_x=SAMPLE_STATS_PROGRAM.groups(-(-width * height // STAT_SPAN)))
+        self.ctx.memory_barrier()
+        return np.frombuffer(self._stats_target.read(), dtype="u4").copy()
+
+    @_current
     def shadow_test(self, uniforms: UniformValues) -> np.ndarray:
         if self._atlas is None or self._sample_size is None:
             raise BackendError("shadow_test needs an atlas and uploaded samples")
@@ -455,6 +474,9 @@ class ModernGLBackend(ShadowBackend):
             for tex in self._count_targets.values():
                 tex.release()
             self._count_targets.clear()
+            if self._stats_target is not None:
+                self._stats_target.release()
+                self._stats_target = None
             for fbo in self._edge_fbos or ():
                 fbo.release()
             self._edge_fbos = None

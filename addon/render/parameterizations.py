@@ -34,10 +34,11 @@ from ..core.plan import (
     plan_frame,
     plan_projective,
 )
-from ..core.scene import LightSpec
+from ..core.samples import SampleStats
+from ..core.scene import CameraSpec, LightSpec
 from ..core.warping import LayerMapping, max_shear
 from .backend import AtlasLayout, FootprintDraw, ShadowBackend
-from .frame import PreparedGeometry, ShadowSettings, ViewSamples
+from .frame import PreparedGeometry, ShadowSettings
 from .resident import CHUNK_TRIANGLES, ResidentScene
 from .shaders import FOOTPRINT_VERTICES, MAX_POINT_SIZE, REGION_PLANES
 from .unfold import VERTEX_FLOATS, edge_aa_parameters, prepare_unfold
@@ -84,10 +85,9 @@ class Parameterization:
 
     name = "abstract"
 
-    def plan(self, light: LightSpec, settings: ShadowSettings, samples: ViewSamples,
+    def plan(self, light: LightSpec, settings: ShadowSettings, camera: CameraSpec | None, stats: SampleStats,
              near_far: tuple[float, float], bounds: tuple[np.ndarray, np.ndarray] | None) -> Plan:
-        return plan_frame(light, self.name, samples.camera, samples.positions, samples.hit, near_far[1],
-                          cull=settings.cull, cut=settings.cut)
+        return plan_frame(light, self.name, camera, stats, near_far[1], cull=settings.cull, cut=settings.cut)
 
     def base_mappings(self, plan: Plan, light: LightSpec, settings: ShadowSettings) -> dict[int, LayerMapping]:
         return {}
@@ -187,12 +187,11 @@ class Projective(Parameterization):
     def __init__(self, name: str) -> None:
         self.name = name
 
-    def plan(self, light: LightSpec, settings: ShadowSettings, samples: ViewSamples,
+    def plan(self, light: LightSpec, settings: ShadowSettings, camera: CameraSpec | None, stats: SampleStats,
              near_far: tuple[float, float], bounds: tuple[np.ndarray, np.ndarray] | None) -> Plan:
         # With nothing finite to draw, any box around the light will do.
         lo, hi = bounds if bounds is not None else (light.position - 1.0, light.position + 1.0)
-        return plan_projective(light, self.name, samples.camera, samples.positions, samples.hit, lo, hi,
-                               settings.resolution, cull=settings.cull)
+        return plan_projective(light, self.name, camera, stats, lo, hi, settings.resolution, cull=settings.cull)
 
     def scissor(self, plan: Plan, light: LightSpec, settings: ShadowSettings,
                 mappings: dict[int, LayerMapping]) -> dict[int, tuple[int, int, int, int]]:

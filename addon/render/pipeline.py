@@ -8,11 +8,13 @@ The scene stays on the GPU (`resident.ResidentScene`): a frame's host work is th
 plan, the warp tables and the uniforms, whatever the scene's size. Each stage is
 timed with a GPU sync; `time_ms` keys:
 
-- `prepare`: host work of the frame: planning over the view samples, the resident
-  scene's residency check (and the upload of changed objects, when there are any),
-  the depth range from the objects' boxes, and the draw's uniforms. For unfold it also
-  builds the host stream (unfold.py).
-- `analysis`: the warp's count-map scatters on the GPU and the tables built from them.
+- `prepare`: host work of the frame: planning from the samples' statistics (a few
+  numbers, core.samples), the resident scene's residency check (and the upload of
+  changed objects, when there are any), the depth range from the objects' boxes, and
+  the draw's uniforms. For unfold it also builds the host stream (unfold.py).
+- `analysis`: the GPU's reductions over the view samples: the planning statistics
+  (two dispatches, read back as STAT_TEXELS integers), and for a warp the count-map
+  scatters and the tables built from them.
 - `shadow_maps`: the depth pass (ray tables, footprints or the unfold stream, and the
   edge-distance map), until the GPU has finished it.
 - `shadow_test`: uploading the view samples and the shadow test over them, read back.
@@ -33,8 +35,9 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..core import perspective, projection
-from ..core.errors import InputError
+from ..core.errors import BackendError, InputError
 from ..core.plan import Plan, hit_points
+from ..core.samples import STAT_COUNT, Reduction, SampleStats, depth_axis
 from ..core.scene import LightSpec
 from ..core.warping import (
     FLOOR_SHARE,
@@ -55,6 +58,7 @@ from .frame import (
     MIN_RESOLUTION,
     BiasSettings,
     FrameResult,
+    GBufferSamples,
     PreparedGeometry,
     ShadowSettings,
     ViewSamples,
@@ -190,14 +194,15 @@ class ShadowPipeline:
         self.backend.set_warp_tables(*_stack_tables(mappings, size))
         return mappings, counts
 
-    def render(self, light: LightSpec, scene: ResidentScene | np.ndarray, samples: ViewSamples,
+    def render(self, light: LightSpec, scene: ResidentScene | np.ndarray, samples: ViewSamples | GBufferSamples,
                settings: ShadowSettings, keep_atlas: bool = False) -> FrameResult:
         """One frame: plan, analysis, maps, test. Times each stage with a GPU sync.
 
         `scene` is a `ResidentScene`, whose unchanged objects stay on the GPU between
         frames, or a (T, 3, 3) world triangle array: a read-only one stays resident for
         as long as the same array comes back (the viewport's per-light selections), any
-        other is uploaded for this frame only.
+        other is uploaded for this frame only. `samples` are arrays, uploaded, or a
+        Blender G-buffer's textures, used where they are.
         """
         one_frame = False
         start = time.perf_counter()
@@ -212,7 +217,8 @@ class ShadowPipeline:
             if one_frame:
                 self.backend.release_scene(scene)
 
-    def _render(self, light: LightSpec, scene: ResidentScene, samples: ViewSamples, settings: ShadowSettings,
+    def _render(self, light: LightSpec, scene: ResidentScene, samples: ViewSamples | GBufferSamples,
+                settings: ShadowSettings,
                 keep_atlas: bool, scene_ms: float = 0.0) -> FrameResult:
         backend = self.backend
         timings: dict[str, float] = {}
@@ -227,10 +233,14 @@ class ShadowPipeline:
         bounds = scene.bounds()  # per object, from its box and matrix
         near_far = (projection.depth_range(None, light.position, bounds=bounds) if bounds is not None
                     else (0.0, 1.0))
-        plan = parameterization(settings.parameterization).plan(light, settings, samples, near_far, bounds)
+        t_sync = time.perf_counter()
+        stats = self._sample_stats(light, samples)  # a GPU reduction: a few numbers read back
+        t_stats = time.perf_counter()
+        plan = parameterization(settings.parameterization).plan(light, settings, samples.camera, stats,
+                                                                near_far, bounds)
         # The plan may fall back to another parameterization (ipsm to dpsm, psm to sm).
         scheme = parameterization(plan.parameterization)
-        t_plan = time.perf_counter() - t1
+        t_plan = (t_sync - t1) + (time.perf_counter() - t_stats)
 
         t2 = time.perf_counter()
         mappings: dict[int, LayerMapping] = {}
@@ -242,7 +252,7 @@ class ShadowPipeline:
             mappings = scheme.base_mappings(plan, light, settings)
         backend.finish()
         t3 = time.perf_counter()
-        timings["analysis"] = (t3 - t2) * 1e3
+        timings["analysis"] = (t3 - t2 + t_stats - t_sync) * 1e3
 
         geometry = scheme.prepare(light, scene, plan, settings, near_far)
         res = settings.resolution
@@ -276,7 +286,28 @@ class ShadowPipeline:
                            texels=len(plan.drawn) * res * res, atlas=atlas, tile_of_slot=tile_of_slot,
                            mappings=mappings, count_maps=counts, boxes=boxes)
 
-    def _upload_samples(self, light: LightSpec, samples: ViewSamples) -> None:
+    def _sample_stats(self, light: LightSpec, samples: ViewSamples | GBufferSamples) -> SampleStats:
+        """The planning statistics of the uploaded samples, reduced on the GPU (core.samples)."""
+        camera = samples.camera
+        axis, offset = depth_axis(camera, light) if camera is not None else (np.zeros(3), 0.0)
+        uniforms = {"ow_light_rot": light.rotation.T, "ow_view_axis": axis, "ow_view_offset": offset,
+                    "ow_hemi": 1 if light.emission == "hemi" else 0, "ow_stats_pass": 0,
+                    "ow_depth_lo": 0.0, "ow_depth_hi": 1.0, "ow_log_bins": 0}
+        shape = samples.shape
+        reduction = Reduction.decode(self.backend.reduce_samples(uniforms, clear=True), camera, light, shape)
+        hist = None
+        if reduction.depth is not None:
+            uniforms.update(ow_stats_pass=1, **reduction.histogram_uniforms(camera))
+            hist = self.backend.reduce_samples(uniforms, clear=False)[STAT_COUNT:]
+        return reduction.stats(camera, shape, hist)
+
+    def _upload_samples(self, light: LightSpec, samples: ViewSamples | GBufferSamples) -> None:
+        if isinstance(samples, GBufferSamples):
+            from_gbuffer = getattr(self.backend, "samples_from_gbuffer", None)
+            if from_gbuffer is None:
+                raise BackendError(f"the {self.backend.name} backend cannot read a Blender G-buffer")
+            from_gbuffer(samples.textures, light.position)
+            return
         height, width = samples.hit.shape
         # GL textures start at the bottom row and the samples at the top, so the arrays
         # are filled upside down, in place: a third of the time of building them with
@@ -389,17 +420,19 @@ def projective_counts(projective: perspective.ProjectiveMap, light: LightSpec, s
     return flat.reshape(resolution, resolution).astype(np.float32)
 
 def count_statistics(pipeline: ShadowPipeline, light: LightSpec, settings: ShadowSettings,
-                     result: FrameResult, samples: ViewSamples | None = None) -> CountStatistics:
+                     result: FrameResult, samples: ViewSamples | GBufferSamples | None = None) -> CountStatistics:
     """Scatter the samples (still uploaded from the last frame) at the map resolution.
 
     Not part of the timed frame: this is measurement. The warp tables of the frame
     must still be bound, which holds right after `render`. Spot and sun maps count
-    in numpy and need `samples`.
+    in numpy and need `samples` (G-buffer samples are read back for it).
     """
     res = settings.resolution
     if result.plan.projective is not None:
         if samples is None:
             raise InputError("count statistics of a spot or sun map need the view samples")
+        if isinstance(samples, GBufferSamples):
+            samples = samples.read_back()
         counts = projective_counts(result.plan.projective, light, samples, res)
         return CountStatistics({0: counts}, {0: counts})
     before = pipeline.count_maps(light, result.plan, {}, res, 0)

@@ -15,6 +15,7 @@ import re
 from dataclasses import dataclass, field, replace
 from pathlib import Path
 
+from ..core import samples
 from ..core.errors import BackendError
 
 log = logging.getLogger(__name__)
@@ -259,6 +260,27 @@ SCATTER_PROGRAM = ComputeInterface(
     images=(("r32ui", "ow_counts"),),
 )
 
+# Planning statistics (core/samples.py names the fields and sizes; emitted as defines).
+SAMPLE_STATS_PROGRAM = ComputeInterface(
+    name="omniwarp_sample_stats",
+    compute_file="sample_stats.comp",
+    uniforms=(
+        Uniform("mat3", "ow_light_rot"),
+        Uniform("vec3", "ow_view_axis"),
+        Uniform("float", "ow_view_offset"),
+        Uniform("int", "ow_hemi"),
+        Uniform("int", "ow_stats_pass"),
+        Uniform("float", "ow_depth_lo"),
+        Uniform("float", "ow_depth_hi"),
+        Uniform("int", "ow_log_bins"),
+    ),
+    samplers=("ow_positions",),
+    images=(("r32ui", "ow_stats"),),
+    defines={"OW_STAT_SPAN": str(samples.STAT_SPAN), "OW_HIST_BINS": str(samples.HIST_BINS),
+             "OW_STAT_COUNT": str(samples.STAT_COUNT),
+             **{f"OW_STAT_{name}": str(index) for index, name in enumerate(samples.STAT_FIELDS)}},
+)
+
 GBUFFER_PROGRAM = ProgramInterface(
     name="omniwarp_gbuffer",
     vertex_file="gbuffer.vert",
@@ -267,6 +289,17 @@ GBUFFER_PROGRAM = ProgramInterface(
     fragment_out=(("vec4", "ow_gb_position"), ("vec4", "ow_gb_normal")),
     uniforms=(Uniform("mat4", "ow_view_proj"), Uniform("vec4", "ow_camera_pos")),  # homogeneous eye
     varyings=(Varying("vec3", "v_world"), Varying("vec3", "v_normal", flat=True)),
+)
+
+# The shadow test's samples from a G-buffer (blender_backend.samples_from_gbuffer).
+GBUFFER_SAMPLES_PROGRAM = ProgramInterface(
+    name="omniwarp_gbuffer_samples",
+    vertex_file="fullscreen.vert",
+    fragment_file="gbuffer_samples.frag",
+    vertex_in=(("vec2", "ow_corner"),),
+    fragment_out=(("vec4", "ow_sample"),),
+    uniforms=(Uniform("vec3", "ow_light_hi"), Uniform("vec3", "ow_light_lo")),
+    samplers=("ow_gb_position",),
 )
 
 PREVIEW_PROGRAM = ProgramInterface(
@@ -400,8 +433,8 @@ VARIANT_PROGRAMS = tuple(_variant(base, warped, kind) for base in _VARIANT_BASES
     _variant(FOOTPRINT_PROGRAM.name, warped, kind, True) for warped in (True, False) for kind in FIXED_KIND_NAMES)
 
 
-PROGRAMS = (*VARIANT_PROGRAMS, RAY_TABLE_PROGRAM, GBUFFER_PROGRAM, PREVIEW_PROGRAM, OVERLAY_PROGRAM, EDGE_PROGRAM)
-COMPUTE_PROGRAMS = (SCATTER_PROGRAM, *(_scatter_variant(mode, kind) for mode in SCATTER_MODES
+PROGRAMS = (*VARIANT_PROGRAMS, RAY_TABLE_PROGRAM, GBUFFER_PROGRAM, GBUFFER_SAMPLES_PROGRAM, PREVIEW_PROGRAM, OVERLAY_PROGRAM, EDGE_PROGRAM)
+COMPUTE_PROGRAMS = (SCATTER_PROGRAM, SAMPLE_STATS_PROGRAM, *(_scatter_variant(mode, kind) for mode in SCATTER_MODES
                                        for kind in (None, *FIXED_KIND_NAMES)))
 
 

@@ -121,6 +121,9 @@ def test_viewport_draw_path_robustness(tmp_path):
     assert 1 <= r["passes"] <= 5  # hemispherical light
     assert r["hit_share"] > 0.9 and 0.01 < r["shadowed_share"] < 0.9
     assert r["finite_atlas"] and r["max_after"] <= r["max_before"]
+    assert r["gbuffer_not_read"], "the viewport frame read its G-buffer back"
+    assert r["uploaded_differ"] <= 1e-3, r["uploaded_differ"]  # G-buffer textures = uploaded arrays
+    assert r["uploaded_passes"][0] == r["uploaded_passes"][1], r["uploaded_passes"]
     assert r["recomputes"] == 20  # 10 moved views, each drawn once moved and once back
     assert r["live_after_200"] == r["live_first"] > 0
     assert r["error_caught"] and r["error_logged_once"] and r["recovered"]

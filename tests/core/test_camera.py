@@ -15,6 +15,7 @@ import pytest
 
 from addon.core import perspective as PS
 from addon.core import plan as PL
+from addon.core import samples as SS
 from addon.core.camera import (
     CameraSpec,
     blender_camera_settings,
@@ -259,13 +260,13 @@ def _samples(camera: CameraSpec, seed: int, depth_range=(0.5, 9.0), jitter: floa
 def test_truncated_frustum_holds_every_sample(name):
     camera = WINDOWED[name]()
     positions, hit = _samples(camera, seed=len(name))
-    corners = PL.truncated_frustum(camera, positions, hit)
+    corners = PL.truncated_frustum(camera, SS.measure(camera, None, positions, hit))
     planes = PS.hull_planes(corners)
     points = positions[hit]
     slack = 1e-9 * (1.0 + float(np.abs(points).max()))
     assert np.all(points @ planes[:, :3].T - planes[:, 3] <= slack)
     # The window cut really narrows the frame (sky rows and columns are left out).
-    window = PL.sample_window(camera, hit)
+    window = SS.measure(camera, None, positions, hit).window
     assert window[1] < 1.0 and window[3] < 1.0
 
 
@@ -273,7 +274,7 @@ def test_ortho_samples_at_negative_depth_are_held():
     """An orthographic viewport sees samples behind its view point (near < 0)."""
     camera = CameraSpec.from_window(look_at(EYE, TARGET), (-3.0, 3.0, -2.0, 2.0), (48, 32), -50.0, 50.0, ortho=True)
     positions, hit = _samples(camera, seed=5, depth_range=(-6.0, 4.0))
-    planes = PS.hull_planes(PL.truncated_frustum(camera, positions, hit))
+    planes = PS.hull_planes(PL.truncated_frustum(camera, SS.measure(camera, None, positions, hit)))
     assert np.all(positions[hit] @ planes[:, :3].T - planes[:, 3] <= 1e-8)
 
 
@@ -281,9 +282,9 @@ def test_ortho_camera_culls_cube_faces_and_keeps_occupied_ones():
     camera = _ortho()
     positions, hit = _samples(camera, seed=3, depth_range=(4.0, 6.0))
     far_light = LightSpec("omni", translation(camera.matrix_world[:3, 3] + [30.0, 0.0, 0.0]))
-    plan = PL.plan_frame(far_light, "cube", camera, positions, hit, far=100.0)
+    plan = PL.plan_frame(far_light, "cube", camera, SS.measure(camera, far_light, positions, hit), far=100.0)
     assert 0 < len(plan.drawn) < 6
-    occupied = PL.occupied_slots(far_light, "cube", positions[hit])
+    occupied = SS.measure(camera, far_light, positions, hit).occupied("cube")
     assert occupied <= set(plan.drawn_slots)
 
 
@@ -326,11 +327,10 @@ def test_psm_refuses_an_ortho_camera():
 def test_psm_plan_falls_back_to_sm_with_an_ortho_camera():
     camera = _ortho()
     positions, hit = _samples(camera, seed=4, depth_range=(3.0, 6.0))
-    plan = PL.plan_projective(SPOT, "psm", camera, positions, hit, BOX_LO, BOX_HI, 512)
+    plan = PL.plan_projective(SPOT, "psm", camera, SS.measure(camera, SPOT, positions, hit), BOX_LO, BOX_HI, 512)
     assert plan.parameterization == "sm" and plan.requested == "psm"
     assert plan.projective is not None and plan.projective.pps_light == "world"
-    shifted = PL.plan_projective(SPOT, "psm", _shifted(), *_samples(_shifted(), seed=4, depth_range=(3.0, 6.0)),
-                                 BOX_LO, BOX_HI, 512)
+    shifted = PL.plan_projective(SPOT, "psm", _shifted(), SS.measure(_shifted(), SPOT, *_samples(_shifted(), seed=4, depth_range=(3.0, 6.0))), BOX_LO, BOX_HI, 512)
     assert shifted.parameterization == "psm"
 
 

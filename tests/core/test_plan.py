@@ -10,6 +10,7 @@ from hypothesis import strategies as st
 
 from addon.core import frames as F
 from addon.core import plan as PL
+from addon.core import samples as SS
 from addon.core.polytope import sample_polytope
 from addon.core.scene import CameraSpec, LightSpec, look_at, translation
 
@@ -102,12 +103,12 @@ def test_truncated_frustum_contains_all_hit_samples():
     pts[0] = [0.0, 1000.0, 0.0]
     hit[0] = False  # a miss far away must not stretch the frustum
     pts[1] = [np.nan, 5.0, 0.0]  # a NaN sample flagged as hit is ignored
-    corners = PL.truncated_frustum(cam, pts, hit)
+    corners = PL.truncated_frustum(cam, SS.measure(cam, None, pts, hit))
     depth = corners @ np.array([0.0, 1.0, 0.0])
     sample_depth = pts[2:, 1]
     assert depth[:4].max() <= sample_depth.min() and depth[4:].min() >= sample_depth.max()
     assert depth[4:].max() < 9.0 * 1.1
-    assert PL.truncated_frustum(cam, pts, np.zeros(len(pts), dtype=bool)) is None
+    assert PL.truncated_frustum(cam, SS.measure(cam, None, pts, np.zeros(len(pts), dtype=bool))) is None
 
 
 # ---------------------------------------------------------------- scenarios
@@ -121,7 +122,7 @@ def test_light_behind_camera_culls_face_behind_light():
     light = LightSpec("omni", np.eye(4))
     pts = _random_frustum_samples(cam, np.random.default_rng(0), 500, 1.0, 20.0)
     hit = np.ones(len(pts), dtype=bool)
-    plan = PL.plan_frame(light, "cube", cam, pts, hit, far=30.0)
+    plan = PL.plan_frame(light, "cube", cam, SS.measure(cam, light, pts, hit), far=30.0)
     assert 3 not in plan.drawn_slots and "-Y" in plan.culled_names
     assert plan.drawn_slots == [2]
     assert len(plan.all_layers) == 6
@@ -133,7 +134,7 @@ def test_light_behind_camera_draws_one_paraboloid_side():
     cam = CameraSpec(look_at((0.0, 2.0, 0.0), (0.0, 10.0, 0.0)), 60.0, (64, 48))
     light = _light_with_axis((0.0, 0.0, 0.0), (0.0, -1.0, 0.0))
     pts = _random_frustum_samples(cam, np.random.default_rng(1), 500, 1.0, 20.0)
-    plan = PL.plan_frame(light, "dpsm", cam, pts, np.ones(len(pts), dtype=bool), far=30.0)
+    plan = PL.plan_frame(light, "dpsm", cam, SS.measure(cam, light, pts, np.ones(len(pts), dtype=bool)), far=30.0)
     assert plan.drawn_slots == [1]
 
 
@@ -145,15 +146,15 @@ def test_courtyard_like_setup_needs_few_layers():
     cam = CameraSpec(look_at((7.5, -7.5, 3.2), (-2.0, 2.0, 0.0)), 62.0, (64, 48))
     pts, hit = _ground_samples(cam, 15.0)
     assert hit.sum() > 100
-    corners = PL.truncated_frustum(cam, pts, hit)
+    corners = PL.truncated_frustum(cam, SS.measure(cam, None, pts, hit))
     assert np.all(corners[:, 2] < light.position[2])  # precondition: the view is below the light
 
-    cube = PL.plan_frame(light, "cube", cam, pts, hit, far=60.0)
+    cube = PL.plan_frame(light, "cube", cam, SS.measure(cam, light, pts, hit), far=60.0)
     assert len(cube.drawn) <= 3
     assert 4 not in cube.drawn_slots
     assert _slots_needed(light, "cube", pts[hit]) <= set(cube.drawn_slots)
 
-    dpsm = PL.plan_frame(light, "dpsm", cam, pts, hit, far=60.0)
+    dpsm = PL.plan_frame(light, "dpsm", cam, SS.measure(cam, light, pts, hit), far=60.0)
     assert dpsm.drawn_slots == [0]  # slot 0 looks along local -Z = down
     assert dpsm.culled_names == [F.PARABOLOID_SIDE_NAMES[1]]
 
@@ -164,7 +165,7 @@ def test_light_inside_view_gets_all_layers(par, count):
     cam = CameraSpec(look_at((0.0, 0.0, 1.0), (0.0, 10.0, 1.0)), 70.0, (64, 48))
     light = LightSpec("omni", translation((0.2, 6.0, 0.9)))
     pts = _random_frustum_samples(cam, np.random.default_rng(2), 400, 0.5, 15.0)
-    plan = PL.plan_frame(light, par, cam, pts, np.ones(len(pts), dtype=bool), far=30.0)
+    plan = PL.plan_frame(light, par, cam, SS.measure(cam, light, pts, np.ones(len(pts), dtype=bool)), far=30.0)
     assert len(plan.drawn) == count and plan.culled_names == []
 
 
@@ -176,8 +177,8 @@ def test_hemi_light_never_gets_back_side(cull):
     light = _light_with_axis((0.0, 6.0, 1.0), (0.3, 0.2, -1.0), emission="hemi")
     pts = _random_frustum_samples(cam, np.random.default_rng(3), 400, 0.5, 15.0)
     hit = np.ones(len(pts), dtype=bool)
-    dpsm = PL.plan_frame(light, "dpsm", cam, pts, hit, far=30.0, cull=cull)
-    cube = PL.plan_frame(light, "cube", cam, pts, hit, far=30.0, cull=cull)
+    dpsm = PL.plan_frame(light, "dpsm", cam, SS.measure(cam, light, pts, hit), far=30.0, cull=cull)
+    cube = PL.plan_frame(light, "cube", cam, SS.measure(cam, light, pts, hit), far=30.0, cull=cull)
     assert dpsm.drawn_slots == [0]
     assert sorted(cube.drawn_slots) == [0, 1, 2, 3, 5]
 
@@ -189,10 +190,10 @@ def test_empty_view(par):
     light = LightSpec("omni", translation((0.0, 3.0, 1.0)))
     pts = np.zeros((48, 3))
     hit = np.zeros(48, dtype=bool)
-    culled = PL.plan_frame(light, par, cam, pts, hit, far=10.0, cull=True)
+    culled = PL.plan_frame(light, par, cam, SS.measure(cam, light, pts, hit), far=10.0, cull=True)
     assert culled.drawn == [] and culled.frustum_corners is None
     assert len(culled.culled_names) == F.slot_count(par)
-    full = PL.plan_frame(light, par, cam, pts, hit, far=10.0, cull=False)
+    full = PL.plan_frame(light, par, cam, SS.measure(cam, light, pts, hit), far=10.0, cull=False)
     assert full.drawn_slots == list(range(F.slot_count(par)))
     assert full.culled_names == []
 
@@ -239,7 +240,7 @@ def test_culling_is_conservative(seed):
     hit = rng.random(len(pts)) < 0.9
     hit[:4] = True
     for par in ("dpsm", "cube"):
-        plan = PL.plan_frame(light, par, cam, pts, hit, far=float(rng.uniform(1.0, 100.0)))
+        plan = PL.plan_frame(light, par, cam, SS.measure(cam, light, pts, hit), far=float(rng.uniform(1.0, 100.0)))
         drawn = set(plan.drawn_slots)
         assert _slots_needed(light, par, pts[hit]) <= drawn
         c = plan.frustum_corners
@@ -321,8 +322,8 @@ def test_courtyard_preset_needs_one_side_and_three_faces():
     hit = np.isfinite(t)
     pos = origins + dirs * np.where(hit, t, 0.0)[:, None]
     _, far = depth_range(tris, scene.light.position)
-    dpsm = PL.plan_frame(scene.light, "dpsm", scene.camera, pos, hit, far)
-    cube = PL.plan_frame(scene.light, "cube", scene.camera, pos, hit, far)
+    dpsm = PL.plan_frame(scene.light, "dpsm", scene.camera, SS.measure(scene.camera, scene.light, pos, hit), far)
+    cube = PL.plan_frame(scene.light, "cube", scene.camera, SS.measure(scene.camera, scene.light, pos, hit), far)
     assert dpsm.drawn_slots == [0]
     assert len(cube.drawn) <= 3 and 4 not in cube.drawn_slots
     assert _slots_needed(scene.light, "cube", pos[hit]) <= set(cube.drawn_slots)
@@ -340,7 +341,7 @@ def test_layer_scissor_holds_every_sample(seed, par):
     camera = CameraSpec(look_at(rng.uniform(-5, 5, 3), rng.uniform(-1, 1, 3) + [0.0, 0.0, 0.01]), 60.0, (64, 48))
     samples = _random_frustum_samples(camera, rng, 400, 0.5, 20.0)
     corners = PL.frustum_corners(camera, 0.5, 20.0)
-    polytope = sample_polytope(corners, samples)
+    polytope = sample_polytope(corners, (samples.min(axis=0), samples.max(axis=0)))
     light = LightSpec("omni", translation(rng.uniform(-30, 30, 3)))
     res = 256
     for layer in F.light_layers(light, par):
@@ -383,7 +384,7 @@ def test_occupied_slots_match_pick_slot(parameterization, emission):
         if emission == "hemi":
             local = local[local[:, 2] < 0.0]
         expected = set(int(v) for v in np.unique(pick_slot(parameterization, local)))
-        assert PL.occupied_slots(light, parameterization, pts) == expected
+        assert SS.measure(None, light, pts, np.ones(len(pts), dtype=bool)).occupied(parameterization) == expected
 
 
 # ---------------------------------------------------------------- sample window
@@ -403,6 +404,11 @@ def _pixel_ground_samples(camera: CameraSpec, half_size: float) -> tuple[np.ndar
     return pos.reshape(height, width, 3), hit.reshape(height, width)
 
 
+def _window(camera: CameraSpec, hit: np.ndarray) -> tuple[float, float, float, float]:
+    """The sample window of a hit mask (positions do not matter to it)."""
+    return SS.measure(camera, None, np.zeros(np.shape(hit) + (3,)), hit).window
+
+
 def _ndc(camera: CameraSpec, points: np.ndarray) -> np.ndarray:
     m = camera.matrix_world
     local = (points - m[:3, 3]) @ m[:3, :3]
@@ -417,7 +423,7 @@ def test_sample_window_drops_sky_rows_and_keeps_every_sample(target):
     cam = CameraSpec(look_at((0.0, -6.0, 2.0), target), 70.0, (64, 48))
     pos, hit = _pixel_ground_samples(cam, 8.0)
     assert 0 < hit.sum() < hit.size
-    x0, x1, y0, y1 = PL.sample_window(cam, hit)
+    x0, x1, y0, y1 = _window(cam, hit)
     assert (x1 - x0) * (y1 - y0) < 4.0  # narrower than the whole frame
     ndc = _ndc(cam, pos[hit])
     assert np.all((ndc[:, 0] >= x0) & (ndc[:, 0] <= x1) & (ndc[:, 1] >= y0) & (ndc[:, 1] <= y1))
@@ -426,14 +432,14 @@ def test_sample_window_drops_sky_rows_and_keeps_every_sample(target):
     assert x0 >= ndc[:, 0].min() - 3.0 / width and x1 <= ndc[:, 0].max() + 3.0 / width
     assert y0 >= ndc[:, 1].min() - 3.0 / height and y1 <= ndc[:, 1].max() + 3.0 / height
     # The truncated frustum through the window holds every sample.
-    corners = PL.truncated_frustum(cam, pos, hit)
+    corners = PL.truncated_frustum(cam, SS.measure(cam, None, pos, hit))
     assert all(PL.point_in_frustum(p, corners) for p in pos[hit][::7])
 
 
 def test_sample_window_falls_back_to_the_whole_frame():
     cam = CameraSpec(look_at((0.0, -6.0, 2.0), (0.0, 30.0, 0.0)), 70.0, (64, 48))
     _, hit = _pixel_ground_samples(cam, 8.0)
-    assert PL.sample_window(cam, hit.ravel()) == PL.FULL_WINDOW  # not an image mask
-    assert PL.sample_window(cam, hit.T) == PL.FULL_WINDOW  # the wrong way round
-    assert PL.sample_window(cam, np.zeros_like(hit)) == PL.FULL_WINDOW
-    assert PL.sample_window(cam, np.ones_like(hit)) == PL.FULL_WINDOW
+    assert _window(cam, hit.ravel()) == SS.FULL_WINDOW  # not an image mask
+    assert _window(cam, hit.T) == SS.FULL_WINDOW  # the wrong way round
+    assert _window(cam, np.zeros_like(hit)) == SS.FULL_WINDOW
+    assert _window(cam, np.ones_like(hit)) == SS.FULL_WINDOW

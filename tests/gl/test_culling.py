@@ -5,6 +5,7 @@ import numpy as np
 import pytest
 
 from addon.core import plan as P
+from addon.core import samples as SS
 from addon.core.presets import build_preset
 from addon.render.pipeline import ShadowPipeline, ShadowSettings
 from tests.support.oracle import view_samples
@@ -39,7 +40,8 @@ def test_occluder_region_contains_every_segment():
     """Points on segments from the light to random receivers in the view are inside the hull."""
     scene = build_preset("courtyard", (64, 48))
     samples, _, _ = view_samples(scene)
-    planes = P.occluder_region(scene.light, scene.camera, samples.positions, samples.hit)
+    stats = SS.measure(scene.camera, scene.light, samples.positions, samples.hit)
+    planes = P.plan_frame(scene.light, "dpsm", scene.camera, stats, far=100.0).occluder_planes
     assert planes is not None and len(planes) >= 5
     rng = np.random.default_rng(0)
     receivers = samples.positions[samples.hit]
@@ -56,8 +58,8 @@ def test_occluder_region_contains_every_segment():
 def test_percentile_frustum_is_tighter_than_strict():
     scene = build_preset("courtyard", (64, 48))
     samples, _, _ = view_samples(scene)
-    strict = P.truncated_frustum(scene.camera, samples.positions, samples.hit)
-    robust = P.truncated_frustum(scene.camera, samples.positions, samples.hit, percentile=5.0)
+    strict = P.truncated_frustum(scene.camera, SS.measure(scene.camera, None, samples.positions, samples.hit))
+    robust = P.truncated_frustum(scene.camera, SS.measure(scene.camera, None, samples.positions, samples.hit, percentile=5.0), cut=True)
     cam = scene.camera.matrix_world[:3, 3]
     assert np.linalg.norm(robust[4:] - cam, axis=1).max() < np.linalg.norm(strict[4:] - cam, axis=1).max()
 

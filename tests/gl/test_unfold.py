@@ -6,6 +6,7 @@ import pytest
 
 from addon.core.frames import light_layers
 from addon.core.plan import plan_frame
+from addon.core import samples as SS
 from addon.core import projection, tessellate
 from addon.core.errors import InputError
 from addon.core.scene import LightSpec, SceneBuilder, look_at
@@ -21,7 +22,7 @@ def _area(tris):
 
 
 def _stream_halves(tris_world, light):
-    plan = plan_frame(light, "unfold", None, np.zeros((1, 1, 3)), np.zeros((1, 1), bool), 10.0)
+    plan = plan_frame(light, "unfold", None, SS.measure(None, light, np.zeros((1, 1, 3)), np.zeros((1, 1), bool)), 10.0)
     stream, split, _ = pl._unfold_stream(tris_world - light.position, plan, ShadowSettings("unfold", 64))
     positions = stream[:, :3].astype(np.float64)
     return positions[:split].reshape(-1, 3, 3), positions[split:].reshape(-1, 3, 3), plan

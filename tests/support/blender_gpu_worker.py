@@ -153,6 +153,12 @@ def viewport(out: str) -> None:
     cached = vp._STATE.results["test-region"]
     name, light, settings, result, stats, raw = cached.lights[0]
     gbuffer = cached.gbuffer
+    # The frame used the G-buffer's textures where they were: nothing was read back.
+    report["gbuffer_not_read"] = "positions" not in vars(gbuffer) and "normals" not in vars(gbuffer)
+    # The same frame from the read-back arrays, uploaded, shadows the same pixels.
+    uploaded = vp._STATE.pipeline.render(light, CACHE.world_triangles(), gbuffer.view_samples(spec.camera), settings)
+    report["uploaded_differ"] = float((uploaded.visibility != raw[..., 0]).mean())
+    report["uploaded_passes"] = [uploaded.passes, result.passes]
     report.update({
         "lights": len(cached.lights), "passes": result.passes, "param": settings.parameterization,
         "warp": settings.warp, "hit_share": float(gbuffer.hit.mean()),

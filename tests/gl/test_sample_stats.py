@@ -1,0 +1,111 @@
+"""The GPU's planning statistics (sample_stats.comp) against the numpy oracle (core.samples)."""
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from addon.core import samples as S
+from addon.core.presets import build_preset
+from addon.core.scene import CameraSpec, LightSpec
+from addon.render.frame import ViewSamples
+from addon.render.pipeline import ShadowPipeline
+from tests.support.oracle import view_samples
+
+pytestmark = pytest.mark.gl
+
+
+def _gpu_stats(backend, light: LightSpec, samples: ViewSamples) -> S.SampleStats:
+    pipe = ShadowPipeline(backend)
+    pipe._upload_samples(light, samples)
+    return pipe._sample_stats(light, samples)
+
+
+def _bin_width(stats: S.SampleStats, camera: CameraSpec) -> float:
+    lo, hi = stats.depth
+    log = S.log_bins(camera, stats.depth)
+    return float(S.bin_edge(S.HIST_BINS, stats.depth, log) - S.bin_edge(S.HIST_BINS - 1, stats.depth, log)) \
+        if log else (hi - lo) / S.HIST_BINS
+
+
+def _check_agree(gpu: S.SampleStats, host: S.SampleStats, camera: CameraSpec, light: LightSpec) -> None:
+    assert gpu.count == host.count
+    assert gpu.window == host.window
+    assert gpu.sides == host.sides and gpu.faces == host.faces
+    if host.count == 0:
+        assert gpu.depth is None and gpu.box is None
+        return
+    scale = host.reach() + 1.0
+    # The GPU's range and box hold the exact ones, and are wider by rounding only.
+    assert gpu.depth[0] <= host.depth[0] and gpu.depth[1] >= host.depth[1]
+    span = host.depth[1] - host.depth[0] + abs(host.depth[1])
+    offset = abs(S.depth_axis(camera, light)[1])
+    assert np.allclose(gpu.depth, host.depth, rtol=0, atol=4 * S.ROUNDING * (3 * scale + offset))
+    assert np.all(gpu.box[0] <= host.box[0]) and np.all(gpu.box[1] >= host.box[1])
+    assert np.allclose(gpu.box[0], host.box[0], atol=1e-5 * scale)
+    assert np.allclose(gpu.box[1], host.box[1], atol=1e-5 * scale)
+    # The percentile cut agrees to a couple of bins, and both hold the exact percentiles.
+    width = _bin_width(host, camera)
+    assert abs(gpu.cull_depth[0] - host.cull_depth[0]) <= 2.5 * width + 1e-5 * span
+    assert abs(gpu.cull_depth[1] - host.cull_depth[1]) <= 2.5 * width + 1e-5 * span
+
+
+@pytest.mark.parametrize("preset", ["room_omni", "room_hemi", "courtyard", "stress_light_inside_object",
+                                    "stress_scale_large", "stress_scale_small", "stress_one_texel", "spot_street"])
+def test_gpu_statistics_match_the_oracle_on_presets(gl_backend, preset):
+    scene = build_preset(preset, (96, 72))
+    samples, _, _ = view_samples(scene)
+    gpu = _gpu_stats(gl_backend, scene.light, samples)
+    host = S.measure(scene.camera, scene.light, samples.positions, samples.hit)
+    _check_agree(gpu, host, scene.camera, scene.light)
+    assert gpu.count > 0
+
+
+@pytest.mark.parametrize("seed", range(6))
+def test_gpu_statistics_match_the_oracle_on_random_samples(gl_backend, seed):
+    """Random sparse samples, far from the origin or not, hemi or omni, ortho or not."""
+    rng = np.random.default_rng(seed)
+    width, height = 40, 30
+    offset = rng.choice([0.0, 1e3, 1e5])
+    eye = np.eye(4)
+    eye[:3, 3] = (offset, 0.0, 5.0)
+    ortho = seed % 3 == 2
+    camera = (CameraSpec(eye, 0.0, (width, height), window=(-3.0, 3.0, -2.25, 2.25), ortho=True) if ortho
+              else CameraSpec(eye, 50.0, (width, height)))
+    depth = rng.uniform(1.0, 20.0, (height, width))
+    ndc = np.stack(np.meshgrid((np.arange(width) + 0.5) / width * 2 - 1,
+                               1 - (np.arange(height) + 0.5) / height * 2), axis=-1)
+    positions = camera.world_points(ndc.reshape(-1, 2), depth.ravel()).reshape(height, width, 3)
+    hit = rng.random((height, width)) < (0.02 if seed == 0 else 0.5)
+    hit[:, : seed] = False  # a sky border, so the window narrows
+    light_matrix = np.eye(4)
+    light_matrix[:3, 3] = (offset + rng.uniform(-3, 3), rng.uniform(-3, 3), rng.uniform(-15, 3))
+    light = LightSpec("hemi" if seed % 2 else "omni", light_matrix)
+    samples = ViewSamples(positions, np.tile([0.0, 0.0, 1.0], (height, width, 1)), hit, camera)
+    gpu = _gpu_stats(gl_backend, light, samples)
+    _check_agree(gpu, S.measure(camera, light, positions, hit), camera, light)
+
+
+def test_no_sample_gives_no_range(gl_backend):
+    scene = build_preset("room_omni", (16, 12))
+    samples, _, _ = view_samples(scene)
+    empty = ViewSamples(samples.positions, samples.normals, np.zeros_like(samples.hit), scene.camera)
+    gpu = _gpu_stats(gl_backend, scene.light, empty)
+    assert gpu.count == 0 and gpu.depth is None and gpu.cull_depth is None and gpu.box is None
+    assert gpu.window == S.FULL_WINDOW
+
+
+def test_percentile_cut_holds_the_exact_percentiles():
+    """The histogram cut is never narrower than np.percentile, and at most a few bins wider."""
+    rng = np.random.default_rng(3)
+    for log in (False, True):
+        depths = np.exp(rng.normal(1.0, 1.0, 5000)) if log else rng.normal(0.0, 4.0, 5000)
+        depth = (float(depths.min()), float(depths.max()))
+        hist = np.bincount(S.depth_bins(depths, depth, log), minlength=S.HIST_BINS)
+        low, high = S.percentile_cut(hist, depth, log, 0.5)
+        exact = np.percentile(depths, [0.5, 99.5])
+        assert low <= exact[0] and high >= exact[1]
+        assert depth[0] <= low and high <= depth[1]
+        below = np.mean(depths < low)
+        above = np.mean(depths > high)
+        assert below <= 0.005 and above <= 0.005
+        assert below > 0.002 and above > 0.002  # the cut does leave the stray samples out
