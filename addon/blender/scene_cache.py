@@ -45,7 +45,9 @@ from typing import Any, Callable, Hashable, Iterable
 import bpy
 import numpy as np
 
+from ..core.errors import InputError
 from ..reference.render_geometry import GEOMETRY_TYPES, local_triangles
+from ..render.resident import ResidentScene
 from ..reference.shadow_rule import rules_for
 from ..reference.shadow_rule import shadow_inputs as _shadow_inputs
 
@@ -164,6 +166,11 @@ class SceneGeometryCache:
         self._world_valid = False
         self._selections: dict[Hashable, tuple[int, np.ndarray]] = {}
         self._ray_flags: dict[Key, tuple[bool, bool]] = {}  # last seen (visible_shadow, visible_camera)
+        # The same geometry as resident objects (`resident`): one per source and instance.
+        self._resident = ResidentScene()
+        self._resident_held: dict[str, tuple[np.ndarray, np.ndarray, tuple[str, str | None]]] = {}
+        self._resident_version = -1
+        self._resident_selections: dict[Hashable, tuple[int, ResidentScene]] = {}
         self.stats: dict[str, int] = {
             "geometry_reads": 0, "matrix_updates": 0, "instance_collections": 0, "version": 0,
         }
@@ -425,6 +432,60 @@ class SceneGeometryCache:
         self._selections[key] = (self.stats["version"], out)
         return out
 
+    def resident(self) -> ResidentScene:
+        """The cached geometry as a `ResidentScene` kept in step with the cache: one object
+        per plain object and per instance, in its own frame with its world matrix.
+
+        A moved object only changes its matrix; only objects whose triangles were read
+        again are set anew, so a backend's next sync uploads those alone. Instances of one
+        source each hold its triangles (an instance is one object of the scene).
+        """
+        if self._resident_version == self.stats["version"]:
+            return self._resident
+        wanted: dict[str, tuple[np.ndarray, np.ndarray, tuple[str, str | None]]] = {}
+        for (kind, key), part in self._parts.items():
+            for index, ((local, matrices), owner) in enumerate(zip(part.sources, part.owners)):
+                for instance, matrix in enumerate(matrices):
+                    wanted[f"{kind}:{key}:{index}:{instance}"] = (local, matrix, owner)
+        scene = self._resident
+        for key in [k for k in self._resident_held if k not in wanted]:
+            scene.remove(key)
+            del self._resident_held[key]
+        for key, entry in wanted.items():
+            local, matrix, _ = entry
+            held = self._resident_held.get(key)
+            if held is None or held[0] is not local:
+                self._set_resident(key, local, matrix)
+            elif not np.array_equal(held[1], matrix, equal_nan=True):
+                try:
+                    scene.set_matrix(key, matrix)
+                except InputError:
+                    self._set_resident(key, local, matrix)  # now singular: as world triangles
+            self._resident_held[key] = entry
+        self._resident_version = self.stats["version"]
+        self._resident_selections.clear()
+        return scene
+
+    def _set_resident(self, key: str, local: np.ndarray, matrix: np.ndarray) -> None:
+        try:
+            self._resident.set_geometry(key, local, matrix)
+        except InputError:
+            # A zero scale or a non-finite matrix: its world triangles (flat, or dropped as
+            # non-finite by the scene) with no matrix.
+            with np.errstate(invalid="ignore", over="ignore"):
+                world = np.asarray(local, np.float64) @ matrix[:3, :3].T + matrix[:3, 3]
+            self._resident.set_geometry(key, world)
+
+    def select_resident(self, keep: Callable[[str, str | None], bool], key: Hashable) -> ResidentScene:
+        """`select` as a subset of `resident()`: the same objects, already on the GPU."""
+        scene = self.resident()
+        cached = self._resident_selections.get(key)
+        if cached is not None and cached[0] == self._resident_version:
+            return cached[1]
+        subset = scene.subset(k for k, (_, _, owner) in self._resident_held.items() if keep(*owner))
+        self._resident_selections[key] = (self._resident_version, subset)
+        return subset
+
     @property
     def object_count(self) -> int:
         """Cached plain objects plus instance groups."""
@@ -443,6 +504,11 @@ class SceneGeometryCache:
         self._selections.clear()
         self._ray_flags.clear()
         self._identity = None
+        for key in list(self._resident_held):  # the next sync frees their textures
+            self._resident.remove(key)
+        self._resident_held.clear()
+        self._resident_selections.clear()
+        self._resident_version = -1
         if had:
             self.stats["version"] += 1
 
@@ -454,6 +520,12 @@ def shadow_inputs(cache: SceneGeometryCache, scene: "bpy.types.Scene",
                   light_names: Iterable[str]) -> tuple[np.ndarray, dict[str, np.ndarray]]:
     """The camera's triangles and each light's occluders from the cache (`shadow_rule.shadow_inputs`)."""
     return _shadow_inputs(cache.select, rules_for(scene, light_names))
+
+
+def resident_inputs(cache: SceneGeometryCache, scene: "bpy.types.Scene",
+                    light_names: Iterable[str]) -> tuple[ResidentScene, dict[str, ResidentScene]]:
+    """`shadow_inputs` as subsets of the cache's resident scene: what the viewport draws."""
+    return _shadow_inputs(cache.select_resident, rules_for(scene, light_names))
 
 
 def _noop(_kind: str) -> None:

@@ -29,6 +29,7 @@ from ..core import validate
 from ..core.errors import InputError
 from ..core.scene import camera_from_matrices
 from ..render.pipeline import ShadowPipeline, count_statistics
+from ..render.resident import ResidentScene
 from . import properties
 
 log = logging.getLogger(__name__)
@@ -164,13 +165,14 @@ def enabled_lights(scene: bpy.types.Scene, depsgraph) -> list:
             for obj in properties.enabled_light_objects(scene) if obj.visible_get(view_layer=depsgraph.view_layer)]
 
 
-def compute_view(backend, pipeline: ShadowPipeline, triangles: np.ndarray, view_matrix: np.ndarray,
+def compute_view(backend, pipeline: ShadowPipeline, seen: ResidentScene, view_matrix: np.ndarray,
                  projection: np.ndarray, size: tuple[int, int], lights: list,
-                 occluders: dict[str, np.ndarray] | None = None) -> tuple[Any, list]:
+                 occluders: dict[str, ResidentScene] | None = None) -> tuple[Any, list]:
     """G-buffer of one view and the pipeline result of every light (explicit inputs).
 
-    `triangles` are what the camera sees; `occluders` gives, per light name, what
-    blocks that light (`scene_cache.shadow_inputs`), else `triangles` do.
+    `seen` is what the camera sees, resident; `occluders` gives, per light name, what
+    blocks that light (`scene_cache.resident_inputs`), else `seen` does. The G-buffer
+    stays on the GPU as the frame's samples.
     """
     from ..render.blender_draw import render_gbuffer
 
@@ -178,11 +180,11 @@ def compute_view(backend, pipeline: ShadowPipeline, triangles: np.ndarray, view_
     # Perspective, lens-shifted or orthographic: the view's real frustum, so culling works.
     camera = camera_from_matrices(view_matrix, projection, size)
     eye = np.linalg.inv(view_matrix)[:3, 3] if camera is None else camera.eye_homogeneous()
-    gbuffer = render_gbuffer(backend, triangles, view_proj, eye, size)
+    gbuffer = render_gbuffer(backend, seen, view_proj, eye, size)
     samples = gbuffer.samples(camera)  # stays on the GPU
     results = []
     for name, light, settings in lights:
-        result = pipeline.render(light, (occluders or {}).get(name, triangles), samples, settings, keep_atlas=True)
+        result = pipeline.render(light, (occluders or {}).get(name, seen), samples, settings, keep_atlas=True)
         stats = count_statistics(pipeline, light, settings, result, samples)
         raw = np.stack([result.visibility, result.flags.astype(np.float32)], axis=-1)
         results.append((name, light, settings, result, stats, raw))
@@ -225,7 +227,7 @@ def draw_view(scene: bpy.types.Scene, depsgraph, view_matrix: np.ndarray, projec
     import gpu
 
     from ..render.blender_draw import draw_overlay, draw_shadow_composite
-    from .scene_cache import CACHE, shadow_inputs
+    from .scene_cache import CACHE, resident_inputs
 
     settings = scene.omniwarp
     # NaN set from Python passes Blender's clamping: refuse it rather than draw garbage.
@@ -243,7 +245,9 @@ def draw_view(scene: bpy.types.Scene, depsgraph, view_matrix: np.ndarray, projec
                 _ensure_backend()
                 CACHE.update(depsgraph)
                 lights = enabled_lights(scene, depsgraph)
-                seen, occluders = shadow_inputs(CACHE, scene, [name for name, _, _ in lights])
+                # Only objects that changed since the last view are uploaded; removed ones are freed.
+                _STATE.backend.sync_scene(CACHE.resident())
+                seen, occluders = resident_inputs(CACHE, scene, [name for name, _, _ in lights])
                 gbuffer, results = compute_view(_STATE.backend, _STATE.pipeline, seen, view_matrix,
                                                 projection, size, lights, occluders)
                 cached = _build_result(key, gbuffer, results, settings)

@@ -30,6 +30,7 @@ from .shaders import (
     EDGE_PROGRAM,
     FOOTPRINT_PROGRAM,
     FOOTPRINT_VERTICES,
+    GBUFFER_PROGRAM,
     GBUFFER_SAMPLES_PROGRAM,
     RAY_TABLE_PROGRAM,
     SAMPLE_STATS_PROGRAM,
@@ -413,6 +414,20 @@ class BlenderGPUBackend(ShadowBackend):
             self._batches["footprint_points"] = gpu.types.GPUBatch(type="POINTS", buf=buffer)
             self._corner_triangles = capacity
         return self._batches["footprint_points" if points else "footprint"]
+
+    def draw_gbuffer(self, scene, uniforms: UniformValues) -> None:
+        """Draw a resident scene (`resident.ResidentScene`) into the bound G-buffer with
+        GBUFFER_PROGRAM: only objects new or changed since the last sync upload."""
+        self.sync_scene(scene)
+        for key, obj in scene.objects.items():
+            if obj.triangles == 0:
+                continue
+            origin = obj.matrix[:3, :3] @ obj.origin + obj.matrix[:3, 3]
+            shader = self._bind(GBUFFER_PROGRAM,
+                                {**uniforms, "ow_object_linear": obj.matrix[:3, :3], "ow_object_origin": origin},
+                                {"ow_vertices": self._vertices[key][1]})
+            batch = self._corner_batch(shader, obj.triangles, False)
+            batch.draw_range(shader, elem_start=0, elem_count=obj.triangles * FOOTPRINT_VERTICES)
 
     def build_ray_table(self, tile: int, uniforms: UniformValues) -> None:
         import gpu

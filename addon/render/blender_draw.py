@@ -19,7 +19,8 @@ from ..core.scene import CameraSpec, LightSpec
 
 from .blender_backend import BlenderGPUBackend, float_texture, framebuffer, read_texture
 from .frame import GBufferSamples, ViewSamples
-from .shaders import GBUFFER_PROGRAM, OVERLAY_PROGRAM, PREVIEW_PROGRAM
+from .resident import ResidentScene
+from .shaders import OVERLAY_PROGRAM, PREVIEW_PROGRAM
 
 log = logging.getLogger(__name__)
 
@@ -65,46 +66,34 @@ def _homogeneous_eye(camera_position: np.ndarray) -> np.ndarray:
     return np.append(eye, 1.0) if eye.size == 3 else eye
 
 
-def render_gbuffer(backend: BlenderGPUBackend, triangles: np.ndarray, view_proj: np.ndarray,
+def render_gbuffer(backend: BlenderGPUBackend, scene: ResidentScene, view_proj: np.ndarray,
                    camera_position: np.ndarray, size: tuple[int, int]) -> GBuffer:
-    """Rasterise world-space triangles (T, 3, 3) into a G-buffer of `size` (W, H).
+    """Rasterise a resident scene's objects into a G-buffer of `size` (W, H).
 
-    `camera_position` turns the normals towards the camera: the eye (3,), or
-    homogeneous (4,), w = 0 giving the direction towards an orthographic camera
-    (`CameraSpec.eye_homogeneous`).
+    The objects' vertex textures are the depth pass's (`BlenderGPUBackend.draw_gbuffer`):
+    an unchanged scene sends no geometry. `camera_position` turns the normals towards
+    the camera: the eye (3,), or homogeneous (4,), w = 0 giving the direction towards
+    an orthographic camera (`CameraSpec.eye_homogeneous`).
     """
     import gpu
-    from gpu_extras.batch import batch_for_shader
 
     width, height = size
     pos_tex = float_texture((width, height), "RGBA32F")
     nrm_tex = float_texture((width, height), "RGBA32F")
     depth = gpu.types.GPUTexture((width, height), format="DEPTH_COMPONENT32F")
     target = framebuffer(color_slots=(pos_tex, nrm_tex), depth_slot=depth)
-    tris = np.asarray(triangles, dtype=np.float64)
-    tris = tris[np.all(np.isfinite(tris), axis=(1, 2))]
-    normal = np.cross(tris[:, 1] - tris[:, 0], tris[:, 2] - tris[:, 0])
-    length = np.linalg.norm(normal, axis=1, keepdims=True)
-    keep = length[:, 0] > 0
-    normal = normal[keep] / length[keep]
-    tris = tris[keep]
     with target.bind():
         target.clear(color=(0.0, 0.0, 0.0, 0.0), depth=1.0)
-        if len(tris):
-            shader = backend.bind_program(GBUFFER_PROGRAM, {
-                "ow_view_proj": np.asarray(view_proj, dtype=np.float64),
-                "ow_camera_pos": _homogeneous_eye(camera_position)})
-            batch = batch_for_shader(shader, "TRIS", {
-                "ow_world": tris.reshape(-1, 3).astype(np.float32),
-                "ow_face_normal": np.repeat(normal, 3, axis=0).astype(np.float32)})
-            gpu.state.viewport_set(0, 0, width, height)
-            gpu.state.depth_test_set("LESS")
-            gpu.state.depth_mask_set(True)
-            try:
-                batch.draw(shader)
-            finally:
-                gpu.state.depth_test_set("NONE")
-                gpu.state.depth_mask_set(False)
+        gpu.state.viewport_set(0, 0, width, height)
+        gpu.state.depth_test_set("LESS")
+        gpu.state.depth_mask_set(True)
+        gpu.state.face_culling_set("NONE")
+        try:
+            backend.draw_gbuffer(scene, {"ow_view_proj": np.asarray(view_proj, dtype=np.float64),
+                                         "ow_camera_pos": _homogeneous_eye(camera_position)})
+        finally:
+            gpu.state.depth_test_set("NONE")
+            gpu.state.depth_mask_set(False)
     return GBuffer({"ow_gb_position": pos_tex, "ow_gb_normal": nrm_tex}, (width, height))
 
 

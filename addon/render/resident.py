@@ -17,6 +17,7 @@ the bounding box (the depth range) and the triangle count.
 from __future__ import annotations
 
 import logging
+from collections.abc import Iterable
 from dataclasses import dataclass, field
 from itertools import count
 
@@ -228,6 +229,21 @@ class ResidentScene:
             self.removed.discard(part_key)
         self._parts[key] = keys
         return self.objects[key]
+
+    def subset(self, keys: Iterable[str]) -> "ResidentScene":
+        """A scene of some of this scene's objects (by the keys `set_geometry` took), sharing
+        them and so their vertex textures: one light's blockers, or what the camera sees.
+        Edit the whole scene, never a subset."""
+        part = ResidentScene()
+        for key in keys:
+            part._parts[key] = list(self._parts[key])
+            for part_key in part._parts[key]:
+                part.objects[part_key] = self.objects[part_key]
+        return part
+
+    def keys(self) -> list[str]:
+        """The keys objects were set with (an object's parts share one)."""
+        return list(self._parts)
 
     def set_matrix(self, key: str, matrix: np.ndarray) -> None:
         """Move an object: no upload, only its uniforms change."""

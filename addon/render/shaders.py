@@ -281,14 +281,18 @@ SAMPLE_STATS_PROGRAM = ComputeInterface(
              **{f"OW_STAT_{name}": str(index) for index, name in enumerate(samples.STAT_FIELDS)}},
 )
 
+# The G-buffer, drawn from resident objects (blender_backend.draw_gbuffer).
 GBUFFER_PROGRAM = ProgramInterface(
     name="omniwarp_gbuffer",
     vertex_file="gbuffer.vert",
     fragment_file="gbuffer.frag",
-    vertex_in=(("vec3", "ow_world"), ("vec3", "ow_face_normal")),
+    vertex_in=(("float", "ow_corner"),),
     fragment_out=(("vec4", "ow_gb_position"), ("vec4", "ow_gb_normal")),
-    uniforms=(Uniform("mat4", "ow_view_proj"), Uniform("vec4", "ow_camera_pos")),  # homogeneous eye
+    uniforms=(Uniform("mat4", "ow_view_proj"), Uniform("vec4", "ow_camera_pos"),  # homogeneous eye
+              Uniform("mat3", "ow_object_linear"), Uniform("vec3", "ow_object_origin")),
+    samplers=("ow_vertices",),
     varyings=(Varying("vec3", "v_world"), Varying("vec3", "v_normal", flat=True)),
+    defines={"OW_VERTEX_WIDTH": str(VERTEX_TEXTURE_WIDTH), "OW_FOOTPRINT_VERTICES": str(FOOTPRINT_VERTICES)},
 )
 
 # The shadow test's samples from a G-buffer (blender_backend.samples_from_gbuffer).

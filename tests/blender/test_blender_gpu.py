@@ -126,6 +126,7 @@ def test_viewport_draw_path_robustness(tmp_path):
     assert r["uploaded_passes"][0] == r["uploaded_passes"][1], r["uploaded_passes"]
     assert r["recomputes"] == 20  # 10 moved views, each drawn once moved and once back
     assert r["live_after_200"] == r["live_first"] > 0
+    assert r["bytes_after_200"] == r["bytes_first"] > 0, "moved views uploaded the scene again"
     assert r["error_caught"] and r["error_logged_once"] and r["recovered"]
     assert r["nan_bias_paused"] and r["nan_bias_panel"] and r["nan_bias_warned_once"] and r["nan_bias_recovered"]
     assert r["nan_strength_paused"] and r["nan_strength_recovered"]

@@ -458,3 +458,70 @@ def test_a_ray_visibility_change_asks_for_a_redraw(world: World) -> None:
         assert "visibility" in kinds, kinds
     finally:
         bpy.app.handlers.depsgraph_update_post.remove(handler)
+
+
+# ----------------------------------------------------------------------------
+# the resident scene (what the viewport keeps on the GPU)
+# ----------------------------------------------------------------------------
+def _with_area(tris: np.ndarray) -> np.ndarray:
+    """The triangles a resident scene keeps: those of non-zero area."""
+    return tris[np.linalg.norm(np.cross(tris[:, 1] - tris[:, 0], tris[:, 2] - tris[:, 0]), axis=1) > 0]
+
+
+def _revisions(world: World) -> dict[str, int]:
+    return {key: obj.revision for key, obj in world.cache.resident().objects.items()}
+
+
+def test_resident_scene_moves_without_new_geometry(world: World, cube_plane) -> None:
+    """One resident object per object: a move changes only that object's matrix, a
+    geometry edit gives only that object new triangles (the next sync uploads it alone)."""
+    cube, plane = cube_plane
+    world.evaluate()
+    resident = world.cache.resident()
+    assert len(resident.objects) == 2
+    assert_same_triangles(resident.world_triangles(), cube_world(), plane_world())
+    before = _revisions(world)
+    plane.location = (0.5, 3.0, -1.0)
+    world.evaluate()
+    assert world.cache.resident() is resident and _revisions(world) == before  # nothing to upload
+    assert_same_triangles(resident.world_triangles(), cube_world(), plane_world(location=(0.5, 3.0, -1.0)))
+    cube.data.vertices[0].co = (-3.0, -1.0, -1.0)
+    cube.data.update()
+    world.evaluate()
+    after = _revisions(world)
+    assert after.keys() == before.keys()
+    changed = {key for key in after if after[key] != before[key]}
+    assert len(changed) == 1 and next(iter(changed)).startswith("object:")
+    verts = list(CUBE_VERTS)
+    verts[0] = (-3.0, -1.0, -1.0)
+    assert_same_triangles(resident.world_triangles(), expected(verts, CUBE_TRIS, matrix((0.0, 0.0, 2.0))),
+                          plane_world(location=(0.5, 3.0, -1.0)))
+    bpy.data.objects.remove(plane)
+    world.evaluate()
+    assert world.cache.resident() is resident
+    assert len(resident.objects) == 1 and len(resident.removed) == 1  # the next sync frees it
+
+
+def test_resident_inputs_are_the_shadow_inputs(world: World) -> None:
+    """The viewport's resident subsets hold the triangles the array selections hold, with
+    instances as objects of their own and a zero-scaled instance kept flat."""
+    coll = bpy.data.collections.new("omniwarp_resident_src")
+    world.scene.collection.children.link(coll)
+    world.track(coll)
+    world.mesh("resident_src", CUBE_VERTS, CUBE_TRIS, collection=coll)
+    world.mesh("resident_ground", PLANE_VERTS, PLANE_TRIS, scale=(0.0, 1.0, 1.0))  # zero scale: singular
+    for index, x in enumerate((10.0, -10.0)):
+        empty = bpy.data.objects.new(f"resident_inst{index}", None)
+        empty.instance_type, empty.instance_collection, empty.location = "COLLECTION", coll, (x, 0.0, 0.0)
+        world.scene.collection.objects.link(empty)
+        world.track(empty)
+    lamp = bpy.data.objects.new("resident_lamp", bpy.data.lights.new("resident_lamp", "POINT"))
+    world.scene.collection.objects.link(lamp)
+    world.track(lamp)
+    world.evaluate()
+    seen, occluders = scene_cache.shadow_inputs(world.cache, world.scene, ["resident_lamp"])
+    r_seen, r_occluders = scene_cache.resident_inputs(world.cache, world.scene, ["resident_lamp"])
+    assert len(r_seen.objects) == 4  # the source, two instances, the flat ground
+    assert_same_triangles(r_seen.world_triangles(), _with_area(seen))
+    assert_same_triangles(r_occluders["resident_lamp"].world_triangles(), _with_area(occluders["resident_lamp"]))
+    assert scene_cache.resident_inputs(world.cache, world.scene, ["resident_lamp"])[0] is r_seen

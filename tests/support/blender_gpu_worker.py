@@ -169,6 +169,7 @@ def viewport(out: str) -> None:
     })
     # 200 redraws: 190 of the same view (cached, nothing recomputed) and 10 moved views.
     live_after_first = vp.live_resources()
+    report["bytes_first"] = vp._STATE.backend.geometry_bytes
     computed = []
     for i in range(200):
         moved = view.copy()
@@ -179,6 +180,7 @@ def viewport(out: str) -> None:
     report["recomputes"] = len(set(computed))
     report["live_first"] = live_after_first
     report["live_after_200"] = vp.live_resources()
+    report["bytes_after_200"] = vp._STATE.backend.geometry_bytes  # the scene stayed resident
     # A failure inside the draw path is caught, logged once and shown; drawing goes on.
     original = vp.compute_view
     logged = []

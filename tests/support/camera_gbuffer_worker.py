@@ -25,6 +25,7 @@ def main(out: str, references: list[str]) -> None:
     from addon.reference.data import ReferenceData
     from addon.render.blender_backend import BlenderGPUBackend, ensure_gpu
     from addon.render.blender_draw import render_gbuffer
+    from addon.render.resident import ResidentScene
 
     ensure_gpu()
     backend = BlenderGPUBackend()
@@ -34,7 +35,8 @@ def main(out: str, references: list[str]) -> None:
             ref = ReferenceData.load(path)
             camera = ref.camera()
             view_proj = camera.projection() @ np.linalg.inv(camera.matrix_world)
-            gbuffer = render_gbuffer(backend, ref.triangles, view_proj, camera.eye_homogeneous(), camera.resolution)
+            gbuffer = render_gbuffer(backend, ResidentScene.of_triangles(ref.triangles), view_proj,
+                                     camera.eye_homogeneous(), camera.resolution)
             both = gbuffer.hit & ref.hit
             dist = np.linalg.norm(gbuffer.positions[..., :3][both] - ref.position[both], axis=-1)
             facing = np.sum(gbuffer.normals[..., :3][both] * ref.normal[both], axis=-1)
@@ -56,16 +58,18 @@ def _viewport(backend, ref, camera) -> dict:
     from addon.blender.viewport import compute_view
     from addon.core.scene import LightSpec
     from addon.render.pipeline import ShadowPipeline, ShadowSettings, ViewSamples
+    from addon.render.resident import ResidentScene
 
     pipeline = ShadowPipeline(backend)
     light = LightSpec(ref.emission, ref.light_matrix)
     settings = ShadowSettings("cube", 256)
     triangles = ref.triangles.astype(np.float64)
-    gbuffer, results = compute_view(backend, pipeline, triangles, np.linalg.inv(camera.matrix_world),
+    gbuffer, results = compute_view(backend, pipeline, ResidentScene.of_triangles(triangles),
+                                    np.linalg.inv(camera.matrix_world),
                                     camera.projection(), camera.resolution, [("light", light, settings)])
     culled = results[0][3]
     plain = ViewSamples(gbuffer.positions[..., :3].astype(np.float64), gbuffer.normals[..., :3].astype(np.float64),
-                        gbuffer.hit, None)
+                        gbuffer.hit, None)  # read back: no camera, so every face
     unculled = pipeline.render(light, triangles, plain, settings)
     hit = gbuffer.hit
     return {"viewport_frustum": culled.plan.frustum_corners is not None,  # a camera, so culling ran
