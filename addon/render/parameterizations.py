@@ -258,14 +258,21 @@ def _slopes(table: np.ndarray) -> np.ndarray:
 
 def map_stretch(mapping: LayerMapping) -> float:
     """An upper bound of how much the crop and warp widen a box of the plain map (map uv
-    per plain uv), as footprint.warp_box widens it: the crop's scale times, per axis, one
-    plus the warp's steepest slope plus its shear bound."""
-    stretch = float(np.max(mapping.scale))
+    per plain uv, on the box's longer side), as footprint.warp_box widens it.
+
+    A plain box of side d is at most s d a side after the crop (s: its larger scale).
+    The row warp widens it by its offsets' steepest slope along the rows and by the shear
+    across them: W <= s d (1 + slope_r + shear_r). The column warp then takes the box's
+    height and the new width: H <= s d (1 + slope_c) + shear_c W. Bounding the two in turn,
+    not their product, keeps more chunks within a point sprite on a warped layer.
+    """
+    scale = float(np.max(mapping.scale))
     warp = mapping.warp
-    if warp is not None:
-        stretch *= ((1.0 + float(_slopes(warp.rows).max()) + max_shear(warp.rows))
-                    * (1.0 + float(_slopes(warp.cols).max()) + max_shear(warp.cols)))
-    return stretch
+    if warp is None:
+        return scale
+    width = scale * (1.0 + float(_slopes(warp.rows).max()) + max_shear(warp.rows))
+    height = scale * (1.0 + float(_slopes(warp.cols).max())) + max_shear(warp.cols) * width
+    return max(width, height)
 
 
 def _chunk_spheres(obj, light: LightSpec) -> tuple[np.ndarray, np.ndarray, np.ndarray] | None:

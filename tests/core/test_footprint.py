@@ -208,3 +208,22 @@ def test_warped_footprints_cover_across_many_layers():
         box = fp.map_box(fp.paraboloid_box(tri), mapping)
         covering += _assert_inside_range(_covered(dirs, valid, tri), box) is not None
     assert covering >= 20
+
+
+@settings(max_examples=40, deadline=None)
+@given(seed=st.integers(0, 2**32 - 1))
+def test_map_stretch_bounds_every_warped_box(seed):
+    """The host's point-sprite choice rests on map_stretch: a plain box of side d is at most
+    map_stretch * d a side after the crop and warp_box, wherever it lies."""
+    from addon.render.parameterizations import map_stretch
+
+    rng = np.random.default_rng(seed)
+    lo = rng.uniform(0.0, 0.3, size=2)
+    mapping = LayerMapping(lo, lo + rng.uniform(0.2, 1.0 - lo.max(), size=2), _warp(rng))
+    stretch = map_stretch(mapping)
+    for _ in range(200):
+        side = rng.uniform(1e-4, 0.05, size=2)
+        u0, v0 = rng.uniform(0.0, 1.0 - side)
+        box = np.array([u0, u0 + side[0], v0, v0 + side[1]])
+        mapped = fp.map_box(box, mapping)
+        assert max(mapped[1] - mapped[0], mapped[3] - mapped[2]) <= stretch * side.max() * (1 + 1e-9) + 1e-12
