@@ -5,6 +5,8 @@
 * `addon.core` never imports `addon.render`, `addon.reference` or `addon.blender`,
   nor bpy or a GL binding, not even inside a function (static check).
 * `addon.render` never imports `addon.blender` (static check).
+* No import cycle among the modules of addon/, imports inside functions included,
+  and no hidden edge through `importlib.import_module` or a `sys.modules` lookup.
 * Code under `addon/` that Blender loads uses relative imports only: inside
   Blender the package is `bl_ext.<repo>.omniwarp_shadows.addon`, so
   `import addon...` would fail there.
@@ -232,3 +234,64 @@ def test_import_resolution_helper() -> None:
     # In a package __init__, `.` is the package itself.
     init_refs = _resolve_imports("from .frames import Frame\n", "addon.core", True, ADDON / "core" / "__init__.py")
     assert "addon.core.frames.Frame" in {r.target for r in init_refs}
+
+
+def _module_graph() -> dict[str, set[str]]:
+    """Module -> the modules of addon/ it imports (anywhere in the file)."""
+    paths = {_module_name(p)[0]: p for p in sorted(ADDON.rglob("*.py")) if "__pycache__" not in p.parts}
+    return {name: {ref.target for ref in _imports(path) if ref.target in paths and ref.target != name}
+            for name, path in paths.items()}
+
+
+def _cycles(graph: dict[str, set[str]]) -> list[list[str]]:
+    """Strongly connected components of more than one module (Tarjan's algorithm)."""
+    index: dict[str, int] = {}
+    low: dict[str, int] = {}
+    stack: list[str] = []
+    found: list[list[str]] = []
+
+    def visit(node: str) -> None:
+        index[node] = low[node] = len(index)
+        stack.append(node)
+        for nxt in sorted(graph[node]):
+            if nxt not in index:
+                visit(nxt)
+                low[node] = min(low[node], low[nxt])
+            elif nxt in stack:
+                low[node] = min(low[node], index[nxt])
+        if low[node] == index[node]:
+            component = []
+            while True:
+                top = stack.pop()
+                component.append(top)
+                if top == node:
+                    break
+            if len(component) > 1:
+                found.append(sorted(component))
+
+    for node in sorted(graph):
+        if node not in index:
+            visit(node)
+    return found
+
+
+def test_cycle_finder_finds_a_cycle() -> None:
+    assert _cycles({"a": {"b"}, "b": {"c"}, "c": {"a"}, "d": {"a"}}) == [["a", "b", "c"]]
+    assert _cycles({"a": {"b"}, "b": set()}) == []
+
+
+def test_no_import_cycles_in_addon() -> None:
+    """A module never imports, at any depth and even inside a function, one that imports it."""
+    cycles = _cycles(_module_graph())
+    assert not cycles, "import cycles:\n" + "\n".join(" <-> ".join(c) for c in cycles)
+
+
+def test_no_hidden_imports_of_siblings() -> None:
+    """Sibling modules are imported by name, never found through importlib or sys.modules,
+    so the cycle check above sees every edge."""
+    bad = []
+    for path in sorted(ADDON.rglob("*.py")):
+        for number, line in enumerate(path.read_text(encoding="utf-8").splitlines(), 1):
+            if "import_module(" in line or "sys.modules.get(f" in line or "__package__}." in line:
+                bad.append(f"{path.relative_to(REPO_ROOT)}:{number}: {line.strip()}")
+    assert not bad, "hidden imports:\n" + "\n".join(bad)

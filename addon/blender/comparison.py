@@ -52,7 +52,7 @@ from .. import compare, report
 from ..core import methods as method_registry
 from ..core.errors import InputError, OmniWarpError
 from ..core.presets import DEFAULT_PRESET, DEFAULT_RESOLUTION, PresetInfo, available_presets, build_preset
-from .viewport import tag_redraw_all  # the sidebar lives in the 3D views this redraws
+from .events import redraw_3d_views  # the sidebar lives in the 3D views this redraws
 
 log = logging.getLogger(__name__)
 
@@ -613,7 +613,7 @@ def finish_job(job: _Job, report_fn: Report, outcome: str = "done", message: str
         report_fn({"WARNING"}, f"OmniWarp comparison: {text}")
     else:
         report_fn({"INFO"}, f"OmniWarp comparison: {text}")
-    tag_redraw_all()
+    redraw_3d_views()
 
 
 def _rows_text(count: int) -> str:
@@ -784,7 +784,7 @@ class OMNIWARP_OT_compare(bpy.types.Operator):
         wm.modal_handler_add(self)
         wm.progress_begin(0, job.total_steps)
         _set_status_text(context, status_line(job) + " | Esc: cancel")
-        tag_redraw_all()
+        redraw_3d_views()
         return {"RUNNING_MODAL"}
 
     def modal(self, context: bpy.types.Context, event: bpy.types.Event) -> set[str]:
@@ -811,7 +811,7 @@ class OMNIWARP_OT_compare(bpy.types.Operator):
             finish_job(job, self.report)
             return {"FINISHED"}
         _set_status_text(context, status_line(job) + " | Esc: cancel")
-        tag_redraw_all()
+        redraw_3d_views()
         return {"PASS_THROUGH"}
 
     def cancel(self, context: bpy.types.Context) -> None:

@@ -4,10 +4,10 @@ in its own process (one GL owner per process, DESIGN.md section 3).
     python -m addon.blender.headless --preset NAME --reference REF.npz --out DIR
     python -m addon.blender.headless --blend FILE --reference REF.npz --out DIR [--light NAME]
 
-It draws, offscreen and with the scene camera's matrices, exactly what the viewport
-preview draws: the G-buffer, the pipeline per enabled light, the shadow composite
-(`preview.png`) and the map overlay (`overlay.png`); `preview.json` holds the error
-against the Cycles reference and the times.
+It loads the scene, picks the lights and hands them to `preview.run`, which draws,
+offscreen and with the scene camera's matrices, exactly what the viewport preview
+draws: the shadow composite (`preview.png`) and the map overlay (`overlay.png`);
+`preview.json` holds the error against the Cycles reference and the times.
 """
 from __future__ import annotations
 
@@ -15,197 +15,24 @@ import argparse
 import json
 import logging
 import sys
-import time
 from pathlib import Path
 
-import numpy as np
-
-from ..core import metrics
 from ..core import methods as method_registry
 from ..core.errors import OmniWarpError, report_error
 from ..core.scene import LightSpec
 from ..reference.data import ReferenceData
-from ..render.pipeline import ShadowPipeline, ShadowSettings, count_statistics, settings_for
-from ..render.resident import ResidentScene
+from ..render.pipeline import ShadowSettings, settings_for
+from . import properties, registration
+from .preview import run
 
 log = logging.getLogger(__name__)
-
-OVERLAY_SIZE = (960, 300)
-
-
-def _write_png(path: Path, rgba_bottom_up: np.ndarray) -> None:
-    import matplotlib.image as mpimg
-
-    mpimg.imsave(path, np.clip(rgba_bottom_up[::-1], 0.0, 1.0))
-
-
-def _offscreen_draw(size: tuple[int, int], draw) -> np.ndarray:
-    """Run `draw()` into a float offscreen target; return (H, W, 4) RGBA, row 0 at the bottom."""
-    import gpu
-
-    from ..render.blender_backend import float_texture, framebuffer, read_texture
-
-    width, height = size
-    color = float_texture((width, height), "RGBA32F")
-    target = framebuffer(color_slots=(color,))
-    with target.bind():
-        target.clear(color=(0.08, 0.08, 0.09, 1.0))
-        gpu.state.viewport_set(0, 0, width, height)
-        with gpu.matrix.push_pop():
-            with gpu.matrix.push_pop_projection():
-                gpu.matrix.load_identity()
-                gpu.matrix.load_projection_matrix(_pixel_projection(width, height))
-                draw()
-    return read_texture(color, "RGBA32F")
-
-
-def _pixel_projection(width: int, height: int):
-    """Orthographic projection for drawing text in pixels (blf uses the gpu matrix stack)."""
-    from mathutils import Matrix
-
-    return Matrix(((2.0 / width, 0, 0, -1.0), (0, 2.0 / height, 0, -1.0), (0, 0, -1.0, 0), (0, 0, 0, 1.0)))
-
-
-def overlay_panels(result, stats, label: str, maps: set[str], thumb: int = 256) -> tuple[list, float]:
-    """Thumbnails of one light: its depth layers, then count and importance maps.
-
-    Maps are pooled to at most twice the thumbnail size first (max for counts, min
-    for depth), so single busy texels stay visible instead of aliasing away.
-    """
-    from ..render.blender_draw import OverlayPanel, pool_image
-
-    panels = []
-    res = result.layout.resolution if result.layout else 0
-    top = max(stats.max_count_before, stats.max_count_after, 1.0)
-    for layer in result.plan.drawn:
-        if "DEPTH" in maps and result.atlas is not None:
-            x, y = result.layout.origin(result.tile_of_slot[layer.slot])
-            depth = pool_image(result.atlas[y:y + res, x:x + res], 2 * thumb, np.min)
-            panels.append(OverlayPanel(f"depth {layer.name}", depth, 0))
-        if "COUNT" in maps:
-            panels.append(OverlayPanel(f"count {layer.name}", pool_image(stats.before[layer.slot], 2 * thumb), 1, top))
-        if "IMPORTANCE" in maps:
-            panels.append(OverlayPanel(f"importance {layer.name}", pool_image(stats.after[layer.slot], 2 * thumb),
-                                       1, top))
-    return panels, top
-
-
-def stats_line(name: str, result, stats) -> str:
-    """One line per light: passes, texels, max count before/after, ms per stage."""
-    t = result.time_ms
-    skipped = result.geometry.skipped_triangles
-    return (f"{name}: {result.passes} passes, {result.texels / 1e6:.2f} M texels, max count "
-            f"{stats.max_count_before:.0f} -> {stats.max_count_after:.0f}, ms: prepare {t['prepare']:.0f} "
-            f"analysis {t['analysis']:.0f} maps {t['shadow_maps']:.0f} test {t['shadow_test']:.0f}"
-            + (f", {skipped} broken triangles skipped" if skipped else ""))
-
-
-def run(reference: ReferenceData, lights: list[tuple[str, LightSpec, ShadowSettings]], triangles: np.ndarray,
-        out_dir: Path, strength: float = 0.6, maps: frozenset[str] = frozenset({"DEPTH", "COUNT", "IMPORTANCE"}),
-        thumb: int = 150,
-        occluders: dict[str, np.ndarray] | None = None) -> dict:
-    """Render the preview of `lights` from the reference's camera and write the three files.
-
-    `triangles` are what the camera sees (the G-buffer); `occluders` gives, per light
-    name, what blocks that light (`scene_cache.shadow_inputs`), else `triangles` do.
-    """
-    from ..render.blender_backend import BlenderGPUBackend, ensure_gpu
-    from ..render.blender_draw import draw_overlay, draw_shadow_composite, render_gbuffer, visibility_texture
-
-    ensure_gpu()
-    out_dir.mkdir(parents=True, exist_ok=True)
-    camera = reference.camera()  # shift, sensor fit, pixel aspect, ortho and clip as captured
-    view = np.linalg.inv(camera.matrix_world)
-    view_proj = camera.projection() @ view
-    backend = BlenderGPUBackend()
-    try:
-        pipeline = ShadowPipeline(backend)
-        # Resident before the clock starts, as in the viewport: the timed G-buffer is a
-        # plain draw of the scene from the camera.
-        seen = ResidentScene.of_triangles(triangles)
-        backend.sync_scene(seen)
-        t0 = time.perf_counter()
-        gbuffer = render_gbuffer(backend, seen, view_proj, camera.eye_homogeneous(), camera.resolution)
-        backend.finish()
-        gbuffer_ms = (time.perf_counter() - t0) * 1e3
-        samples = gbuffer.samples(camera)  # stays on the GPU, as in the viewport
-        per_light = []
-        for name, light, settings in lights:
-            # Resident once per light, as compare has it: the warm-up frame uploads it.
-            blockers = ResidentScene.of_triangles((occluders or {}).get(name, triangles))
-            pipeline.render(light, blockers, samples, settings)  # warm-up (shader compile, upload)
-            result = pipeline.render(light, blockers, samples, settings, keep_atlas=True)
-            stats = count_statistics(pipeline, light, settings, result, samples)
-            raw = np.stack([result.visibility, result.flags.astype(np.float32)], axis=-1)
-            per_light.append((name, light, settings, result, stats, raw))
-
-        textures = [visibility_texture(raw) for (*_, raw) in per_light]
-
-        def draw_preview() -> None:
-            for index, ((_, light, _, _, _, _), texture) in enumerate(zip(per_light, textures)):
-                draw_shadow_composite(backend, gbuffer, texture, light, strength, camera.resolution,
-                                      draw_base=(index == 0))
-
-        _write_png(out_dir / "preview.png", _offscreen_draw(camera.resolution, draw_preview))
-
-        panels, lines, top = [], [], 1.0
-        for name, _, _, result, stats, _ in per_light:
-            light_panels, light_top = overlay_panels(result, stats, name, set(maps), thumb)
-            panels += light_panels
-            top = max(top, light_top)
-            lines.append(stats_line(name, result, stats))
-        width = max(OVERLAY_SIZE[0], 24 + len(panels) * (thumb + 6))
-        overlay = _offscreen_draw((width, OVERLAY_SIZE[1]), lambda: draw_overlay(
-            backend, panels, (width, OVERLAY_SIZE[1]), thumb, "BOTTOM_LEFT", lines,
-            top if {"COUNT", "IMPORTANCE"} & set(maps) else None))
-        _write_png(out_dir / "overlay.png", overlay)
-
-        report = _report(reference, per_light, gbuffer, gbuffer_ms, backend.renderer())
-        (out_dir / "preview.json").write_text(json.dumps(report, indent=1), encoding="utf-8")
-        return report
-    finally:
-        backend.release()
-
-
-def _report(reference: ReferenceData, per_light, gbuffer, gbuffer_ms: float, renderer: str) -> dict:
-    """Error of the combined preview visibility against Cycles, and the times."""
-    ref_lit = metrics.reference_visibility(reference.shadowed, reference.unshadowed)
-    name, light, settings, result, stats, _ = per_light[0]
-    evaluable = metrics.evaluable_mask(reference.position, reference.normal, reference.hit, reference.unshadowed, light)
-    # The preview's own G-buffer must see the same surfaces as Cycles to be compared.
-    agree = gbuffer.hit == reference.hit
-    figure = metrics.error_figure(result.visibility > 0.5, ref_lit, evaluable & agree)
-    lights = []
-    for name, light, settings, result, stats, _ in per_light:
-        lights.append({
-            "light": name, "emission": light.emission,
-            "method": method_registry.label_for(settings.parameterization, settings.warp, settings.cut,
-                                                settings.edge_aa),
-            "parameterization": settings.parameterization, "warp": settings.warp, "cut": settings.cut,
-            "edge_aa": settings.edge_aa, "resolution": settings.resolution, "passes": result.passes,
-            "texels": result.texels, "triangles_drawn": result.geometry.triangles_drawn,
-            "max_count_before": stats.max_count_before, "max_count_after": stats.max_count_after,
-            "texel_utilization": stats.texel_utilization, "time_ms": result.time_ms,
-            "skipped_triangles": result.geometry.skipped_triangles,
-        })
-    return {
-        "error_pct": figure.error_pct, "false_shadow_pct": figure.false_shadow_pct,
-        "false_lit_pct": figure.false_lit_pct, "evaluated_pixels": figure.evaluated_pixels,
-        "gbuffer_hit_agreement": float(agree.mean()),
-        "time_ms": {"gbuffer": gbuffer_ms, **{k: sum(entry["time_ms"][k] for entry in lights)
-                                              for k in ("total", "prepare", "analysis", "shadow_maps", "shadow_test")}},
-        "lights": lights, "renderer": renderer, "backend": "blender-gpu", "camera_size": list(reference.resolution),
-        "reference": reference.meta.get("preset", "custom"),
-    }
 
 
 def _scene_lights(scene, depsgraph, reference: ReferenceData, light_name: str | None,
                   default: ShadowSettings) -> list[tuple[str, LightSpec, ShadowSettings]]:
     """Lights to preview: the viewport's (OmniWarp enabled), else the reference's own
     light with `default` settings (presets carry no OmniWarp settings of their own)."""
-    from .viewport import enabled_lights
-
-    chosen = [entry for entry in enabled_lights(scene, depsgraph) if not light_name or entry[0] == light_name]
+    chosen = [entry for entry in properties.enabled_lights(scene, depsgraph) if not light_name or entry[0] == light_name]
     if chosen:
         return chosen
     light = LightSpec(reference.emission, reference.light_matrix, spot_size=reference.spot_size)  # type: ignore[arg-type]
@@ -252,7 +79,6 @@ def main(argv: list[str] | None = None) -> int:
         from ..reference.capture import evaluated_depsgraph, pick_view_layer
         from ..reference.render_geometry import render_triangles
         from ..reference.shadow_rule import rules_for, shadow_inputs
-        from . import registration
 
         reference = ReferenceData.load(args.reference)
         default = default_settings(args.method, reference.emission, args.resolution)

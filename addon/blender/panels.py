@@ -4,10 +4,9 @@ from __future__ import annotations
 
 import logging
 
-import sys
-
 import bpy
 
+from . import events
 from .properties import (
     effective_emission,
     effective_parameterization,
@@ -124,10 +123,8 @@ class OMNIWARP_PT_light(bpy.types.Panel):
 
 
 def _preview_error() -> str:
-    """The viewport module's last failure, if that module is loaded."""
-    module = sys.modules.get(f"{__package__}.viewport")
-    getter = getattr(module, "last_error", None)
-    return getter() if getter is not None else ""
+    """The viewport preview's last failure (none while it is not registered)."""
+    return events.notify("last_error", default="")
 
 
 class OMNIWARP_PT_viewport(bpy.types.Panel):

@@ -12,16 +12,12 @@ pipeline inputs.
   viewport preview and its map overlay.
 
 Every tooltip says what a setting does and what it costs. Changing a setting
-marks the viewport preview stale through `viewport.request_update()`; the
-viewport module is looked up lazily, so this module imports (and registers)
-without it.
+marks the viewport preview stale through `events.notify("request_update")`, which
+the viewport listens to once registered: this module never imports it.
 """
 from __future__ import annotations
 
-import importlib
-import importlib.util
 import logging
-from types import ModuleType
 
 import bpy
 import numpy as np
@@ -33,6 +29,7 @@ from ..core.frames import POINT_PARAMETERIZATIONS, PROJECTIVE_PARAMETERIZATIONS
 from ..core.methods import PARAMETERIZATION_TEXT, WARP_TEXT
 from ..core.scene import PROJECTIVE_EMISSIONS, Emission, LightSpec, spot_emission
 from ..render.pipeline import BiasSettings, ShadowSettings
+from . import events
 
 log = logging.getLogger(__name__)
 
@@ -44,47 +41,27 @@ RESOLUTION_DEFAULT = 1024
 
 
 # ----------------------------------------------------------------------------
-# update callbacks: the viewport module is optional at import time
+# update callbacks: told to the viewport through events (it may not be registered)
 # ----------------------------------------------------------------------------
-def _viewport_module() -> ModuleType | None:
-    """The sibling `viewport` module, or None while it is not importable."""
-    name = f"{__package__}.viewport"
-    if importlib.util.find_spec(name) is None:
-        return None
-    return importlib.import_module(name)
-
-
-def _notify_viewport(action: str, *args) -> None:
-    """Call `viewport.<action>(*args)` if the viewport module is importable (tests may lack it)."""
-    viewport = _viewport_module()
-    if viewport is None:
-        log.debug("viewport module not available; %s skipped", action)
-        return
-    getattr(viewport, action)(*args)
-
-
 def _request_update(self: bpy.types.PropertyGroup, context: bpy.types.Context) -> None:
     """Property update callback: mark the viewport preview stale."""
-    _notify_viewport("request_update", "light settings")
+    events.notify("request_update", "light settings")
 
 
 def _request_scene_update(self: bpy.types.PropertyGroup, context: bpy.types.Context) -> None:
     """Update callback of scene-level preview settings: mark the preview stale."""
-    _notify_viewport("request_update", "preview settings")
+    events.notify("request_update", "preview settings")
 
 
 def _overlay_changed(self: bpy.types.PropertyGroup, context: bpy.types.Context) -> None:
     """Overlay settings change only the drawing, not the maps: redraw the viewports."""
-    _notify_viewport("tag_redraw_all")
+    events.redraw_3d_views()
 
 
 def _preview_toggled(self: OMNIWARP_PG_scene, context: bpy.types.Context) -> None:
     """Turn the viewport preview on or off to match `preview_enabled`."""
-    viewport = _viewport_module()
-    if viewport is None:
-        log.warning("OmniWarp viewport module is not available; preview cannot be toggled")
-        return
-    viewport.set_preview_enabled(context, bool(self.preview_enabled))
+    if events.notify("set_preview_enabled", context, bool(self.preview_enabled), default=False) is False:
+        log.warning("OmniWarp viewport preview is not registered; the preview cannot be toggled")
 
 
 # ----------------------------------------------------------------------------
@@ -294,6 +271,13 @@ def enabled_light_objects(scene: bpy.types.Scene) -> list[bpy.types.Object]:
         if obj.type == "LIGHT" and is_supported_light(obj.data) and obj.data.omniwarp.enabled
     ]
     return sorted(found, key=lambda obj: obj.name)
+
+
+
+def enabled_lights(scene: bpy.types.Scene, depsgraph) -> list:
+    """(name, LightSpec, ShadowSettings) of every visible light with OmniWarp enabled."""
+    return [(obj.name, light_spec_for(obj.evaluated_get(depsgraph)), shadow_settings_for(obj.data))
+            for obj in enabled_light_objects(scene) if obj.visible_get(view_layer=depsgraph.view_layer)]
 
 
 def is_narrow_spot(light: bpy.types.Light) -> bool:

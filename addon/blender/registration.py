@@ -9,7 +9,7 @@ reverse order:
    `bpy.types.Scene.omniwarp` (see `POINTERS`), then
    `bpy.types.Scene.omniwarp_compare` (see `TOOL_POINTERS`);
 3. the runtime modules in `RUNTIME_MODULES` (depsgraph handlers, viewport draw
-   handlers and timers), each imported lazily and asked to `register()`.
+   handlers and timers), each asked to `register()`.
 
 Order matters: a PropertyGroup must be registered before anything that points
 at it, and panels after the operators they draw. Add new classes to `CLASSES`
@@ -17,13 +17,12 @@ in dependency order; `unregister()` walks it backwards.
 """
 from __future__ import annotations
 
-import importlib
 import logging
 from types import ModuleType
 
 import bpy
 
-from . import comparison, panels, properties
+from . import comparison, panels, properties, scene_cache, viewport
 
 log = logging.getLogger(__name__)
 
@@ -61,12 +60,7 @@ TOOL_POINTERS: tuple[tuple[type, str, type], ...] = (
 
 # Sibling modules with their own register()/unregister(), called in this order
 # (and in reverse on unregister). Tests may set this to () to run without them.
-RUNTIME_MODULES: tuple[str, ...] = ("scene_cache", "viewport")
-
-
-def _runtime_module(name: str) -> ModuleType:
-    """Import the sibling runtime module `name` (relative to this package)."""
-    return importlib.import_module(f".{name}", __package__)
+RUNTIME_MODULES: tuple[ModuleType, ...] = (scene_cache, viewport)
 
 
 def _all_classes() -> tuple[type, ...]:
@@ -92,8 +86,7 @@ def _add_pointers(done: list[tuple[type, str]]) -> None:
 
 
 def _register_runtime(done: list[ModuleType]) -> None:
-    for name in RUNTIME_MODULES:
-        module = _runtime_module(name)
+    for module in RUNTIME_MODULES:
         module.register()
         done.append(module)
 
@@ -137,17 +130,12 @@ def register() -> None:
 def unregister() -> None:
     """Undo `register()` in reverse: runtime modules, pointers, then classes.
 
-    Safe to call when nothing (or only part) is registered: a runtime module
-    that cannot be imported, a missing pointer or an unregistered class is
-    skipped with a log line instead of stopping the rest.
+    Safe to call when nothing (or only part) is registered: a missing pointer or
+    an unregistered class is skipped with a log line instead of stopping the rest
+    (the runtime modules' own unregister is idempotent).
     """
     modules = 0
-    for name in reversed(RUNTIME_MODULES):
-        try:
-            module = _runtime_module(name)
-        except ModuleNotFoundError as err:
-            log.warning("runtime module %r not importable (%s); skipping its unregister", name, err)
-            continue
+    for module in reversed(RUNTIME_MODULES):
         module.unregister()
         modules += 1
 

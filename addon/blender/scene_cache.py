@@ -38,7 +38,6 @@ to shadows); objects without faces contribute 0 triangles.
 from __future__ import annotations
 
 import logging
-import sys
 from dataclasses import dataclass, field
 from typing import Any, Callable, Hashable, Iterable
 
@@ -47,9 +46,10 @@ import numpy as np
 
 from ..core.errors import InputError
 from ..reference.render_geometry import GEOMETRY_TYPES, local_triangles
-from ..render.resident import ResidentScene
 from ..reference.shadow_rule import rules_for
 from ..reference.shadow_rule import shadow_inputs as _shadow_inputs
+from ..render.resident import ResidentScene
+from . import events
 
 log = logging.getLogger(__name__)
 
@@ -528,19 +528,10 @@ def resident_inputs(cache: SceneGeometryCache, scene: "bpy.types.Scene",
     return _shadow_inputs(cache.select_resident, rules_for(scene, light_names))
 
 
-def _noop(_kind: str) -> None:
-    """Stand-in for `viewport.request_update` when the viewport does not provide one."""
-
-
 def _notify_viewport(geometry: bool, transform: bool) -> None:
-    """Tell the viewport preview (if loaded) what kind of redraw it needs."""
-    if not (geometry or transform):
-        return
-    viewport = sys.modules.get(f"{__package__}.viewport")
-    if viewport is None:
-        return
-    request: Callable[[str], None] = getattr(viewport, "request_update", _noop)
-    request("geometry" if geometry else "transform")
+    """Tell the viewport preview (if it listens) what kind of redraw it needs."""
+    if geometry or transform:
+        events.notify("request_update", "geometry" if geometry else "transform")
 
 
 @bpy.app.handlers.persistent

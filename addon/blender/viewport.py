@@ -30,7 +30,7 @@ from ..core.errors import InputError
 from ..core.scene import camera_from_matrices
 from ..render.pipeline import ShadowPipeline, count_statistics
 from ..render.resident import ResidentScene
-from . import properties
+from . import events, properties
 
 log = logging.getLogger(__name__)
 
@@ -68,6 +68,8 @@ def register() -> None:
     """Install the draw handler and the file-load and undo handlers (idempotent)."""
     if _STATE.handler is None:
         _STATE.handler = bpy.types.SpaceView3D.draw_handler_add(_draw, (), "WINDOW", "POST_PIXEL")
+    for event, callback in _EVENTS:
+        events.listen(event, callback)
     for handlers, callback in _APP_HANDLERS:
         if callback not in handlers:
             handlers.append(callback)
@@ -76,6 +78,8 @@ def register() -> None:
 
 def unregister() -> None:
     """Remove every handler, in mirror order, and free every GPU object (idempotent)."""
+    for event, _ in reversed(_EVENTS):
+        events.forget(event)
     for handlers, callback in reversed(_APP_HANDLERS):
         while callback in handlers:
             handlers.remove(callback)
@@ -112,25 +116,14 @@ def set_preview_enabled(context: bpy.types.Context, enabled: bool) -> None:
         free_resources()
     _STATE.version += 1
     _STATE.last_error = ""
-    tag_redraw_all()
+    events.redraw_3d_views()
 
 
 def request_update(reason: str) -> None:
     """Mark every preview stale (light settings, geometry or transforms changed)."""
     log.debug("preview update requested: %s", reason)
     _STATE.version += 1
-    tag_redraw_all()
-
-
-def tag_redraw_all() -> None:
-    """Redraw every 3D view of every window."""
-    wm = bpy.context.window_manager
-    if wm is None:
-        return
-    for window in wm.windows:
-        for area in window.screen.areas:
-            if area.type == "VIEW_3D":
-                area.tag_redraw()
+    events.redraw_3d_views()
 
 
 @bpy.app.handlers.persistent
@@ -154,17 +147,11 @@ _APP_HANDLERS = (
 
 def _throttle_elapsed() -> None:
     _STATE.timer_pending = False
-    tag_redraw_all()
+    events.redraw_3d_views()
     return None  # one-shot timer
 
 
 # Computation ----------------------------------------------------------------------
-def enabled_lights(scene: bpy.types.Scene, depsgraph) -> list:
-    """(name, LightSpec, ShadowSettings) of every visible light with OmniWarp enabled."""
-    return [(obj.name, properties.light_spec_for(obj.evaluated_get(depsgraph)), properties.shadow_settings_for(obj.data))
-            for obj in properties.enabled_light_objects(scene) if obj.visible_get(view_layer=depsgraph.view_layer)]
-
-
 def compute_view(backend, pipeline: ShadowPipeline, seen: ResidentScene, view_matrix: np.ndarray,
                  projection: np.ndarray, size: tuple[int, int], lights: list,
                  occluders: dict[str, ResidentScene] | None = None) -> tuple[Any, list]:
@@ -206,7 +193,7 @@ def _view_key(view_matrix: np.ndarray, projection: np.ndarray, size: tuple[int, 
 
 def _build_result(key: tuple, gbuffer, lights: list, settings) -> _ViewResult:
     from ..render.blender_draw import visibility_texture
-    from .headless import overlay_panels, stats_line
+    from .preview import overlay_panels, stats_line
 
     entry = _ViewResult(key, _STATE.version, gbuffer, lights, computed_at=time.perf_counter())
     entry.visibility = [visibility_texture(raw) for (*_, raw) in lights]
@@ -244,7 +231,7 @@ def draw_view(scene: bpy.types.Scene, depsgraph, view_matrix: np.ndarray, projec
             try:
                 _ensure_backend()
                 CACHE.update(depsgraph)
-                lights = enabled_lights(scene, depsgraph)
+                lights = properties.enabled_lights(scene, depsgraph)
                 # Only objects that changed since the last view are uploaded; removed ones are freed.
                 _STATE.backend.sync_scene(CACHE.resident())
                 seen, occluders = resident_inputs(CACHE, scene, [name for name, _, _ in lights])
@@ -323,3 +310,11 @@ def report_draw_error(exc: BaseException) -> None:
 def last_error() -> str:
     """The last preview failure, for panels to show ("" when none)."""
     return _STATE.last_error
+
+
+# What this module answers through events (installed by register, dropped by unregister).
+_EVENTS = (
+    ("request_update", request_update),
+    ("set_preview_enabled", set_preview_enabled),
+    ("last_error", last_error),
+)

@@ -7,15 +7,13 @@ scale, not read back from Blender.
 """
 from __future__ import annotations
 
-import sys
-import types
 
 import numpy as np
 import pytest
 
 bpy = pytest.importorskip("bpy")
 
-from addon.blender import scene_cache  # noqa: E402
+from addon.blender import events, scene_cache  # noqa: E402
 from addon.blender.scene_cache import SceneGeometryCache  # noqa: E402
 
 pytestmark = pytest.mark.blender
@@ -354,8 +352,7 @@ def test_register_unregister_idempotent() -> None:
 
 def test_handler_marks_cache_and_wakes_viewport(world: World, monkeypatch) -> None:
     requests: list[str] = []
-    monkeypatch.setitem(sys.modules, f"{scene_cache.__package__}.viewport",
-                        types.SimpleNamespace(request_update=requests.append))
+    monkeypatch.setitem(events._LISTENERS, "request_update", requests.append)
     cache = scene_cache.CACHE
     world.feed = False  # only the module's handler feeds CACHE here
     obj = world.mesh("cube", CUBE_VERTS, CUBE_TRIS)
@@ -374,11 +371,8 @@ def test_handler_marks_cache_and_wakes_viewport(world: World, monkeypatch) -> No
         assert requests[-1] == "geometry"
         cache.update(world.depsgraph)
         assert cache.stats["geometry_reads"] == reads + 1  # flagged by the module handler
-        # A viewport without request_update, or none at all, is fine.
-        monkeypatch.setitem(sys.modules, f"{scene_cache.__package__}.viewport", types.SimpleNamespace())
-        obj.location = (0.0, 0.0, 2.0)
-        world.depsgraph.update()
-        monkeypatch.delitem(sys.modules, f"{scene_cache.__package__}.viewport")
+        # No viewport listening is fine.
+        monkeypatch.delitem(events._LISTENERS, "request_update")
         obj.location = (0.0, 0.0, 3.0)
         world.depsgraph.update()
         assert len(cache.world_triangles()) == 12

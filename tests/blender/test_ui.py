@@ -18,7 +18,7 @@ import pytest
 
 bpy = pytest.importorskip("bpy")
 
-from addon.blender import panels, properties, registration  # noqa: E402
+from addon.blender import events, panels, properties, registration  # noqa: E402
 from addon.core.errors import InputError  # noqa: E402
 from addon.render.pipeline import BiasSettings, ShadowSettings  # noqa: E402
 
@@ -32,7 +32,7 @@ PT_NAME = re.compile(r"OMNIWARP_PT_[a-z][a-z0-9_]*")
 # fakes
 # ----------------------------------------------------------------------------
 class ViewportRecorder:
-    """Stands in for addon.blender.viewport: records what the callbacks ask for."""
+    """Stands in for the viewport's event listeners: records what the callbacks ask for."""
 
     def __init__(self) -> None:
         self.calls: list[tuple] = []
@@ -42,9 +42,6 @@ class ViewportRecorder:
 
     def set_preview_enabled(self, context, enabled: bool) -> None:
         self.calls.append(("set_preview_enabled", enabled))
-
-    def tag_redraw_all(self) -> None:
-        self.calls.append(("tag_redraw_all",))
 
 
 class FakeLayout:
@@ -107,7 +104,8 @@ def draw_panel(panel_cls: type, context, header: bool = False) -> FakeLayout:
 @pytest.fixture
 def recorder(monkeypatch: pytest.MonkeyPatch) -> ViewportRecorder:
     rec = ViewportRecorder()
-    monkeypatch.setattr(properties, "_viewport_module", lambda: rec)
+    monkeypatch.setattr(events, "_LISTENERS", {"request_update": rec.request_update,
+                                               "set_preview_enabled": rec.set_preview_enabled})
     return rec
 
 
@@ -201,10 +199,10 @@ def test_classes_ordered_and_named() -> None:
         if parent:
             assert parent in names[: names.index(cls.__name__)], f"{cls.__name__}: parent {parent} registered later"
     assert {group for _, _, group in registration.POINTERS} == set(groups)
-    assert registration.RUNTIME_MODULES == ("scene_cache", "viewport")
+    assert [m.__name__.rpartition(".")[2] for m in registration.RUNTIME_MODULES] == ["scene_cache", "viewport"]
 
 
-def _fake_runtime(monkeypatch: pytest.MonkeyPatch, name: str, log: list[str], fail: bool = False) -> str:
+def _fake_runtime(name: str, log: list[str], fail: bool = False) -> ModuleType:
     module = ModuleType(f"{registration.__package__}.{name}")
 
     def register() -> None:
@@ -218,13 +216,12 @@ def _fake_runtime(monkeypatch: pytest.MonkeyPatch, name: str, log: list[str], fa
         assert hasattr(bpy.types.Light, "omniwarp"), "runtime modules unregister before the pointers go"
 
     module.register, module.unregister = register, unregister
-    monkeypatch.setitem(sys.modules, module.__name__, module)
-    return name
+    return module
 
 
 def test_runtime_modules_called_in_order_and_reverse(monkeypatch: pytest.MonkeyPatch) -> None:
     log: list[str] = []
-    names = (_fake_runtime(monkeypatch, "_test_rt_a", log), _fake_runtime(monkeypatch, "_test_rt_b", log))
+    names = (_fake_runtime("_test_rt_a", log), _fake_runtime("_test_rt_b", log))
     monkeypatch.setattr(registration, "RUNTIME_MODULES", ())
     registration.unregister()  # start clean, without the fakes
     monkeypatch.setattr(registration, "RUNTIME_MODULES", names)
@@ -236,8 +233,7 @@ def test_runtime_modules_called_in_order_and_reverse(monkeypatch: pytest.MonkeyP
 
 def test_failed_register_rolls_back(monkeypatch: pytest.MonkeyPatch) -> None:
     log: list[str] = []
-    names = (_fake_runtime(monkeypatch, "_test_rt_ok", log),
-             _fake_runtime(monkeypatch, "_test_rt_bad", log, fail=True))
+    names = (_fake_runtime("_test_rt_ok", log), _fake_runtime("_test_rt_bad", log, fail=True))
     monkeypatch.setattr(registration, "RUNTIME_MODULES", ())
     registration.unregister()  # start clean, without the fakes
     monkeypatch.setattr(registration, "RUNTIME_MODULES", names)
@@ -246,16 +242,6 @@ def test_failed_register_rolls_back(monkeypatch: pytest.MonkeyPatch) -> None:
     assert log == ["register _test_rt_ok", "register _test_rt_bad", "unregister _test_rt_ok"]
     assert not _is_registered()
     assert not any(cls.is_registered for cls in registration.CLASSES)
-
-
-def test_missing_runtime_module_fails_register_and_is_skipped_on_unregister(monkeypatch: pytest.MonkeyPatch) -> None:
-    monkeypatch.setattr(registration, "RUNTIME_MODULES", ())
-    registration.unregister()
-    monkeypatch.setattr(registration, "RUNTIME_MODULES", ("_omniwarp_no_such_module",))
-    with pytest.raises(ModuleNotFoundError):
-        registration.register()
-    assert not _is_registered()
-    registration.unregister()  # logs and skips the module
 
 
 # ----------------------------------------------------------------------------
@@ -386,7 +372,7 @@ def test_update_callbacks_reach_the_viewport(make_light, registered) -> None:
 
 
 def test_callbacks_without_viewport_module(monkeypatch: pytest.MonkeyPatch, make_light) -> None:
-    monkeypatch.setattr(properties, "_viewport_module", lambda: None)
+    monkeypatch.setattr(events, "_LISTENERS", {})
     props = make_light("POINT").omniwarp
     props.resolution = 2048  # no viewport: nothing to notify, no error
     assert props.resolution == 2048
@@ -399,12 +385,19 @@ def test_callbacks_without_viewport_module(monkeypatch: pytest.MonkeyPatch, make
         settings.property_unset("overlay_size")
 
 
-def test_viewport_lookup_is_package_relative() -> None:
-    module = properties._viewport_module()
-    if module is not None:
-        assert module.__name__ == f"{properties.__package__}.viewport"
-        for name in ("request_update", "set_preview_enabled", "tag_redraw_all"):
-            assert callable(getattr(module, name))
+def test_viewport_listens_only_while_registered(monkeypatch: pytest.MonkeyPatch) -> None:
+    from addon.blender import viewport
+
+    monkeypatch.setattr(events, "_LISTENERS", {})
+    viewport.register()
+    try:
+        assert events._LISTENERS == {"request_update": viewport.request_update,
+                                     "set_preview_enabled": viewport.set_preview_enabled,
+                                     "last_error": viewport.last_error}
+    finally:
+        viewport.unregister()
+    assert events._LISTENERS == {}
+    assert events.notify("last_error", default="") == ""
 
 
 # ----------------------------------------------------------------------------
