@@ -25,10 +25,6 @@ class PresetError(InputError):
     """An unknown preset, or a preset module that does not follow the contract."""
 
 
-class GeometryError(OmniWarpError):
-    """Geometry that cannot be processed (e.g. nothing finite left to draw)."""
-
-
 class BackendError(OmniWarpError):
     """A GPU backend failed to start, compile a shader or read back."""
 

@@ -497,23 +497,6 @@ def build_rtw(uv: np.ndarray, size: int, floor: float = FLOOR_SHARE, max_slope: 
     return rtw_from_counts(scatter_counts(uv, size), floor, max_slope)
 
 
-def crop_box(uv: np.ndarray, margin: float) -> tuple[np.ndarray, np.ndarray]:
-    """DV crop: the bounding box of the map points grown by `margin`, within [0, 1]^2.
-
-    Returns (lo, hi). With no finite point the whole map is kept.
-    """
-    pts = np.asarray(uv, dtype=np.float64).reshape(-1, 2)
-    pts = pts[np.all(np.isfinite(pts), axis=1)]
-    if len(pts) == 0:
-        return np.zeros(2), np.ones(2)
-    lo = np.clip(pts.min(axis=0) - margin, 0.0, 1.0)
-    hi = np.clip(pts.max(axis=0) + margin, 0.0, 1.0)
-    # Never zoom beyond the point where one crop texel spans less than 1e-4 of the map.
-    centre = (lo + hi) / 2
-    half = np.maximum((hi - lo) / 2, 5e-5)
-    return centre - half, centre + half
-
-
 @dataclass
 class LayerMapping:
     """Map transform of one layer: projection xy -> DV crop -> warp -> map uv in [0, 1]^2."""

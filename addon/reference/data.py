@@ -44,7 +44,6 @@ log = logging.getLogger(__name__)
 # Bumped when the file layout changes; older files are then treated as stale.
 FORMAT_VERSION = 1
 
-_IMAGE_FIELDS = ("position", "normal", "hit", "shadowed", "unshadowed")
 # What numpy raises for a damaged .npz: a bad or truncated zip (BadZipFile, EOFError),
 # damaged deflate data (zlib.error), a truncated member or bad JSON (ValueError).
 _UNREADABLE = (OSError, KeyError, ValueError, EOFError, zipfile.BadZipFile, zlib.error)

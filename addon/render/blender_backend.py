@@ -38,6 +38,7 @@ from .shaders import (
     ComputeInterface,
     ProgramInterface,
     load_source,
+    program_defines,
     program_variant,
     scatter_variant,
 )
@@ -108,7 +109,7 @@ def create_info(iface: ProgramInterface) -> Any:
     if iface.writes_depth and hasattr(info, "depth_write"):
         # Declared where the API has it (newer Blender); OpenGL honours gl_FragDepth either way.
         info.depth_write("ANY")
-    for key, value in iface.defines.items():
+    for key, value in program_defines(iface).items():
         info.define(key, value)
     info.vertex_source(load_source(iface.vertex_file))
     info.fragment_source(load_source(iface.fragment_file))
@@ -137,7 +138,7 @@ def compute_create_info(iface: ComputeInterface) -> Any:
         info.sampler(slot, "FLOAT_2D", sampler)
     for unit, (fmt, name) in enumerate(iface.images):
         info.image(unit, fmt.upper(), "UINT_2D", name, qualifiers={"READ", "WRITE"})
-    for key, value in iface.defines.items():
+    for key, value in program_defines(iface).items():
         info.define(key, value)
     info.compute_source(load_source(iface.compute_file))
     return info

@@ -13,7 +13,7 @@ A `Parameterization` has the same few methods for every method family:
 The dual paraboloid, cube and IPSM draw resident footprints (footprint.vert); unfold
 draws its host-built stream (unfold.py); the spot and sun maps draw the resident
 triangles through one projective matrix. Adding a parameterization means one class
-here, one entry in `PARAMETERIZATIONS` and its code in PARAM_CODES (lib/layers.glsl).
+here, one entry in `PARAMETERIZATIONS` and its code in shaders.PARAM_CODES (emitted to the GLSL).
 """
 from __future__ import annotations
 
@@ -40,7 +40,7 @@ from ..core.warping import LayerMapping, max_shear
 from .backend import AtlasLayout, FootprintDraw, ShadowBackend
 from .frame import PreparedGeometry, ShadowSettings
 from .resident import CHUNK_TRIANGLES, ResidentScene
-from .shaders import FOOTPRINT_VERTICES, MAX_POINT_SIZE, REGION_PLANES
+from .shaders import FOOTPRINT_VERTICES, MAX_POINT_SIZE, PARAM_CODES, REGION_PLANES, SLOTS
 from .unfold import VERTEX_FLOATS, edge_aa_parameters, prepare_unfold
 
 log = logging.getLogger(__name__)
@@ -49,11 +49,6 @@ log = logging.getLogger(__name__)
 # is lost to clipping; 1e-6 keeps it far below a texel at any supported resolution.
 CLIP_NEAR_RELATIVE = 1e-6
 
-PARAM_CODES = {"dpsm": 0, "cube": 1, "ipsm": 2, "unfold": 3, "sm": 4, "psm": 5}  # ow_param (lib/layers.glsl)
-
-
-# Layer slots the GLSL tables hold (ow_layer_rot[6] and the like): a cube's six faces.
-SLOTS = 6
 
 
 # Texels a footprint box grows by on each side: its float32 corners may fall short of the

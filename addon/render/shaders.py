@@ -15,7 +15,7 @@ import re
 from dataclasses import dataclass, field, replace
 from pathlib import Path
 
-from ..core import samples
+from ..core import footprint, projection, samples
 from ..core.errors import BackendError
 
 log = logging.getLogger(__name__)
@@ -23,6 +23,20 @@ log = logging.getLogger(__name__)
 SHADER_DIR = Path(__file__).resolve().parents[2] / "gpu_shaders"
 _INCLUDE = re.compile(r'^\s*#include\s+"([^"]+)"\s*$', re.MULTILINE)
 GLSL_VERSION = "430 core"
+
+
+# GPU constants with one source: every program's header defines them (`program_defines`),
+# so no shader file spells them out.
+PARAM_CODES = {"dpsm": 0, "cube": 1, "ipsm": 2, "unfold": 3, "sm": 4, "psm": 5}  # ow_param
+SLOTS = 6  # layer slots the GLSL tables hold (ow_layer_rot[OW_SLOTS] and the like): a cube's faces
+SHARED_DEFINES: dict[str, str] = {
+    **{f"OW_PARAM_{name.upper()}": str(code) for name, code in PARAM_CODES.items()},
+    "OW_KIND_PARABOLOID": str(projection.PARABOLOID),
+    "OW_KIND_CUBE": str(projection.CUBE),
+    "OW_KIND_UNFOLD": str(projection.UNFOLD),
+    "OW_SLOTS": str(SLOTS),
+    "OW_EDGE_ON": repr(float(footprint.GPU_EDGE_ON)),  # the host's count of drawn triangles uses it
+}
 
 
 @dataclass(frozen=True)
@@ -214,10 +228,10 @@ SHADOW_TEST_PROGRAM = ProgramInterface(
     fragment_out=(("vec2", "ow_result"),),
     uniforms=(
         Uniform("mat3", "ow_light_rot"),
-        Uniform("mat3", "ow_layer_rot", 6),
-        Uniform("vec4", "ow_layer_tile", 6),
-        Uniform("vec4", "ow_layer_crop", 6),
-        Uniform("vec4", "ow_layer_box", 6),
+        Uniform("mat3", "ow_layer_rot", SLOTS),
+        Uniform("vec4", "ow_layer_tile", SLOTS),
+        Uniform("vec4", "ow_layer_crop", SLOTS),
+        Uniform("vec4", "ow_layer_box", SLOTS),
         Uniform("int", "ow_param"),
         Uniform("int", "ow_layer_kind"),
         Uniform("int", "ow_hemi"),
@@ -245,9 +259,9 @@ SCATTER_PROGRAM = ComputeInterface(
     compute_file="scatter.comp",
     uniforms=(
         Uniform("mat3", "ow_light_rot"),
-        Uniform("mat3", "ow_layer_rot", 6),
-        Uniform("vec4", "ow_layer_crop", 6),
-        Uniform("int", "ow_slot_tile", 6),
+        Uniform("mat3", "ow_layer_rot", SLOTS),
+        Uniform("vec4", "ow_layer_crop", SLOTS),
+        Uniform("int", "ow_slot_tile", SLOTS),
         Uniform("int", "ow_layer_kind"),
         Uniform("int", "ow_param"),
         Uniform("int", "ow_hemi"),
@@ -355,7 +369,7 @@ FIXED_KIND_DEFINE = "OW_FIXED_KIND"
 POINTS_DEFINE = "OW_POINTS"  # the footprint pass as point sprites
 # Layer kinds with a fixed-kind variant; the values mirror core.projection's
 # PARABOLOID and CUBE (lib/projection.glsl's OW_KIND_PARABOLOID, OW_KIND_CUBE).
-FIXED_KIND_NAMES = {0: "paraboloid", 1: "cube"}
+FIXED_KIND_NAMES = {projection.PARABOLOID: "paraboloid", projection.CUBE: "cube"}
 _VARIANT_BASES = {DEPTH_PROGRAM.name: DEPTH_PROGRAM, SHADOW_TEST_PROGRAM.name: SHADOW_TEST_PROGRAM,
                   FOOTPRINT_PROGRAM.name: FOOTPRINT_PROGRAM}
 
@@ -442,6 +456,11 @@ COMPUTE_PROGRAMS = (SCATTER_PROGRAM, SAMPLE_STATS_PROGRAM, *(_scatter_variant(mo
                                        for kind in (None, *FIXED_KIND_NAMES)))
 
 
+def program_defines(iface: "ProgramInterface | ComputeInterface") -> dict[str, str]:
+    """Every #define of a program: the shared GPU constants, then its own."""
+    return {**SHARED_DEFINES, **iface.defines}
+
+
 def _decl_uniform(u: Uniform) -> str:
     return f"uniform {u.glsl_type} {u.name}{f'[{u.array}]' if u.array else ''};"
 
@@ -451,7 +470,7 @@ def glsl_header(iface: ProgramInterface, stage: str) -> str:
     if stage not in ("vertex", "fragment"):
         raise BackendError(f"unknown shader stage {stage!r}")
     lines = [f"#version {GLSL_VERSION}"]
-    lines += [f"#define {k} {v}" for k, v in iface.defines.items()]
+    lines += [f"#define {k} {v}" for k, v in program_defines(iface).items()]
     lines += [_decl_uniform(u) for u in iface.uniforms]
     lines += [f"uniform sampler2D {name};" for name in iface.samplers]
     for var in iface.varyings:
@@ -468,7 +487,7 @@ def glsl_header(iface: ProgramInterface, stage: str) -> str:
 def compute_header(iface: ComputeInterface) -> str:
     """Declarations of a compute program for a plain-GLSL backend (moderngl)."""
     lines = [f"#version {GLSL_VERSION}"]
-    lines += [f"#define {k} {v}" for k, v in iface.defines.items()]
+    lines += [f"#define {k} {v}" for k, v in program_defines(iface).items()]
     lines.append(f"layout(local_size_x = {iface.local_size}) in;")
     lines += [_decl_uniform(u) for u in iface.uniforms]
     lines += [f"uniform sampler2D {name};" for name in iface.samplers]

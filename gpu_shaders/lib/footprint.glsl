@@ -19,8 +19,7 @@ const vec4 OW_EMPTY_BOX = vec4(1.0, -1.0, 1.0, -1.0);
 // 1e-12 for the relative part; float32 needs a wider margin). `distance` is the scene's
 // own tolerance (1e-9 of the depth range's far end, as the host's sanitiser had it): a
 // vertex placed "at" the light lands within rounding of it, and must not then cover half
-// the sphere.
-const float OW_EDGE_ON = 1e-6;
+// the sphere. OW_EDGE_ON comes from the host (shaders.SHARED_DEFINES).
 
 // Edge-plane normals n_i = v_i x v_{i+1}; returns det's sign, 0 for a triangle seen edge-on.
 // A neighbour computes its shared edge's normal from the same two vertices, so the two

@@ -1,11 +1,5 @@
 // Layer choice for a light-local direction; mirrors pick_slot in addon/core/frames.py.
-
-#define OW_PARAM_DPSM 0
-#define OW_PARAM_CUBE 1
-#define OW_PARAM_IPSM 2
-#define OW_PARAM_UNFOLD 3
-#define OW_PARAM_SM 4  // spot and sun maps never pick a slot: one projective layer
-#define OW_PARAM_PSM 5
+// The OW_PARAM_* codes come from the host (shaders.PARAM_CODES).
 
 int ow_pick_slot(int parameterization, vec3 d)
 {

@@ -1,9 +1,7 @@
 // Paraboloid and cube-face projections; mirrors addon/core/projection.py.
 // Layer-local frames have the layer axis along +Z. Map coordinates xy lie in [-1, 1]^2.
+// The OW_KIND_* codes come from the host (shaders.SHARED_DEFINES).
 
-#define OW_KIND_PARABOLOID 0
-#define OW_KIND_CUBE 1
-#define OW_KIND_UNFOLD 2
 #define OW_PI 3.14159265358979
 
 // A program variant built for one layer kind (shaders.program_variant) defines

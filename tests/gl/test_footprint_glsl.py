@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 
 from addon.core import footprint as fp
-from addon.render.shaders import SHADER_DIR, ProgramInterface, Uniform, moderngl_sources
+from addon.render.shaders import SHADER_DIR, SHARED_DEFINES, ProgramInterface, Uniform, moderngl_sources
 from tests.core.test_footprint import KINDS, _random_rotation, _triangle
 from tests.gl.test_glsl_oracle import _evaluate
 
@@ -132,9 +132,8 @@ def test_inside_test_matches_numpy(gl_backend, tmp_path):
 
 
 def test_edge_on_margin_is_the_same_number_on_both_sides():
-    """The host's count of what the GPU draws (parameterizations._measurer) uses OW_EDGE_ON's value."""
-    import re
-
+    """The host's count of what the GPU draws (parameterizations._measurer) uses OW_EDGE_ON's value:
+    the shader gets it from the host's header, and spells out no value of its own."""
     text = (SHADER_DIR / "lib" / "footprint.glsl").read_text()
-    value = float(re.search(r"const float OW_EDGE_ON = ([0-9.eE+-]+);", text).group(1))
-    assert value == fp.GPU_EDGE_ON
+    assert "OW_EDGE_ON" in text and "const float OW_EDGE_ON" not in text
+    assert float(SHARED_DEFINES["OW_EDGE_ON"]) == fp.GPU_EDGE_ON
