@@ -295,3 +295,12 @@ def test_no_hidden_imports_of_siblings() -> None:
             if "import_module(" in line or "sys.modules.get(f" in line or "__package__}." in line:
                 bad.append(f"{path.relative_to(REPO_ROOT)}:{number}: {line.strip()}")
     assert not bad, "hidden imports:\n" + "\n".join(bad)
+
+
+MAX_MODULE_LINES = 700
+
+
+def test_modules_are_small_enough_to_read_in_one_sitting() -> None:
+    long = [f"{p.relative_to(REPO_ROOT)}: {n} lines" for p in sorted(ADDON.rglob("*.py"))
+            if (n := len(p.read_text(encoding="utf-8").splitlines())) > MAX_MODULE_LINES]
+    assert not long, f"modules over {MAX_MODULE_LINES} lines:\n" + "\n".join(long)

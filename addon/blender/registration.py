@@ -22,7 +22,7 @@ from types import ModuleType
 
 import bpy
 
-from . import comparison, panels, properties, scene_cache, viewport
+from . import compare_job, compare_ops, compare_props, compare_ui, panels, properties, scene_cache, viewport
 
 log = logging.getLogger(__name__)
 
@@ -40,22 +40,22 @@ POINTERS: tuple[tuple[type, str, type], ...] = (
     (bpy.types.Scene, "omniwarp", properties.OMNIWARP_PG_scene),
 )
 
-# The comparison tool of the sidebar tab (comparison.py), registered after
+# The comparison tool of the sidebar tab (compare_*.py), registered after
 # CLASSES: its PropertyGroups (the row before the group holding the rows), its
 # operators, the UI list, then the panel that draws them.
 TOOL_CLASSES: tuple[type, ...] = (
-    comparison.OMNIWARP_PG_result_row,
-    comparison.OMNIWARP_PG_comparison,
-    comparison.OMNIWARP_OT_build_preset,
-    comparison.OMNIWARP_OT_compare,
-    comparison.OMNIWARP_OT_export_results,
-    comparison.OMNIWARP_UL_results,
-    comparison.OMNIWARP_PT_compare,
+    compare_props.OMNIWARP_PG_result_row,
+    compare_props.OMNIWARP_PG_comparison,
+    compare_ops.OMNIWARP_OT_build_preset,
+    compare_ops.OMNIWARP_OT_compare,
+    compare_ops.OMNIWARP_OT_export_results,
+    compare_ui.OMNIWARP_UL_results,
+    compare_ui.OMNIWARP_PT_compare,
 )
 
 # Its one namespaced pointer, added after POINTERS.
 TOOL_POINTERS: tuple[tuple[type, str, type], ...] = (
-    (bpy.types.Scene, "omniwarp_compare", comparison.OMNIWARP_PG_comparison),
+    (bpy.types.Scene, "omniwarp_compare", compare_props.OMNIWARP_PG_comparison),
 )
 
 # Sibling modules with their own register()/unregister(), called in this order
@@ -146,6 +146,7 @@ def unregister() -> None:
         else:
             log.debug("%s.%s was not registered; skipping", owner.__name__, attr)
 
+    compare_job.free_state()  # a running comparison's GPU objects, its rows, the preset caches
     count = 0
     for cls in reversed(_all_classes()):
         try:

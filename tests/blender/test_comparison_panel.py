@@ -25,7 +25,7 @@ bpy = pytest.importorskip("bpy", reason="the comparison panel needs bpy (scripts
 
 from addon import compare  # noqa: E402
 from addon.core import methods as method_registry  # noqa: E402
-from addon.blender import comparison, registration  # noqa: E402
+from addon.blender import compare_job, compare_ops, compare_props, compare_ui, registration  # noqa: E402
 from addon.core.presets import DEFAULT_PRESET, available_presets  # noqa: E402
 
 pytestmark = pytest.mark.blender
@@ -91,11 +91,11 @@ def test_compare_fills_results_and_plot(worker) -> None:
         assert row["mismatch_exists"] and row["preset"] == DEFAULT_PRESET
     assert rows[1]["analysis_ms"] > 0.0  # NoTW runs the analysis pass
     plot = report["plot"]
-    assert plot["name"] == comparison.PLOT_IMAGE_NAME
+    assert plot["name"] == compare_props.PLOT_IMAGE_NAME
     assert plot["size"][0] > 100 and plot["size"][1] > 100
     assert plot["pixels"] == plot["size"][0] * plot["size"][1] * 4 and plot["std"] > 0.01
     mismatch = report["mismatch"]  # the first row is selected, its mismatch image loaded
-    assert mismatch["name"] == comparison.MISMATCH_IMAGE_NAME
+    assert mismatch["name"] == compare_props.MISMATCH_IMAGE_NAME
     assert mismatch["size"] == list(CAMERA) and mismatch["std"] > 0.0
     assert mismatch["filepath"] == rows[0]["mismatch_image"]
     assert report["progress"] == pytest.approx(1.0) and "2 rows measured" in report["status"]
@@ -196,38 +196,38 @@ def registered(monkeypatch: pytest.MonkeyPatch):
 
 def _untick_all(settings) -> None:
     for method in method_registry.pipeline_methods():
-        setattr(settings, comparison.method_prop(method), False)
+        setattr(settings, compare_props.method_prop(method), False)
 
 
 def test_registered_classes_and_pointer(registered) -> None:
     assert all(cls.is_registered for cls in registration.TOOL_CLASSES)
-    assert isinstance(registered, comparison.OMNIWARP_PG_comparison)
+    assert isinstance(registered, compare_props.OMNIWARP_PG_comparison)
     assert [cls.__name__ for cls in registration.TOOL_CLASSES] == [
         "OMNIWARP_PG_result_row", "OMNIWARP_PG_comparison", "OMNIWARP_OT_build_preset", "OMNIWARP_OT_compare",
         "OMNIWARP_OT_export_results", "OMNIWARP_UL_results", "OMNIWARP_PT_compare"]
     for cls in registration.TOOL_CLASSES:
         if issubclass(cls, bpy.types.Operator):
             assert cls.bl_idname == "omniwarp." + cls.__name__.removeprefix("OMNIWARP_OT_")
-    assert comparison.OMNIWARP_PT_compare.bl_category == "OmniWarp"
-    assert comparison.OMNIWARP_PT_compare.bl_label == "Compare methods"
+    assert compare_ui.OMNIWARP_PT_compare.bl_category == "OmniWarp"
+    assert compare_ui.OMNIWARP_PT_compare.bl_label == "Compare methods"
     assert registered.source == "PRESET" and registered.preset == DEFAULT_PRESET
     assert registered.resolutions == "512,1024" and registered.frames == 2
     assert registered.export_path == "//omniwarp_results.json"
-    assert comparison.selected_methods(registered) == compare.DEFAULT_METHODS
+    assert compare_props.selected_methods(registered) == compare.DEFAULT_METHODS
 
 
 def test_method_checkboxes_cover_every_method(registered) -> None:
-    rna = comparison.OMNIWARP_PG_comparison.bl_rna.properties
-    names = {comparison.method_prop(m) for m in method_registry.pipeline_methods()}
+    rna = compare_props.OMNIWARP_PG_comparison.bl_rna.properties
+    names = {compare_props.method_prop(m) for m in method_registry.pipeline_methods()}
     assert {"use_dpsm", "use_cube", "use_dpsm_notw", "use_cube_notw", "use_dpsm_rtw", "use_cube_rtw"} <= names
     for method in method_registry.pipeline_methods():
-        prop = rna[comparison.method_prop(method)]
+        prop = rna[compare_props.method_prop(method)]
         assert prop.type == "BOOLEAN" and prop.name == method
 
 
 @pytest.mark.parametrize("group", ["OMNIWARP_PG_comparison", "OMNIWARP_PG_result_row"])
 def test_every_property_has_a_description(registered, group: str) -> None:
-    for prop in getattr(comparison, group).bl_rna.properties:
+    for prop in getattr(compare_props, group).bl_rna.properties:
         if prop.identifier in ("rna_type", "name"):
             continue
         assert len(prop.description) > 20, f"{group}.{prop.identifier} needs a tooltip"
@@ -237,8 +237,8 @@ def test_every_property_has_a_description(registered, group: str) -> None:
 
 
 def test_preset_items_are_cached_with_descriptions(registered) -> None:
-    items = comparison._preset_items(None, None)
-    assert items is comparison._preset_items(None, None)  # one list, kept alive for Blender
+    items = compare_props._preset_items(None, None)
+    assert items is compare_props._preset_items(None, None)  # one list, kept alive for Blender
     presets = available_presets()
     assert [i[0] for i in items][0] == DEFAULT_PRESET
     assert sorted(i[0] for i in items) == sorted(presets)
@@ -261,13 +261,13 @@ def test_invalid_input_cancels_and_keeps_results(registered, setup: str, message
     else:
         settings.resolutions = {"letters": "512,abc", "too_big": "512,1000000", "empty": " , "}[setup]
     status = settings.status
-    for call in (comparison.OMNIWARP_OT_compare.execute, comparison.OMNIWARP_OT_compare.invoke):
+    for call in (compare_ops.OMNIWARP_OT_compare.execute, compare_ops.OMNIWARP_OT_compare.invoke):
         reports = Reports()
         fake = SimpleNamespace(report=reports, _timer=None)
         args = (fake, bpy.context) if call.__name__ == "execute" else (fake, bpy.context, None)
         assert call(*args) == {"CANCELLED"}
         assert len(reports.errors()) == 1 and message in reports.errors()[0], reports.items
-        assert not comparison.is_running()
+        assert not compare_job.is_running()
     with pytest.raises(RuntimeError, match=message):
         bpy.ops.omniwarp.compare("EXEC_DEFAULT")
     assert [r.method for r in settings.results] == ["kept"] and settings.results[0].error_pct == 1.5
@@ -299,7 +299,7 @@ def test_build_preset_makes_a_new_scene(registered) -> None:
 
 
 def test_export_refuses_bad_requests(registered, tmp_path: Path) -> None:
-    op = comparison.OMNIWARP_OT_export_results
+    op = compare_ops.OMNIWARP_OT_export_results
     settings = registered
     reports = Reports()
     settings.export_path = str(tmp_path / "out.json")
@@ -370,7 +370,7 @@ def _draw(settings, source: str) -> RecordingLayout:
     settings.source = source
     layout = RecordingLayout()
     context = SimpleNamespace(scene=bpy.context.scene, region=SimpleNamespace(width=300), active_object=None)
-    comparison.OMNIWARP_PT_compare.draw(SimpleNamespace(layout=layout), context)
+    compare_ui.OMNIWARP_PT_compare.draw(SimpleNamespace(layout=layout), context)
     return layout
 
 
@@ -382,7 +382,7 @@ def test_panel_draws_every_control(registered) -> None:
         layout = _draw(settings, "PRESET")
         props = layout.of("prop")
         assert props[:3] == ["source", "preset", "camera_size"]
-        assert {comparison.method_prop(m) for m in method_registry.pipeline_methods()} <= set(props)
+        assert {compare_props.method_prop(m) for m in method_registry.pipeline_methods()} <= set(props)
         assert {"resolutions", "frames", "cull", "export_path"} <= set(props)
         assert layout.of("operator") == ["omniwarp.build_preset", "omniwarp.compare", "omniwarp.export_results"]
         assert layout.of("template_list") == ["OMNIWARP_UL_results"]
@@ -401,7 +401,7 @@ def test_results_list_draws_a_row(registered) -> None:
     item = settings.results.add()
     item.method, item.resolution, item.error_pct, item.total_ms, item.passes = "cube+notw", 1024, 0.125, 33.3, 5
     layout = RecordingLayout()
-    comparison.OMNIWARP_UL_results.draw_item(SimpleNamespace(layout_type="DEFAULT"), bpy.context, layout, settings,
+    compare_ui.OMNIWARP_UL_results.draw_item(SimpleNamespace(layout_type="DEFAULT"), bpy.context, layout, settings,
                                              item, 0, settings, "active_result", 0)
     assert layout.of("label") == ["cube+notw", "1024", "0.125 %", "33.3 ms", "5 p"]
 
@@ -413,9 +413,9 @@ def test_unfit_methods_are_dropped_after_the_reference(registered) -> None:
 
     job = SimpleNamespace(reference=SimpleNamespace(emission="sun"), preset="sun_field",
                           tasks=[("dpsm", 512), ("psm", 512), ("unfold", 1024), ("sm", 1024)])
-    note = comparison._drop_unfit_tasks(job)
+    note = compare_job._drop_unfit_tasks(job)
     assert job.tasks == [("psm", 512), ("sm", 1024)]
     assert "dpsm" in note and "unfold" in note
     job = SimpleNamespace(reference=SimpleNamespace(emission="omni"), preset="room_omni", tasks=[("psm", 512)])
     with pytest.raises(InputError, match="none of the ticked methods fits the omni light"):
-        comparison._drop_unfit_tasks(job)
+        compare_job._drop_unfit_tasks(job)

@@ -52,24 +52,27 @@ def _ui_rows(settings) -> list[dict]:
              "preset": r.preset} for r in settings.results]
 
 
-def _exec_run(bpy, comparison, out: Path, report: dict) -> None:
+def _exec_run(bpy, out: Path, report: dict) -> None:
     """The synchronous path (EXEC_DEFAULT), then both exports."""
+    from addon.blender import compare_job, compare_props
+    from addon.core import methods as method_registry
+
     scene = bpy.context.scene
     settings = scene.omniwarp_compare
     settings.source = "PRESET"
     settings.preset = "room_omni"
-    for method in comparison.method_registry.pipeline_methods():
-        setattr(settings, comparison.method_prop(method), method in METHODS)
+    for method in method_registry.pipeline_methods():
+        setattr(settings, compare_props.method_prop(method), method in METHODS)
     settings.resolutions = "512"
     settings.frames = 1
     report["exec_result"] = sorted(bpy.ops.omniwarp.compare("EXEC_DEFAULT"))
     report["ui_rows"] = _ui_rows(settings)
-    report["rows"] = comparison.rows_for_export(scene)
+    report["rows"] = compare_job.rows_for_export(scene)
     report["plot"] = _image_stats(settings.plot_image)
     report["mismatch"] = _image_stats(settings.mismatch_preview)
     report["status"] = settings.status
     report["progress"] = settings.progress
-    report["running_after"] = comparison.is_running()
+    report["running_after"] = compare_job.is_running()
     exports = {}
     for suffix in ("json", "csv"):
         settings.export_path = str(out / f"results.{suffix}")
@@ -77,27 +80,30 @@ def _exec_run(bpy, comparison, out: Path, report: dict) -> None:
     report["exports"] = exports
 
 
-def _modal_run(bpy, comparison, report: dict) -> None:
+def _modal_run(bpy, report: dict) -> None:
     """The modal path, driven by fake timer events: Esc after the first row, then a full run."""
+    from addon.blender import compare_job, compare_ops, compare_props
+    from addon.core import methods as method_registry
+
     context = bpy.context
     settings = context.scene.omniwarp_compare
-    op_cls = comparison.OMNIWARP_OT_compare
+    op_cls = compare_ops.OMNIWARP_OT_compare
     timer = SimpleNamespace(type="TIMER", value="NOTHING")
     esc = SimpleNamespace(type="ESC", value="PRESS")
     mouse = SimpleNamespace(type="MOUSEMOVE", value="NOTHING")
 
     settings.resolutions = "256,512"
-    for method in comparison.method_registry.pipeline_methods():
-        setattr(settings, comparison.method_prop(method), method == "dpsm")
+    for method in method_registry.pipeline_methods():
+        setattr(settings, compare_props.method_prop(method), method == "dpsm")
     fake = SimpleNamespace(report=Reports(), _timer=None)
-    job = comparison.start_job(context, fake.report)
-    comparison._ACTIVE = job
+    job = compare_job.start_job(context, fake.report)
+    compare_job.set_active(job)
     cancel: dict = {"poll_while_running": op_cls.poll(context)}
     cancel["ticks"] = [sorted(op_cls.modal(fake, context, timer)) for _ in range(2)]  # reference, row 1
     cancel["mouse"] = sorted(op_cls.modal(fake, context, mouse))
     cancel["esc"] = sorted(op_cls.modal(fake, context, esc))
     cancel["rows"] = len(settings.results)
-    cancel["running_after"] = comparison.is_running()
+    cancel["running_after"] = compare_job.is_running()
     cancel["backend_released"] = job.pipeline is None
     cancel["status"] = settings.status
     cancel["poll_after"] = op_cls.poll(context)
@@ -105,20 +111,23 @@ def _modal_run(bpy, comparison, report: dict) -> None:
 
     settings.resolutions = "256"
     fake = SimpleNamespace(report=Reports(), _timer=None)
-    job = comparison.start_job(context, fake.report)
-    comparison._ACTIVE = job
+    job = compare_job.start_job(context, fake.report)
+    compare_job.set_active(job)
     results = []
     for _ in range(10):
         results.append(sorted(op_cls.modal(fake, context, timer)))
         if results[-1] != ["PASS_THROUGH"]:
             break
     report["modal_full"] = {"results": results, "rows": len(settings.results), "progress": settings.progress,
-                            "running_after": comparison.is_running(), "backend_released": job.pipeline is None,
+                            "running_after": compare_job.is_running(), "backend_released": job.pipeline is None,
                             "reports": fake.report.items}
 
 
-def _current_scene_run(bpy, comparison, report: dict) -> None:
+def _current_scene_run(bpy, report: dict) -> None:
     """Build the preset into a new scene, then measure it as the current scene."""
+    from addon.blender import compare_props
+    from addon.core import methods as method_registry
+
     before = bpy.context.scene
     settings = before.omniwarp_compare
     report["build"] = sorted(bpy.ops.omniwarp.build_preset())
@@ -126,8 +135,8 @@ def _current_scene_run(bpy, comparison, report: dict) -> None:
     report["build_new_scene"] = scene != before
     current = scene.omniwarp_compare
     current.source = "CURRENT"
-    for method in comparison.method_registry.pipeline_methods():
-        setattr(current, comparison.method_prop(method), method == "dpsm")
+    for method in method_registry.pipeline_methods():
+        setattr(current, compare_props.method_prop(method), method == "dpsm")
     current.resolutions = "512"
     current.frames = 1
     report["current_copied_settings"] = tuple(current.camera_size) == tuple(settings.camera_size)
@@ -140,7 +149,7 @@ def main(out_dir: str, width: str, height: str) -> None:
     logging.basicConfig(level=logging.WARNING)
     import bpy
 
-    from addon.blender import comparison, registration
+    from addon.blender import registration
     from addon.render.blender_backend import ensure_gpu
 
     out = Path(out_dir)
@@ -148,11 +157,13 @@ def main(out_dir: str, width: str, height: str) -> None:
     registration.register()
     bpy.context.scene.omniwarp_compare.camera_size = (int(width), int(height))
     report: dict = {}
-    _exec_run(bpy, comparison, out, report)
-    _modal_run(bpy, comparison, report)
-    _current_scene_run(bpy, comparison, report)
+    _exec_run(bpy, out, report)
+    _modal_run(bpy, report)
+    _current_scene_run(bpy, report)
     registration.unregister()
-    report["state_freed"] = not comparison._ROWS and not comparison._PRESET_ITEMS and not comparison.is_running()
+    from addon.blender import compare_job, compare_props
+
+    report["state_freed"] = not compare_job._ROWS and not compare_props._PRESET_ITEMS and not compare_job.is_running()
     report["pointer_removed"] = not hasattr(bpy.types.Scene, "omniwarp_compare")
     (out / "worker.json").write_text(json.dumps(report, indent=1, default=_json_default), encoding="utf-8")
 

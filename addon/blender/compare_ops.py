@@ -1,0 +1,232 @@
+"""The comparison tool's operators.
+
+* `omniwarp.build_preset` builds the chosen preset into a new scene.
+* `omniwarp.compare` measures. Invoked from the UI it runs modally: a window-manager
+  timer fires every `TIMER_STEP_S` seconds and each tick does ONE step (first the
+  Cycles reference, then one row per tick), so the UI stays responsive between rows;
+  Esc or right-click cancels and keeps the rows measured so far. Executed directly
+  (`EXEC_DEFAULT`, background mode, tests) it runs every step synchronously.
+* `omniwarp.export_results` writes the last rows as JSON or CSV.
+"""
+from __future__ import annotations
+
+import logging
+from pathlib import Path
+
+import bpy
+
+from ..core.errors import InputError, OmniWarpError
+from ..core.presets import build_preset
+from ..rows import write_rows
+from .compare_job import (
+    _Job,
+    _failure,
+    _rows_text,
+    active_job,
+    finish_job,
+    is_running,
+    remove_timer,
+    rows_for_export,
+    set_active,
+    start_job,
+    status_line,
+    step_job,
+)
+from .compare_props import TIMER_STEP_S, OMNIWARP_PG_comparison, preset_info
+from .events import redraw_3d_views
+
+log = logging.getLogger(__name__)
+
+
+# ----------------------------------------------------------------------------
+# operators
+# ----------------------------------------------------------------------------
+def _copy_settings(source: OMNIWARP_PG_comparison, target: OMNIWARP_PG_comparison) -> None:
+    """Copy the comparison settings (not the results) to another scene."""
+    skip = {"rna_type", "name", "results", "active_result", "status", "progress", "plot_image",
+            "mismatch_preview"}
+    for prop in source.bl_rna.properties:
+        if prop.identifier in skip or prop.is_readonly:
+            continue
+        setattr(target, prop.identifier, getattr(source, prop.identifier))
+
+
+class OMNIWARP_OT_build_preset(bpy.types.Operator):
+    """Build the chosen preset into a new scene and switch the window to it; the current scene is
+    left untouched"""
+
+    bl_idname = "omniwarp.build_preset"
+    bl_label = "Build Preset Scene"
+    bl_options = {"REGISTER", "UNDO"}
+
+    @classmethod
+    def poll(cls, context: bpy.types.Context) -> bool:
+        return getattr(context.scene, "omniwarp_compare", None) is not None
+
+    def execute(self, context: bpy.types.Context) -> set[str]:
+        from ..reference.blender_scene import build_blender_scene
+
+        old = context.scene
+        settings = old.omniwarp_compare
+        name = settings.preset
+        if preset_info(name) is None:
+            self.report({"ERROR"}, f"Unknown preset {name!r}: choose one from the list")
+            return {"CANCELLED"}
+        size = (int(settings.camera_size[0]), int(settings.camera_size[1]))
+        try:
+            scene = build_blender_scene(build_preset(name, size))
+        except OmniWarpError as exc:
+            self.report({"ERROR"}, f"Cannot build preset {name!r}: {exc}")
+            return {"CANCELLED"}
+        _copy_settings(settings, scene.omniwarp_compare)
+        if context.window is not None:
+            context.window.scene = scene
+        self.report({"INFO"}, f"Built preset {name} into the new scene {scene.name!r}")
+        return {"FINISHED"}
+
+
+class OMNIWARP_OT_compare(bpy.types.Operator):
+    """Measure the ticked methods at each resolution against the Cycles reference, on Blender's
+    GPU backend (the same rows as `omniwarp compare`). Esc or right-click cancels and keeps the
+    rows measured so far"""
+
+    bl_idname = "omniwarp.compare"
+    bl_label = "Compare"
+    bl_options = {"REGISTER"}
+
+    @classmethod
+    def poll(cls, context: bpy.types.Context) -> bool:
+        if getattr(context.scene, "omniwarp_compare", None) is None:
+            return False
+        if is_running():
+            cls.poll_message_set("A comparison is running (Esc cancels it)")
+            return False
+        return True
+
+    # synchronous ---------------------------------------------------------------
+    def execute(self, context: bpy.types.Context) -> set[str]:
+        job = start_job(context, self.report)
+        if job is None:
+            return {"CANCELLED"}
+        wm = context.window_manager
+        wm.progress_begin(0, job.total_steps)
+        try:
+            while not job.finished:
+                log.info(status_line(job))
+                log.info(step_job(job))
+                wm.progress_update(job.steps_done)
+        except Exception as exc:  # noqa: BLE001 - any failure must end the run cleanly (logged, reported)
+            log.exception("OmniWarp comparison failed")
+            finish_job(job, self.report, "failed", _failure(exc))
+            return {"CANCELLED"}
+        finally:
+            wm.progress_end()
+        finish_job(job, self.report)
+        return {"FINISHED"}
+
+    # modal ---------------------------------------------------------------------
+    def invoke(self, context: bpy.types.Context, event: bpy.types.Event) -> set[str]:
+        if context.window is None:
+            return self.execute(context)
+        job = start_job(context, self.report)
+        if job is None:
+            return {"CANCELLED"}
+        set_active(job)
+        wm = context.window_manager
+        job.timer = wm.event_timer_add(TIMER_STEP_S, window=context.window)
+        wm.modal_handler_add(self)
+        wm.progress_begin(0, job.total_steps)
+        _set_status_text(context, status_line(job) + " | Esc: cancel")
+        redraw_3d_views()
+        return {"RUNNING_MODAL"}
+
+    def modal(self, context: bpy.types.Context, event: bpy.types.Event) -> set[str]:
+        job = active_job()
+        if job is None:  # freed by unregister
+            _stop_modal(None, context)
+            return {"CANCELLED"}
+        if event.type in {"ESC", "RIGHTMOUSE"} and event.value == "PRESS":
+            _stop_modal(job, context)
+            finish_job(job, self.report, "cancelled")
+            return {"CANCELLED"}
+        if event.type != "TIMER":
+            return {"PASS_THROUGH"}
+        try:
+            log.info(step_job(job))
+        except Exception as exc:  # noqa: BLE001 - any failure must end the run cleanly (logged, reported)
+            log.exception("OmniWarp comparison failed")
+            _stop_modal(job, context)
+            finish_job(job, self.report, "failed", _failure(exc))
+            return {"CANCELLED"}
+        context.window_manager.progress_update(job.steps_done)
+        if job.finished:
+            _stop_modal(job, context)
+            finish_job(job, self.report)
+            return {"FINISHED"}
+        _set_status_text(context, status_line(job) + " | Esc: cancel")
+        redraw_3d_views()
+        return {"PASS_THROUGH"}
+
+    def cancel(self, context: bpy.types.Context) -> None:
+        """Blender ends the modal (window closed, file loaded): clean up, keep the rows."""
+        job = active_job()
+        _stop_modal(job, context)
+        if job is not None:
+            finish_job(job, self.report, "cancelled")
+
+
+def _stop_modal(job: _Job | None, context: bpy.types.Context) -> None:
+    """Timer, progress and status text off; no job is active any more."""
+    set_active(None)
+    wm = context.window_manager
+    if job is not None:
+        remove_timer(job, wm)
+    wm.progress_end()
+    _set_status_text(context, None)
+
+
+def _set_status_text(context: bpy.types.Context, text: str | None) -> None:
+    workspace = getattr(context, "workspace", None)
+    if workspace is not None:
+        workspace.status_text_set(text)
+
+
+class OMNIWARP_OT_export_results(bpy.types.Operator):
+    """Write the last comparison's rows to the export path: .json (the full rows, as results.json of
+    the command line) or .csv (one line per row, times as time_ms.* columns)"""
+
+    bl_idname = "omniwarp.export_results"
+    bl_label = "Export Results"
+    bl_options = {"REGISTER"}
+
+    @classmethod
+    def poll(cls, context: bpy.types.Context) -> bool:
+        return getattr(context.scene, "omniwarp_compare", None) is not None
+
+    def execute(self, context: bpy.types.Context) -> set[str]:
+        settings = context.scene.omniwarp_compare
+        rows = rows_for_export(context.scene)
+        if not rows:
+            self.report({"ERROR"}, "Nothing to export: run Compare first")
+            return {"CANCELLED"}
+        raw = settings.export_path.strip()
+        if not raw:
+            self.report({"ERROR"}, "Set an export path ending with .json or .csv")
+            return {"CANCELLED"}
+        if raw.startswith("//") and not bpy.data.filepath:
+            self.report({"ERROR"}, f"{raw!r} is relative to the .blend file, which is not saved yet: "
+                                   "save it or choose an absolute path")
+            return {"CANCELLED"}
+        path = Path(bpy.path.abspath(raw))
+        existed = path.exists()
+        try:
+            path.parent.mkdir(parents=True, exist_ok=True)
+            write_rows(rows, path)
+        except InputError as exc:
+            self.report({"ERROR"}, str(exc))
+            return {"CANCELLED"}
+        except OSError as exc:
+            self.report({"ERROR"}, f"Cannot write {path}: {exc}")
+            return {"CANCELLED"}
+        self.report({"INFO"}, f"Wrote {_rows_text(len(rows))} to {path}" + (" (replaced the old file)" if existed else ""))
+        return {"FINISHED"}
