@@ -105,7 +105,8 @@ _ENTRIES: tuple[Method, ...] = (
 )
 METHODS: dict[str, Method] = {entry.name: entry for entry in _ENTRIES}
 
-DEFAULT_METHODS: tuple[str, ...] = ("dpsm", "cube")  # compare --methods
+# compare --methods: the plain maps and what warping does to them, side by side.
+DEFAULT_METHODS: tuple[str, ...] = ("dpsm", "cube", "dpsm+notw", "cube+notw")
 _DEFAULT_PREVIEW = {"point": "dpsm+notw", "projective": "psm"}  # preview, for lights without settings
 
 
