@@ -45,6 +45,7 @@ from .core.presets import DEFAULT_PRESET, available_presets, build_preset, selec
 from .core.scene import parse_size
 # capture.py imports bpy only inside functions: this import needs no Blender.
 from .reference.capture import DEFAULT_SAMPLES
+from .rows import row_label
 
 log = logging.getLogger("omniwarp")
 
@@ -247,8 +248,9 @@ def cmd_compare(args: argparse.Namespace) -> int:
                              command="omniwarp " + " ".join(args.argv))
     rows = run_compare(references, options, lambda: ShadowPipeline(ModernGLBackend()), sources)
     for row in rows:
-        _result(args, f"{row['preset']:12s} {row['method']:6s} {row['resolution']:5d}  "
-                      f"error {row['error_pct']:6.3f} %  total {row['time_ms']['total']:8.1f} ms  passes {row['passes']}")
+        passes = f"  passes {row['passes']}" if "passes" in row else ""
+        _result(args, f"{row['preset']:12s} {row_label(row):6s} {row.get('resolution', ''):>5}  "
+                      f"error {row['error_pct']:6.3f} %  total {row['time_ms']['total']:8.1f} ms{passes}")
     return 0
 
 

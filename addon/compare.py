@@ -36,6 +36,7 @@ from .render.pipeline import (
     settings_for,
 )
 from .render.resident import ResidentScene
+from .rows import Row, make_row, row_key
 
 log = logging.getLogger(__name__)
 
@@ -124,7 +125,7 @@ def resident_scene(ref: ReferenceData) -> ResidentScene:
 
 
 def run_row(pipeline: ShadowPipeline, ref: ReferenceData, preset: str, method: str, resolution: int,
-            options: CompareOptions, image_dir: Path | None, scene: ResidentScene | None = None) -> dict:
+            options: CompareOptions, image_dir: Path | None, scene: ResidentScene | None = None) -> Row:
     """Measure one (preset, method, resolution) row; `scene` is `resident_scene(ref)`, made here when not given."""
     light = light_from_reference(ref)
     samples = samples_from_reference(ref)
@@ -140,37 +141,27 @@ def run_row(pipeline: ShadowPipeline, ref: ReferenceData, preset: str, method: s
     est_lit = last.visibility > 0.5
     figure = metrics.error_figure(est_lit, ref_lit, evaluable)
     times = _median_times([f.time_ms for f in frames])
-    row = {
-        "preset": preset,
-        "method": method,
-        "emission": light.emission,
-        "resolution": resolution,
-        "error_pct": figure.error_pct,
-        "false_shadow_pct": figure.false_shadow_pct,
-        "false_lit_pct": figure.false_lit_pct,
+    row = make_row(
+        preset, method, light.emission, figure, times, pipeline.backend.renderer(), pipeline.backend.name,
+        len(frames), ref.resolution,
+        resolution=resolution,
         # Mean |visibility - reference| in %: equal to error_pct for binary methods; the
         # antialiased rows' fractional visibility shows here.
-        "soft_error_pct": metrics.soft_error_pct(last.visibility, ref_lit, evaluable),
-        "evaluated_pixels": figure.evaluated_pixels,
-        "time_ms": times,
-        "passes": last.passes,
-        "triangles_drawn": last.geometry.triangles_drawn,
-        "scene_triangles": scene.triangles,  # resident, after dropping non-finite and zero-area ones
-        "texels": last.texels,
-        "renderer": pipeline.backend.renderer(),
-        "backend": pipeline.backend.name,
-        "max_count_before": counts.max_count_before,
-        "max_count_after": counts.max_count_after,
-        "texel_utilization": counts.texel_utilization,
-        "tessellated_triangles": last.geometry.tessellated_triangles,
-        "skipped_triangles": last.geometry.skipped_triangles,
-        "nonfinite_texels": nonfinite_texels(last, counts),
-        "layers": [layer.name for layer in last.plan.drawn],
-        "warp": _warp_summary(last),
-        "cull": options.cull,
-        "frames": len(frames),
-        "camera_size": list(ref.resolution),
-    }
+        soft_error_pct=metrics.soft_error_pct(last.visibility, ref_lit, evaluable),
+        passes=last.passes,
+        triangles_drawn=last.geometry.triangles_drawn,
+        scene_triangles=scene.triangles,  # resident, after dropping non-finite and zero-area ones
+        texels=last.texels,
+        max_count_before=counts.max_count_before,
+        max_count_after=counts.max_count_after,
+        texel_utilization=counts.texel_utilization,
+        tessellated_triangles=last.geometry.tessellated_triangles,
+        skipped_triangles=last.geometry.skipped_triangles,
+        nonfinite_texels=nonfinite_texels(last, counts),
+        layers=[layer.name for layer in last.plan.drawn],
+        warp=_warp_summary(last),
+        cull=options.cull,
+    )
     if image_dir is not None:
         image_dir.mkdir(parents=True, exist_ok=True)
         stem = f"{preset}_{method}_{resolution}{'' if options.cull else '_nocull'}"
@@ -258,26 +249,21 @@ def _cull_variants(options: CompareOptions) -> list[CompareOptions]:
 
 
 def _eevee_rows(source: list[str], ref: ReferenceData, preset: str, out: Path, image_dir: Path | None,
-                options: CompareOptions) -> list[dict]:
+                options: CompareOptions) -> list[Row]:
     import tempfile
 
     from .reference.eevee import eevee_rows
 
     with tempfile.TemporaryDirectory(prefix="omniwarp_eevee_") as tmp:
-        rows = eevee_rows(source, ref, preset, Path(tmp), image_dir, frames=max(1, options.frames))
-    for row in rows:
-        row.setdefault("cull", options.cull)
-        row.setdefault("frames", max(1, options.frames))
-        row.setdefault("camera_size", list(ref.resolution))
-    return rows
+        return eevee_rows(source, ref, preset, Path(tmp), image_dir, frames=max(1, options.frames))
 
 
-def check_rows(rows: Sequence[dict]) -> None:
+def check_rows(rows: Sequence[Row]) -> None:
     """Every number finite; raise if not (a NaN must never reach results.json silently)."""
     for row in rows:
         values = [v for k, v in row.items() if isinstance(v, float)] + list(row["time_ms"].values())
         if not all(math.isfinite(v) for v in values):
-            raise ValueError(f"non-finite value in row {row['preset']}/{row['method']}/{row['resolution']}")
+            raise ValueError(f"non-finite value in row {'/'.join(str(part) for part in row_key(row))}")
 
 
 def check_methods_fit(methods: Sequence[str], emissions: dict[str, str]) -> None:

@@ -5,6 +5,8 @@ import logging
 from collections.abc import Sequence
 from pathlib import Path
 
+from .rows import Row, row_label
+
 log = logging.getLogger(__name__)
 
 
@@ -18,22 +20,27 @@ def _pareto(points: list[tuple[float, float]]) -> list[tuple[float, float]]:
     return front
 
 
-def markdown_table(rows: Sequence[dict]) -> str:
-    """One line per row: the fields a reader compares."""
+def _cell(value: object, spec: str = "") -> str:
+    """A table cell: blank where the row has no such column (rows.Row)."""
+    return "" if value is None else format(value, spec)
+
+
+def markdown_table(rows: Sequence[Row]) -> str:
+    """One line per row: the fields a reader compares; `res` is the map's side only."""
     head = ("| preset | method | res | error % | false shadow % | false lit % | soft error % | evaluated px | total ms | "
             "prepare ms | analysis ms | maps ms | test ms | passes | triangles | tess. added | texels | "
             "max count before | max count after | texel use |")
     lines = [head, "|" + "|".join(["---"] * (head.count("|") - 1)) + "|"]
     for r in rows:
         t = r["time_ms"]
-        lines.append(
-            f"| {r['preset']} | {r['method']}{'' if r.get('cull', True) else ' (no cull)'} | {r['resolution']} "
-            f"| {r['error_pct']:.3f} | {r['false_shadow_pct']:.3f} | {r['false_lit_pct']:.3f} "
-            f"| {r.get('soft_error_pct', r['error_pct']):.3f} | {r['evaluated_pixels']} | {t['total']:.1f} | {t.get('prepare', 0.0):.1f} | {t['analysis']:.1f} "
-            f"| {t['shadow_maps']:.1f} | {t['shadow_test']:.1f} | {r['passes']} | {r['triangles_drawn']} "
-            f"| {r.get('tessellated_triangles', 0)} | {r['texels']} | {r.get('max_count_before', 0):.0f} "
-            f"| {r.get('max_count_after', 0):.0f} | {r.get('texel_utilization', 0.0):.3f} |"
-        )
+        cells = [r["preset"], row_label(r), _cell(r.get("resolution")), f"{r['error_pct']:.3f}",
+                 f"{r['false_shadow_pct']:.3f}", f"{r['false_lit_pct']:.3f}",
+                 f"{r.get('soft_error_pct', r['error_pct']):.3f}", str(r["evaluated_pixels"]), f"{t['total']:.1f}",
+                 *(_cell(t.get(stage), ".1f") for stage in ("prepare", "analysis", "shadow_maps", "shadow_test")),
+                 _cell(r.get("passes")), _cell(r.get("triangles_drawn")), _cell(r.get("tessellated_triangles")),
+                 _cell(r.get("texels")), _cell(r.get("max_count_before"), ".0f"),
+                 _cell(r.get("max_count_after"), ".0f"), _cell(r.get("texel_utilization"), ".3f")]
+        lines.append("| " + " | ".join(cells) + " |")
     return "\n".join(lines) + "\n"
 
 
@@ -87,15 +94,14 @@ def write_plot(rows: Sequence[dict], path: Path) -> bool:
 
     fig, ax = plt.subplots(figsize=(11, 6.5), dpi=110)
     presets = sorted({r["preset"] for r in rows})
-    methods = sorted({r["method"] + ("" if r.get("cull", True) else " (no cull)") for r in rows})
+    methods = sorted({row_label(r) for r in rows})
     markers = "osD^v<>ph*XP8dH"
     colours = plt.rcParams["axes.prop_cycle"].by_key()["color"]
     for pi, preset in enumerate(presets):
         colour = colours[pi % len(colours)]
         pts = []
         for mi, method in enumerate(methods):
-            sel = [r for r in rows if r["preset"] == preset
-                   and r["method"] + ("" if r.get("cull", True) else " (no cull)") == method]
+            sel = [r for r in rows if r["preset"] == preset and row_label(r) == method]
             if not sel:
                 continue
             xs = [r["time_ms"]["total"] for r in sel]
@@ -104,7 +110,8 @@ def write_plot(rows: Sequence[dict], path: Path) -> bool:
             ax.scatter(xs, ys, color=colour, marker=markers[mi % len(markers)], s=40,
                        label=f"{preset} / {method}")
             for r, x, y in zip(sel, xs, ys):
-                ax.annotate(str(r["resolution"]), (x, y), textcoords="offset points", xytext=(4, 3), fontsize=7)
+                ax.annotate(str(r.get("resolution", "")), (x, y), textcoords="offset points", xytext=(4, 3),
+                            fontsize=7)
         front = _pareto(pts)
         if len(front) > 1:
             ax.plot(*zip(*front), color=colour, linewidth=1, alpha=0.6)

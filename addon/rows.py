@@ -1,12 +1,97 @@
-"""Results rows outside Blender: written as JSON (the command line's results.json) or CSV."""
+"""The results row: one measured (scene, method, map resolution) of `compare`, the
+sidebar panel and the EEVEE anchor; written as JSON (results.json) or CSV.
+
+`Row` names the columns; `make_row` is the one place a row is built. Columns that do
+not apply to a method are absent, never a placeholder: an EEVEE row has no map
+`resolution`, `passes`, `texels` or pipeline stage times, and says which of its
+settings it is (`eevee_setting`) and its finest shadow texel (`shadow_maximum_resolution`).
+"""
 from __future__ import annotations
 
 import csv
 import json
 from pathlib import Path
-from typing import Any
+from typing import Any, TypedDict
 
 from .core.errors import InputError
+
+
+class Row(TypedDict, total=False):
+    """A results row. Every row has the first group; the rest as the method has them."""
+
+    # every row
+    preset: str
+    method: str
+    emission: str
+    error_pct: float
+    false_shadow_pct: float
+    false_lit_pct: float
+    evaluated_pixels: int
+    time_ms: dict[str, float]  # medians per stage; "total" always
+    renderer: str
+    backend: str
+    frames: int
+    camera_size: list[int]
+    # the shadow-map methods
+    resolution: int  # side of each map, texels
+    passes: int
+    soft_error_pct: float
+    triangles_drawn: int
+    scene_triangles: int
+    texels: int
+    max_count_before: float
+    max_count_after: float
+    texel_utilization: float
+    tessellated_triangles: int
+    skipped_triangles: int
+    nonfinite_texels: int
+    layers: list[str]
+    warp: dict
+    cull: bool
+    # EEVEE
+    eevee_setting: str
+    shadow_maximum_resolution: float
+    unshadowed_ms: float
+    hit_agreement_pct: float
+    render_settings: dict
+    note: str
+    # images and scene notes, when written
+    mismatch_image: str
+    map_images: list[str]
+    scene_notes: list[str]
+
+
+def make_row(preset: str, method: str, emission: str | None, figure: Any, time_ms: dict[str, float],
+             renderer: str | None, backend: str | None, frames: int | None,
+             camera_size: tuple[int, int] | list[int] | None, **columns: Any) -> Row:
+    """A row from its common columns, the error figure (metrics.error_figure) and the
+    method's own `columns`. A column given as None is left out: only a row rebuilt from a
+    stored copy (the panel's, after reopening a file) lacks common ones."""
+    row: dict[str, Any] = {
+        "preset": preset, "method": method, "emission": emission,
+        "error_pct": figure.error_pct, "false_shadow_pct": figure.false_shadow_pct,
+        "false_lit_pct": figure.false_lit_pct, "evaluated_pixels": figure.evaluated_pixels,
+        "time_ms": dict(time_ms), "renderer": renderer, "backend": backend,
+        "frames": None if frames is None else int(frames),
+        "camera_size": None if camera_size is None else [int(v) for v in camera_size],
+    }
+    unknown = set(columns) - set(Row.__annotations__)
+    if unknown:
+        raise KeyError(f"not a results column: {', '.join(sorted(unknown))}")
+    row.update(columns)
+    return {key: value for key, value in row.items() if value is not None}  # type: ignore[return-value]
+
+
+def row_label(row: Row) -> str:
+    """The row's method as tables show it: EEVEE's setting, or the method and ' (no cull)'."""
+    if "eevee_setting" in row:
+        return f"{row['method']} ({row['eevee_setting']})"
+    return row["method"] + ("" if row.get("cull", True) else " (no cull)")
+
+
+def row_key(row: Row) -> tuple:
+    """What tells two rows of one run apart: scene, method as labelled, map resolution."""
+    return row["preset"], row_label(row), row.get("resolution")
 
 
 def flatten_row(row: dict) -> dict:

@@ -24,7 +24,9 @@ class TableError(Exception):
 def _rows(path: Path) -> dict[tuple, dict]:
     try:
         rows = json.loads(path.read_text())
-        return {(r["preset"], r["method"], r["resolution"], r.get("cull", True)): r for r in rows}
+        # An EEVEE row has no map resolution; its setting tells its rows apart.
+        return {(r["preset"], r["method"] + (f" ({r['eevee_setting']})" if "eevee_setting" in r else ""),
+                 r.get("resolution", ""), r.get("cull", True)): r for r in rows}
     except (OSError, ValueError, KeyError, TypeError) as exc:
         raise TableError(f"{path}: not a compare results.json ({exc.__class__.__name__}: {exc})") from None
 
@@ -72,9 +74,14 @@ def _times(before: dict, after: dict, shared: list) -> None:
     for key in shared:
         old, new = before[key], after[key]
         t0, t1 = old["time_ms"], new["time_ms"]
-        print(f"| {key[0]} | {key[1]} | {key[2]} | {t0['total']:.0f} | {t1['total']:.0f} | {t0['prepare']:.1f} "
-              f"| {t1['prepare']:.1f} | {t0['shadow_maps']:.0f} | {t1['shadow_maps']:.0f} | {old['error_pct']:.3f} "
-              f"| {new['error_pct']:.3f} |")
+        print(f"| {key[0]} | {key[1]} | {key[2]} | {t0['total']:.0f} | {t1['total']:.0f} | {_ms(t0, 'prepare', '.1f')} "
+              f"| {_ms(t1, 'prepare', '.1f')} | {_ms(t0, 'shadow_maps', '.0f')} | {_ms(t1, 'shadow_maps', '.0f')} "
+              f"| {old['error_pct']:.3f} | {new['error_pct']:.3f} |")
+
+
+def _ms(times: dict, stage: str, spec: str) -> str:
+    """A stage's time, blank where the row has no such stage (an EEVEE row)."""
+    return format(times[stage], spec) if stage in times else ""
 
 
 if __name__ == "__main__":

@@ -16,6 +16,7 @@ import tempfile
 import time
 from dataclasses import dataclass, field
 from pathlib import Path
+from types import SimpleNamespace
 from typing import Any
 
 import bpy
@@ -23,6 +24,7 @@ import bpy
 from .. import compare, report
 from ..core import methods as method_registry
 from ..core.errors import InputError, OmniWarpError
+from ..rows import Row, make_row
 from .compare_props import (
     PLOT_FILE,
     PLOT_IMAGE_NAME,
@@ -228,7 +230,8 @@ def _load_reference(job: _Job) -> None:
     """Step 0: the Cycles reference (cached for presets) and the Blender-gpu pipeline."""
     from ..reference.cache import load_or_capture
     from ..reference.capture import capture
-    from ..render.blender_backend import BlenderGPUBackend, ensure_gpu
+    from ..render.blender_backend import BlenderGPUBackend
+    from ..render.blender_gpu import ensure_gpu
     from ..render.pipeline import ShadowPipeline
 
     if job.source == "PRESET":
@@ -383,18 +386,22 @@ def _failure(exc: BaseException) -> str:
     return str(exc) if isinstance(exc, OmniWarpError) else f"{type(exc).__name__}: {exc}"
 
 
-def rows_for_export(scene: bpy.types.Scene) -> list[dict]:
+def rows_for_export(scene: bpy.types.Scene) -> list[Row]:
     """The full rows of the scene's last run; rebuilt from the stored rows when this
-    session has none (e.g. after reopening the .blend file)."""
+    session has none (e.g. after reopening the .blend file): the columns the panel keeps."""
     settings = scene.omniwarp_compare
     rows = _ROWS.get(scene.session_uid, [])
     if len(rows) == len(settings.results):
         return list(rows)
-    return [{
-        "preset": item.preset, "method": item.method, "resolution": item.resolution,
-        "error_pct": item.error_pct, "false_shadow_pct": item.false_shadow_pct,
-        "false_lit_pct": item.false_lit_pct,
-        "time_ms": {"total": item.total_ms, "analysis": item.analysis_ms, "shadow_maps": item.maps_ms,
-                    "shadow_test": item.test_ms},
-        "passes": item.passes, "mismatch_image": item.mismatch_image,
-    } for item in settings.results]
+    return [stored_row(item) for item in settings.results]
+
+
+def stored_row(item: Any) -> Row:
+    """A row from the panel's stored copy (`OMNIWARP_PG_result_row`): what was not stored
+    in the .blend (light, renderer, frames, camera size, evaluated pixels) is absent."""
+    figure = SimpleNamespace(error_pct=item.error_pct, false_shadow_pct=item.false_shadow_pct,
+                             false_lit_pct=item.false_lit_pct, evaluated_pixels=None)
+    return make_row(item.preset, item.method, None, figure,
+                    {"total": item.total_ms, "analysis": item.analysis_ms, "shadow_maps": item.maps_ms,
+                     "shadow_test": item.test_ms}, None, None, None, None,
+                    resolution=item.resolution, passes=item.passes, mismatch_image=item.mismatch_image or None)

@@ -34,7 +34,7 @@ def _offscreen_draw(size: tuple[int, int], draw) -> np.ndarray:
     """Run `draw()` into a float offscreen target; return (H, W, 4) RGBA, row 0 at the bottom."""
     import gpu
 
-    from ..render.blender_backend import float_texture, framebuffer, read_texture
+    from ..render.blender_gpu import float_texture, framebuffer, read_texture
 
     width, height = size
     color = float_texture((width, height), "RGBA32F")
@@ -100,7 +100,8 @@ def run(reference: ReferenceData, lights: list[tuple[str, LightSpec, ShadowSetti
     `triangles` are what the camera sees (the G-buffer); `occluders` gives, per light
     name, what blocks that light (`scene_cache.shadow_inputs`), else `triangles` do.
     """
-    from ..render.blender_backend import BlenderGPUBackend, ensure_gpu
+    from ..render.blender_backend import BlenderGPUBackend
+    from ..render.blender_gpu import ensure_gpu
     from ..render.blender_draw import draw_overlay, draw_shadow_composite, render_gbuffer, visibility_texture
 
     ensure_gpu()

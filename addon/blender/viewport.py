@@ -102,12 +102,10 @@ def free_resources() -> None:
 
 
 def live_resources() -> int:
-    """GPU objects the preview holds now: the backend's plus the textures of cached results."""
-    count = _STATE.backend.live_resources() if _STATE.backend is not None else 0
-    for result in _STATE.results.values():
-        count += len(result.visibility) + sum(p.texture is not None for p in result.panels)
-        count += len(result.gbuffer.textures) if result.gbuffer is not None else 0
-    return count
+    """Distinct GPU objects the preview holds now: the backend's and the cached results'."""
+    from ..render.blender_gpu import count_gpu_objects
+
+    return count_gpu_objects(_STATE.backend, _STATE.results)
 
 
 def set_preview_enabled(context: bpy.types.Context, enabled: bool) -> None:

@@ -62,6 +62,7 @@ from ..core.errors import (
     report_error,
 )
 from ..core.scene import CameraSpec, LightSpec, MeshSpec, SceneSpec, parse_size
+from ..rows import make_row
 from .data import ReferenceData
 
 if TYPE_CHECKING:  # pragma: no cover - typing only
@@ -632,31 +633,20 @@ def eevee_rows(source_args: list[str], reference: ReferenceData, preset_label: s
         est_lit = data["visibility"].astype(bool)
         figure = metrics.error_figure(est_lit, ref_lit, evaluable)
         cap = _finite(entry["shadow_maximum_resolution"], "shadow_maximum_resolution")
-        row: dict[str, Any] = {
-            "preset": preset_label,
-            "method": "eevee",
-            "emission": reference.emission,
-            "resolution": int(round(1.0 / cap)),  # texels per metre, the finest EEVEE may go
-            "error_pct": figure.error_pct,
-            "false_shadow_pct": figure.false_shadow_pct,
-            "false_lit_pct": figure.false_lit_pct,
-            "evaluated_pixels": figure.evaluated_pixels,
-            "time_ms": {"total": _finite(entry["render_ms"], "render time"), "analysis": 0.0, "shadow_maps": 0.0,
-                        "shadow_test": 0.0, "prepare": 0.0, "warmup": warmup_ms},
-            "passes": TILEMAPS[reference.emission],
-            "triangles_drawn": int(len(reference.triangles)),
-            "texels": 0,
-            "renderer": str(summary["renderer"]),
-            "backend": "eevee",
-            "eevee_setting": name,
-            "shadow_maximum_resolution": cap,
-            "unshadowed_ms": _finite(summary["unshadowed_ms"], "unshadowed render time"),
-            "hit_agreement_pct": hit_agreement,
-            "render_settings": summary["render_settings"],
-            "frames": int(summary["frames"]),
-            "camera_size": [int(width), int(height)],
-            "note": ROW_NOTE,
-        }
+        # No map resolution, passes, texels or pipeline stages: EEVEE's virtual shadow maps
+        # have none of them (rows.Row); the setting and its finest texel say what was run.
+        row = make_row(
+            preset_label, "eevee", reference.emission, figure,
+            {"total": _finite(entry["render_ms"], "render time"), "warmup": warmup_ms},
+            str(summary["renderer"]), "eevee", int(summary["frames"]), (width, height),
+            scene_triangles=int(len(reference.triangles)),
+            eevee_setting=name,
+            shadow_maximum_resolution=cap,
+            unshadowed_ms=_finite(summary["unshadowed_ms"], "unshadowed render time"),
+            hit_agreement_pct=hit_agreement,
+            render_settings=summary["render_settings"],
+            note=ROW_NOTE,
+        )
         if image_dir is not None:
             image_dir.mkdir(parents=True, exist_ok=True)
             stem = f"{preset_label}_eevee_{name}"

@@ -63,6 +63,10 @@ class AtlasLayout:
 
 
 UniformValues = dict[str, object]
+Rect = tuple[int, int, int, int]  # (x, y, width, height) in atlas or target pixels
+
+# The one triangle that covers a target (fullscreen.vert): every screen pass draws it.
+FULLSCREEN_CORNERS: tuple[tuple[float, float], ...] = ((-1.0, -1.0), (3.0, -1.0), (-1.0, 3.0))
 
 
 @dataclass(frozen=True)
@@ -115,6 +119,37 @@ class ShadowBackend(ABC):
     def resident_objects(self) -> int:
         """Objects whose vertex textures this backend holds."""
         return len(self._resident_revisions())
+
+    @staticmethod
+    def _layer_viewport(layout: AtlasLayout | None, tile: int, span: int = 1) -> Rect:
+        """The atlas viewport of `span` tiles from `tile`; a BackendError before begin_atlas
+        or for tiles that do not lie side by side."""
+        if layout is None:
+            raise BackendError("draw_layer called before begin_atlas")
+        try:
+            return layout.span_viewport(tile, span)
+        except ValueError as exc:
+            raise BackendError(str(exc)) from None
+
+    @staticmethod
+    def _clear_rects(layout: AtlasLayout, boxes: dict[int, tuple[int, int, int, int]] | None) -> list[Rect] | None:
+        """What `begin_atlas` clears: None for the whole atlas, else each tile's readable box
+        (the whole tile where it has none), empty boxes left out."""
+        if not boxes:
+            return None
+        rects = []
+        for tile in range(layout.tiles):
+            box = boxes.get(tile)
+            rect = layout.scissor_rect(tile, box) if box is not None else layout.span_viewport(tile, 1)
+            if rect[2] > 0 and rect[3] > 0:
+                rects.append(rect)
+        return rects
+
+    @staticmethod
+    def _edge_uniforms(edge_pass: int, radius: int, eps: float, resolution: int) -> UniformValues:
+        """EDGE_PROGRAM's uniforms for one of its two passes."""
+        return {"ow_edge_pass": edge_pass, "ow_edge_radius": int(radius), "ow_edge_eps": float(eps),
+                "ow_edge_tile_size": float(resolution)}
 
     @abstractmethod
     def _resident_revisions(self) -> dict[str, int]:

@@ -2,8 +2,8 @@
 `GPUShaderCreateInfo`.
 
 `gpu` is imported lazily, so this module imports without Blender (the layering
-test checks that). In background mode call `ensure_gpu()` first: Blender 5.2 has
-`gpu.init()`; older versions need one tiny Workbench render (DESIGN.md section 3).
+test checks that). In background mode call `blender_gpu.ensure_gpu()` first. The
+module-level helpers (textures, create-infos, read-backs) are in blender_gpu.py.
 
 One GL owner per process: never mix this backend with moderngl in one process.
 """
@@ -17,6 +17,7 @@ import numpy as np
 from ..core.errors import BackendError
 from ..core.samples import STAT_SPAN, STAT_TEXELS
 from .backend import (
+    FULLSCREEN_CORNERS,
     AtlasLayout,
     FootprintDraw,
     ShadowBackend,
@@ -24,6 +25,17 @@ from .backend import (
     corner_capacity,
     corner_indices,
     pack_warp_table,
+)
+from .blender_gpu import (
+    _VECTOR_SIZES,
+    CREATED,
+    _backend_type,
+    _float_texture,
+    _framebuffer,
+    _read,
+    compute_create_info,
+    count_gpu_objects,
+    create_info,
 )
 from .shaders import (
     DEPTH_PROGRAM,
@@ -37,154 +49,11 @@ from .shaders import (
     SHADOW_TEST_PROGRAM,
     ComputeInterface,
     ProgramInterface,
-    load_source,
-    program_defines,
     program_variant,
     scatter_variant,
 )
 
 log = logging.getLogger(__name__)
-
-# GPU objects (textures, framebuffers, shaders) created by this module: Blender's gpu
-# types take no weak references, so ownership is explicit instead. Every backend keeps
-# its objects in its own caches, `live_resources()` counts them, and `release()` drops
-# them; the tests compare these counts across register cycles and redraws.
-CREATED = {"texture": 0, "framebuffer": 0, "shader": 0}
-
-_FULLSCREEN = [(-1.0, -1.0), (3.0, -1.0), (-1.0, 3.0)]
-_GLSL_TYPES = {
-    "float": "FLOAT", "vec2": "VEC2", "vec3": "VEC3", "vec4": "VEC4", "mat3": "MAT3", "mat4": "MAT4",
-    "int": "INT", "ivec2": "IVEC2", "ivec3": "IVEC3", "ivec4": "IVEC4", "bool": "BOOL",
-}
-_VECTOR_SIZES = {"float": 1, "vec2": 2, "vec3": 3, "vec4": 4, "mat3": 9, "mat4": 16}
-
-
-def ensure_gpu() -> None:
-    """Make the `gpu` module usable for drawing (needed in background mode)."""
-    import bpy
-    import gpu
-
-    if not bpy.app.background:
-        return
-    init = getattr(gpu, "init", None)
-    if init is not None:
-        init()  # Blender 5.2+: creates the GPU context for background mode; idempotent
-        return
-    # Older versions: one tiny Workbench render creates the context as a side effect.
-    scene = bpy.data.scenes.new("omniwarp_gpu_init")
-    try:
-        scene.render.engine = "BLENDER_WORKBENCH"
-        scene.render.resolution_x = scene.render.resolution_y = 4
-        camera = bpy.data.objects.new("omniwarp_gpu_init_cam", bpy.data.cameras.new("omniwarp_gpu_init_cam"))
-        scene.collection.objects.link(camera)
-        scene.camera = camera
-        bpy.ops.render.render(scene=scene.name)
-    finally:
-        data = scene.camera.data if scene.camera else None
-        if scene.camera:
-            bpy.data.objects.remove(scene.camera)
-        if data:
-            bpy.data.cameras.remove(data)
-        bpy.data.scenes.remove(scene)
-
-
-def create_info(iface: ProgramInterface) -> Any:
-    """A `GPUShaderCreateInfo` declaring everything `iface` names, with the shared GLSL."""
-    import gpu
-
-    info = gpu.types.GPUShaderCreateInfo()
-    for uniform in iface.uniforms:
-        info.push_constant(_GLSL_TYPES[uniform.glsl_type], uniform.name, uniform.array)
-    for slot, sampler in enumerate(iface.samplers):
-        info.sampler(slot, "FLOAT_2D", sampler)
-    for slot, (glsl_type, name) in enumerate(iface.vertex_in):
-        info.vertex_in(slot, _GLSL_TYPES[glsl_type], name)
-    if iface.varyings:
-        stage = gpu.types.GPUStageInterfaceInfo(f"{iface.name}_iface")
-        for var in iface.varyings:
-            (stage.flat if var.flat else stage.smooth)(_GLSL_TYPES[var.glsl_type], var.name)
-        info.vertex_out(stage)
-    for slot, (glsl_type, name) in enumerate(iface.fragment_out):
-        info.fragment_out(slot, _GLSL_TYPES[glsl_type], name)
-    if iface.writes_depth and hasattr(info, "depth_write"):
-        # Declared where the API has it (newer Blender); OpenGL honours gl_FragDepth either way.
-        info.depth_write("ANY")
-    for key, value in program_defines(iface).items():
-        info.define(key, value)
-    info.vertex_source(load_source(iface.vertex_file))
-    info.fragment_source(load_source(iface.fragment_file))
-    return info
-
-
-def float_texture(size: tuple[int, int], fmt: str, data: np.ndarray | None = None):
-    """A float `GPUTexture` (R32F, RG32F or RGBA32F), optionally filled from numpy (row 0 at the bottom)."""
-    return _float_texture(size, fmt, data)
-
-
-def read_texture(texture, fmt: str) -> np.ndarray:
-    """Texture contents as numpy, row 0 at the bottom."""
-    return _read(texture, fmt)
-
-
-def compute_create_info(iface: ComputeInterface) -> Any:
-    """A `GPUShaderCreateInfo` for a compute program: push constants, samplers, R32UI images."""
-    import gpu
-
-    info = gpu.types.GPUShaderCreateInfo()
-    info.local_group_size(iface.local_size, 1, 1)
-    for uniform in iface.uniforms:
-        info.push_constant(_GLSL_TYPES[uniform.glsl_type], uniform.name, uniform.array)
-    for slot, sampler in enumerate(iface.samplers):
-        info.sampler(slot, "FLOAT_2D", sampler)
-    for unit, (fmt, name) in enumerate(iface.images):
-        info.image(unit, fmt.upper(), "UINT_2D", name, qualifiers={"READ", "WRITE"})
-    for key, value in program_defines(iface).items():
-        info.define(key, value)
-    info.compute_source(load_source(iface.compute_file))
-    return info
-
-
-def _float_texture(size: tuple[int, int], fmt: str, data: np.ndarray | None = None):
-    import gpu
-
-    buffer = None
-    if data is not None:
-        flat = np.ascontiguousarray(data, dtype=np.float32).ravel()
-        buffer = gpu.types.Buffer("FLOAT", flat.size, flat)
-    CREATED["texture"] += 1
-    return gpu.types.GPUTexture(size, format=fmt, data=buffer)
-
-
-def _framebuffer(**slots):
-    import gpu
-
-    CREATED["framebuffer"] += 1
-    return gpu.types.GPUFrameBuffer(**slots)
-
-
-def framebuffer(**slots):
-    """A `GPUFrameBuffer` (counted in CREATED)."""
-    return _framebuffer(**slots)
-
-
-def _backend_type() -> str:
-    import gpu
-
-    getter = getattr(gpu.platform, "backend_type_get", None)
-    return getter() if getter is not None else "OPENGL"
-
-
-def _components(fmt: str) -> int:
-    return {"R32F": 1, "RG32F": 2, "RGBA32F": 4}[fmt]
-
-
-def _read(texture, fmt: str) -> np.ndarray:
-    """Texture contents as (height, width[, channels]) float32, row 0 at the bottom."""
-    raw = np.asarray(texture.read(), dtype=np.float32)
-    channels = _components(fmt)
-    shape = (texture.height, texture.width) + ((channels,) if channels > 1 else ())
-    return raw.reshape(shape).copy()
-
 
 class BlenderGPUBackend(ShadowBackend):
     """Shadow backend on Blender's `gpu` module (viewport, background, headless)."""
@@ -205,6 +74,7 @@ class BlenderGPUBackend(ShadowBackend):
         self._count_targets: dict[int, Any] = {}  # count-map size -> R32UI strip of its tiles
         self._stats_target = None  # R32UI row of the planning statistics (reduce_samples)
         self._gbuffer_target = None  # (size, texture, framebuffer) of samples_from_gbuffer
+        self._no_warp = None  # the one zero texel bound as both warp tables without a warp
         self._batches: dict[str, Any] = {}
         self._active: dict[str, frozenset[str]] = {}  # program name -> uniforms it kept
         self._overlay_dummy = None
@@ -340,32 +210,27 @@ class BlenderGPUBackend(ShadowBackend):
             self._layout = layout
             self._textures["ow_atlas"] = self._atlas
         with self._atlas_fb.bind():
-            if not boxes:
+            rects = self._clear_rects(layout, boxes)
+            if rects is None:
                 self._atlas_fb.clear(color=(1.0, 1.0, 1.0, 1.0), depth=1.0)
                 return
             # A framebuffer clear honours the scissor test: clear each readable box only.
+            scissor_before = gpu.state.scissor_get()
             gpu.state.scissor_test_set(True)
             try:
-                for tile in range(layout.tiles):
-                    box = boxes.get(tile)
-                    rect = layout.scissor_rect(tile, box) if box is not None else layout.span_viewport(tile, 1)
-                    if rect[2] > 0 and rect[3] > 0:
-                        gpu.state.scissor_set(*rect)
-                        self._atlas_fb.clear(color=(1.0, 1.0, 1.0, 1.0), depth=1.0)
+                for rect in rects:
+                    gpu.state.scissor_set(*rect)
+                    self._atlas_fb.clear(color=(1.0, 1.0, 1.0, 1.0), depth=1.0)
             finally:
                 gpu.state.scissor_test_set(False)
+                gpu.state.scissor_set(*scissor_before)
 
     def draw_layer(self, tile: int, vertices: np.ndarray, uniforms: UniformValues, span: int = 1,
                    scissor: tuple[int, int, int, int] | None = None) -> None:
         import gpu
         from gpu_extras.batch import batch_for_shader
 
-        if self._layout is None:
-            raise BackendError("draw_layer called before begin_atlas")
-        try:
-            viewport = self._layout.span_viewport(tile, span)
-        except ValueError as exc:
-            raise BackendError(str(exc)) from None
+        viewport = self._layer_viewport(self._layout, tile, span)
         if len(vertices) == 0:
             return
         data = np.ascontiguousarray(vertices, dtype=np.float32)
@@ -495,7 +360,7 @@ class BlenderGPUBackend(ShadowBackend):
 
         batch = self._batches.get("fullscreen")
         if batch is None:
-            batch = batch_for_shader(shader, "TRIS", {"ow_corner": _FULLSCREEN})
+            batch = batch_for_shader(shader, "TRIS", {"ow_corner": FULLSCREEN_CORNERS})
             self._batches["fullscreen"] = batch
         return batch
 
@@ -540,7 +405,14 @@ class BlenderGPUBackend(ShadowBackend):
         self._set_sample_size(size)
 
     def set_warp_tables(self, rows: np.ndarray | None, cols: np.ndarray | None) -> None:
+        # gpu.types.GPUTexture has no write (Blender 5.2: clear and read only), so a table
+        # is a new texture; "no warp" is one zero texel, made once and bound to both.
         for name, table in (("ow_warp_rows", rows), ("ow_warp_cols", cols)):
+            if table is None:
+                if self._no_warp is None:
+                    self._no_warp = _float_texture((1, 1), "RGBA32F", pack_warp_table(None))
+                self._textures[name] = self._no_warp
+                continue
             data = pack_warp_table(table)
             self._textures[name] = _float_texture((data.shape[1], data.shape[0]), "RGBA32F", data)
 
@@ -616,14 +488,13 @@ class BlenderGPUBackend(ShadowBackend):
             self._edge_size = size
         for edge_pass, fb in enumerate(self._edge_fbs):
             with fb.bind():
-                uniforms = {"ow_edge_pass": edge_pass, "ow_edge_radius": int(radius), "ow_edge_eps": float(eps),
-                            "ow_edge_tile_size": float(self._layout.resolution)}
+                uniforms = self._edge_uniforms(edge_pass, radius, eps, self._layout.resolution)
                 # Pass 0 writes ow_edge_x: sample the other target there (no feedback loop).
                 override = {"ow_edge_x": self._textures["ow_edges"]} if edge_pass == 0 else None
                 shader = self._bind(EDGE_PROGRAM, uniforms, override)
                 batch = self._batches.get("edge")
                 if batch is None:
-                    batch = batch_for_shader(shader, "TRIS", {"ow_corner": _FULLSCREEN})
+                    batch = batch_for_shader(shader, "TRIS", {"ow_corner": FULLSCREEN_CORNERS})
                     self._batches["edge"] = batch
                 gpu.state.viewport_set(0, 0, size[0], size[1])
                 gpu.state.depth_test_set("NONE")
@@ -645,16 +516,8 @@ class BlenderGPUBackend(ShadowBackend):
             gpu.state.viewport_get()
 
     def live_resources(self) -> int:
-        """GPU objects this backend holds now (textures, framebuffers, shaders, batches)."""
-        count = len(self._shaders) + len(self._textures) + len(self._batches) + len(self._count_targets)
-        count += self._stats_target is not None
-        count += 2 * (self._gbuffer_target is not None)
-        count += 2 if self._test_target is not None else 0
-        count += sum(obj is not None for obj in (self._atlas_depth, self._atlas_fb))
-        count += 1 if getattr(self, "_overlay_dummy", None) is not None else 0
-        count += len(self._edge_fbs)
-        count += len(self._vertices) + (self._ray_fb is not None)
-        return count
+        """Distinct GPU objects this backend holds now (textures, framebuffers, shaders, batches)."""
+        return count_gpu_objects(self)
 
     def release(self) -> None:
         """Drop every GPU object; Blender frees them when the last reference goes."""
@@ -664,6 +527,7 @@ class BlenderGPUBackend(ShadowBackend):
         self._count_targets.clear()
         self._stats_target = None
         self._gbuffer_target = None
+        self._no_warp = None
         self._test_target = None
         self._textures.clear()
         self._atlas = self._atlas_depth = self._atlas_fb = None

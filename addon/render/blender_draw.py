@@ -17,14 +17,15 @@ import numpy as np
 
 from ..core.scene import CameraSpec, LightSpec
 
-from .blender_backend import BlenderGPUBackend, float_texture, framebuffer, read_texture
+from .backend import FULLSCREEN_CORNERS
+from .blender_backend import BlenderGPUBackend
+from .blender_gpu import float_texture, framebuffer, read_texture
 from .frame import GBufferSamples, ViewSamples
 from .resident import ResidentScene
 from .shaders import OVERLAY_PROGRAM, PREVIEW_PROGRAM
 
 log = logging.getLogger(__name__)
 
-_FULLSCREEN = [(-1.0, -1.0), (3.0, -1.0), (-1.0, 3.0)]
 _QUAD = [(0.0, 0.0), (1.0, 0.0), (1.0, 1.0), (0.0, 0.0), (1.0, 1.0), (0.0, 1.0)]
 
 
@@ -132,7 +133,7 @@ def draw_shadow_composite(backend: BlenderGPUBackend, gbuffer: GBuffer, visibili
         "ow_strength": float(strength),
         "ow_draw_base": 1 if draw_base else 0,
         "ow_target_size": (float(target_size[0]), float(target_size[1]))}, textures)
-    batch = _static_batch(backend, "preview_fullscreen", shader, _FULLSCREEN)
+    batch = _static_batch(backend, "preview_fullscreen", shader, FULLSCREEN_CORNERS)
     previous = gpu.state.blend_get()
     gpu.state.blend_set("NONE" if draw_base else "ALPHA")
     try:

@@ -13,6 +13,7 @@ import numpy as np
 from ..core.errors import BackendError
 from ..core.samples import STAT_SPAN, STAT_TEXELS
 from .backend import (
+    FULLSCREEN_CORNERS,
     AtlasLayout,
     FootprintDraw,
     ShadowBackend,
@@ -39,7 +40,7 @@ from .shaders import (
 
 log = logging.getLogger(__name__)
 
-_FULLSCREEN = np.array([[-1.0, -1.0], [3.0, -1.0], [-1.0, 3.0]], dtype="f4")
+_FULLSCREEN = np.array(FULLSCREEN_CORNERS, dtype="f4")
 
 
 def _uniform_bytes(value: object, glsl_type: str = "") -> bytes | None:
@@ -195,24 +196,17 @@ class ModernGLBackend(ShadowBackend):
             self._textures["ow_atlas"] = self._atlas
         self._atlas_fbo.use()
         self._atlas_fbo.viewport = (0, 0) + layout.size
-        if not boxes:
+        rects = self._clear_rects(layout, boxes)
+        if rects is None:
             self._atlas_fbo.clear(1.0, 1.0, 1.0, 1.0, depth=1.0)
             return
-        for tile in range(layout.tiles):
-            box = boxes.get(tile)
-            rect = layout.scissor_rect(tile, box) if box is not None else layout.span_viewport(tile, 1)
-            if rect[2] > 0 and rect[3] > 0:
-                self._atlas_fbo.clear(1.0, 1.0, 1.0, 1.0, depth=1.0, viewport=rect)  # a scissored clear
+        for rect in rects:
+            self._atlas_fbo.clear(1.0, 1.0, 1.0, 1.0, depth=1.0, viewport=rect)  # a scissored clear
 
     @_current
     def draw_layer(self, tile: int, vertices: np.ndarray, uniforms: UniformValues, span: int = 1,
                    scissor: tuple[int, int, int, int] | None = None) -> None:
-        if self._atlas_layout is None:
-            raise BackendError("draw_layer called before begin_atlas")
-        try:
-            viewport = self._atlas_layout.span_viewport(tile, span)
-        except ValueError as exc:
-            raise BackendError(str(exc)) from None
+        viewport = self._layer_viewport(self._atlas_layout, tile, span)
         if len(vertices) == 0:
             return
         prog = self._use(program_variant(DEPTH_PROGRAM, uniforms), uniforms)
@@ -429,8 +423,7 @@ class ModernGLBackend(ShadowBackend):
             self._edge_fbos = fbos
         self.ctx.disable(self._mgl.DEPTH_TEST)
         for edge_pass, fbo in enumerate(fbos):
-            uniforms = {"ow_edge_pass": edge_pass, "ow_edge_radius": int(radius), "ow_edge_eps": float(eps),
-                        "ow_edge_tile_size": float(self._atlas_layout.resolution)}
+            uniforms = self._edge_uniforms(edge_pass, radius, eps, self._atlas_layout.resolution)
             prog = self._use(EDGE_PROGRAM, uniforms)
             if edge_pass == 0:
                 # Pass 0 writes ow_edge_x: sample the other target there, so no texture

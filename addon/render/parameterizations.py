@@ -40,7 +40,7 @@ from ..core.warping import LayerMapping, max_shear
 from .backend import AtlasLayout, FootprintDraw, ShadowBackend
 from .frame import PreparedGeometry, ShadowSettings
 from .resident import CHUNK_TRIANGLES, ResidentScene
-from .shaders import FOOTPRINT_VERTICES, MAX_POINT_SIZE, PARAM_CODES, REGION_PLANES, SLOTS
+from .shaders import FOOTPRINT_VERTICES, MAX_POINT_SIZE, REGION_PLANES, SLOTS
 from .unfold import VERTEX_FLOATS, edge_aa_parameters, prepare_unfold
 
 log = logging.getLogger(__name__)

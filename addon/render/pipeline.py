@@ -67,8 +67,6 @@ from .frame import (
     settings_for,
 )
 from .parameterizations import (
-    PARAM_CODES,
-    SLOTS,
     DrawInputs,
     footprint_draws,
     parameterization,
@@ -76,6 +74,7 @@ from .parameterizations import (
     slot_rotations_and_crops,
 )
 from .resident import ResidentScene
+from .shaders import PARAM_CODES, SLOTS
 from .unfold import edge_aa_parameters
 
 log = logging.getLogger(__name__)

@@ -31,6 +31,7 @@ from tests.support.blender_gpu_worker import (  # noqa: E402
     case_key,
     weighted_samples,
 )
+from tests.support.checks import expect  # noqa: E402
 from tests.support.oracle import view_samples  # noqa: E402
 
 pytestmark = [pytest.mark.blender, pytest.mark.gl]
@@ -116,24 +117,27 @@ def test_viewport_draw_path_robustness(tmp_path):
     out = tmp_path / "viewport.json"
     _worker("viewport", out)
     r = json.loads(out.read_text())
-    assert r["cycles_clean"]
-    assert r["first_draw"] and r["lights"] == 1 and r["param"] == "cube" and r["warp"] == "notw"
+    # Every pass/fail flag in one call, so that a failure lists all the failed ones and
+    # the values behind them (the worker's `<flag>_values`).
+    expect(r, "cycles_clean",  # 20 register cycles
+           "first_draw", "finite_atlas",
+           "gbuffer_not_read",  # the viewport frame did not read its G-buffer back
+           "error_caught", "error_logged_once", "recovered",
+           "nan_bias_paused", "nan_bias_panel", "nan_bias_warned_once", "nan_bias_recovered",
+           "nan_strength_paused", "nan_strength_recovered",
+           "after_load_draw", "undo_marks_stale",
+           "handler_installed", "handler_removed", "handlers_restored", "pointer_removed")
+    assert (r["lights"], r["param"], r["warp"]) == (1, "cube", "notw")
     assert 1 <= r["passes"] <= 5  # hemispherical light
-    assert r["hit_share"] > 0.9 and 0.01 < r["shadowed_share"] < 0.9
-    assert r["finite_atlas"] and r["max_after"] <= r["max_before"]
-    assert r["gbuffer_not_read"], "the viewport frame read its G-buffer back"
+    assert r["hit_share"] > 0.9 and 0.01 < r["shadowed_share"] < 0.9, (r["hit_share"], r["shadowed_share"])
+    assert r["max_after"] <= r["max_before"], "warping raised the peak view samples per texel"
     assert r["uploaded_differ"] <= 1e-3, r["uploaded_differ"]  # G-buffer textures = uploaded arrays
     assert r["uploaded_passes"][0] == r["uploaded_passes"][1], r["uploaded_passes"]
     assert r["recomputes"] == 20  # 10 moved views, each drawn once moved and once back
-    assert r["live_after_200"] == r["live_first"] > 0
+    assert r["live_after_200"] == r["live_first"] > 0, "GPU objects held (first draw, after 200 redraws)"
     assert r["bytes_after_200"] == r["bytes_first"] > 0, "moved views uploaded the scene again"
-    assert r["error_caught"] and r["error_logged_once"] and r["recovered"]
-    assert r["nan_bias_paused"] and r["nan_bias_panel"] and r["nan_bias_warned_once"] and r["nan_bias_recovered"]
-    assert r["nan_strength_paused"] and r["nan_strength_recovered"]
     assert r["after_delete_lights"] == 0
-    assert r["after_load_live"] == 0 and r["after_load_draw"] and r["undo_marks_stale"]
-    assert r["handler_installed"] and r["handler_removed"]
-    assert r["handlers_restored"] and r["pointer_removed"]
+    assert r["after_load_live"] == 0, "GPU objects held after a file load"
 
 
 def test_preview_command_writes_images_and_error(gl_backend, tmp_path, monkeypatch, capsys):

@@ -27,6 +27,7 @@ from addon import compare  # noqa: E402
 from addon.core import methods as method_registry  # noqa: E402
 from addon.blender import compare_job, compare_ops, compare_props, compare_ui, registration  # noqa: E402
 from addon.core.presets import DEFAULT_PRESET, available_presets  # noqa: E402
+from tests.support.checks import expect  # noqa: E402
 
 pytestmark = pytest.mark.blender
 
@@ -88,7 +89,8 @@ def test_compare_fills_results_and_plot(worker) -> None:
         assert row["error_pct"] == pytest.approx(row["false_shadow_pct"] + row["false_lit_pct"], abs=1e-4)
         assert 0.0 <= row["error_pct"] < 5.0
         assert row["total_ms"] > 0.0 and row["passes"] >= 1
-        assert row["mismatch_exists"] and row["preset"] == DEFAULT_PRESET
+        expect(row, "mismatch_exists", method=row["method"], mismatch_image=row["mismatch_image"])
+        assert row["preset"] == DEFAULT_PRESET
     assert rows[1]["analysis_ms"] > 0.0  # NoTW runs the analysis pass
     plot = report["plot"]
     assert plot["name"] == compare_props.PLOT_IMAGE_NAME
@@ -98,8 +100,9 @@ def test_compare_fills_results_and_plot(worker) -> None:
     assert mismatch["name"] == compare_props.MISMATCH_IMAGE_NAME
     assert mismatch["size"] == list(CAMERA) and mismatch["std"] > 0.0
     assert mismatch["filepath"] == rows[0]["mismatch_image"]
-    assert report["progress"] == pytest.approx(1.0) and "2 rows measured" in report["status"]
-    assert not report["running_after"]
+    assert report["progress"] == pytest.approx(1.0) and "2 rows measured" in report["status"], \
+        (report["progress"], report["status"])
+    expect(report, "not running_after")
     for row in report["rows"]:
         assert row["backend"] == "blender-gpu" and row["frames"] == 1
         assert row["camera_size"] == list(CAMERA)
@@ -115,11 +118,11 @@ def test_modal_loop_steps_and_cancels(worker) -> None:
     assert cancel["mouse"] == ["PASS_THROUGH"]
     assert cancel["esc"] == ["CANCELLED"]
     assert cancel["rows"] == 1 and cancel["status"].startswith("Cancelled after 1 of 2 rows")
-    assert cancel["backend_released"] and not cancel["running_after"] and cancel["poll_after"]
+    expect(cancel, "backend_released", "not running_after", "poll_after", run="cancelled")
     full = report["modal_full"]
     assert full["results"] == [["PASS_THROUGH"], ["FINISHED"]]  # reference, then the only row
     assert full["rows"] == 1 and full["progress"] == pytest.approx(1.0)
-    assert full["backend_released"] and not full["running_after"]
+    expect(full, "backend_released", "not running_after", run="full")
     assert [kind for kind, _ in full["reports"]] == ["INFO"]
 
 
@@ -127,8 +130,8 @@ def test_current_scene_matches_its_preset(worker) -> None:
     """The preset built into a new scene, measured as the current scene (captured anew),
     gives the preset's error."""
     report, _ = worker
-    assert report["build"] == ["FINISHED"] and report["build_new_scene"]
-    assert report["current_copied_settings"]
+    assert report["build"] == ["FINISHED"]
+    expect(report, "build_new_scene", "current_copied_settings")
     assert report["current_result"] == ["FINISHED"]
     (row,) = report["current_rows"]
     assert row["method"] == "dpsm" and row["preset"].startswith("OmniWarp_room_omni")
@@ -137,7 +140,7 @@ def test_current_scene_matches_its_preset(worker) -> None:
 
 def test_unregister_frees_module_state(worker) -> None:
     report, _ = worker
-    assert report["state_freed"] and report["pointer_removed"]
+    expect(report, "state_freed", "pointer_removed")
 
 
 def test_exported_json_and_csv(worker) -> None:

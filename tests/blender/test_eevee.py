@@ -33,11 +33,13 @@ pytestmark = pytest.mark.blender
 
 SIZE = (160, 120)
 ROW_FIELDS = {
-    "preset", "method", "emission", "resolution", "error_pct", "false_shadow_pct", "false_lit_pct",
-    "evaluated_pixels", "time_ms", "passes", "triangles_drawn", "texels", "renderer", "backend",
+    "preset", "method", "emission", "error_pct", "false_shadow_pct", "false_lit_pct",
+    "evaluated_pixels", "time_ms", "scene_triangles", "renderer", "backend", "frames", "camera_size",
     "eevee_setting", "shadow_maximum_resolution", "note", "mismatch_image",
 }
-TIME_FIELDS = {"total", "analysis", "shadow_maps", "shadow_test", "prepare", "warmup"}
+# EEVEE has no map resolution, passes, texels or pipeline stages: those columns are absent.
+NOT_EEVEE_FIELDS = {"resolution", "passes", "texels", "triangles_drawn", "cull"}
+TIME_FIELDS = {"total", "warmup"}
 
 
 def easy_scene() -> SceneSpec:
@@ -72,9 +74,9 @@ def test_rows_complete_and_finite(measured) -> None:
         assert set(row["time_ms"]) == TIME_FIELDS
         assert row["method"] == "eevee" and row["backend"] == "eevee"
         assert row["preset"] == "eevee_easy" and row["emission"] == "omni"
-        assert row["passes"] == 6 and row["texels"] == 0
-        assert row["triangles_drawn"] == len(reference.triangles)
-        assert isinstance(row["resolution"], int) and row["resolution"] == round(1.0 / row["shadow_maximum_resolution"])
+        assert not NOT_EEVEE_FIELDS & set(row), NOT_EEVEE_FIELDS & set(row)
+        assert row["scene_triangles"] == len(reference.triangles)
+        assert row["shadow_maximum_resolution"] > 0.0
         assert "EEVEE" in row["renderer"]
         numbers = [v for v in row.values() if isinstance(v, float)] + list(row["time_ms"].values())
         assert all(math.isfinite(v) for v in numbers)
@@ -97,7 +99,6 @@ def test_settings_named_and_ordered(measured) -> None:
     _, rows, _ = measured
     by_name = {row["eevee_setting"]: row for row in rows}
     assert by_name["fine"]["shadow_maximum_resolution"] < by_name["default"]["shadow_maximum_resolution"]
-    assert by_name["fine"]["resolution"] > by_name["default"]["resolution"]
     assert by_name["default"]["shadow_maximum_resolution"] == pytest.approx(
         bpy.types.PointLight.bl_rna.properties["shadow_maximum_resolution"].default)
     used = by_name["default"]["render_settings"]

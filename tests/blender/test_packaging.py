@@ -21,6 +21,8 @@ from typing import Any
 
 import pytest
 
+from tests.support.checks import expect
+
 pytest.importorskip("bpy", reason="installing the extension needs bpy (scripts/setup_env.sh installs it)")
 
 pytestmark = pytest.mark.blender
@@ -133,13 +135,13 @@ def test_zip_installs_enables_and_disables(extension_zip: Path, tmp_path: Path) 
     assert all(Path(p).is_relative_to(user_root.resolve()) for p in report["user_paths"].values()), report
     assert Path(report["repo_directory"]).is_relative_to(user_root.resolve())
     assert report["install_result"] == ["FINISHED"]
-    assert report["installed_manifest"]
+    expect(report, "installed_manifest")
     # Blender imported the installed copy, not this checkout.
     assert Path(report["module_file"]).is_relative_to(Path(report["repo_directory"])), report["module_file"]
 
     enabled = report["after_install"]
-    assert enabled["enabled"], f"{ADDON_MODULE} not in preferences.addons after install"
-    assert enabled["light_pointer"] and enabled["scene_pointer"] and enabled["light_panel"]
+    expect(enabled, "enabled", "light_pointer", "scene_pointer", "light_panel", stage="after install",
+           module=ADDON_MODULE)
 
     light = report["light_readback"]
     assert (light["parameterization"], light["warp"], light["resolution"]) == ("CUBE", "NOTW", 2048)
@@ -148,18 +150,19 @@ def test_zip_installs_enables_and_disables(extension_zip: Path, tmp_path: Path) 
 
     assert report["disable_result"] == ["FINISHED"]
     disabled = report["after_disable"]
-    assert not disabled["enabled"]
-    assert not disabled["light_pointer"], "bpy.types.Light.omniwarp survived addon_disable"
-    assert not disabled["scene_pointer"] and not disabled["light_panel"]
+    # light_pointer: bpy.types.Light.omniwarp must not survive addon_disable.
+    expect(disabled, "not enabled", "not light_pointer", "not scene_pointer", "not light_panel",
+           stage="after addon_disable", module=ADDON_MODULE)
     assert disabled["handlers"] == [], f"handlers left after disable: {disabled['handlers']}"
 
     # Enabling again works, and the light's stored settings come back with the pointer.
     again = report["after_reenable"]
-    assert again["enabled"] and again["light_pointer"]
+    expect(again, "enabled", "light_pointer", stage="after enabling again", module=ADDON_MODULE)
     assert sorted(again["handlers"]) == sorted(enabled["handlers"])
     assert report["light_after_reenable"] == light
     final = report["after_second_disable"]
-    assert not final["enabled"] and not final["light_pointer"] and final["handlers"] == []
+    expect(final, "not enabled", "not light_pointer", stage="after the second addon_disable", module=ADDON_MODULE)
+    assert final["handlers"] == [], f"handlers left after the second disable: {final['handlers']}"
 
 
 # ---------------------------------------------------------------------------
@@ -200,7 +203,7 @@ def test_properties_round_trip_through_save_and_reload(saved: tuple[Path, dict[s
     assert report["after_reopen"] == report["before_save"]
 
     # Registration stays across file loads: pointers and (persistent) handlers.
-    assert home["light_pointer"]
+    expect(home, "light_pointer", stage="after loading the empty home file")
     assert report["pointers_after_reopen"] == {"light": True, "scene": True}
     assert report["handlers_after_reopen"] == report["handlers_registered"]
 

@@ -49,7 +49,8 @@ def backends(out: str, reference: str | None = None) -> None:
     cached Cycles reference when one is given."""
     from addon.compare import light_from_reference, samples_from_reference
     from addon.reference.data import ReferenceData
-    from addon.render.blender_backend import BlenderGPUBackend, ensure_gpu
+    from addon.render.blender_backend import BlenderGPUBackend
+    from addon.render.blender_gpu import ensure_gpu
     from addon.render.pipeline import ShadowPipeline, ShadowSettings
     from addon.core.scene import LightSpec
     from tests.gl.test_footprint_pass import point_cloud
@@ -114,16 +115,33 @@ def viewport(out: str) -> None:
     from addon.core.presets import build_preset
     from addon.reference.blender_scene import build_blender_scene
     from addon.reference.capture import evaluated_depsgraph
-    from addon.render.blender_backend import ensure_gpu, float_texture, framebuffer
+    from addon.render.blender_gpu import ensure_gpu, float_texture, framebuffer
 
     ensure_gpu()
-    handlers_before = {name: len(getattr(bpy.app.handlers, name)) for name in
-                       ("depsgraph_update_post", "load_post", "undo_post", "redo_post")}
+
+    def handler_counts() -> dict[str, int]:
+        """Callbacks per app-handler list the preview uses."""
+        return {name: len(getattr(bpy.app.handlers, name)) for name in
+                ("depsgraph_update_post", "load_post", "undo_post", "redo_post")}
+
+    def held() -> dict:
+        """What the preview still holds: its draw handler and its GPU objects."""
+        handler = vp._STATE.handler
+        return {"handler": None if handler is None else repr(handler), "live_resources": vp.live_resources()}
+
+    def outcome(drew: bool) -> dict:
+        """A draw's result and the preview's error message, behind each draw check."""
+        return {"draw": drew, "last_error": vp.last_error()}
+
+    handlers_before = handler_counts()
     report: dict = {}
+    # Each flag that is computed from values has them next to it as `<flag>_values`
+    # (tests/support/checks.py shows them when the flag fails).
     # 20 register/unregister cycles leave no handler and no GPU object behind.
     for _ in range(20):
         registration.register()
         registration.unregister()
+    report["cycles_clean_values"] = {**held(), "handlers_before": handlers_before, "handlers_after": handler_counts()}
     report["cycles_clean"] = vp._STATE.handler is None and vp.live_resources() == 0 and all(
         len(getattr(bpy.app.handlers, name)) == count for name, count in handlers_before.items())
 
@@ -150,20 +168,20 @@ def viewport(out: str) -> None:
             return vp.safe_draw_view(scene, depsgraph, view_matrix, proj, size, "test-region")
 
     report["first_draw"] = draw(view)
+    report["first_draw_values"] = outcome(report["first_draw"])
     cached = vp._STATE.results["test-region"]
     name, light, settings, result, stats, raw = cached.lights[0]
     gbuffer = cached.gbuffer
     # The frame used the G-buffer's textures where they were: nothing was read back.
     report["gbuffer_not_read"] = "positions" not in vars(gbuffer) and "normals" not in vars(gbuffer)
-    # The same frame from the read-back arrays, uploaded, shadows the same pixels.
-    uploaded = vp._STATE.pipeline.render(light, CACHE.world_triangles(), gbuffer.view_samples(spec.camera), settings)
-    report["uploaded_differ"] = float((uploaded.visibility != raw[..., 0]).mean())
-    report["uploaded_passes"] = [uploaded.passes, result.passes]
+    report["gbuffer_not_read_values"] = {"read_back": [key for key in ("positions", "normals") if key in vars(gbuffer)]}
     report.update({
         "lights": len(cached.lights), "passes": result.passes, "param": settings.parameterization,
         "warp": settings.warp, "hit_share": float(gbuffer.hit.mean()),
         "shadowed_share": float((raw[..., 0][gbuffer.hit] < 0.5).mean()),
         "finite_atlas": bool(np.isfinite(result.atlas).all()),
+        "finite_atlas_values": {"non_finite": int(np.count_nonzero(~np.isfinite(result.atlas))),
+                                "texels": int(result.atlas.size)},
         "max_before": stats.max_count_before, "max_after": stats.max_count_after,
         "handler_installed": vp._STATE.handler is not None,
     })
@@ -181,6 +199,11 @@ def viewport(out: str) -> None:
     report["live_first"] = live_after_first
     report["live_after_200"] = vp.live_resources()
     report["bytes_after_200"] = vp._STATE.backend.geometry_bytes  # the scene stayed resident
+    # The first frame again from its G-buffer read back as arrays and uploaded (after the
+    # counts above: it holds textures of its own): it shadows the same pixels.
+    uploaded = vp._STATE.pipeline.render(light, CACHE.world_triangles(), gbuffer.view_samples(spec.camera), settings)
+    report["uploaded_differ"] = float((uploaded.visibility != raw[..., 0]).mean())
+    report["uploaded_passes"] = [uploaded.passes, result.passes]
     # A failure inside the draw path is caught, logged once and shown; drawing goes on.
     original = vp.compute_view
     logged = []
@@ -193,10 +216,14 @@ def viewport(out: str) -> None:
     vp.request_update("test")
     failures = [draw(view) for _ in range(5)]
     report["error_caught"] = failures == [False] * 5 and "synthetic failure" in vp.last_error()
+    report["error_caught_values"] = {"draws": failures, "last_error": vp.last_error()}
     report["error_logged_once"] = len(logged) == 1
+    report["error_logged_once_values"] = {"logged": [str(message) for message in logged]}
     vp.compute_view = original
     vp.request_update("test fixed")
-    report["recovered"] = draw(view) and vp.last_error() == ""
+    drew = draw(view)
+    report["recovered"] = drew and vp.last_error() == ""
+    report["recovered_values"] = outcome(drew)
     # A NaN bias (or strength) set from Python: the preview pauses with a message naming
     # it (a warning, no traceback), the light panel's check says the same, and fixing
     # the value resumes drawing.
@@ -208,25 +235,41 @@ def viewport(out: str) -> None:
     vp.request_update("nan bias")
     nan_draws = [draw(view) for _ in range(3)]
     report["nan_bias_paused"] = nan_draws == [False] * 3 and "bias constant" in vp.last_error()
-    report["nan_bias_panel"] = "bias constant" in settings_problem(light_obj.data, light_obj)
+    report["nan_bias_paused_values"] = {"draws": nan_draws, "last_error": vp.last_error()}
+    problem = settings_problem(light_obj.data, light_obj)
+    report["nan_bias_panel"] = "bias constant" in problem
+    report["nan_bias_panel_values"] = {"settings_problem": problem}
     report["nan_bias_warned_once"] = len(warned) == 1 and "bias constant" in str(warned[0]) and len(logged) == 1
+    report["nan_bias_warned_once_values"] = {"warned": [str(w) for w in warned], "logged": [str(m) for m in logged]}
     light_obj.data.omniwarp.bias_constant = 0.3
     vp.request_update("bias fixed")
-    report["nan_bias_recovered"] = (draw(view) and vp.last_error() == ""
+    drew = draw(view)
+    report["nan_bias_recovered"] = (drew and vp.last_error() == ""
                                     and settings_problem(light_obj.data, light_obj) == "")
+    report["nan_bias_recovered_values"] = {**outcome(drew),
+                                           "settings_problem": settings_problem(light_obj.data, light_obj)}
     scene.omniwarp.shadow_strength = float("nan")
     vp.request_update("nan strength")
-    report["nan_strength_paused"] = not draw(view) and "shadow strength" in vp.last_error()
+    drew = draw(view)
+    report["nan_strength_paused"] = not drew and "shadow strength" in vp.last_error()
+    report["nan_strength_paused_values"] = outcome(drew)
     scene.omniwarp.shadow_strength = 0.6
     vp.request_update("strength fixed")
-    report["nan_strength_recovered"] = draw(view) and vp.last_error() == ""
+    drew = draw(view)
+    report["nan_strength_recovered"] = drew and vp.last_error() == ""
+    report["nan_strength_recovered_values"] = outcome(drew)
     # File load and undo between draws: results are dropped or marked stale, never reused.
     vp._on_load_post()
     report["after_load_live"] = vp.live_resources()
     report["after_load_draw"] = draw(view)
+    report["after_load_draw_values"] = outcome(report["after_load_draw"])
     version = vp._STATE.version
     vp._on_undo_redo()
-    report["undo_marks_stale"] = vp._STATE.version == version + 1 and draw(view)
+    bumped = vp._STATE.version
+    # The draw runs only when the version moved on: the check's short-circuit, kept.
+    report["undo_marks_stale"] = bumped == version + 1 and draw(view)
+    report["undo_marks_stale_values"] = {"version_before": version, "version_after": bumped,
+                                         "last_error": vp.last_error()}
     # Deleting the light mid-preview: the next draw simply has no light to show.
     bpy.data.objects.remove(light_obj)
     depsgraph = evaluated_depsgraph(scene)
@@ -236,8 +279,10 @@ def viewport(out: str) -> None:
     registration.unregister()
     registration.unregister()  # idempotent
     report["handler_removed"] = vp._STATE.handler is None and vp.live_resources() == 0
+    report["handler_removed_values"] = held()
     report["handlers_restored"] = all(len(getattr(bpy.app.handlers, name)) == count
                                       for name, count in handlers_before.items())
+    report["handlers_restored_values"] = {"before": handlers_before, "after": handler_counts()}
     report["pointer_removed"] = not hasattr(bpy.types.Light, "omniwarp")
     CACHE.clear()
     Path(out).write_text(json.dumps(report))

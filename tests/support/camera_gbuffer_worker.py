@@ -23,7 +23,8 @@ sys.path.insert(0, str(REPO))
 
 def main(out: str, references: list[str]) -> None:
     from addon.reference.data import ReferenceData
-    from addon.render.blender_backend import BlenderGPUBackend, ensure_gpu
+    from addon.render.blender_backend import BlenderGPUBackend
+    from addon.render.blender_gpu import ensure_gpu
     from addon.render.blender_draw import render_gbuffer
     from addon.render.resident import ResidentScene
 
@@ -72,10 +73,13 @@ def _viewport(backend, ref, camera) -> dict:
                         gbuffer.hit, None)  # read back: no camera, so every face
     unculled = pipeline.render(light, triangles, plain, settings)
     hit = gbuffer.hit
+    # The pixels behind viewport_same_shadows (tests/support/checks.py shows them when it fails).
+    differ = int(np.count_nonzero((culled.visibility[hit] >= 0.5) != (unculled.visibility[hit] >= 0.5)))
     return {"viewport_frustum": culled.plan.frustum_corners is not None,  # a camera, so culling ran
             "viewport_faces_drawn": len(culled.plan.drawn), "viewport_faces_unculled": len(unculled.plan.drawn),
             "viewport_same_shadows": bool(np.array_equal(culled.visibility[hit] >= 0.5,
-                                                         unculled.visibility[hit] >= 0.5))}
+                                                         unculled.visibility[hit] >= 0.5)),
+            "viewport_same_shadows_values": {"differing_pixels": differ, "hit_pixels": int(hit.sum())}}
 
 
 if __name__ == "__main__":

@@ -133,6 +133,7 @@ def _current_scene_run(bpy, report: dict) -> None:
     report["build"] = sorted(bpy.ops.omniwarp.build_preset())
     scene = bpy.context.scene
     report["build_new_scene"] = scene != before
+    report["build_new_scene_values"] = {"before": before.name, "after": scene.name}
     current = scene.omniwarp_compare
     current.source = "CURRENT"
     for method in method_registry.pipeline_methods():
@@ -140,6 +141,8 @@ def _current_scene_run(bpy, report: dict) -> None:
     current.resolutions = "512"
     current.frames = 1
     report["current_copied_settings"] = tuple(current.camera_size) == tuple(settings.camera_size)
+    report["current_copied_settings_values"] = {"camera_size": list(settings.camera_size),
+                                                "current_camera_size": list(current.camera_size)}
     report["current_result"] = sorted(bpy.ops.omniwarp.compare("EXEC_DEFAULT"))
     report["current_rows"] = _ui_rows(current)
     bpy.context.window.scene = before
@@ -150,7 +153,7 @@ def main(out_dir: str, width: str, height: str) -> None:
     import bpy
 
     from addon.blender import registration
-    from addon.render.blender_backend import ensure_gpu
+    from addon.render.blender_gpu import ensure_gpu
 
     out = Path(out_dir)
     ensure_gpu()
@@ -164,6 +167,10 @@ def main(out_dir: str, width: str, height: str) -> None:
     from addon.blender import compare_job, compare_props
 
     report["state_freed"] = not compare_job._ROWS and not compare_props._PRESET_ITEMS and not compare_job.is_running()
+    # Shown by tests/support/checks.py when the flag fails.
+    report["state_freed_values"] = {"row_lists": len(compare_job._ROWS),
+                                    "preset_items": len(compare_props._PRESET_ITEMS),
+                                    "running": compare_job.is_running()}
     report["pointer_removed"] = not hasattr(bpy.types.Scene, "omniwarp_compare")
     (out / "worker.json").write_text(json.dumps(report, indent=1, default=_json_default), encoding="utf-8")
 

@@ -181,11 +181,18 @@ def _state() -> dict[str, Any]:
 
     return {
         "enabled": ADDON_MODULE in bpy.context.preferences.addons,
+        # What "enabled" was looked up in, shown by tests/support/checks.py when it fails.
+        "enabled_values": {"addons": sorted(bpy.context.preferences.addons.keys())},
         "light_pointer": hasattr(bpy.types.Light, "omniwarp"),
         "scene_pointer": hasattr(bpy.types.Scene, "omniwarp"),
         "light_panel": hasattr(bpy.types, "OMNIWARP_PT_light"),
         "handlers": _ext_handlers(),
     }
+
+
+def _listing(folder: Path) -> list[str] | None:
+    """The names in a folder, None if it does not exist (values behind a failed check)."""
+    return sorted(p.name for p in folder.iterdir()) if folder.is_dir() else None
 
 
 def install(zip_path: str) -> None:
@@ -209,7 +216,10 @@ def install(zip_path: str) -> None:
         filepath=str(Path(zip_path).resolve()), repo=REPO_MODULE, enable_on_install=True))
     module = sys.modules.get(ADDON_MODULE)
     report["module_file"] = getattr(module, "__file__", None)
-    report["installed_manifest"] = (Path(repo.directory) / EXT_ID / "blender_manifest.toml").is_file()
+    installed = Path(repo.directory) / EXT_ID
+    report["installed_manifest"] = (installed / "blender_manifest.toml").is_file()
+    report["installed_manifest_values"] = {"folder": str(installed), "files": _listing(installed),
+                                           "repository": _listing(installed.parent)}
     report["after_install"] = _state()
 
     # Use the settings on a new light: they must behave like any RNA property.

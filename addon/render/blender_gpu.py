@@ -1,0 +1,188 @@
+"""Blender `gpu` helpers of the Blender backend: textures and framebuffers (counted),
+shader create-infos from the shared `ProgramInterface`s, read-backs, and the count of
+the GPU objects a holder keeps.
+
+`gpu` is imported lazily, so this module imports without Blender. In background mode
+call `ensure_gpu()` first: Blender 5.2 has `gpu.init()`; older versions need one tiny
+Workbench render (DESIGN.md section 3).
+"""
+from __future__ import annotations
+
+import logging
+from typing import Any
+
+import numpy as np
+
+from .shaders import ComputeInterface, ProgramInterface, load_source, program_defines
+
+log = logging.getLogger(__name__)
+
+# GPU objects (textures, framebuffers, shaders) created by this module. Blender's gpu
+# types take no weak references and cannot be asked whether they are alive, so ownership
+# is explicit: a backend keeps its objects in its own attributes, `live_resources()` counts
+# the distinct ones it holds (`count_gpu_objects`), and `release()` drops them all; Blender
+# frees an object when its last reference goes. The tests compare these counts across
+# register cycles and redraws, and CREATED across repeated frames.
+CREATED = {"texture": 0, "framebuffer": 0, "shader": 0}
+
+# The Python types of Blender's GPU objects (gpu.types), by name: what count_gpu_objects counts.
+_GPU_TYPES = frozenset({"GPUTexture", "GPUFrameBuffer", "GPUShader", "GPUBatch", "GPUVertBuf", "GPUIndexBuf",
+                        "GPUUniformBuf", "GPUOffScreen", "GPUStorageBuf"})
+
+
+def count_gpu_objects(*roots: Any) -> int:
+    """Distinct Blender GPU objects reachable from `roots`: through dicts, lists, tuples and
+    sets, and the attributes of this package's own objects (dataclasses, backends). One
+    texture held in two places counts once."""
+    package = __name__.split(".render.")[0]
+    found: set[int] = set()
+    visited: set[int] = set()
+    stack = list(roots)
+    while stack:
+        value = stack.pop()
+        if id(value) in visited:
+            continue
+        visited.add(id(value))
+        kind = type(value)
+        if kind.__name__ in _GPU_TYPES:
+            found.add(id(value))
+        elif isinstance(value, dict):
+            stack.extend(value.values())
+        elif isinstance(value, (list, tuple, set, frozenset)):
+            stack.extend(value)
+        elif kind.__module__.startswith(package) and hasattr(value, "__dict__"):
+            stack.extend(vars(value).values())
+    return len(found)
+
+_GLSL_TYPES = {
+    "float": "FLOAT", "vec2": "VEC2", "vec3": "VEC3", "vec4": "VEC4", "mat3": "MAT3", "mat4": "MAT4",
+    "int": "INT", "ivec2": "IVEC2", "ivec3": "IVEC3", "ivec4": "IVEC4", "bool": "BOOL",
+}
+_VECTOR_SIZES = {"float": 1, "vec2": 2, "vec3": 3, "vec4": 4, "mat3": 9, "mat4": 16}
+
+
+def ensure_gpu() -> None:
+    """Make the `gpu` module usable for drawing (needed in background mode)."""
+    import bpy
+    import gpu
+
+    if not bpy.app.background:
+        return
+    init = getattr(gpu, "init", None)
+    if init is not None:
+        init()  # Blender 5.2+: creates the GPU context for background mode; idempotent
+        return
+    # Older versions: one tiny Workbench render creates the context as a side effect.
+    scene = bpy.data.scenes.new("omniwarp_gpu_init")
+    try:
+        scene.render.engine = "BLENDER_WORKBENCH"
+        scene.render.resolution_x = scene.render.resolution_y = 4
+        camera = bpy.data.objects.new("omniwarp_gpu_init_cam", bpy.data.cameras.new("omniwarp_gpu_init_cam"))
+        scene.collection.objects.link(camera)
+        scene.camera = camera
+        bpy.ops.render.render(scene=scene.name)
+    finally:
+        data = scene.camera.data if scene.camera else None
+        if scene.camera:
+            bpy.data.objects.remove(scene.camera)
+        if data:
+            bpy.data.cameras.remove(data)
+        bpy.data.scenes.remove(scene)
+
+
+def create_info(iface: ProgramInterface) -> Any:
+    """A `GPUShaderCreateInfo` declaring everything `iface` names, with the shared GLSL."""
+    import gpu
+
+    info = gpu.types.GPUShaderCreateInfo()
+    for uniform in iface.uniforms:
+        info.push_constant(_GLSL_TYPES[uniform.glsl_type], uniform.name, uniform.array)
+    for slot, sampler in enumerate(iface.samplers):
+        info.sampler(slot, "FLOAT_2D", sampler)
+    for slot, (glsl_type, name) in enumerate(iface.vertex_in):
+        info.vertex_in(slot, _GLSL_TYPES[glsl_type], name)
+    if iface.varyings:
+        stage = gpu.types.GPUStageInterfaceInfo(f"{iface.name}_iface")
+        for var in iface.varyings:
+            (stage.flat if var.flat else stage.smooth)(_GLSL_TYPES[var.glsl_type], var.name)
+        info.vertex_out(stage)
+    for slot, (glsl_type, name) in enumerate(iface.fragment_out):
+        info.fragment_out(slot, _GLSL_TYPES[glsl_type], name)
+    if iface.writes_depth and hasattr(info, "depth_write"):
+        # Declared where the API has it (newer Blender); OpenGL honours gl_FragDepth either way.
+        info.depth_write("ANY")
+    for key, value in program_defines(iface).items():
+        info.define(key, value)
+    info.vertex_source(load_source(iface.vertex_file))
+    info.fragment_source(load_source(iface.fragment_file))
+    return info
+
+
+def float_texture(size: tuple[int, int], fmt: str, data: np.ndarray | None = None):
+    """A float `GPUTexture` (R32F, RG32F or RGBA32F), optionally filled from numpy (row 0 at the bottom)."""
+    return _float_texture(size, fmt, data)
+
+
+def read_texture(texture, fmt: str) -> np.ndarray:
+    """Texture contents as numpy, row 0 at the bottom."""
+    return _read(texture, fmt)
+
+
+def compute_create_info(iface: ComputeInterface) -> Any:
+    """A `GPUShaderCreateInfo` for a compute program: push constants, samplers, R32UI images."""
+    import gpu
+
+    info = gpu.types.GPUShaderCreateInfo()
+    info.local_group_size(iface.local_size, 1, 1)
+    for uniform in iface.uniforms:
+        info.push_constant(_GLSL_TYPES[uniform.glsl_type], uniform.name, uniform.array)
+    for slot, sampler in enumerate(iface.samplers):
+        info.sampler(slot, "FLOAT_2D", sampler)
+    for unit, (fmt, name) in enumerate(iface.images):
+        info.image(unit, fmt.upper(), "UINT_2D", name, qualifiers={"READ", "WRITE"})
+    for key, value in program_defines(iface).items():
+        info.define(key, value)
+    info.compute_source(load_source(iface.compute_file))
+    return info
+
+
+def _float_texture(size: tuple[int, int], fmt: str, data: np.ndarray | None = None):
+    import gpu
+
+    buffer = None
+    if data is not None:
+        flat = np.ascontiguousarray(data, dtype=np.float32).ravel()
+        buffer = gpu.types.Buffer("FLOAT", flat.size, flat)
+    CREATED["texture"] += 1
+    return gpu.types.GPUTexture(size, format=fmt, data=buffer)
+
+
+def _framebuffer(**slots):
+    import gpu
+
+    CREATED["framebuffer"] += 1
+    return gpu.types.GPUFrameBuffer(**slots)
+
+
+def framebuffer(**slots):
+    """A `GPUFrameBuffer` (counted in CREATED)."""
+    return _framebuffer(**slots)
+
+
+def _backend_type() -> str:
+    import gpu
+
+    getter = getattr(gpu.platform, "backend_type_get", None)
+    return getter() if getter is not None else "OPENGL"
+
+
+def _components(fmt: str) -> int:
+    return {"R32F": 1, "RG32F": 2, "RGBA32F": 4}[fmt]
+
+
+def _read(texture, fmt: str) -> np.ndarray:
+    """Texture contents as (height, width[, channels]) float32, row 0 at the bottom."""
+    raw = np.asarray(texture.read(), dtype=np.float32)
+    channels = _components(fmt)
+    shape = (texture.height, texture.width) + ((channels,) if channels > 1 else ())
+    return raw.reshape(shape).copy()
