@@ -1,4 +1,4 @@
-"""The `omniwarp` command line (also `python -m addon`), DESIGN.md section 6.
+"""The `omniwarp` command line (also `python -m addon`), docs/design.md section 6.
 
     omniwarp presets
     omniwarp reference --preset SEL [--size WxH] [--refresh]
@@ -302,7 +302,7 @@ def cmd_preview(args: argparse.Namespace) -> int:
         # Blender's session folder goes inside ours: gone with it even if the child is killed.
         env["TMPDIR"] = str(tmp)
         _say("drawing the preview with Blender's gpu (child process)")
-        # One GL owner per process: Blender's gpu runs in a child (DESIGN.md section 3).
+        # One GL owner per process: Blender's gpu runs in a child (docs/design.md section 3).
         proc: subprocess.Popen | None = None
         try:
             with interrupt.deferred():  # a Ctrl-C during the start must not orphan the child

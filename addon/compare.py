@@ -1,6 +1,6 @@
 """`omniwarp compare`: every method against the Cycles reference, timed per stage.
 
-Writes DIR/results.json (a list of rows, DESIGN.md section 6), DIR/report.md,
+Writes DIR/results.json (a list of rows, docs/design.md section 6), DIR/report.md,
 DIR/error_vs_time.png and one mismatch image per row under DIR/images/.
 """
 from __future__ import annotations

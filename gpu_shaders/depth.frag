@@ -48,7 +48,8 @@ void main()
   // the lower end, the plane's distance, can never bind (|t| >= |c| for a unit dir;
   // clamping to the exact nearest point changed no pixel either), and the upper end,
   // the farthest corner, stored depths too near on grazing receivers, which the
-  // warped maps' many triangle borders turned into false shadow (docs/warping.md).
+  // warped maps' many triangle borders turned into false shadow
+  // (docs/notebook/2026-12-warping.md).
   float depth = clamp((t - ow_near) / (ow_far - ow_near), 0.0, 1.0);
   gl_FragDepth = depth;
   ow_depth = depth;

@@ -1,4 +1,4 @@
-"""The layering contract of DESIGN.md section 2.
+"""The layering contract of docs/design.md section 2.
 
 * `addon.core` and `addon.render` import without bpy / gpu / mathutils / bmesh
   (checked at run time in a clean subprocess where those imports raise).

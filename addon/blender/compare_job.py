@@ -1,7 +1,7 @@
 """One comparison run of the sidebar tool, step by step: it measures exactly what
 `omniwarp compare` measures, with the same `compare.run_row`, but on Blender's own `gpu`
 backend (`ShadowPipeline(BlenderGPUBackend())`): inside Blender, Blender owns GL, so
-moderngl must not be used (DESIGN.md section 3). The two backends agree on visibility,
+moderngl must not be used (docs/design.md section 3). The two backends agree on visibility,
 so the error figures equal the command line's; the times differ only by timing noise.
 
 The first step renders (or loads) the Cycles reference, each later step one row. The

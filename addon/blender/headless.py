@@ -1,5 +1,5 @@
 """Headless preview with the Blender `gpu` backend: `omniwarp preview` runs this module
-in its own process (one GL owner per process, DESIGN.md section 3).
+in its own process (one GL owner per process, docs/design.md section 3).
 
     python -m addon.blender.headless --preset NAME --reference REF.npz --out DIR
     python -m addon.blender.headless --blend FILE --reference REF.npz --out DIR [--light NAME]

@@ -25,13 +25,13 @@ EMISSIONS: tuple[str, ...] = POINT_EMISSIONS + PROJECTIVE_EMISSIONS
 
 # What each parameterization and warp does and costs: the light panel's enum tooltips.
 PARAMETERIZATION_TEXT: dict[str, str] = {
-    "dpsm": "Two paraboloid maps, one per hemisphere. Cost: at most two passes, but triangles that the "
-            "curved projection bends are tessellated first (more triangles, more CPU time)",
+    "dpsm": "Two paraboloid maps, one per hemisphere. Cost: at most two passes; each triangle is drawn "
+            "over a box around its curved image and every texel tests its own ray, so no tessellation",
     "cube": "Six 90° perspective faces. Cost: up to six passes (each redraws the geometry it sees), "
             "no tessellation",
     "ipsm": "One paraboloid map aimed at the view and zoomed to the cone that holds it, when the light is "
             "outside the view; otherwise (or with Cull off) it falls back to the dual paraboloid. Cost: one "
-            "pass, with tessellation of the bent triangles",
+            "pass, drawn as the dual paraboloid's are (no tessellation)",
     "unfold": "Dual sphere-unfolding: both hemispheres side by side in one map, drawn in a single pass. "
               "Cost: one pass, with tessellation, and seam triangles drawn into both halves; takes no warp",
     "sm": "One plain shadow map: the spot's cone, or for a sun a parallel box fitted to what the view "
@@ -41,12 +41,12 @@ PARAMETERIZATION_TEXT: dict[str, str] = {
            "itself a global warp, so it takes no other",
 }
 WARP_TEXT: dict[str, str] = {
-    "none": "Uniform shadow map: no analysis pass, no extra triangles",
+    "none": "Uniform shadow map: no analysis pass, no ray table",
     "notw": "Non-orthogonal texture warping: moves map resolution to where the camera needs it. "
-            "Cost: an analysis pass over the view samples, plus more triangles (warped edges are "
-            "tessellated)",
+            "Cost: an analysis pass over the view samples, a ray table per map, and larger boxes around "
+            "the triangles (the warp widens them)",
     "rtw": "Rectilinear texture warping (Rosen 2012), offered as a comparison to NoTW. "
-           "Cost: the same analysis pass, plus more triangles",
+           "Cost: the same analysis pass, ray table and triangle boxes",
 }
 
 
@@ -80,16 +80,16 @@ def _pipeline(name: str, parameterization: str, description: str, warp: str = "n
 
 
 _ENTRIES: tuple[Method, ...] = (
-    _pipeline("dpsm", "dpsm", "dual paraboloid maps (at most two passes, curved triangles tessellated)"),
+    _pipeline("dpsm", "dpsm", "dual paraboloid maps (at most two passes, exact curved footprints)"),
     _pipeline("cube", "cube", "cube maps (up to six passes, no tessellation)"),
-    _pipeline("dpsm+notw", "dpsm", "dual paraboloid maps with NoTW warping (an analysis pass, more triangles)",
+    _pipeline("dpsm+notw", "dpsm", "dual paraboloid maps with NoTW warping (an analysis pass and a ray table per map)",
               warp="notw"),
-    _pipeline("cube+notw", "cube", "cube maps with NoTW warping (an analysis pass, more triangles)", warp="notw"),
+    _pipeline("cube+notw", "cube", "cube maps with NoTW warping (an analysis pass and a ray table per map)", warp="notw"),
     _pipeline("dpsm+rtw", "dpsm", "dual paraboloid maps with RTW warping, for comparison with NoTW", warp="rtw"),
     _pipeline("cube+rtw", "cube", "cube maps with RTW warping, for comparison with NoTW", warp="rtw"),
     _pipeline("ipsm", "ipsm", "one paraboloid map zoomed to the view cone when the light is outside the view, "
                               "else dual paraboloid maps"),
-    _pipeline("ipsm+notw", "ipsm", "ipsm with NoTW warping (an analysis pass, more triangles)", warp="notw"),
+    _pipeline("ipsm+notw", "ipsm", "ipsm with NoTW warping (an analysis pass and a ray table per map)", warp="notw"),
     _pipeline("ipsm+cut", "ipsm", "ipsm with the skewed cut: a tilted axis and a crop fitted to the view frustum",
               cut=True),
     _pipeline("unfold", "unfold", "dual sphere-unfolding (both halves in one pass)"),

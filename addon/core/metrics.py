@@ -1,4 +1,4 @@
-"""The error figure against the Cycles reference (DESIGN.md section 5)."""
+"""The error figure against the Cycles reference (docs/design.md section 5)."""
 from __future__ import annotations
 
 from dataclasses import dataclass

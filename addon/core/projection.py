@@ -1,7 +1,7 @@
 """Paraboloid and cube-face projections, forward and inverse (numpy, float64).
 
 Every layer works in its own local frame with the layer axis along +Z
-(DESIGN.md section 4). Map coordinates `xy` lie in [-1, 1]^2; texture
+(docs/design.md section 4). Map coordinates `xy` lie in [-1, 1]^2; texture
 coordinates are uv = 0.5 + 0.5 * xy, texel (i, j) = floor(uv * res).
 
 Paraboloid (Brabec et al. 2002, eq. 1-3): for a unit direction v with v_z >= 0,

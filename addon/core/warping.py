@@ -560,8 +560,8 @@ class LayerMapping:
 def dv_crop_from_counts(counts: np.ndarray, margin_texels: float = 2.0) -> tuple[np.ndarray, np.ndarray]:
     """DV crop from a count map (row = v): first/last occupied column and row, grown by a margin.
 
-    The margin (in count-map texels) covers the shadow test's normal offset and rim
-    clamp, which move a sample's lookup slightly. An empty map keeps the whole map.
+    The margin (in count-map texels) covers the shadow test's normal offset, which moves
+    a sample's lookup slightly. An empty map keeps the whole map.
     """
     counts = np.asarray(counts)
     size = counts.shape[0]

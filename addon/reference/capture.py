@@ -3,7 +3,7 @@
 `capture(scene)` works on any scene with a perspective or orthographic camera (any
 sensor fit, lens shift, pixel aspect and resolution percentage) and one point, spot or
 sun light (the presets, and user .blend files). It temporarily switches the scene to
-the reference set-up of DESIGN.md section 5 and restores every setting it touched:
+the reference set-up of docs/design.md section 5 and restores every setting it touched:
 
 - Cycles on the CPU, by default 1 sample at the pixel centre (no pixel jitter,
   Gaussian filter 0.01 px: Cycles ignores the width of a box filter), no denoising,
@@ -301,7 +301,7 @@ def _add_aov(view_layer, overrides: _Overrides) -> None:
 
 def _apply_render_settings(scene, view_layer, light_obj, visible: set[str], samples: int,
                            filepath: str, overrides: _Overrides) -> None:
-    """Switch the scene to the reference set-up (DESIGN.md section 5)."""
+    """Switch the scene to the reference set-up (docs/design.md section 5)."""
     s = overrides.set
     render = scene.render
     s(render, "engine", "CYCLES")

@@ -6,7 +6,7 @@ once with shadows and once with the light's shadow casting off. Visibility is
 shadowed / unshadowed >= 0.5 of the Diffuse Light pass, exactly like the Cycles
 reference (`metrics.reference_visibility`).
 
-One GL owner per process (DESIGN.md section 3): EEVEE uses Blender's GL, the CLI
+One GL owner per process (docs/design.md section 3): EEVEE uses Blender's GL, the CLI
 uses moderngl, and after an EEVEE render moderngl reads back NaN. So EEVEE runs in
 a child process, and arrays travel through files:
 
@@ -86,8 +86,8 @@ SPEC_FORMAT = 1
 DEFAULT_TIMEOUT_S = 1800.0
 # EEVEE Next shadows a point light with up to 6 cube-face tilemaps, a 180 degree spot with 5.
 TILEMAPS = {"omni": 6, "hemi": 5}
-ROW_NOTE = ("EEVEE times are whole renders (shading included); passes: EEVEE's cube-face tilemaps "
-            "per light (6 omni, 5 hemi), not counted draws; texels: virtual shadow maps are paged, not reported")
+ROW_NOTE = ("EEVEE times are whole renders (shading included); no map resolution, passes or texels: "
+            "EEVEE's virtual shadow maps are paged tilemaps (6 per omni light, 5 per hemi), not counted draws")
 
 Progress = Callable[[str], None]
 

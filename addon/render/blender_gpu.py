@@ -4,7 +4,7 @@ the GPU objects a holder keeps.
 
 `gpu` is imported lazily, so this module imports without Blender. In background mode
 call `ensure_gpu()` first: Blender 5.2 has `gpu.init()`; older versions need one tiny
-Workbench render (DESIGN.md section 3).
+Workbench render (docs/design.md section 3).
 """
 from __future__ import annotations
 

@@ -1,6 +1,6 @@
 """moderngl backend: a standalone EGL context, no window, no Blender.
 
-One GL owner per process (DESIGN.md section 3): never use this backend in a
+One GL owner per process (docs/design.md section 3): never use this backend in a
 process that also draws with Blender's `gpu` module or renders EEVEE.
 """
 from __future__ import annotations

@@ -1,4 +1,4 @@
-"""The shadow pipeline of one frame, over any `ShadowBackend` (DESIGN.md section 3).
+"""The shadow pipeline of one frame, over any `ShadowBackend` (docs/design.md section 3).
 
   plan -> analysis (DV crop and warp, on the GPU's count maps) -> shadow maps (one atlas
   tile per drawn layer, drawn by the frame's `parameterizations.Parameterization`)
@@ -388,7 +388,7 @@ def _warp_of(rows: np.ndarray, cols: np.ndarray | None, size: int, row_window: i
 
 @dataclass
 class CountStatistics:
-    """View samples per shadow texel, before and after the layer mappings (DESIGN.md 4)."""
+    """View samples per shadow texel, before and after the layer mappings (docs/design.md section 4)."""
 
     before: dict[int, np.ndarray]  # slot -> count map of the plain projection, map resolution
     after: dict[int, np.ndarray]  # slot -> importance map: counts through crop and warp

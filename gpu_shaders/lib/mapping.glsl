@@ -45,14 +45,11 @@ vec2 ow_map_inverse(sampler2D rows, sampler2D cols, int slot, int warp_size, vec
 
 #ifndef OW_NO_WARP
 // Inverse of the map at `uv` by two Newton steps on the forward map, started from a
-// nearby projection point `xy_start`: the depth pass interpolates its vertices'
-// projection points, which tessellation (and, on cube faces, clipping to the crop)
-// keeps within about a texel of the truth. The warp is fold-free (det J > 0), so every
-// step is defined. Two steps cost two forward evaluations (2 fetches each from the
-// packed tables) against two binary searches of about ten fetches each (ow_map_inverse),
-// and a software rasteriser pays for every branch, so there is no fallback:
-// tests/gl/test_depth_pass.py bounds the error, and docs/warping.md gives the measured
-// agreement with the exact search.
+// nearby projection point `xy_start` (interpolated from the vertices of a host-built
+// stream). The warp is fold-free (det J > 0), so every step is defined. Only depth.frag's
+// warped variant calls it, and no method draws a warped host stream any more (unfold
+// takes no warp; the warped maps go through the footprint pass and its ray table, the
+// exact inverse), so it is kept only while that variant is.
 const int OW_NEWTON_STEPS = 2;
 
 vec2 ow_map_inverse_near(sampler2D rows, sampler2D cols, int slot, int warp_size, vec4 crop, vec2 uv,

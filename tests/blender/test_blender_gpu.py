@@ -1,6 +1,6 @@
 """The Blender `gpu` backend, the viewport's compute path and the headless preview.
 
-Blender's GL and moderngl may not share a process (DESIGN.md section 3), so the
+Blender's GL and moderngl may not share a process (docs/design.md section 3), so the
 Blender side runs in a child process (tests/support/blender_gpu_worker.py).
 """
 from __future__ import annotations

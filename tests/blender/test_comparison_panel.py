@@ -1,7 +1,7 @@
 """The sidebar's comparison tool (addon.blender.comparison).
 
 Measuring draws with Blender's `gpu`, and this pytest process owns moderngl (one GL
-owner per process, DESIGN.md section 3), so every measurement in Blender runs in a
+owner per process, docs/design.md section 3), so every measurement in Blender runs in a
 child process (tests/support/comparison_worker.py). The parent renders the Cycles
 reference into a shared cache folder ($OMNIWARP_CACHE, set for both processes) and
 measures the same rows with the command line's moderngl path, which must give the

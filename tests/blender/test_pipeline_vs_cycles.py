@@ -6,7 +6,7 @@ the same Cycles image: a triangle whose plane holds the light subtends no solid
 angle, so adding it must change nothing. (Cycles itself cannot be the judge of
 that scene: its shadow rays end exactly at the light and hit such a triangle at
 random through float rounding, speckling about a quarter of the floor.)
-moderngl and Cycles may share a process (DESIGN.md section 3).
+moderngl and Cycles may share a process (docs/design.md section 3).
 """
 from __future__ import annotations
 

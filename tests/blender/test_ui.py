@@ -334,8 +334,8 @@ def test_cost_is_in_the_tooltips(make_light) -> None:
     rna = properties.OMNIWARP_PG_light.bl_rna.properties
     assert "6 × resolution²" in rna["resolution"].description
     items = {identifier: description for identifier, _, description, _ in properties.PARAMETERIZATION_ITEMS}
-    assert "tessellat" in items["DPSM"] and "six passes" in items["CUBE"]
-    assert "one pass" in items["IPSM"] and "tessellat" in items["IPSM"] and "falls back" in items["IPSM"]
+    assert "no tessellation" in items["DPSM"] and "six passes" in items["CUBE"]
+    assert "one pass" in items["IPSM"] and "no tessellation" in items["IPSM"] and "falls back" in items["IPSM"]
     assert "single pass" in items["UNFOLD"] and "tessellat" in items["UNFOLD"] and "no warp" in items["UNFOLD"]
     for name in ("SM", "PSM"):
         assert "one pass" in items[name] and "no tessellation" in items[name], name
@@ -345,7 +345,7 @@ def test_cost_is_in_the_tooltips(make_light) -> None:
     assert bpy.types.UILayout.enum_item_description(sun, "parameterization", "PSM") == items["PSM"]
     assert bpy.types.UILayout.enum_item_name(sun, "parameterization", "DPSM") == ""
     warps = {i.identifier: i.description for i in rna["warp"].enum_items}
-    assert "analysis" in warps["NOTW"] and "triangles" in warps["NOTW"]
+    assert "analysis" in warps["NOTW"] and "ray table" in warps["NOTW"] and "triangles" in warps["NOTW"]
     assert "comparison" in warps["RTW"]
 
 

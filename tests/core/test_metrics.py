@@ -1,4 +1,4 @@
-"""The error figure against the reference (addon/core/metrics.py, DESIGN.md section 5)."""
+"""The error figure against the reference (addon/core/metrics.py, docs/design.md section 5)."""
 from __future__ import annotations
 
 import math

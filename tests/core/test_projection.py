@@ -1,6 +1,6 @@
 """Paraboloid and cube-face projections (addon/core/projection.py).
 
-Expectations are derived from the formulas in DESIGN.md section 4: the paraboloid
+Expectations are derived from the formulas in docs/design.md section 4: the paraboloid
 is the stereographic projection r = tan(theta / 2) (theta = angle from the axis),
 a cube face is the 90 degree perspective (x, y) = (p_x, p_y) / p_z.
 """

@@ -149,7 +149,7 @@ def test_warp_lowers_the_peak_count(gl_backend, case, param, warp):
     Not "every layer drops" (the issue's target): with the shear limit at 0.5 the
     smoothing reaches wider, and on vertex_at_light's floor face (64 texels, 6.9 k
     samples, every window at its cap of A/2) the peak stays at 7, where a limit of 1
-    brought it to 5. docs/warping.md gives the trade.
+    brought it to 5. docs/notebook/2026-11-warping.md gives the trade.
     """
     scene, samples, _, _ = case
     pipe = ShadowPipeline(gl_backend)
