@@ -7,7 +7,8 @@
 // its importance weight, which the positions' w holds (an integer >= 1 where the
 // pixel hit, 0 where it missed), instead of one: the warp analysis counts weights,
 // the count statistics count samples. Variants built for one mode define
-// OW_SCATTER_MODE (shaders.scatter_variant), so the other modes compile out.
+// OW_SCATTER_MODE (shaders.scatter_variant), so the other modes compile out. Built with
+// OW_LINK (mode 2), the pass links each sample into its texel's list instead of counting.
 #include "lib/projection.glsl"
 #include "lib/layers.glsl"
 #include "lib/mapping.glsl"
@@ -56,6 +57,14 @@ void main()
     return;
   }
   ivec2 texel = min(ivec2(floor(uv * float(ow_count_size))), ivec2(ow_count_size - 1));
+#ifdef OW_LINK
+  // The irregular z-buffer's lists (shaders.link_variant): the sample goes to the front of
+  // its texel's list. A texel of ow_counts holds the list's head (0: empty, else sample
+  // index + 1), ow_next the rest, so the list lengths are the counts of mode 2.
+  uint previous = imageAtomicExchange(ow_counts, texel + ivec2(tile * ow_count_size, 0), uint(index + 1));
+  imageStore(ow_next, ivec2(index % size.x, index / size.x), uvec4(previous));
+#else
   uint amount = ow_weighted != 0 ? uint(pw.w + 0.5) : 1u;
   imageAtomicAdd(ow_counts, texel + ivec2(tile * ow_count_size, 0), amount);
+#endif
 }

@@ -233,6 +233,18 @@ class ShadowBackend(ABC):
         """
 
     @abstractmethod
+    def link_samples(self, size: int, tiles: int, uniforms: UniformValues) -> None:
+        """Link every uploaded sample into the list of the map texel it falls in, through the
+        full warp (shaders.link_variant, the scatter's uniforms with ow_count_size = the map
+        resolution): the irregular z-buffer's lists, kept on the GPU. A heads strip like
+        scatter_counts' (0: empty, else sample index + 1) and one next-link per sample."""
+
+    @abstractmethod
+    def read_links(self) -> tuple[np.ndarray, np.ndarray]:
+        """The last `link_samples` as (heads (size, size * tiles), links (H, W)) uint32, row 0
+        at the bottom; sample index i is texel (i % W, i // W) of the sample texture."""
+
+    @abstractmethod
     def reduce_samples(self, uniforms: UniformValues, clear: bool) -> np.ndarray:
         """One pass of the planning statistics over the uploaded samples (SAMPLE_STATS_PROGRAM).
 

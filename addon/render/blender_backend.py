@@ -49,6 +49,7 @@ from .shaders import (
     SHADOW_TEST_PROGRAM,
     ComputeInterface,
     ProgramInterface,
+    link_variant,
     program_variant,
     scatter_variant,
 )
@@ -73,6 +74,7 @@ class BlenderGPUBackend(ShadowBackend):
         self._test_target = None
         self._count_targets: dict[int, Any] = {}  # count-map size -> R32UI strip of its tiles
         self._stats_target = None  # R32UI row of the planning statistics (reduce_samples)
+        self._links = None  # (heads strip, next links) of link_samples, R32UI
         self._gbuffer_target = None  # (size, texture, framebuffer) of samples_from_gbuffer
         self._no_warp = None  # the one zero texel bound as both warp tables without a warp
         self._batches: dict[str, Any] = {}
@@ -438,6 +440,34 @@ class BlenderGPUBackend(ShadowBackend):
         raw = np.asarray(target.read(), dtype=np.uint32)
         return raw.reshape(size, size * tiles).astype(np.float32)
 
+    def link_samples(self, size: int, tiles: int, uniforms: UniformValues) -> None:
+        import gpu
+
+        if self._sample_size is None:
+            raise BackendError("link_samples called before upload_samples")
+        width, height = self._sample_size
+        held = self._links
+        if (held is None or (held[0].width, held[0].height) != (size * tiles, size)
+                or (held[1].width, held[1].height) != (width, height)):
+            CREATED["texture"] += 2
+            self._links = (gpu.types.GPUTexture((size * tiles, size), format="R32UI"),
+                           gpu.types.GPUTexture((width, height), format="R32UI"))
+        heads, links = self._links
+        heads.clear(format="UINT", value=(0,))
+        links.clear(format="UINT", value=(0,))
+        iface = link_variant(uniforms)
+        shader = self._bind(iface, uniforms)
+        shader.image("ow_counts", heads)
+        shader.image("ow_next", links)
+        gpu.compute.dispatch(shader, iface.groups(width * height), 1, 1)
+
+    def read_links(self) -> tuple[np.ndarray, np.ndarray]:
+        if self._links is None:
+            raise BackendError("read_links called before link_samples")
+        heads, links = self._links
+        return (np.asarray(heads.read(), dtype=np.uint32).reshape(heads.height, heads.width).copy(),
+                np.asarray(links.read(), dtype=np.uint32).reshape(links.height, links.width).copy())
+
     def reduce_samples(self, uniforms: UniformValues, clear: bool) -> np.ndarray:
         import gpu
 
@@ -526,6 +556,7 @@ class BlenderGPUBackend(ShadowBackend):
         self._batches.clear()
         self._count_targets.clear()
         self._stats_target = None
+        self._links = None
         self._gbuffer_target = None
         self._no_warp = None
         self._test_target = None

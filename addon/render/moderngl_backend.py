@@ -33,6 +33,7 @@ from .shaders import (
     ComputeInterface,
     ProgramInterface,
     moderngl_compute_source,
+    link_variant,
     moderngl_sources,
     program_variant,
     scatter_variant,
@@ -105,6 +106,7 @@ class ModernGLBackend(ShadowBackend):
         self._test_target = None  # (texture, framebuffer) of the sample size
         self._count_targets: dict[int, object] = {}  # count-map size -> R32UI strip of its tiles
         self._stats_target = None  # R32UI row of the planning statistics (reduce_samples)
+        self._links = None  # (heads strip, next links) of link_samples, R32UI
         with self.ctx:
             self._fullscreen_vbo = self.ctx.buffer(_FULLSCREEN.tobytes())
             self._set_table("ow_warp_rows", None)
@@ -366,6 +368,34 @@ class ModernGLBackend(ShadowBackend):
         return counts.astype(np.float32)
 
     @_current
+    def link_samples(self, size: int, tiles: int, uniforms: UniformValues) -> None:
+        if self._sample_size is None:
+            raise BackendError("link_samples called before upload_samples")
+        width, height = self._sample_size
+        if self._links is None or self._links[0].size != (size * tiles, size) or self._links[1].size != (width, height):
+            for tex in self._links or ():
+                tex.release()
+            self._links = (self.ctx.texture((size * tiles, size), 1, dtype="u4"),
+                           self.ctx.texture((width, height), 1, dtype="u4"))
+        heads, links = self._links
+        heads.write(np.zeros(size * tiles * size, dtype="u4").tobytes())
+        links.write(np.zeros(width * height, dtype="u4").tobytes())
+        iface = link_variant(uniforms)
+        prog = self._use(iface, uniforms)
+        heads.bind_to_image(0, read=True, write=True)
+        links.bind_to_image(1, read=False, write=True)
+        prog.run(group_x=iface.groups(width * height))
+        self.ctx.memory_barrier()
+
+    @_current
+    def read_links(self) -> tuple[np.ndarray, np.ndarray]:
+        if self._links is None:
+            raise BackendError("read_links called before link_samples")
+        heads, links = self._links
+        return (np.frombuffer(heads.read(), dtype="u4").reshape(heads.size[1], heads.size[0]).copy(),
+                np.frombuffer(links.read(), dtype="u4").reshape(links.size[1], links.size[0]).copy())
+
+    @_current
     def reduce_samples(self, uniforms: UniformValues, clear: bool) -> np.ndarray:
         if self._sample_size is None:
             raise BackendError("reduce_samples called before upload_samples")
@@ -470,6 +500,9 @@ class ModernGLBackend(ShadowBackend):
             if self._stats_target is not None:
                 self._stats_target.release()
                 self._stats_target = None
+            for tex in self._links or ():
+                tex.release()
+            self._links = None
             for fbo in self._edge_fbos or ():
                 fbo.release()
             self._edge_fbos = None

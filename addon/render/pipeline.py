@@ -144,25 +144,16 @@ class ShadowPipeline:
         `weighted` sums the samples' importance weights instead of counting them.
         """
         slots = plan.drawn_slots
-        rotations, crops = slot_rotations_and_crops(plan, mappings)
-        tiles = np.full(SLOTS, -1, dtype=np.int64)
-        tiles[slots] = np.arange(len(slots))
-        warp_size = max((m.warp.size for m in mappings.values() if m.warp is not None), default=0)
-        uniforms = {
-            "ow_light_rot": light.rotation.T,
-            "ow_layer_rot": rotations,
-            "ow_layer_crop": crops,
-            "ow_slot_tile": tiles,
-            "ow_layer_kind": plan.layer_kind,
-            "ow_param": PARAM_CODES[plan.parameterization],
-            "ow_hemi": 1 if light.emission == "hemi" else 0,
-            "ow_warp_size": warp_size,
-            "ow_scatter_mode": mode,
-            "ow_count_size": size,
-            "ow_weighted": int(weighted),
-        }
+        uniforms = _scatter_uniforms(light, plan, mappings, size, mode, weighted)
         strip = self.backend.scatter_counts(size, max(len(slots), 1), uniforms)
         return {slot: strip[:, tile * size:(tile + 1) * size].copy() for tile, slot in enumerate(slots)}
+
+    def link_lists(self, light: LightSpec, plan: Plan, mappings: dict[int, LayerMapping], size: int) -> None:
+        """Link the uploaded samples into per-texel lists through the full mapping of each
+        drawn layer, at `size` texels a side (the irregular z-buffer's lists; the backend
+        keeps them, `read_links` reads them back). The warp tables must be uploaded."""
+        uniforms = _scatter_uniforms(light, plan, mappings, size, 2, False)
+        self.backend.link_samples(size, max(len(plan.drawn), 1), uniforms)
 
     def _analyse(self, light: LightSpec, settings: ShadowSettings, plan: Plan) -> tuple[dict, dict]:
         """DV crop and warp construction for every drawn layer (Algorithm 3, steps 2-7).
@@ -363,6 +354,29 @@ class ShadowPipeline:
         }
         uniforms.update(parameterization(plan.parameterization).test_uniforms(plan))
         return self.backend.shadow_test(uniforms)
+
+def _scatter_uniforms(light: LightSpec, plan: Plan, mappings: dict[int, LayerMapping], size: int, mode: int,
+                      weighted: bool) -> dict:
+    """The uniforms of the scatter (and its list-linking variant) over the drawn layers."""
+    slots = plan.drawn_slots
+    rotations, crops = slot_rotations_and_crops(plan, mappings)
+    tiles = np.full(SLOTS, -1, dtype=np.int64)
+    tiles[slots] = np.arange(len(slots))
+    warp_size = max((m.warp.size for m in mappings.values() if m.warp is not None), default=0)
+    return {
+        "ow_light_rot": light.rotation.T,
+        "ow_layer_rot": rotations,
+        "ow_layer_crop": crops,
+        "ow_slot_tile": tiles,
+        "ow_layer_kind": plan.layer_kind,
+        "ow_param": PARAM_CODES[plan.parameterization],
+        "ow_hemi": 1 if light.emission == "hemi" else 0,
+        "ow_warp_size": warp_size,
+        "ow_scatter_mode": mode,
+        "ow_count_size": size,
+        "ow_weighted": int(weighted),
+    }
+
 
 def _mask_unread_texels(atlas: np.ndarray, layout: AtlasLayout, tile_of_slot: dict[int, int],
                         boxes: dict[int, tuple[int, int, int, int]]) -> np.ndarray:

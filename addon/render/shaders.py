@@ -430,6 +430,24 @@ def _scatter_variant(mode: int, kind: int | None) -> ComputeInterface:
     return replace(SCATTER_PROGRAM, name=name, defines=defines)
 
 
+LINK_DEFINE = "OW_LINK"
+
+
+@functools.cache
+def _link_variant(kind: int | None) -> ComputeInterface:
+    base = _scatter_variant(2, kind)
+    return replace(base, name=base.name.replace("_mode2", "_link"), defines={**base.defines, LINK_DEFINE: "1"},
+                   images=base.images + (("r32ui", "ow_next"),))
+
+
+def link_variant(uniforms: dict) -> ComputeInterface:
+    """The scatter through the full warp that links each sample into its texel's list (the
+    irregular z-buffer's lists, issue 19) instead of counting: `ow_counts` gets the heads,
+    `ow_next` (one texel a sample) the links."""
+    kind = int(uniforms.get("ow_layer_kind", -1))
+    return _link_variant(kind if kind in FIXED_KIND_NAMES else None)
+
+
 def scatter_variant(uniforms: dict) -> ComputeInterface:
     """The count-map scatter built for the uniforms' mode (ow_scatter_mode) and kind.
 
@@ -453,7 +471,8 @@ VARIANT_PROGRAMS = tuple(_variant(base, warped, kind) for base in _VARIANT_BASES
 
 PROGRAMS = (*VARIANT_PROGRAMS, RAY_TABLE_PROGRAM, GBUFFER_PROGRAM, GBUFFER_SAMPLES_PROGRAM, PREVIEW_PROGRAM, OVERLAY_PROGRAM, EDGE_PROGRAM)
 COMPUTE_PROGRAMS = (SCATTER_PROGRAM, SAMPLE_STATS_PROGRAM, *(_scatter_variant(mode, kind) for mode in SCATTER_MODES
-                                       for kind in (None, *FIXED_KIND_NAMES)))
+                                                             for kind in (None, *FIXED_KIND_NAMES)),
+                    *(_link_variant(kind) for kind in (None, *FIXED_KIND_NAMES)))
 
 
 def program_defines(iface: "ProgramInterface | ComputeInterface") -> dict[str, str]:

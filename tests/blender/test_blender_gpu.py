@@ -31,6 +31,7 @@ from tests.support.blender_gpu_worker import (  # noqa: E402
     case_key,
     weighted_samples,
 )
+from tests.gl.test_izb_lists import _walk  # noqa: E402
 from tests.support.checks import expect  # noqa: E402
 from tests.support.oracle import view_samples  # noqa: E402
 
@@ -82,6 +83,11 @@ def test_blender_backend_matches_moderngl(gl_backend, tmp_path, monkeypatch):
     assert not np.allclose(ours.atlas, plain.atlas, atol=1e-6)  # the weights move the warp
     assert np.array_equal(ours.visibility, theirs["weighted_visibility"])
     assert np.allclose(ours.atlas, theirs["weighted_atlas"], atol=1e-6)
+    # The irregular z-buffer's lists: the same members in the same texels' lists.
+    pipeline.link_lists(scene.light, ours.plan, ours.mappings, 256)
+    lengths, members = _walk(*gl_backend.read_links())
+    assert np.array_equal(lengths, theirs["link_lengths"])
+    assert np.array_equal(np.sort(np.asarray(members)), theirs["link_members"]) and len(members) > 100
     court = boxed_scene()
     court_samples, _, _ = view_samples(court)
     for param in BOXED_CASES:

@@ -54,6 +54,7 @@ def backends(out: str, reference: str | None = None) -> None:
     from addon.render.pipeline import ShadowPipeline, ShadowSettings
     from addon.core.scene import LightSpec
     from tests.gl.test_footprint_pass import point_cloud
+    from tests.gl.test_izb_lists import _walk
     from tests.gl.test_pipeline_extremes import _seam_straddler
     from tests.gl.test_projective import _street
     from tests.support.oracle import view_samples
@@ -80,6 +81,11 @@ def backends(out: str, reference: str | None = None) -> None:
                              ShadowSettings("dpsm", 256, warp="notw"), keep_atlas=True)
     arrays["weighted_visibility"] = result.visibility
     arrays["weighted_atlas"] = result.atlas
+    # The irregular z-buffer's lists of that frame: their lengths and members (not their
+    # order, which the atomics decide).
+    pipeline.link_lists(scene.light, result.plan, result.mappings, 256)
+    lengths, members = _walk(*backend.read_links())
+    arrays["link_lengths"], arrays["link_members"] = lengths, np.sort(np.asarray(members))
     court = boxed_scene()
     court_samples, _, _ = view_samples(court)
     for param in BOXED_CASES:
