@@ -7,8 +7,45 @@
 #include "lib/projection.glsl"
 #include "lib/mapping.glsl"
 
+#ifdef OW_EXACT
+// The irregular z-buffer (shaders.exact_variant): this fragment's texel holds a list of
+// view samples (ow_counts: head, ow_next: links; sample index + 1, 0 ends it). A sample
+// is shadowed by this triangle when its segment from the light crosses it: its own
+// direction lies inside the three edge planes, and the triangle's plane cuts the segment
+// before the sample, by more than ow_exact_eps of its length (the receiver's own surface
+// is left out). Marked in ow_hits; at most OW_EXACT_MAX_WALK entries are walked, and a
+// longer list counts one cut in the overflow row's texel 0.
+void ow_exact_walk()
+{
+  ivec2 texel = ivec2(gl_FragCoord.xy - ow_tile_origin);
+  int res = int(ow_resolution);
+  uint node = imageLoad(ow_counts, texel + ivec2(ow_exact_tile * res, 0)).x;
+  int width = textureSize(ow_positions, 0).x;
+  for (int step = 0; step < OW_EXACT_MAX_WALK && node != 0u; step++) {
+    int index = int(node) - 1;
+    ivec2 at = ivec2(index % width, index / width);
+    vec3 p = texelFetch(ow_positions, at, 0).xyz;  // light-centred
+    float s = dot(v_plane.xyz, p);
+    if (dot(p, v_edge0) >= 0.0 && dot(p, v_edge1) >= 0.0 && dot(p, v_edge2) >= 0.0 && s != 0.0) {
+      float f = v_plane.w / s;  // where the plane cuts the segment, 1 at the sample
+      if (f > 0.0 && f < 1.0 - ow_exact_eps) {
+        imageAtomicOr(ow_hits, at, 1u);
+      }
+    }
+    node = imageLoad(ow_next, at).x;
+  }
+  if (node != 0u) {
+    imageAtomicAdd(ow_hits, ivec2(0, textureSize(ow_positions, 0).y), 1u);
+  }
+}
+#endif
+
 void main()
 {
+#ifdef OW_EXACT
+  ow_exact_walk();
+  discard;
+#endif
 #ifndef OW_FIXED_KIND
   if (ow_projective != 0) {
     // As in depth.frag: the map's own depth; an inverted light (PSM) keeps the farthest.

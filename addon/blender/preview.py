@@ -172,7 +172,7 @@ def _report(reference: ReferenceData, per_light, gbuffer, gbuffer_ms: float, ren
         lights.append({
             "light": name, "emission": light.emission,
             "method": method_registry.label_for(settings.parameterization, settings.warp, settings.cut,
-                                                settings.edge_aa),
+                                                settings.edge_aa, settings.exact),
             "parameterization": settings.parameterization, "warp": settings.warp, "cut": settings.cut,
             "edge_aa": settings.edge_aa, "resolution": settings.resolution, "passes": result.passes,
             "texels": result.texels, "triangles_drawn": result.geometry.triangles_drawn,

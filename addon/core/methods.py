@@ -62,6 +62,7 @@ class Method:
     emissions: tuple[str, ...]  # the light emissions it can shadow
     description: str  # one line, for help texts and tooltips
     external: bool = False  # measured outside the pipeline (no ShadowSettings)
+    exact: bool = False  # the irregular z-buffer over the map instead of its depths
 
     @property
     def pipeline(self) -> bool:
@@ -74,9 +75,9 @@ class Method:
 
 
 def _pipeline(name: str, parameterization: str, description: str, warp: str = "none", cut: bool = False,
-              edge_aa: bool = False) -> Method:
+              edge_aa: bool = False, exact: bool = False) -> Method:
     emissions = tuple(e for e in EMISSIONS if parameterization in parameterizations_for(e))
-    return Method(name, parameterization, warp, cut, edge_aa, emissions, description)
+    return Method(name, parameterization, warp, cut, edge_aa, emissions, description, exact=exact)
 
 
 _ENTRIES: tuple[Method, ...] = (
@@ -95,6 +96,9 @@ _ENTRIES: tuple[Method, ...] = (
     _pipeline("unfold", "unfold", "dual sphere-unfolding (both halves in one pass)"),
     _pipeline("unfold+aa", "unfold", "dual sphere-unfolding with the paper's edge-distance antialiasing",
               edge_aa=True),
+    _pipeline("exact", "dpsm", "exact hard shadows: an irregular z-buffer over the NoTW-warped dual paraboloid "
+                               "(the view samples in per-texel lists, each triangle tested against them)",
+              warp="notw", exact=True),
     _pipeline("sm", "sm", "one uniform shadow map (spot and sun lights)"),
     _pipeline("psm", "psm", "a perspective shadow map in the camera's post-perspective space (spot and sun lights)"),
     # Blender's own shadows, rendered by EEVEE in a child process at the light's default and a
@@ -180,14 +184,16 @@ def default_method(emission: str) -> str:
     return _DEFAULT_PREVIEW["projective" if emission in PROJECTIVE_EMISSIONS else "point"]
 
 
-def label_for(parameterization: str, warp: str = "none", cut: bool = False, edge_aa: bool = False) -> str:
+def label_for(parameterization: str, warp: str = "none", cut: bool = False, edge_aa: bool = False,
+              exact: bool = False) -> str:
     """The method name of these settings; settings no entry has (e.g. a light's ipsm + RTW)
     get the same 'parameterization+warp' form."""
     for name, entry in METHODS.items():
-        if (entry.parameterization, entry.warp, entry.cut, entry.edge_aa) == (parameterization, warp, cut, edge_aa):
+        if ((entry.parameterization, entry.warp, entry.cut, entry.edge_aa, entry.exact)
+                == (parameterization, warp, cut, edge_aa, exact)):
             return name
     return "+".join([parameterization] + ([warp] if warp != "none" else []) + (["cut"] if cut else [])
-                    + (["aa"] if edge_aa else []))
+                    + (["aa"] if edge_aa else []) + (["exact"] if exact else []))
 
 
 def help_list() -> str:

@@ -171,11 +171,13 @@ class ShadowBackend(ABC):
 
     @abstractmethod
     def draw_footprints(self, tile: int, draws: list[FootprintDraw], uniforms: UniformValues,
-                        scissor: tuple[int, int, int, int] | None = None) -> None:
+                        scissor: tuple[int, int, int, int] | None = None, exact: bool = False) -> None:
         """Draw resident objects into one tile with the footprint program (FOOTPRINT_PROGRAM).
 
         FOOTPRINT_VERTICES vertices per triangle (corner_indices); `uniforms` are the
-        layer's, each draw adds its object's. `scissor` is as for `draw_layer`.
+        layer's, each draw adds its object's. `scissor` is as for `draw_layer`. With `exact`
+        the irregular z-buffer's variant (shaders.exact_variant) marks the linked samples
+        instead (uniforms ow_exact_tile, ow_exact_eps; after `link_samples`).
         """
 
     @abstractmethod
@@ -238,6 +240,12 @@ class ShadowBackend(ABC):
         full warp (shaders.link_variant, the scatter's uniforms with ow_count_size = the map
         resolution): the irregular z-buffer's lists, kept on the GPU. A heads strip like
         scatter_counts' (0: empty, else sample index + 1) and one next-link per sample."""
+
+    @abstractmethod
+    def read_hits(self) -> tuple[np.ndarray, int]:
+        """The exact pass's marks since the last `link_samples`: (H, W) uint32, non-zero
+        where a triangle crossed the sample's segment to the light (row 0 at the bottom),
+        and how many list walks were cut at EXACT_MAX_WALK."""
 
     @abstractmethod
     def read_links(self) -> tuple[np.ndarray, np.ndarray]:

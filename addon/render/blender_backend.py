@@ -49,6 +49,7 @@ from .shaders import (
     SHADOW_TEST_PROGRAM,
     ComputeInterface,
     ProgramInterface,
+    exact_variant,
     link_variant,
     program_variant,
     scatter_variant,
@@ -315,11 +316,13 @@ class BlenderGPUBackend(ShadowBackend):
             batch.draw(shader)
 
     def draw_footprints(self, tile: int, draws: list[FootprintDraw], uniforms: UniformValues,
-                        scissor: tuple[int, int, int, int] | None = None) -> None:
+                        scissor: tuple[int, int, int, int] | None = None, exact: bool = False) -> None:
         import gpu
 
         if self._layout is None:
             raise BackendError("draw_footprints called before begin_atlas")
+        if exact and self._links is None:
+            raise BackendError("the exact footprint pass needs link_samples first")
         viewport = self._layout.span_viewport(tile, 1)
         # Always scissored: point sprites may reach past the tile's edge.
         rect = self._layout.scissor_rect(tile, scissor) if scissor is not None else viewport
@@ -339,8 +342,12 @@ class BlenderGPUBackend(ShadowBackend):
                     if held is None:
                         raise BackendError(f"object {draw.key!r} is not resident; call sync_scene first")
                     points = draw.points and self.point_sprites
-                    iface = program_variant(FOOTPRINT_PROGRAM, uniforms, points)
+                    iface = (exact_variant(uniforms, points) if exact
+                             else program_variant(FOOTPRINT_PROGRAM, uniforms, points))
                     shader = self._bind(iface, {**uniforms, **draw.uniforms}, {"ow_vertices": held[1]})
+                    if exact:
+                        for (_, name), texture in zip(iface.images, self._links):
+                            shader.image(name, texture)
                     batch = self._corner_batch(shader, draw.first + draw.count, points)
                     if points:
                         gpu.state.program_point_size_set(True)
@@ -449,12 +456,14 @@ class BlenderGPUBackend(ShadowBackend):
         held = self._links
         if (held is None or (held[0].width, held[0].height) != (size * tiles, size)
                 or (held[1].width, held[1].height) != (width, height)):
-            CREATED["texture"] += 2
+            CREATED["texture"] += 3
+            # heads, links, and the exact pass's marks (one row more: the overflow count)
             self._links = (gpu.types.GPUTexture((size * tiles, size), format="R32UI"),
-                           gpu.types.GPUTexture((width, height), format="R32UI"))
-        heads, links = self._links
-        heads.clear(format="UINT", value=(0,))
-        links.clear(format="UINT", value=(0,))
+                           gpu.types.GPUTexture((width, height), format="R32UI"),
+                           gpu.types.GPUTexture((width, height + 1), format="R32UI"))
+        heads, links, _ = self._links
+        for texture in self._links:
+            texture.clear(format="UINT", value=(0,))
         iface = link_variant(uniforms)
         shader = self._bind(iface, uniforms)
         shader.image("ow_counts", heads)
@@ -464,9 +473,16 @@ class BlenderGPUBackend(ShadowBackend):
     def read_links(self) -> tuple[np.ndarray, np.ndarray]:
         if self._links is None:
             raise BackendError("read_links called before link_samples")
-        heads, links = self._links
+        heads, links, _ = self._links
         return (np.asarray(heads.read(), dtype=np.uint32).reshape(heads.height, heads.width).copy(),
                 np.asarray(links.read(), dtype=np.uint32).reshape(links.height, links.width).copy())
+
+    def read_hits(self) -> tuple[np.ndarray, int]:
+        if self._links is None:
+            raise BackendError("read_hits called before link_samples")
+        hits = self._links[2]
+        raw = np.asarray(hits.read(), dtype=np.uint32).reshape(hits.height, hits.width)
+        return raw[:-1].copy(), int(raw[-1, 0])
 
     def reduce_samples(self, uniforms: UniformValues, clear: bool) -> np.ndarray:
         import gpu

@@ -111,6 +111,8 @@ def create_info(iface: ProgramInterface) -> Any:
     if iface.writes_depth and hasattr(info, "depth_write"):
         # Declared where the API has it (newer Blender); OpenGL honours gl_FragDepth either way.
         info.depth_write("ANY")
+    for unit, (fmt, name) in enumerate(iface.images):
+        info.image(unit, fmt.upper(), "UINT_2D", name, qualifiers={"READ", "WRITE"})
     for key, value in program_defines(iface).items():
         info.define(key, value)
     info.vertex_source(load_source(iface.vertex_file))

@@ -71,6 +71,9 @@ class ShadowSettings:
     analysis_size: int | None = None  # count-map side A; None = analysis_size_for(resolution)
     cut: bool = False  # ipsm only: skewed axis and a crop fitted to the frustum (thesis 4.1.4)
     edge_aa: bool = False  # unfold only: the paper's edge-distance antialiasing (edge_aa_parameters)
+    # dpsm, cube, ipsm: the irregular z-buffer over the (warped) map instead of its depths
+    # (the `exact` method)
+    exact: bool = False
 
     def __post_init__(self) -> None:
         known = POINT_PARAMETERIZATIONS + PROJECTIVE_PARAMETERIZATIONS
@@ -81,6 +84,9 @@ class ShadowSettings:
                              f"{', '.join(frames.WARPABLE_PARAMETERIZATIONS)}")
         if self.edge_aa and self.parameterization != "unfold":
             raise InputError("edge-distance antialiasing is the unfold method's option (unfold+aa)")
+        if self.exact and self.parameterization not in ("dpsm", "cube", "ipsm"):
+            raise InputError(f"the exact (irregular z-buffer) pass draws footprints: dpsm, cube or ipsm, "
+                             f"not {self.parameterization}")
         if self.warp not in WARP_KINDS:
             raise InputError(f"unknown warp {self.warp!r}; use one of {', '.join(WARP_KINDS)}")
         if not (MIN_RESOLUTION <= int(self.resolution) <= MAX_RESOLUTION):
@@ -100,7 +106,7 @@ def settings_for(method: str, resolution: int, **fields) -> ShadowSettings:
     if entry.parameterization is None:
         raise InputError(f"{method} is measured outside the pipeline; it has no shadow-map settings")
     return ShadowSettings(entry.parameterization, resolution, warp=entry.warp, cut=entry.cut,
-                          edge_aa=entry.edge_aa, **fields)
+                          edge_aa=entry.edge_aa, exact=entry.exact, **fields)
 
 
 # Largest importance weight one view sample may carry: weights travel in a float32

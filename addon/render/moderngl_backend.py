@@ -33,6 +33,7 @@ from .shaders import (
     ComputeInterface,
     ProgramInterface,
     moderngl_compute_source,
+    exact_variant,
     link_variant,
     moderngl_sources,
     program_variant,
@@ -284,9 +285,11 @@ class ModernGLBackend(ShadowBackend):
 
     @_current
     def draw_footprints(self, tile: int, draws: list[FootprintDraw], uniforms: UniformValues,
-                        scissor: tuple[int, int, int, int] | None = None) -> None:
+                        scissor: tuple[int, int, int, int] | None = None, exact: bool = False) -> None:
         if self._atlas_layout is None:
             raise BackendError("draw_footprints called before begin_atlas")
+        if exact and self._links is None:
+            raise BackendError("the exact footprint pass needs link_samples first")
         viewport = self._atlas_layout.span_viewport(tile, 1)
         self._atlas_fbo.use()
         self._atlas_fbo.viewport = viewport
@@ -303,8 +306,12 @@ class ModernGLBackend(ShadowBackend):
                     raise BackendError(f"object {draw.key!r} is not resident; call sync_scene first")
                 self._textures["ow_vertices"] = held[1]
                 self._ensure_corners(draw.first + draw.count)
-                iface = program_variant(FOOTPRINT_PROGRAM, uniforms, draw.points)
+                iface = (exact_variant(uniforms, draw.points) if exact
+                         else program_variant(FOOTPRINT_PROGRAM, uniforms, draw.points))
                 prog = self._use(iface, {**uniforms, **draw.uniforms})
+                if exact:
+                    for unit, texture in enumerate(self._links):
+                        texture.bind_to_image(unit, read=True, write=True)
                 vao = self._vaos.get(iface.name)
                 if vao is None:
                     vao = self.ctx.vertex_array(prog, [(self._corners, "1f", "ow_corner")])
@@ -375,11 +382,14 @@ class ModernGLBackend(ShadowBackend):
         if self._links is None or self._links[0].size != (size * tiles, size) or self._links[1].size != (width, height):
             for tex in self._links or ():
                 tex.release()
+            # heads, links, and the exact pass's marks (one row more: the overflow count)
             self._links = (self.ctx.texture((size * tiles, size), 1, dtype="u4"),
-                           self.ctx.texture((width, height), 1, dtype="u4"))
-        heads, links = self._links
+                           self.ctx.texture((width, height), 1, dtype="u4"),
+                           self.ctx.texture((width, height + 1), 1, dtype="u4"))
+        heads, links, hits = self._links
         heads.write(np.zeros(size * tiles * size, dtype="u4").tobytes())
         links.write(np.zeros(width * height, dtype="u4").tobytes())
+        hits.write(np.zeros(width * (height + 1), dtype="u4").tobytes())
         iface = link_variant(uniforms)
         prog = self._use(iface, uniforms)
         heads.bind_to_image(0, read=True, write=True)
@@ -391,9 +401,18 @@ class ModernGLBackend(ShadowBackend):
     def read_links(self) -> tuple[np.ndarray, np.ndarray]:
         if self._links is None:
             raise BackendError("read_links called before link_samples")
-        heads, links = self._links
+        heads, links, _ = self._links
         return (np.frombuffer(heads.read(), dtype="u4").reshape(heads.size[1], heads.size[0]).copy(),
                 np.frombuffer(links.read(), dtype="u4").reshape(links.size[1], links.size[0]).copy())
+
+    @_current
+    def read_hits(self) -> tuple[np.ndarray, int]:
+        if self._links is None:
+            raise BackendError("read_hits called before link_samples")
+        self.ctx.memory_barrier()
+        hits = self._links[2]
+        raw = np.frombuffer(hits.read(), dtype="u4").reshape(hits.size[1], hits.size[0])
+        return raw[:-1].copy(), int(raw[-1, 0])
 
     @_current
     def reduce_samples(self, uniforms: UniformValues, clear: bool) -> np.ndarray:
@@ -490,6 +509,9 @@ class ModernGLBackend(ShadowBackend):
         if self._released:
             return
         with self.ctx:
+            # Drain the queue first: a release that an interrupt brings in the middle of a
+            # frame must not free what llvmpipe's threads are still drawing with.
+            self.ctx.finish()
             self._free_atlas()
             for vao in self._vaos.values():
                 vao.release()

@@ -45,6 +45,10 @@ from .unfold import VERTEX_FLOATS, edge_aa_parameters, prepare_unfold
 
 log = logging.getLogger(__name__)
 
+# The exact pass leaves out an occluder within this share of the segment's length from the
+# sample: the receiver's own surface, and its coplanar neighbours, in float32 rounding.
+EXACT_EPS = 1e-4
+
 # Near clip of cube faces, relative to far: geometry closer to the light than this
 # is lost to clipping; 1e-6 keeps it far below a texel at any supported resolution.
 CLIP_NEAR_RELATIVE = 1e-6
@@ -108,12 +112,16 @@ class Parameterization:
             mapping = inputs.mappings.get(layer.slot, LayerMapping.identity())
             uniforms = {**layer_uniforms(layer, inputs.geometry, res, inputs.layout.origin(tile), mapping,
                                          inputs.warp_size), **inputs.region}
-            if mapping.warp is not None:
+            exact = inputs.settings.exact
+            if exact:
+                # The irregular z-buffer: the tile's lists are strip tile `tile` (link_lists).
+                uniforms.update(ow_exact_tile=tile, ow_exact_eps=EXACT_EPS)
+            elif mapping.warp is not None:
                 backend.build_ray_table(tile, uniforms)
             stretch = map_stretch(mapping)
             draws = [run for draw in inputs.draws
                      for run in footprint_ranges(draw, spheres[draw.key], layer, stretch, res, inputs.region)]
-            backend.draw_footprints(tile, draws, uniforms, scissor=inputs.boxes.get(layer.slot))
+            backend.draw_footprints(tile, draws, uniforms, scissor=inputs.boxes.get(layer.slot), exact=exact)
         return 0
 
     def test_uniforms(self, plan: Plan) -> dict:

@@ -257,6 +257,8 @@ class ShadowPipeline:
 
         # Texels outside a layer's box are neither cleared nor drawn (map-space culling).
         backend.begin_atlas(layout, {tile_of_slot[slot]: box for slot, box in boxes.items()})
+        if settings.exact:
+            self.link_lists(light, plan, mappings, res)  # the irregular z-buffer's lists
         edge_radius = scheme.draw(backend, inputs)
         backend.finish()
         t5 = time.perf_counter()
@@ -270,6 +272,11 @@ class ShadowPipeline:
         timings["total"] = (t6 - t0) * 1e3 + scene_ms
 
         atlas = _mask_unread_texels(backend.read_atlas(), layout, tile_of_slot, boxes) if keep_atlas else None
+        if settings.exact:
+            # The atlas holds no depth (every texel empty), so the test lit every tested
+            # sample; the exact pass's marks shadow the ones a triangle crosses.
+            hits, _ = backend.read_hits()
+            result[..., 0] = np.where(hits > 0, 0.0, result[..., 0])
         visibility = result[..., 0][::-1].copy()
         flags = result[..., 1][::-1].astype(np.int8)
         return FrameResult(visibility, flags, timings, plan, geometry, layout,

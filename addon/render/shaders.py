@@ -67,6 +67,7 @@ class ProgramInterface:
     varyings: tuple[Varying, ...] = ()
     writes_depth: bool = False
     defines: dict[str, str] = field(default_factory=dict)
+    images: tuple[tuple[str, str], ...] = ()  # (format, name) of uimage2D images of the fragment stage
 
 
 @dataclass(frozen=True)
@@ -416,6 +417,36 @@ def program_variant(iface: ProgramInterface, uniforms: dict, points: bool = Fals
     return _variant(iface.name, warped, None if generic else kind, points)
 
 
+EXACT_DEFINE = "OW_EXACT"
+# Most list entries one fragment of the exact pass walks (footprint.frag): a longer list is
+# cut there, and the cut is counted (texel 0 of ow_hits' overflow row).
+EXACT_MAX_WALK = 4096
+
+
+_EXACT_VARIANTS: dict[str, ProgramInterface] = {}  # footprint variant name -> its exact variant
+
+
+def exact_of(base: ProgramInterface) -> ProgramInterface:
+    """The irregular z-buffer's variant of a footprint program (one object per variant:
+    backends cache programs by name)."""
+    held = _EXACT_VARIANTS.get(base.name)
+    if held is None:
+        held = _EXACT_VARIANTS[base.name] = replace(
+            base, name=base.name + "_exact",
+            defines={**base.defines, EXACT_DEFINE: "1", "OW_EXACT_MAX_WALK": str(EXACT_MAX_WALK)},
+            samplers=base.samplers + ("ow_positions",),
+            uniforms=base.uniforms + (Uniform("int", "ow_exact_tile"), Uniform("float", "ow_exact_eps")),
+            images=(("r32ui", "ow_counts"), ("r32ui", "ow_next"), ("r32ui", "ow_hits")))
+    return held
+
+
+def exact_variant(uniforms: dict, points: bool = False) -> ProgramInterface:
+    """The footprint pass of the irregular z-buffer (issue 19): each fragment walks its
+    texel's list of samples (link_variant) and marks those whose segment to the light the
+    triangle crosses, instead of storing a depth."""
+    return exact_of(program_variant(FOOTPRINT_PROGRAM, uniforms, points))
+
+
 SCATTER_MODE_DEFINE = "OW_SCATTER_MODE"
 SCATTER_MODES = (0, 1, 2)  # after the crop; through the row warps; through the full warp
 
@@ -469,7 +500,9 @@ VARIANT_PROGRAMS = tuple(_variant(base, warped, kind) for base in _VARIANT_BASES
     _variant(FOOTPRINT_PROGRAM.name, warped, kind, True) for warped in (True, False) for kind in FIXED_KIND_NAMES)
 
 
-PROGRAMS = (*VARIANT_PROGRAMS, RAY_TABLE_PROGRAM, GBUFFER_PROGRAM, GBUFFER_SAMPLES_PROGRAM, PREVIEW_PROGRAM, OVERLAY_PROGRAM, EDGE_PROGRAM)
+EXACT_PROGRAMS = tuple(exact_of(iface) for iface in (FOOTPRINT_PROGRAM, *VARIANT_PROGRAMS)
+                      if iface.fragment_file == FOOTPRINT_PROGRAM.fragment_file)
+PROGRAMS = (*VARIANT_PROGRAMS, *EXACT_PROGRAMS, RAY_TABLE_PROGRAM, GBUFFER_PROGRAM, GBUFFER_SAMPLES_PROGRAM, PREVIEW_PROGRAM, OVERLAY_PROGRAM, EDGE_PROGRAM)
 COMPUTE_PROGRAMS = (SCATTER_PROGRAM, SAMPLE_STATS_PROGRAM, *(_scatter_variant(mode, kind) for mode in SCATTER_MODES
                                                              for kind in (None, *FIXED_KIND_NAMES)),
                     *(_link_variant(kind) for kind in (None, *FIXED_KIND_NAMES)))
@@ -500,6 +533,8 @@ def glsl_header(iface: ProgramInterface, stage: str) -> str:
         lines += [f"layout(location = {i}) in {t} {n};" for i, (t, n) in enumerate(iface.vertex_in)]
     else:
         lines += [f"layout(location = {i}) out {t} {n};" for i, (t, n) in enumerate(iface.fragment_out)]
+        lines += [f"layout({fmt}, binding = {unit}) uniform uimage2D {name};"
+                  for unit, (fmt, name) in enumerate(iface.images)]
     return "\n".join(lines) + "\n#line 1\n"
 
 

@@ -25,6 +25,7 @@ from tests.gl.test_footprint_pass import point_cloud  # noqa: E402
 from tests.support.blender_gpu_worker import (  # noqa: E402
     BOXED_CASES,
     CASES,
+    EXACT_CASES,
     POINT_CASES,
     PROJECTIVE_CASES,
     boxed_scene,
@@ -88,6 +89,12 @@ def test_blender_backend_matches_moderngl(gl_backend, tmp_path, monkeypatch):
     lengths, members = _walk(*gl_backend.read_links())
     assert np.array_equal(lengths, theirs["link_lengths"])
     assert np.array_equal(np.sort(np.asarray(members)), theirs["link_members"]) and len(members) > 100
+    # The exact pass: Blender marks the same samples as moderngl.
+    for param, warp in EXACT_CASES:
+        exact = pipeline.render(scene.light, scene.world_triangles(), samples,
+                                ShadowSettings(param, 128, warp=warp, exact=True))
+        assert np.array_equal(exact.visibility, theirs[f"exact_{param}_{warp}_visibility"]), (param, warp)
+        assert (exact.visibility < 0.5).any(), (param, warp)
     court = boxed_scene()
     court_samples, _, _ = view_samples(court)
     for param in BOXED_CASES:

@@ -11,7 +11,7 @@ from addon.core.scene import POINT_EMISSIONS, PROJECTIVE_EMISSIONS
 
 def test_entries_are_consistent():
     """Fits follow frames.parameterizations_for; warps, cut and AA only where the pipeline takes them."""
-    assert len(methods.names()) == len(set(methods.names())) == 14
+    assert len(methods.names()) == len(set(methods.names())) == 15
     for name, entry in methods.METHODS.items():
         assert entry.name == name
         assert entry.description and "\n" not in entry.description
@@ -23,6 +23,9 @@ def test_entries_are_consistent():
         assert entry.warp == "none" or takes_warp(entry.parameterization)
         assert not entry.cut or entry.parameterization == "ipsm"
         assert not entry.edge_aa or entry.parameterization == "unfold"
+        assert not entry.exact or entry.parameterization in ("dpsm", "cube", "ipsm")
+    assert methods.label_for("dpsm", "notw", exact=True) == "exact"
+    assert methods.label_for("dpsm", "notw") == "dpsm+notw"
     assert methods.external_methods() == ("eevee",)
     assert set(methods.pipeline_methods()) | {"eevee"} == set(methods.names())
 

@@ -40,6 +40,10 @@ def weighted_samples(samples):
     return replace(samples, importance=1.0 + ((rows + cols) // 3) % 16)
 
 
+# The exact pass's cases the backends must agree on (parameterization, warp).
+EXACT_CASES = (("dpsm", "notw"), ("cube", "none"))
+
+
 def case_key(param: str, warp: str, aa: bool) -> str:
     return f"{param}_{warp}{'_aa' if aa else ''}"
 
@@ -86,6 +90,11 @@ def backends(out: str, reference: str | None = None) -> None:
     pipeline.link_lists(scene.light, result.plan, result.mappings, 256)
     lengths, members = _walk(*backend.read_links())
     arrays["link_lengths"], arrays["link_members"] = lengths, np.sort(np.asarray(members))
+    # The exact pass (irregular z-buffer) on Blender's backend.
+    for param, warp in EXACT_CASES:
+        result = pipeline.render(scene.light, scene.world_triangles(), samples,
+                                 ShadowSettings(param, 128, warp=warp, exact=True))
+        arrays[f"exact_{param}_{warp}_visibility"] = result.visibility
     court = boxed_scene()
     court_samples, _, _ = view_samples(court)
     for param in BOXED_CASES:

@@ -1,0 +1,67 @@
+"""The irregular z-buffer pass (issue 19, in progress: ShadowSettings.exact, no method yet):
+the view samples are linked into per-texel lists of the (warped) map, every triangle walks
+the lists of the texels its footprint touches, and a sample is shadowed when a triangle
+crosses its segment to the light. That is the exact ray caster's answer, whatever the map's
+resolution."""
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from addon.core.presets import build_preset
+from addon.render.pipeline import ShadowPipeline, ShadowSettings
+from addon.render.shaders import EXACT_MAX_WALK
+from tests.support.oracle import view_samples
+
+pytestmark = pytest.mark.gl
+
+CASES = [("dpsm", "notw"), ("dpsm", "none"), ("cube", "notw"), ("cube", "none")]
+
+
+@pytest.fixture(scope="module", params=["room_omni", "room_hemi", "courtyard", "stress_seam",
+                                        "stress_light_inside_object", "stress_grazing"])
+def preset_case(request):
+    scene = build_preset(request.param, (64, 48))
+    return request.param, scene, *view_samples(scene)
+
+
+@pytest.mark.parametrize("param,warp", CASES)
+def test_exact_pass_equals_the_ray_caster(gl_backend, preset_case, param, warp):
+    name, scene, samples, exact, evaluable = preset_case
+    pipe = ShadowPipeline(gl_backend)
+    result = pipe.render(scene.light, scene.world_triangles(), samples,
+                         ShadowSettings(param, 128, warp=warp, exact=True))
+    wrong = ((result.visibility > 0.5) != (exact > 0.5))[evaluable]
+    # A map of 128^2 texels errs at every shadow edge; the lists do not.
+    assert wrong.sum() <= max(1, int(1e-3 * evaluable.sum())), (name, param, warp, int(wrong.sum()))
+    _, cut = gl_backend.read_hits()
+    assert cut == 0
+
+
+def test_the_map_resolution_does_not_matter(gl_backend):
+    scene = build_preset("courtyard", (64, 48))
+    samples, exact, evaluable = view_samples(scene)
+    pipe = ShadowPipeline(gl_backend)
+    shadowed = [(pipe.render(scene.light, scene.world_triangles(), samples,
+                             ShadowSettings("dpsm", res, warp="notw", exact=True)).visibility < 0.5)[evaluable]
+                for res in (64, 512)]
+    assert np.array_equal(shadowed[0], shadowed[1]) and shadowed[0].any()
+
+
+def test_a_list_past_the_walk_bound_is_cut_and_counted(gl_backend):
+    """stress_one_texel puts every sample in a texel or two: the walk stops at the bound
+    (no hang) and says how many walks it cut."""
+    scene = build_preset("stress_one_texel", (96, 72))
+    samples, _, _ = view_samples(scene)
+    assert samples.hit.sum() > EXACT_MAX_WALK
+    pipe = ShadowPipeline(gl_backend)
+    pipe.render(scene.light, scene.world_triangles(), samples, ShadowSettings("dpsm", 256, exact=True))
+    _, cut = gl_backend.read_hits()
+    assert cut > 0
+
+
+def test_exact_takes_only_footprint_parameterizations():
+    from addon.core.errors import InputError
+
+    with pytest.raises(InputError, match="exact"):
+        ShadowSettings("unfold", 256, exact=True)
