@@ -31,6 +31,7 @@ from .render.pipeline import (
     MIN_RESOLUTION,
     FrameResult,
     ShadowPipeline,
+    ShadowSettings,
     ViewSamples,
     count_statistics,
     settings_for,
@@ -144,6 +145,7 @@ def run_row(pipeline: ShadowPipeline, ref: ReferenceData, preset: str, method: s
     row = make_row(
         preset, method, light.emission, figure, times, pipeline.backend.renderer(), pipeline.backend.name,
         len(frames), ref.resolution,
+        **(_list_columns(pipeline, light, scene, samples, settings, counts) if settings.exact else {}),
         resolution=resolution,
         # Mean |visibility - reference| in %: equal to error_pct for binary methods; the
         # antialiased rows' fractional visibility shows here.
@@ -170,6 +172,17 @@ def run_row(pipeline: ShadowPipeline, ref: ReferenceData, preset: str, method: s
         row["mismatch_image"] = f"images/{stem}_mismatch.png"
         row["map_images"] = _write_map_images(image_dir, stem, last, counts)
     return row
+
+
+def _list_columns(pipeline: ShadowPipeline, light: LightSpec, scene: ResidentScene, samples: ViewSamples,
+                  settings: ShadowSettings, counts) -> dict:
+    """The exact method's list statistics: the lists are the mapped count maps at the map
+    resolution (`counts.after`), and one more frame, untimed, counts the triangle pass's work."""
+    lengths = np.concatenate([m.ravel() for m in counts.after.values()]) if counts.after else np.zeros(1)
+    occupied = lengths[lengths > 0]
+    work = pipeline.render(light, scene, samples, settings, count_work=True).exact_work
+    return {"list_longest": int(lengths.max()), "list_mean": float(occupied.mean()) if occupied.size else 0.0,
+            "list_fragments": work["fragments"], "list_entries": work["entries"], "list_cut": work["cut"]}
 
 
 def nonfinite_texels(result: FrameResult, counts) -> int:

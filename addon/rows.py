@@ -48,6 +48,13 @@ class Row(TypedDict, total=False):
     layers: list[str]
     warp: dict
     cull: bool
+    # exact: the irregular z-buffer's lists (list lengths are the mapped count map) and the
+    # triangle pass's work, from one untimed measurement frame
+    list_longest: int
+    list_mean: float  # over the texels holding a list
+    list_fragments: int  # fragments of the triangle pass that walked a list
+    list_entries: int  # list entries they walked: the pass's work
+    list_cut: int  # walks cut at EXACT_MAX_WALK
     # EEVEE
     eevee_setting: str
     shadow_maximum_resolution: float

@@ -14,14 +14,15 @@
 // direction lies inside the three edge planes, and the triangle's plane cuts the segment
 // before the sample, by more than ow_exact_eps of its length (the receiver's own surface
 // is left out). Marked in ow_hits; at most OW_EXACT_MAX_WALK entries are walked, and a
-// longer list counts one cut in the overflow row's texel 0.
+// longer list counts one cut in the extra row's texel 0 (texels 1 and 2: the work).
 void ow_exact_walk()
 {
   ivec2 texel = ivec2(gl_FragCoord.xy - ow_tile_origin);
   int res = int(ow_resolution);
   uint node = imageLoad(ow_counts, texel + ivec2(ow_exact_tile * res, 0)).x;
   int width = textureSize(ow_positions, 0).x;
-  for (int step = 0; step < OW_EXACT_MAX_WALK && node != 0u; step++) {
+  int step = 0;
+  for (; step < OW_EXACT_MAX_WALK && node != 0u; step++) {
     int index = int(node) - 1;
     ivec2 at = ivec2(index % width, index / width);
     vec3 p = texelFetch(ow_positions, at, 0).xyz;  // light-centred
@@ -34,8 +35,15 @@ void ow_exact_walk()
     }
     node = imageLoad(ow_next, at).x;
   }
+  int extra = textureSize(ow_positions, 0).y;  // the hits image's extra row: counters
   if (node != 0u) {
-    imageAtomicAdd(ow_hits, ivec2(0, textureSize(ow_positions, 0).y), 1u);
+    imageAtomicAdd(ow_hits, ivec2(0, extra), 1u);
+  }
+  if (ow_exact_count != 0) {
+    // A measurement frame (ShadowPipeline.render(count_work=True)): the entries walked and
+    // the fragments that walked them, the pass's work.
+    imageAtomicAdd(ow_hits, ivec2(1, extra), uint(step));
+    imageAtomicAdd(ow_hits, ivec2(2, extra), 1u);
   }
 }
 #endif

@@ -8,6 +8,7 @@ import bpy
 
 from . import events
 from .properties import (
+    EXACT_PARAMETERIZATIONS,
     effective_emission,
     effective_parameterization,
     effective_warp,
@@ -111,6 +112,10 @@ class OMNIWARP_PT_light(bpy.types.Panel):
         if not takes_warp(parameterization):
             _note(layout, f"{parameterization.upper()} takes no warp")
         layout.prop(props, "resolution")
+        # Greyed out, like the warp, where the method draws no footprints.
+        row = layout.row()
+        row.active = parameterization in EXACT_PARAMETERIZATIONS
+        row.prop(props, "exact")
 
         box = layout.box()
         box.label(text="Bias (texel footprints)")

@@ -35,6 +35,9 @@ log = logging.getLogger(__name__)
 
 SUPPORTED_LIGHT_TYPES: tuple[str, ...] = ("POINT", "SPOT", "SUN")
 
+# The parameterizations the exact pass (ShadowSettings.exact) takes: the footprint ones.
+EXACT_PARAMETERIZATIONS = ("dpsm", "cube", "ipsm")
+
 RESOLUTION_MIN = 256
 RESOLUTION_MAX = 4096
 RESOLUTION_DEFAULT = 1024
@@ -249,6 +252,16 @@ class OMNIWARP_PG_light(bpy.types.PropertyGroup):
         soft_max=4.0,
         update=_request_update,
     )
+    exact: BoolProperty(
+        name="Exact",
+        description="Exact hard shadows: the view samples are kept in per-texel lists of the map and every "
+                    "triangle is tested against them (an irregular z-buffer), so the shadow edges follow the "
+                    "pixels, not the texels. Dual paraboloid, cube and IPSM. Cost: a list pass over the view "
+                    "samples, and each triangle walks the lists of the texels it covers (about 1-2x the warped "
+                    "map's time)",
+        default=False,
+        update=_request_update,
+    )
     cull: BoolProperty(
         name="Cull",
         description="Skip paraboloid sides and cube faces the view never touches, and objects that cannot "
@@ -384,6 +397,8 @@ def shadow_settings_for(light: bpy.types.Light) -> ShadowSettings:
         bias=bias,
         cull=bool(props.cull),
         warp=effective_warp(light, parameterization),
+        # The exact pass draws footprints: a spot or sun map (or unfold) keeps its own.
+        exact=bool(props.exact) and parameterization in EXACT_PARAMETERIZATIONS,
     )
 
 

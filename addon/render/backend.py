@@ -242,10 +242,11 @@ class ShadowBackend(ABC):
         scatter_counts' (0: empty, else sample index + 1) and one next-link per sample."""
 
     @abstractmethod
-    def read_hits(self) -> tuple[np.ndarray, int]:
+    def read_hits(self) -> tuple[np.ndarray, np.ndarray]:
         """The exact pass's marks since the last `link_samples`: (H, W) uint32, non-zero
-        where a triangle crossed the sample's segment to the light (row 0 at the bottom),
-        and how many list walks were cut at EXACT_MAX_WALK."""
+        where a triangle crossed the sample's segment to the light (row 0 at the bottom);
+        and its counters (3,) uint32: the list walks cut at EXACT_MAX_WALK, and on a frame
+        drawn with ow_exact_count the list entries walked and the fragments walking them."""
 
     @abstractmethod
     def read_links(self) -> tuple[np.ndarray, np.ndarray]:

@@ -477,12 +477,12 @@ class BlenderGPUBackend(ShadowBackend):
         return (np.asarray(heads.read(), dtype=np.uint32).reshape(heads.height, heads.width).copy(),
                 np.asarray(links.read(), dtype=np.uint32).reshape(links.height, links.width).copy())
 
-    def read_hits(self) -> tuple[np.ndarray, int]:
+    def read_hits(self) -> tuple[np.ndarray, np.ndarray]:
         if self._links is None:
             raise BackendError("read_hits called before link_samples")
         hits = self._links[2]
         raw = np.asarray(hits.read(), dtype=np.uint32).reshape(hits.height, hits.width)
-        return raw[:-1].copy(), int(raw[-1, 0])
+        return raw[:-1].copy(), raw[-1, :3].copy()
 
     def reduce_samples(self, uniforms: UniformValues, clear: bool) -> np.ndarray:
         import gpu

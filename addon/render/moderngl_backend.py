@@ -406,13 +406,13 @@ class ModernGLBackend(ShadowBackend):
                 np.frombuffer(links.read(), dtype="u4").reshape(links.size[1], links.size[0]).copy())
 
     @_current
-    def read_hits(self) -> tuple[np.ndarray, int]:
+    def read_hits(self) -> tuple[np.ndarray, np.ndarray]:
         if self._links is None:
             raise BackendError("read_hits called before link_samples")
         self.ctx.memory_barrier()
         hits = self._links[2]
         raw = np.frombuffer(hits.read(), dtype="u4").reshape(hits.size[1], hits.size[0])
-        return raw[:-1].copy(), int(raw[-1, 0])
+        return raw[:-1].copy(), raw[-1, :3].copy()
 
     @_current
     def reduce_samples(self, uniforms: UniformValues, clear: bool) -> np.ndarray:

@@ -77,6 +77,7 @@ class DrawInputs:
     region: dict  # the occluder region's uniforms (region_uniforms)
     scene: ResidentScene
     light: LightSpec
+    count_work: bool = False  # exact pass: count the list entries walked (a measurement frame)
 
 
 class Parameterization:
@@ -115,7 +116,7 @@ class Parameterization:
             exact = inputs.settings.exact
             if exact:
                 # The irregular z-buffer: the tile's lists are strip tile `tile` (link_lists).
-                uniforms.update(ow_exact_tile=tile, ow_exact_eps=EXACT_EPS)
+                uniforms.update(ow_exact_tile=tile, ow_exact_eps=EXACT_EPS, ow_exact_count=int(inputs.count_work))
             elif mapping.warp is not None:
                 backend.build_ray_table(tile, uniforms)
             stretch = map_stretch(mapping)

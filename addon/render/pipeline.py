@@ -185,9 +185,10 @@ class ShadowPipeline:
         return mappings, counts
 
     def render(self, light: LightSpec, scene: ResidentScene | np.ndarray, samples: ViewSamples | GBufferSamples,
-               settings: ShadowSettings, keep_atlas: bool = False) -> FrameResult:
+               settings: ShadowSettings, keep_atlas: bool = False, count_work: bool = False) -> FrameResult:
         """One frame: plan, analysis, maps, test. Times each stage with a GPU sync.
 
+        `count_work` makes the exact pass count its work (a measurement frame, slower).
         `scene` is a `ResidentScene`, whose unchanged objects stay on the GPU between
         frames, or a (T, 3, 3) world triangle array: a read-only one stays resident for
         as long as the same array comes back (the viewport's per-light selections), any
@@ -202,14 +203,14 @@ class ShadowPipeline:
         # frame: it counts in `prepare`.
         scene_ms = (time.perf_counter() - start) * 1e3
         try:
-            return self._render(light, scene, samples, settings, keep_atlas, scene_ms)
+            return self._render(light, scene, samples, settings, keep_atlas, scene_ms, count_work)
         finally:
             if one_frame:
                 self.backend.release_scene(scene)
 
     def _render(self, light: LightSpec, scene: ResidentScene, samples: ViewSamples | GBufferSamples,
-                settings: ShadowSettings,
-                keep_atlas: bool, scene_ms: float = 0.0) -> FrameResult:
+                settings: ShadowSettings, keep_atlas: bool, scene_ms: float = 0.0,
+                count_work: bool = False) -> FrameResult:
         backend = self.backend
         timings: dict[str, float] = {}
         t0 = time.perf_counter()
@@ -251,7 +252,8 @@ class ShadowPipeline:
         layout = AtlasLayout.for_tiles(res, len(plan.drawn), backend.max_texture_size())
         boxes = scheme.scissor(plan, light, settings, mappings)
         inputs = DrawInputs(plan, settings, geometry, layout, tile_of_slot, mappings, size, boxes,
-                            footprint_draws(scene, light), region_uniforms(plan, light, settings.cull), scene, light)
+                            footprint_draws(scene, light), region_uniforms(plan, light, settings.cull), scene, light,
+                            count_work)
         t4 = time.perf_counter()
         timings["prepare"] = (t4 - t3 + t_plan) * 1e3 + scene_ms
 
@@ -272,16 +274,18 @@ class ShadowPipeline:
         timings["total"] = (t6 - t0) * 1e3 + scene_ms
 
         atlas = _mask_unread_texels(backend.read_atlas(), layout, tile_of_slot, boxes) if keep_atlas else None
+        exact_work = None
         if settings.exact:
             # The atlas holds no depth (every texel empty), so the test lit every tested
             # sample; the exact pass's marks shadow the ones a triangle crosses.
-            hits, _ = backend.read_hits()
+            hits, counters = backend.read_hits()
             result[..., 0] = np.where(hits > 0, 0.0, result[..., 0])
+            exact_work = {"cut": int(counters[0]), "entries": int(counters[1]), "fragments": int(counters[2])}
         visibility = result[..., 0][::-1].copy()
         flags = result[..., 1][::-1].astype(np.int8)
         return FrameResult(visibility, flags, timings, plan, geometry, layout,
                            texels=len(plan.drawn) * res * res, atlas=atlas, tile_of_slot=tile_of_slot,
-                           mappings=mappings, count_maps=counts, boxes=boxes)
+                           mappings=mappings, count_maps=counts, boxes=boxes, exact_work=exact_work)
 
     def _sample_stats(self, light: LightSpec, samples: ViewSamples | GBufferSamples) -> SampleStats:
         """The planning statistics of the uploaded samples, reduced on the GPU (core.samples)."""

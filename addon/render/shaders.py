@@ -435,7 +435,8 @@ def exact_of(base: ProgramInterface) -> ProgramInterface:
             base, name=base.name + "_exact",
             defines={**base.defines, EXACT_DEFINE: "1", "OW_EXACT_MAX_WALK": str(EXACT_MAX_WALK)},
             samplers=base.samplers + ("ow_positions",),
-            uniforms=base.uniforms + (Uniform("int", "ow_exact_tile"), Uniform("float", "ow_exact_eps")),
+            uniforms=base.uniforms + (Uniform("int", "ow_exact_tile"), Uniform("float", "ow_exact_eps"),
+                                      Uniform("int", "ow_exact_count")),
             images=(("r32ui", "ow_counts"), ("r32ui", "ow_next"), ("r32ui", "ow_hits")))
     return held
 

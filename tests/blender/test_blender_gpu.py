@@ -146,6 +146,8 @@ def test_viewport_draw_path_robustness(tmp_path):
     assert r["max_after"] <= r["max_before"], "warping raised the peak view samples per texel"
     assert r["uploaded_differ"] <= 1e-3, r["uploaded_differ"]  # G-buffer textures = uploaded arrays
     assert r["uploaded_passes"][0] == r["uploaded_passes"][1], r["uploaded_passes"]
+    assert r["exact_draw"] and r["exact_differ"] <= 1e-3, r["exact_differ"]  # exact from the G-buffer
+    assert 0.01 < r["exact_shadowed"] < 0.9, r["exact_shadowed"]
     assert r["recomputes"] == 20  # 10 moved views, each drawn once moved and once back
     assert r["live_after_200"] == r["live_first"] > 0, "GPU objects held (first draw, after 200 redraws)"
     assert r["bytes_after_200"] == r["bytes_first"] > 0, "moved views uploaded the scene again"

@@ -355,10 +355,10 @@ def test_update_callbacks_reach_the_viewport(make_light, registered) -> None:
     recorder.calls.clear()
     for name, value in (("enabled", True), ("emission", "HEMI"), ("parameterization", "CUBE"),
                         ("warp", "NOTW"), ("resolution", 512), ("bias_constant", 1.0),
-                        ("bias_slope", 1.0), ("bias_normal", 1.0), ("cull", False)):
+                        ("bias_slope", 1.0), ("bias_normal", 1.0), ("exact", True), ("cull", False)):
         setattr(props, name, value)
         assert recorder.calls[-1] == ("request_update", "light settings"), name
-    assert len(recorder.calls) == 9
+    assert len(recorder.calls) == 10
 
     settings = bpy.context.scene.omniwarp
     recorder.calls.clear()
@@ -573,6 +573,9 @@ def test_shadow_settings_for(make_light, parameterization: str, warp: str) -> No
     assert settings.resolution == 2048
     assert settings.bias == BiasSettings(constant=0.25, slope=1.5, normal=2.0)
     assert settings.cull is False
+    assert settings.exact is False
+    props.exact = True
+    assert properties.shadow_settings_for(light).exact is (parameterization in ("DPSM", "CUBE", "IPSM"))
 
 
 @pytest.mark.parametrize(("kind", "spot_deg", "expected"), [
@@ -674,7 +677,7 @@ def test_light_panel_poll_with_active_object(make_light) -> None:
         bpy.data.meshes.remove(mesh)
 
 
-LIGHT_PANEL_PROPS = ["emission", "parameterization", "warp", "resolution",
+LIGHT_PANEL_PROPS = ["emission", "parameterization", "warp", "resolution", "exact",
                      "bias_constant", "bias_slope", "bias_normal", "cull"]
 
 
@@ -816,3 +819,13 @@ def test_unregister_removes_pointers(no_runtime) -> None:
         assert not hasattr(light, "omniwarp")
     finally:
         bpy.data.lights.remove(light)
+
+
+def test_exact_is_kept_from_projective_maps(make_light) -> None:
+    """A spot narrower than 179 degrees gets a projective map, which draws no footprints: its
+    stored exact choice is kept but not used."""
+    light = make_light("SPOT", 45.0)
+    light.omniwarp.exact = True
+    settings = properties.shadow_settings_for(light)
+    assert settings.parameterization in ("sm", "psm") and settings.exact is False
+    assert light.omniwarp.exact is True

@@ -11,6 +11,7 @@ import pytest
 from addon.core.presets import build_preset
 from addon.render.pipeline import ShadowPipeline, ShadowSettings
 from addon.render.shaders import EXACT_MAX_WALK
+from tests.gl.test_izb_lists import _walk
 from tests.support.oracle import view_samples
 
 pytestmark = pytest.mark.gl
@@ -34,8 +35,7 @@ def test_exact_pass_equals_the_ray_caster(gl_backend, preset_case, param, warp):
     wrong = ((result.visibility > 0.5) != (exact > 0.5))[evaluable]
     # A map of 128^2 texels errs at every shadow edge; the lists do not.
     assert wrong.sum() <= max(1, int(1e-3 * evaluable.sum())), (name, param, warp, int(wrong.sum()))
-    _, cut = gl_backend.read_hits()
-    assert cut == 0
+    assert result.exact_work["cut"] == 0
 
 
 def test_the_map_resolution_does_not_matter(gl_backend):
@@ -55,9 +55,8 @@ def test_a_list_past_the_walk_bound_is_cut_and_counted(gl_backend):
     samples, _, _ = view_samples(scene)
     assert samples.hit.sum() > EXACT_MAX_WALK
     pipe = ShadowPipeline(gl_backend)
-    pipe.render(scene.light, scene.world_triangles(), samples, ShadowSettings("dpsm", 256, exact=True))
-    _, cut = gl_backend.read_hits()
-    assert cut > 0
+    result = pipe.render(scene.light, scene.world_triangles(), samples, ShadowSettings("dpsm", 256, exact=True))
+    assert result.exact_work["cut"] > 0
 
 
 def test_exact_takes_only_footprint_parameterizations():
@@ -65,3 +64,21 @@ def test_exact_takes_only_footprint_parameterizations():
 
     with pytest.raises(InputError, match="exact"):
         ShadowSettings("unfold", 256, exact=True)
+
+
+def test_work_counts_follow_the_lists(gl_backend):
+    """A counting frame reports the triangle pass's work (every fragment, and the list entries
+    they walked); a walk stops at its list's end, so the entries are at most the fragments
+    times the longest list. Timed frames count nothing, and counting changes no shadow."""
+    scene = build_preset("room_omni", (64, 48))
+    samples, _, _ = view_samples(scene)
+    pipe = ShadowPipeline(gl_backend)
+    settings = ShadowSettings("dpsm", 128, warp="notw", exact=True)
+    plain = pipe.render(scene.light, scene.world_triangles(), samples, settings)
+    assert plain.exact_work["entries"] == plain.exact_work["fragments"] == 0  # not counted when timed
+    counted = pipe.render(scene.light, scene.world_triangles(), samples, settings, count_work=True)
+    assert np.array_equal(counted.visibility, plain.visibility)
+    work = counted.exact_work
+    lengths, _ = _walk(*gl_backend.read_links())
+    assert work["fragments"] > 0 and 0 < work["entries"] <= work["fragments"] * int(lengths.max())
+    assert work["cut"] == 0

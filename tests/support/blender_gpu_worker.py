@@ -7,6 +7,7 @@ from __future__ import annotations
 
 import json
 import sys
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
@@ -34,8 +35,6 @@ def boxed_scene():
 def weighted_samples(samples):
     """The seam scene's samples with importance weights 1 to 16 in diagonal stripes,
     for the weighted scatter (ViewSamples.importance) on both backends."""
-    from dataclasses import replace
-
     rows, cols = np.indices(samples.hit.shape)
     return replace(samples, importance=1.0 + ((rows + cols) // 3) % 16)
 
@@ -219,6 +218,18 @@ def viewport(out: str) -> None:
     uploaded = vp._STATE.pipeline.render(light, CACHE.world_triangles(), gbuffer.view_samples(spec.camera), settings)
     report["uploaded_differ"] = float((uploaded.visibility != raw[..., 0]).mean())
     report["uploaded_passes"] = [uploaded.passes, result.passes]
+    # The light switched to the exact method: the viewport draws it from its G-buffer, and
+    # it shadows the same samples as the exact pass on the uploaded arrays.
+    light_obj.data.omniwarp.exact = True
+    vp.request_update("exact")
+    report["exact_draw"] = draw(view)
+    exact_result = vp._STATE.results["test-region"].lights[0][3]
+    from_arrays = vp._STATE.pipeline.render(light, CACHE.world_triangles(), gbuffer.view_samples(spec.camera),
+                                            replace(settings, exact=True))
+    report["exact_differ"] = float((exact_result.visibility != from_arrays.visibility).mean())
+    report["exact_shadowed"] = float((exact_result.visibility[gbuffer.hit] < 0.5).mean())
+    light_obj.data.omniwarp.exact = False
+    vp.request_update("exact off")
     # A failure inside the draw path is caught, logged once and shown; drawing goes on.
     original = vp.compute_view
     logged = []
