@@ -77,6 +77,15 @@ def write_markdown(rows: Sequence[dict], path: Path, stamp: str, command: str = 
     path.write_text("\n".join(text), encoding="utf-8")
 
 
+def _point_label(row: Row) -> str:
+    """A plot point's label: the map resolution, and for `exact` the list entries its
+    triangle pass walked (its work, which is what its time pays for)."""
+    label = str(row.get("resolution", ""))
+    if "list_entries" in row:
+        label += f" ({row['list_entries'] / 1e6:.1f}M entries)"
+    return label
+
+
 def write_plot(rows: Sequence[dict], path: Path) -> bool:
     """Error % against total ms per frame, one colour per preset, a marker per method.
 
@@ -110,8 +119,7 @@ def write_plot(rows: Sequence[dict], path: Path) -> bool:
             ax.scatter(xs, ys, color=colour, marker=markers[mi % len(markers)], s=40,
                        label=f"{preset} / {method}")
             for r, x, y in zip(sel, xs, ys):
-                ax.annotate(str(r.get("resolution", "")), (x, y), textcoords="offset points", xytext=(4, 3),
-                            fontsize=7)
+                ax.annotate(_point_label(r), (x, y), textcoords="offset points", xytext=(4, 3), fontsize=7)
         front = _pareto(pts)
         if len(front) > 1:
             ax.plot(*zip(*front), color=colour, linewidth=1, alpha=0.6)

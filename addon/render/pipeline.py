@@ -16,7 +16,8 @@ timed with a GPU sync; `time_ms` keys:
   (two dispatches, read back as STAT_TEXELS integers), and for a warp the count-map
   scatters and the tables built from them.
 - `shadow_maps`: the depth pass (ray tables, footprints or the unfold stream, and the
-  edge-distance map), until the GPU has finished it.
+  edge-distance map), until the GPU has finished it; for `exact`, the list pass over the
+  samples and the footprint pass that walks the lists (no depth is stored).
 - `shadow_test`: uploading the view samples and the shadow test over them, read back.
 - `total`: all of it.
 

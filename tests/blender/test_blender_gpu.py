@@ -32,6 +32,7 @@ from tests.support.blender_gpu_worker import (  # noqa: E402
     case_key,
     weighted_samples,
 )
+from tests.gl.test_exact_pass import random_scene  # noqa: E402
 from tests.gl.test_izb_lists import _walk  # noqa: E402
 from tests.support.checks import expect  # noqa: E402
 from tests.support.oracle import view_samples  # noqa: E402
@@ -95,6 +96,12 @@ def test_blender_backend_matches_moderngl(gl_backend, tmp_path, monkeypatch):
                                 ShadowSettings(param, 128, warp=warp, exact=True))
         assert np.array_equal(exact.visibility, theirs[f"exact_{param}_{warp}_visibility"]), (param, warp)
         assert (exact.visibility < 0.5).any(), (param, warp)
+    rnd = random_scene(1)
+    rnd_samples, rnd_exact, rnd_evaluable = view_samples(rnd)
+    exact = pipeline.render(rnd.light, rnd.world_triangles(), rnd_samples,
+                            ShadowSettings("dpsm", 128, warp="notw", exact=True))
+    assert np.array_equal(exact.visibility, theirs["exact_random_visibility"])
+    assert ((exact.visibility > 0.5) == (rnd_exact > 0.5))[rnd_evaluable].mean() >= 0.999
     court = boxed_scene()
     court_samples, _, _ = view_samples(court)
     for param in BOXED_CASES:

@@ -9,6 +9,7 @@ import numpy as np
 import pytest
 
 from addon.core.presets import build_preset
+from addon.core.scene import CameraSpec, LightSpec, MeshSpec, SceneSpec, look_at
 from addon.render.pipeline import ShadowPipeline, ShadowSettings
 from addon.render.shaders import EXACT_MAX_WALK
 from tests.gl.test_izb_lists import _walk
@@ -20,7 +21,8 @@ CASES = [("dpsm", "notw"), ("dpsm", "none"), ("cube", "notw"), ("cube", "none")]
 
 
 @pytest.fixture(scope="module", params=["room_omni", "room_hemi", "courtyard", "stress_seam",
-                                        "stress_light_inside_object", "stress_grazing"])
+                                        "stress_light_inside_object", "stress_grazing", "stress_scale_large",
+                                        "stress_scale_small", "stress_vertex_at_light"])
 def preset_case(request):
     scene = build_preset(request.param, (64, 48))
     return request.param, scene, *view_samples(scene)
@@ -82,3 +84,35 @@ def test_work_counts_follow_the_lists(gl_backend):
     lengths, _ = _walk(*gl_backend.read_links())
     assert work["fragments"] > 0 and 0 < work["entries"] <= work["fragments"] * int(lengths.max())
     assert work["cut"] == 0
+
+
+def random_scene(seed: int) -> SceneSpec:
+    """A floor, a back wall and random blockers of several sizes around an omni or hemi
+    light, seen by a camera from outside (the light in view or not)."""
+    rng = np.random.default_rng(seed)
+    quad = np.array([[-6.0, -6.0, 0.0], [6.0, -6.0, 0.0], [6.0, 6.0, 0.0], [-6.0, 6.0, 0.0]])
+    wall = quad[:, [0, 2, 1]] + np.array([0.0, 6.0, 6.0])
+    meshes = [MeshSpec("floor", quad, np.array([[0, 1, 2], [0, 2, 3]])),
+              MeshSpec("wall", wall, np.array([[0, 1, 2], [0, 2, 3]]))]
+    count = int(rng.integers(20, 60))
+    centres = rng.uniform([-4.0, -4.0, 0.3], [4.0, 4.0, 4.0], (count, 3))
+    corners = centres[:, None, :] + rng.normal(size=(count, 3, 3)) * rng.uniform(0.05, 1.0, (count, 1, 1))
+    meshes.append(MeshSpec("blockers", corners.reshape(-1, 3), np.arange(3 * count).reshape(-1, 3)))
+    light = np.eye(4)
+    light[:3, 3] = rng.uniform([-2.0, -2.0, 3.0], [2.0, 2.0, 6.0])
+    eye, target = rng.uniform([-9.0, -12.0, 3.0], [9.0, -7.0, 9.0]), rng.uniform([-2.0, -1.0, 0.0], [2.0, 3.0, 2.0])
+    return SceneSpec(f"random{seed}", meshes, LightSpec("hemi" if seed % 2 else "omni", light),
+                     CameraSpec(look_at(eye, target), 60.0, (48, 36)))
+
+
+@pytest.mark.parametrize("seed", range(6))
+def test_exact_pass_equals_the_ray_caster_on_random_scenes(gl_backend, seed):
+    scene = random_scene(seed)
+    samples, exact, evaluable = view_samples(scene)
+    pipe = ShadowPipeline(gl_backend)
+    for param, warp in (("dpsm", "notw"), ("cube", "none")):
+        result = pipe.render(scene.light, scene.world_triangles(), samples,
+                             ShadowSettings(param, 128, warp=warp, exact=True))
+        wrong = ((result.visibility > 0.5) != (exact > 0.5))[evaluable]
+        assert wrong.sum() <= max(1, int(1e-3 * evaluable.sum())), (seed, param, int(wrong.sum()))
+    assert (exact[evaluable] < 0.5).any() and (exact[evaluable] > 0.5).any()  # shadow and light to get right

@@ -57,6 +57,7 @@ def backends(out: str, reference: str | None = None) -> None:
     from addon.render.pipeline import ShadowPipeline, ShadowSettings
     from addon.core.scene import LightSpec
     from tests.gl.test_footprint_pass import point_cloud
+    from tests.gl.test_exact_pass import random_scene
     from tests.gl.test_izb_lists import _walk
     from tests.gl.test_pipeline_extremes import _seam_straddler
     from tests.gl.test_projective import _street
@@ -94,6 +95,12 @@ def backends(out: str, reference: str | None = None) -> None:
         result = pipeline.render(scene.light, scene.world_triangles(), samples,
                                  ShadowSettings(param, 128, warp=warp, exact=True))
         arrays[f"exact_{param}_{warp}_visibility"] = result.visibility
+    # ... and on a random scene (a hemi light among random blockers).
+    rnd = random_scene(1)
+    rnd_samples, _, _ = view_samples(rnd)
+    result = pipeline.render(rnd.light, rnd.world_triangles(), rnd_samples,
+                             ShadowSettings("dpsm", 128, warp="notw", exact=True))
+    arrays["exact_random_visibility"] = result.visibility
     court = boxed_scene()
     court_samples, _, _ = view_samples(court)
     for param in BOXED_CASES:
