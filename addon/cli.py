@@ -41,7 +41,7 @@ from .core.errors import (
     report_interrupt,
 )
 from .core.outputs import StagedOutput, check_output_dir
-from .core.presets import DEFAULT_PRESET, available_presets, build_preset, select_presets
+from .core.presets import available_presets, build_preset, select_presets
 from .core.scene import parse_size
 # capture.py imports bpy only inside functions: this import needs no Blender.
 from .reference.capture import DEFAULT_SAMPLES

@@ -22,11 +22,11 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from . import perspective, projection
-from .frames import Layer, Parameterization, ipsm_layer, light_layers, pick_slot, projective_layer, slot_count
+from .frames import Layer, Parameterization, ipsm_layer, light_layers, projective_layer
 from .perspective import hull_planes  # one convex-hull routine for culling and PSM
 from .polytope import Polytope, sample_polytope
 from .projection import CUBE, PARABOLOID
-from .samples import CULL_DEPTH_PERCENTILE, FULL_WINDOW, SampleStats, Window
+from .samples import FULL_WINDOW, SampleStats, Window
 from .scene import CameraSpec, LightSpec
 
 log = logging.getLogger(__name__)

@@ -10,7 +10,6 @@ from __future__ import annotations
 import logging
 import math
 import re
-import sys
 from types import ModuleType, SimpleNamespace
 
 import numpy as np
