@@ -16,6 +16,10 @@ import json
 import sys
 from pathlib import Path
 
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+
+from addon.rows import row_key  # noqa: E402  (what tells two rows of one run apart)
+
 
 class TableError(Exception):
     """A results file that cannot be read as compare's rows."""
@@ -24,9 +28,7 @@ class TableError(Exception):
 def _rows(path: Path) -> dict[tuple, dict]:
     try:
         rows = json.loads(path.read_text())
-        # An EEVEE row has no map resolution; its setting tells its rows apart.
-        return {(r["preset"], r["method"] + (f" ({r['eevee_setting']})" if "eevee_setting" in r else ""),
-                 r.get("resolution", ""), r.get("cull", True)): r for r in rows}
+        return {row_key(r): r for r in rows}
     except (OSError, ValueError, KeyError, TypeError) as exc:
         raise TableError(f"{path}: not a compare results.json ({exc.__class__.__name__}: {exc})") from None
 
@@ -61,7 +63,7 @@ def main(argv: list[str] | None = None) -> int:
         over += not kept
         better += new < old
         worse += new > old
-        print(f"| {key[0]} | {key[1]} | {key[2]} | {old:.4f} | {new:.4f} | {bound:.4f} | {'yes' if kept else 'NO'} |")
+        print(f"| {key[0]} | {key[1]} | {_res(key)} | {old:.4f} | {new:.4f} | {bound:.4f} | {'yes' if kept else 'NO'} |")
     print(f"\n{len(shared)} rows: {better} lower, {worse} higher, {len(shared) - better - worse} equal; "
           f"{over} over the bound {args.factor:g} x before + {args.points:g} points.")
     return 1 if over else 0
@@ -74,9 +76,14 @@ def _times(before: dict, after: dict, shared: list) -> None:
     for key in shared:
         old, new = before[key], after[key]
         t0, t1 = old["time_ms"], new["time_ms"]
-        print(f"| {key[0]} | {key[1]} | {key[2]} | {t0['total']:.0f} | {t1['total']:.0f} | {_ms(t0, 'prepare', '.1f')} "
+        print(f"| {key[0]} | {key[1]} | {_res(key)} | {t0['total']:.0f} | {t1['total']:.0f} | {_ms(t0, 'prepare', '.1f')} "
               f"| {_ms(t1, 'prepare', '.1f')} | {_ms(t0, 'shadow_maps', '.0f')} | {_ms(t1, 'shadow_maps', '.0f')} "
               f"| {old['error_pct']:.3f} | {new['error_pct']:.3f} |")
+
+
+def _res(key: tuple) -> str:
+    """The row's map resolution, blank for an EEVEE row (it has none)."""
+    return "" if key[2] is None else str(key[2])
 
 
 def _ms(times: dict, stage: str, spec: str) -> str:

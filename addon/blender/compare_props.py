@@ -36,7 +36,6 @@ from ..core.presets import DEFAULT_PRESET, DEFAULT_RESOLUTION, PresetInfo, avail
 
 log = logging.getLogger(__name__)
 
-SIDEBAR_CATEGORY = "OmniWarp"
 PLOT_IMAGE_NAME = "OmniWarp error vs time"
 MISMATCH_IMAGE_NAME = "OmniWarp mismatch"
 TIMER_STEP_S = 0.05  # seconds between two modal ticks (each tick measures one row)

@@ -11,12 +11,12 @@ from .compare_job import _scene_light, is_running
 from .compare_ops import OMNIWARP_OT_build_preset, OMNIWARP_OT_compare, OMNIWARP_OT_export_results
 from .compare_props import (
     IMAGE_ICON_SCALE,
-    SIDEBAR_CATEGORY,
     OMNIWARP_PG_comparison,
     OMNIWARP_PG_result_row,
     method_prop,
     preset_info,
 )
+from .panels import SIDEBAR_CATEGORY  # one tab for the preview and the comparison
 
 
 # ----------------------------------------------------------------------------

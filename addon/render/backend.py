@@ -14,7 +14,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..core.errors import BackendError
-from .shaders import FOOTPRINT_VERTICES
+from .shaders import FOOTPRINT_PROGRAM, FOOTPRINT_VERTICES, ProgramInterface, exact_variant, program_variant
 
 
 @dataclass(frozen=True)
@@ -121,15 +121,28 @@ class ShadowBackend(ABC):
         return len(self._resident_revisions())
 
     @staticmethod
-    def _layer_viewport(layout: AtlasLayout | None, tile: int, span: int = 1) -> Rect:
+    def _layer_viewport(layout: AtlasLayout | None, tile: int, span: int = 1, caller: str = "draw_layer") -> Rect:
         """The atlas viewport of `span` tiles from `tile`; a BackendError before begin_atlas
         or for tiles that do not lie side by side."""
         if layout is None:
-            raise BackendError("draw_layer called before begin_atlas")
+            raise BackendError(f"{caller} called before begin_atlas")
         try:
             return layout.span_viewport(tile, span)
         except ValueError as exc:
             raise BackendError(str(exc)) from None
+
+    def _footprint_program(self, draw: FootprintDraw, uniforms: UniformValues, exact: bool,
+                           points: bool) -> tuple[ProgramInterface, object]:
+        """The program one footprint draw runs (the exact pass's variant with `exact`, after
+        `link_samples`) and the object's vertex texture; a BackendError for an object not
+        resident."""
+        if exact and self._links is None:
+            raise BackendError("the exact footprint pass needs link_samples first")
+        held = self._vertices.get(draw.key)
+        if held is None:
+            raise BackendError(f"object {draw.key!r} is not resident; call sync_scene first")
+        iface = exact_variant(uniforms, points) if exact else program_variant(FOOTPRINT_PROGRAM, uniforms, points)
+        return iface, held[1]
 
     @staticmethod
     def _clear_rects(layout: AtlasLayout, boxes: dict[int, tuple[int, int, int, int]] | None) -> list[Rect] | None:
@@ -218,6 +231,11 @@ class ShadowBackend(ABC):
         >= 1, 1 unless ViewSamples.importance is given) where the pixel hit geometry,
         0 where it missed.
         """
+
+    def samples_from_gbuffer(self, textures: dict, light_position: np.ndarray) -> None:
+        """Make a Blender G-buffer's textures the view samples (frame.GBufferSamples); only
+        the backend on Blender's own GL can read them."""
+        raise BackendError(f"the {self.name} backend cannot read a Blender G-buffer")
 
     @abstractmethod
     def set_warp_tables(self, rows: np.ndarray | None, cols: np.ndarray | None) -> None:

@@ -40,7 +40,6 @@ from .blender_gpu import (
 from .shaders import (
     DEPTH_PROGRAM,
     EDGE_PROGRAM,
-    FOOTPRINT_PROGRAM,
     FOOTPRINT_VERTICES,
     GBUFFER_PROGRAM,
     GBUFFER_SAMPLES_PROGRAM,
@@ -49,7 +48,6 @@ from .shaders import (
     SHADOW_TEST_PROGRAM,
     ComputeInterface,
     ProgramInterface,
-    exact_variant,
     link_variant,
     program_variant,
     scatter_variant,
@@ -319,11 +317,7 @@ class BlenderGPUBackend(ShadowBackend):
                         scissor: tuple[int, int, int, int] | None = None, exact: bool = False) -> None:
         import gpu
 
-        if self._layout is None:
-            raise BackendError("draw_footprints called before begin_atlas")
-        if exact and self._links is None:
-            raise BackendError("the exact footprint pass needs link_samples first")
-        viewport = self._layout.span_viewport(tile, 1)
+        viewport = self._layer_viewport(self._layout, tile, caller="draw_footprints")
         # Always scissored: point sprites may reach past the tile's edge.
         rect = self._layout.scissor_rect(tile, scissor) if scissor is not None else viewport
         with self._atlas_fb.bind():
@@ -338,13 +332,9 @@ class BlenderGPUBackend(ShadowBackend):
                 for draw in draws:
                     if draw.count <= 0:
                         continue  # a count of 0 would mean "all" to gpu
-                    held = self._vertices.get(draw.key)
-                    if held is None:
-                        raise BackendError(f"object {draw.key!r} is not resident; call sync_scene first")
                     points = draw.points and self.point_sprites
-                    iface = (exact_variant(uniforms, points) if exact
-                             else program_variant(FOOTPRINT_PROGRAM, uniforms, points))
-                    shader = self._bind(iface, {**uniforms, **draw.uniforms}, {"ow_vertices": held[1]})
+                    iface, vertices = self._footprint_program(draw, uniforms, exact, points)
+                    shader = self._bind(iface, {**uniforms, **draw.uniforms}, {"ow_vertices": vertices})
                     if exact:
                         for (_, name), texture in zip(iface.images, self._links):
                             shader.image(name, texture)

@@ -33,7 +33,6 @@ from .shaders import (
     ComputeInterface,
     ProgramInterface,
     moderngl_compute_source,
-    exact_variant,
     link_variant,
     moderngl_sources,
     program_variant,
@@ -286,11 +285,7 @@ class ModernGLBackend(ShadowBackend):
     @_current
     def draw_footprints(self, tile: int, draws: list[FootprintDraw], uniforms: UniformValues,
                         scissor: tuple[int, int, int, int] | None = None, exact: bool = False) -> None:
-        if self._atlas_layout is None:
-            raise BackendError("draw_footprints called before begin_atlas")
-        if exact and self._links is None:
-            raise BackendError("the exact footprint pass needs link_samples first")
-        viewport = self._atlas_layout.span_viewport(tile, 1)
+        viewport = self._layer_viewport(self._atlas_layout, tile, caller="draw_footprints")
         self._atlas_fbo.use()
         self._atlas_fbo.viewport = viewport
         self._atlas_fbo.scissor = viewport if scissor is None else self._atlas_layout.scissor_rect(tile, scissor)
@@ -301,13 +296,8 @@ class ModernGLBackend(ShadowBackend):
             for draw in draws:
                 if draw.count <= 0:
                     continue
-                held = self._vertices.get(draw.key)
-                if held is None:
-                    raise BackendError(f"object {draw.key!r} is not resident; call sync_scene first")
-                self._textures["ow_vertices"] = held[1]
+                iface, self._textures["ow_vertices"] = self._footprint_program(draw, uniforms, exact, draw.points)
                 self._ensure_corners(draw.first + draw.count)
-                iface = (exact_variant(uniforms, draw.points) if exact
-                         else program_variant(FOOTPRINT_PROGRAM, uniforms, draw.points))
                 prog = self._use(iface, {**uniforms, **draw.uniforms})
                 if exact:
                     for unit, texture in enumerate(self._links):

@@ -36,7 +36,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..core import perspective, projection
-from ..core.errors import BackendError, InputError
+from ..core.errors import InputError
 from ..core.plan import Plan, hit_points
 from ..core.samples import STAT_COUNT, Reduction, SampleStats, depth_axis
 from ..core.scene import LightSpec
@@ -305,10 +305,7 @@ class ShadowPipeline:
 
     def _upload_samples(self, light: LightSpec, samples: ViewSamples | GBufferSamples) -> None:
         if isinstance(samples, GBufferSamples):
-            from_gbuffer = getattr(self.backend, "samples_from_gbuffer", None)
-            if from_gbuffer is None:
-                raise BackendError(f"the {self.backend.name} backend cannot read a Blender G-buffer")
-            from_gbuffer(samples.textures, light.position)
+            self.backend.samples_from_gbuffer(samples.textures, light.position)
             return
         height, width = samples.hit.shape
         # GL textures start at the bottom row and the samples at the top, so the arrays
