@@ -336,14 +336,14 @@ def _check_stored_settings(light_name: str | None) -> None:
     the add-on is registered in the preview's child process only."""
     import bpy
 
+    from .render import blender_compat
     from .render.pipeline import BiasSettings
 
     default = BiasSettings()
     for obj in bpy.context.scene.objects:
         if obj.type != "LIGHT" or (light_name and obj.name != light_name):
             continue
-        # Blender 5 keeps bpy.props values as "system properties"; 4.x in the custom ones.
-        group = obj.data.bl_system_properties_get() if hasattr(obj.data, "bl_system_properties_get") else obj.data
+        group = blender_compat.system_properties(obj.data)
         stored = group.get("omniwarp") if group is not None else None
         if stored is None or not stored.get("enabled", False):
             continue

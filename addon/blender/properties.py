@@ -28,6 +28,7 @@ from ..core.errors import InputError
 from ..core.frames import POINT_PARAMETERIZATIONS, PROJECTIVE_PARAMETERIZATIONS
 from ..core.methods import PARAMETERIZATION_TEXT, WARP_TEXT
 from ..core.scene import PROJECTIVE_EMISSIONS, Emission, LightSpec, spot_emission
+from ..render import blender_compat
 from ..render.pipeline import BiasSettings, ShadowSettings
 from . import events
 
@@ -118,7 +119,7 @@ FALLBACK_PARAMETERIZATION = {"point": "dpsm", "projective": "psm"}
 # bpy.props gained get_transform in Blender 5.0: it rewrites a stale stored value on
 # every read, so Python and the UI both see the method actually used. Blender 4.2-4.5
 # refuse the keyword, so there the stale value stays and is resolved in Python.
-_HAS_GET_TRANSFORM = bpy.app.version >= (5, 0, 0)
+_HAS_GET_TRANSFORM = blender_compat.has_get_transform()
 
 WARP_ITEMS = tuple(
     (identifier, label, WARP_TEXT[identifier.lower()], number)

@@ -38,6 +38,7 @@ from ..core import interrupt, validate
 from ..core.camera import Window, blender_camera_window, window_fov_deg
 from ..core.errors import InputError, ReferenceCaptureError
 from ..core.scene import orthonormalize, spot_emission
+from ..render import blender_compat
 from .data import ReferenceData
 from .render_geometry import GEOMETRY_TYPES, render_triangles
 from .shadow_rule import ShadowRule
@@ -257,9 +258,7 @@ def _override_material(overrides: _Overrides):
 
     mat = bpy.data.materials.new("OmniWarp reference white")
     overrides.on_restore(lambda: bpy.data.materials.remove(mat))
-    if not mat.node_tree:  # older Blender: node trees are opt-in
-        mat.use_nodes = True
-    tree = mat.node_tree
+    tree = blender_compat.ensure_node_tree(mat)
     tree.nodes.clear()
     out = tree.nodes.new("ShaderNodeOutputMaterial")
     out.target = "ALL"
@@ -399,10 +398,7 @@ def set_pass_output(render, filepath: str, overrides: _Overrides) -> None:
     s(render, "filepath", filepath)
     s(render, "use_file_extension", True)
     image = render.image_settings
-    if hasattr(image, "media_type"):  # Blender 5.x: pick the media type first
-        s(image, "media_type", "MULTI_LAYER_IMAGE")
-    else:
-        s(image, "file_format", "OPEN_EXR_MULTILAYER")
+    blender_compat.set_multilayer_exr(image, s)
     s(image, "color_depth", "32")
     s(image, "exr_codec", "ZIP", optional=True)
 
@@ -584,8 +580,9 @@ def capture(scene: "bpy.types.Scene", samples: int = DEFAULT_SAMPLES, *, light: 
     length = np.linalg.norm(normal, axis=-1, keepdims=True)
     # Several samples average the AOV; re-normalize (only silhouettes can shrink it).
     normal = np.where(hit[..., None] & (length > 1e-12), normal / np.maximum(length, 1e-12), 0.0)
-    shadowed = np.where(hit, _stack(lit, name, "Diffuse Direct", "RGB").mean(axis=-1), 0.0)
-    unshadowed = np.where(hit, _stack(free, name, "Diffuse Direct", "RGB").mean(axis=-1), 0.0)
+    diffuse = blender_compat.exr_pass_name("Diffuse Direct")
+    shadowed = np.where(hit, _stack(lit, name, diffuse, "RGB").mean(axis=-1), 0.0)
+    unshadowed = np.where(hit, _stack(free, name, diffuse, "RGB").mean(axis=-1), 0.0)
     if position.shape[:2] != (height, width):
         raise ReferenceCaptureError(f"Cycles output is {position.shape[1]}x{position.shape[0]}, expected {width}x{height}")
 

@@ -19,7 +19,7 @@ summary. The parent side, `eevee_rows`, needs only numpy (and matplotlib for the
 mismatch images); it runs the child and turns its output into compare rows.
 
 EEVEE Next facts used here (verified on 5.2.3):
-- the engine id is `BLENDER_EEVEE` in 5.x and `BLENDER_EEVEE_NEXT` in 4.2-4.4;
+- the engine id is `BLENDER_EEVEE` in 4.5 and 5.x, `BLENDER_EEVEE_NEXT` in 4.2-4.4;
 - `Light.shadow_maximum_resolution` is a world-space texel size in metres (RNA
   default 0.001); it is a *cap*: the virtual shadow map picks its LOD per pixel
   footprint and never goes finer than this. At 640x480 the footprint is coarser
@@ -28,7 +28,8 @@ EEVEE Next facts used here (verified on 5.2.3):
   room_omni's lamp shade entirely (most likely the radius sets the shadow maps'
   depth range), so the radius is set from the scene instead (`light_reach`);
 - EEVEE renders in background mode without `gpu.init()`;
-- the Diffuse Light pass is written as the EXR channels `<layer>.Diffuse Direct.RGB`,
+- the Diffuse Light pass is written as the EXR channels `<layer>.Diffuse Direct.RGB`
+  (`DiffDir` before 5.0),
   in half precision (11 significant bits), which is ample for a 0.5 threshold.
 """
 from __future__ import annotations
@@ -62,6 +63,7 @@ from ..core.errors import (
     report_error,
 )
 from ..core.scene import CameraSpec, LightSpec, MeshSpec, SceneSpec, parse_size
+from ..render import blender_compat
 from ..rows import make_row
 from .data import ReferenceData
 
@@ -174,11 +176,9 @@ def eevee_engine_id() -> str:
     """The EEVEE (Next) engine id this Blender offers."""
     import bpy
 
-    ids = {item.identifier for item in bpy.types.RenderSettings.bl_rna.properties["engine"].enum_items}
-    if "BLENDER_EEVEE_NEXT" in ids:  # 4.2-4.4
-        return "BLENDER_EEVEE_NEXT"
-    if "BLENDER_EEVEE" in ids and "shadow_maximum_resolution" in bpy.types.PointLight.bl_rna.properties:
-        return "BLENDER_EEVEE"  # 5.x: EEVEE Next under its old name
+    engine = blender_compat.eevee_engine_id()
+    if engine is not None:
+        return engine
     raise ReferenceCaptureError(
         f"Blender {bpy.app.version_string} has no EEVEE Next (virtual shadow maps); the eevee row needs 4.2 or later"
     )
@@ -324,7 +324,7 @@ def _apply_eevee_settings(scene, view_layer, light_obj, visible: set[str], engin
 def _diffuse(channels: dict[str, np.ndarray], layer: str, hit: np.ndarray) -> np.ndarray:
     from .capture import _stack
 
-    return np.where(hit, _stack(channels, layer, "Diffuse Direct", "RGB").mean(axis=-1), 0.0).astype(np.float32)
+    return np.where(hit, _stack(channels, layer, blender_compat.exr_pass_name("Diffuse Direct"), "RGB").mean(axis=-1), 0.0).astype(np.float32)
 
 
 def render_eevee(scene: "bpy.types.Scene", out_dir: Path, settings: Sequence[str] = SETTINGS, *,

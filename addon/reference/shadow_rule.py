@@ -42,6 +42,8 @@ from typing import TYPE_CHECKING, Any, Callable, Hashable, Iterable
 
 import numpy as np
 
+from ..render import blender_compat
+
 if TYPE_CHECKING:  # pragma: no cover - typing only
     import bpy
 
@@ -159,9 +161,9 @@ def _indirect_only(view_layer: "bpy.types.ViewLayer | None") -> set[str]:
 
 def _see_through_material(material: "bpy.types.Material") -> str | None:
     """Why a material lets shadow rays through in Cycles, or None."""
-    tree = material.node_tree  # None for a material without nodes (before 5.0: unless use_nodes)
-    if tree is None:
+    if not blender_compat.uses_nodes(material):
         return None
+    tree = material.node_tree
     for node in tree.nodes:
         if node.type in _SEE_THROUGH_NODES:
             return f"a {node.type.replace('BSDF_', '').lower()} shader"

@@ -36,6 +36,7 @@ from .blender_gpu import (
     compute_create_info,
     count_gpu_objects,
     create_info,
+    empty_texture,
 )
 from .shaders import (
     DEPTH_PROGRAM,
@@ -205,8 +206,7 @@ class BlenderGPUBackend(ShadowBackend):
 
         if self._layout != layout:
             self._atlas = _float_texture(layout.size, "R32F")
-            CREATED["texture"] += 1
-            self._atlas_depth = gpu.types.GPUTexture(layout.size, format="DEPTH_COMPONENT32F")
+            self._atlas_depth = empty_texture(layout.size, "DEPTH_COMPONENT32F")
             self._atlas_fb = _framebuffer(color_slots=(self._atlas,), depth_slot=self._atlas_depth)
             self._layout = layout
             self._textures["ow_atlas"] = self._atlas
@@ -423,8 +423,7 @@ class BlenderGPUBackend(ShadowBackend):
         target = self._count_targets.get(size)
         if target is None or target.width != size * tiles:
             # One strip per count-map size, reallocated when the layer count changes.
-            CREATED["texture"] += 1
-            target = gpu.types.GPUTexture((size * tiles, size), format="R32UI")
+            target = empty_texture((size * tiles, size), "R32UI")
             self._count_targets[size] = target
         target.clear(format="UINT", value=(0,))
         iface = scatter_variant(uniforms)
@@ -446,11 +445,10 @@ class BlenderGPUBackend(ShadowBackend):
         held = self._links
         if (held is None or (held[0].width, held[0].height) != (size * tiles, size)
                 or (held[1].width, held[1].height) != (width, height)):
-            CREATED["texture"] += 3
             # heads, links, and the exact pass's marks (one row more: the overflow count)
-            self._links = (gpu.types.GPUTexture((size * tiles, size), format="R32UI"),
-                           gpu.types.GPUTexture((width, height), format="R32UI"),
-                           gpu.types.GPUTexture((width, height + 1), format="R32UI"))
+            self._links = (empty_texture((size * tiles, size), "R32UI"),
+                           empty_texture((width, height), "R32UI"),
+                           empty_texture((width, height + 1), "R32UI"))
         heads, links, _ = self._links
         for texture in self._links:
             texture.clear(format="UINT", value=(0,))
@@ -480,8 +478,7 @@ class BlenderGPUBackend(ShadowBackend):
         if self._sample_size is None:
             raise BackendError("reduce_samples called before upload_samples")
         if self._stats_target is None:
-            CREATED["texture"] += 1
-            self._stats_target = gpu.types.GPUTexture((STAT_TEXELS, 1), format="R32UI")
+            self._stats_target = empty_texture((STAT_TEXELS, 1), "R32UI")
         if clear:
             self._stats_target.clear(format="UINT", value=(0,))
         shader = self._bind(SAMPLE_STATS_PROGRAM, uniforms)

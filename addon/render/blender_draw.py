@@ -19,7 +19,7 @@ from ..core.scene import CameraSpec, LightSpec
 
 from .backend import FULLSCREEN_CORNERS
 from .blender_backend import BlenderGPUBackend
-from .blender_gpu import float_texture, framebuffer, read_texture
+from .blender_gpu import empty_texture, float_texture, framebuffer, read_texture
 from .frame import GBufferSamples, ViewSamples
 from .resident import ResidentScene
 from .shaders import OVERLAY_PROGRAM, PREVIEW_PROGRAM
@@ -81,7 +81,7 @@ def render_gbuffer(backend: BlenderGPUBackend, scene: ResidentScene, view_proj: 
     width, height = size
     pos_tex = float_texture((width, height), "RGBA32F")
     nrm_tex = float_texture((width, height), "RGBA32F")
-    depth = gpu.types.GPUTexture((width, height), format="DEPTH_COMPONENT32F")
+    depth = empty_texture((width, height), "DEPTH_COMPONENT32F")
     target = framebuffer(color_slots=(pos_tex, nrm_tex), depth_slot=depth)
     with target.bind():
         target.clear(color=(0.0, 0.0, 0.0, 0.0), depth=1.0)

@@ -13,6 +13,7 @@ from typing import Any
 
 import numpy as np
 
+from . import blender_compat
 from .shaders import ComputeInterface, ProgramInterface, load_source, program_defines
 
 log = logging.getLogger(__name__)
@@ -68,9 +69,8 @@ def ensure_gpu() -> None:
 
     if not bpy.app.background:
         return
-    init = getattr(gpu, "init", None)
-    if init is not None:
-        init()  # Blender 5.2+: creates the GPU context for background mode; idempotent
+    if blender_compat.has_gpu_init():
+        gpu.init()  # Blender 5.2+: creates the GPU context for background mode; idempotent
         return
     # Older versions: one tiny Workbench render creates the context as a side effect.
     scene = bpy.data.scenes.new("omniwarp_gpu_init")
@@ -108,8 +108,8 @@ def create_info(iface: ProgramInterface) -> Any:
         info.vertex_out(stage)
     for slot, (glsl_type, name) in enumerate(iface.fragment_out):
         info.fragment_out(slot, _GLSL_TYPES[glsl_type], name)
-    if iface.writes_depth and hasattr(info, "depth_write"):
-        # Declared where the API has it (newer Blender); OpenGL honours gl_FragDepth either way.
+    if iface.writes_depth and blender_compat.has_depth_write():
+        # Declared where the API has it (4.5+); OpenGL honours gl_FragDepth either way.
         info.depth_write("ANY")
     for unit, (fmt, name) in enumerate(iface.images):
         info.image(unit, fmt.upper(), "UINT_2D", name, qualifiers={"READ", "WRITE"})
@@ -156,7 +156,13 @@ def _float_texture(size: tuple[int, int], fmt: str, data: np.ndarray | None = No
         flat = np.ascontiguousarray(data, dtype=np.float32).ravel()
         buffer = gpu.types.Buffer("FLOAT", flat.size, flat)
     CREATED["texture"] += 1
-    return gpu.types.GPUTexture(size, format=fmt, data=buffer)
+    return blender_compat.gpu_texture(size, fmt, buffer)
+
+
+def empty_texture(size: tuple[int, int], fmt: str):
+    """A `GPUTexture` of any format with undefined contents (counted in CREATED)."""
+    CREATED["texture"] += 1
+    return blender_compat.gpu_texture(size, fmt)
 
 
 def _framebuffer(**slots):

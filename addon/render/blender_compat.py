@@ -1,0 +1,154 @@
+"""Every Blender API that differs between the lines this extension supports (4.2 LTS,
+4.5 LTS, 5.2), in one place.
+
+Each gate is decided by `bpy.app.version` or by feature detection on the RNA/type, never by
+catching the failure of a whole feature. `bpy` and `gpu` are imported lazily, so this module
+imports without Blender. The table of what differs and what the extension does on each line
+is docs/versions.md; `missing_features()` is the one-line-per-gap summary the CLI and the
+panel show.
+"""
+from __future__ import annotations
+
+import logging
+from typing import Any, Callable
+
+log = logging.getLogger(__name__)
+
+# The multilayer EXR names the Diffuse Direct pass "DiffDir" before Blender 5.0.
+_SHORT_PASS_NAMES = {"Diffuse Direct": "DiffDir", "Diffuse Indirect": "DiffInd", "Diffuse Color": "DiffCol"}
+
+
+def version() -> tuple[int, int, int]:
+    """The running Blender's (major, minor, patch)."""
+    import bpy
+
+    return tuple(bpy.app.version[:3])
+
+
+def exr_pass_name(name: str) -> str:
+    """The multilayer-EXR channel name of the render pass `name` on this line."""
+    if version() >= (5, 0, 0):
+        return name
+    return _SHORT_PASS_NAMES.get(name, name)
+
+
+def has_gpu_init() -> bool:
+    """`gpu.init()` (5.2+) creates the background-mode GPU context; older lines need a tiny render."""
+    import gpu
+
+    return hasattr(gpu, "init")
+
+
+def has_depth_write() -> bool:
+    """`GPUShaderCreateInfo.depth_write` (4.5+). Without it OpenGL still honours gl_FragDepth."""
+    import gpu
+
+    return hasattr(gpu.types.GPUShaderCreateInfo, "depth_write")
+
+
+def has_compute() -> bool:
+    """Compute shaders and image load/store through `gpu.compute` (all supported lines)."""
+    import gpu
+
+    return hasattr(gpu, "compute") and hasattr(gpu.types.GPUShaderCreateInfo, "local_group_size")
+
+
+def gpu_texture(size: tuple[int, int], fmt: str, buffer: Any = None) -> Any:
+    """A `GPUTexture`; before 5.0 the `data` argument must be a Buffer, not None, so it is left out."""
+    import gpu
+
+    if buffer is None:
+        return gpu.types.GPUTexture(size, format=fmt)
+    return gpu.types.GPUTexture(size, format=fmt, data=buffer)
+
+
+def set_multilayer_exr(image_settings: Any, setter: Callable[[Any, str, Any], None]) -> None:
+    """Select 32-bit multilayer OpenEXR output on `image_settings` through `setter(obj, name, value)`.
+
+    5.x splits the choice in two: `media_type` first, then `file_format`; earlier lines have
+    only `file_format`, whose enum holds OPEN_EXR_MULTILAYER directly."""
+    if hasattr(image_settings, "media_type"):
+        setter(image_settings, "media_type", "MULTI_LAYER_IMAGE")
+    setter(image_settings, "file_format", "OPEN_EXR_MULTILAYER")
+
+
+def has_light_linking() -> bool:
+    """Light and shadow linking (`Object.light_linking`, 4.0+)."""
+    import bpy
+
+    return "light_linking" in bpy.types.Object.bl_rna.properties
+
+
+def eevee_engine_id() -> str | None:
+    """The render engine id of EEVEE Next (virtual shadow maps), or None when this line lacks it.
+
+    4.2-4.4 name it BLENDER_EEVEE_NEXT; 4.5 and 5.x call it BLENDER_EEVEE again."""
+    import bpy
+
+    ids = {item.identifier for item in bpy.types.RenderSettings.bl_rna.properties["engine"].enum_items}
+    if "BLENDER_EEVEE_NEXT" in ids:
+        return "BLENDER_EEVEE_NEXT"
+    if "BLENDER_EEVEE" in ids and "shadow_maximum_resolution" in bpy.types.PointLight.bl_rna.properties:
+        return "BLENDER_EEVEE"
+    return None
+
+
+def ensure_node_tree(id_block: Any) -> Any:
+    """The node tree of a material or world, creating it where the line needs `use_nodes`.
+
+    Before 5.0 a new material has no tree until `use_nodes` is set; 5.0 deprecates the flag
+    (every material has nodes), so it is only written where the tree is missing."""
+    if getattr(id_block, "node_tree", None) is None and hasattr(id_block, "use_nodes"):
+        id_block.use_nodes = True
+    return id_block.node_tree
+
+
+def uses_nodes(id_block: Any) -> bool:
+    """Whether a material or world renders through its node tree on this line."""
+    if id_block.node_tree is None:
+        return False
+    if version() >= (5, 0, 0):
+        return True  # use_nodes is deprecated and always true
+    return bool(getattr(id_block, "use_nodes", True))
+
+
+def has_get_transform() -> bool:
+    """`bpy.props` properties accept `get_transform` (5.0+)."""
+    return version() >= (5, 0, 0)
+
+
+def system_properties(id_block: Any) -> Any:
+    """Where an ID stores add-on properties: 5.x keeps them as "system properties"."""
+    getter = getattr(id_block, "bl_system_properties_get", None)
+    return getter() if getter is not None else id_block
+
+
+def missing_features() -> tuple[str, ...]:
+    """One line per feature this Blender line lacks, with what the extension does instead."""
+    lines = []
+    if eevee_engine_id() is None:
+        lines.append(f"Blender {_version_string()} has no EEVEE Next: the eevee row is not available")
+    if not has_light_linking():
+        lines.append(f"Blender {_version_string()} has no light linking: every object casts on every light")
+    if not has_compute():
+        lines.append(f"Blender {_version_string()} has no compute shaders: the gpu backend cannot run; "
+                     "use the moderngl backend")
+    return tuple(lines)
+
+
+def degraded_features() -> tuple[str, ...]:
+    """One line per API this line lacks but the extension works around (shown as notes)."""
+    lines = []
+    if not has_depth_write():
+        lines.append(f"Blender {_version_string()}: shaders cannot declare depth_write; "
+                     "gl_FragDepth is written undeclared (same result on OpenGL)")
+    if not has_get_transform():
+        lines.append(f"Blender {_version_string()}: no get_transform on properties; "
+                     "stale stored settings are repaired when read")
+    return tuple(lines)
+
+
+def _version_string() -> str:
+    import bpy
+
+    return bpy.app.version_string
