@@ -1,19 +1,28 @@
 #!/usr/bin/env bash
-# Build (or check) the project environment in <repo>/.venv. Idempotent.
+# Build (or check) the environment of one tested Blender line. Idempotent.
 #
+#   bash scripts/setup_env.sh [LINE]      LINE: 5.2 (default), 4.5 or 4.2
+#
+#   line  venv            Python  packages
+#   5.2   .venv           3.13    -e .[blender,dev]      (bpy 5.2.3)
+#   4.5   .venv-bpy4.5    3.11    -e .[blender-4.5,dev]  (bpy 4.5.15)
+#   4.2   .venv-bpy4.2    3.11    -e .[blender-4.2,dev]  (bpy 4.2.23)
+#
+# The bpy pins live in pyproject.toml's optional dependencies. Steps:
 #  1. Mesa EGL system libraries (libegl1 libegl-mesa0 libgl1-mesa-dri):
 #     installed with apt-get only when dpkg says they are missing.
-#  2. Python 3.13 (bpy 5.2.3 from PyPI is built for CPython 3.13 only).
-#  3. <repo>/.venv, created when missing (or when it is broken / not 3.13).
-#  4. `pip install -e .[blender,dev]`, skipped while .venv/.omniwarp-stamp
-#     still matches (sha256 of pyproject.toml + the repo path, since an
+#  2. The line's Python (PyPI publishes each bpy for one CPython minor only),
+#     found on PATH, in pyenv, or in the usual prefixes.
+#  3. The venv, created when missing (or when it is broken / the wrong Python).
+#  4. `pip install -e .[EXTRA,dev]`, skipped while <venv>/.omniwarp-stamp still
+#     matches (sha256 of pyproject.toml + the repo path + the line, since an
 #     editable install points at this checkout).
 #
 # Environment overrides:
-#   OMNIWARP_PYTHON=/path/to/python3.13   use this interpreter to create .venv
-#                                         (no search; it must be 3.13)
-#   OMNIWARP_SKIP_APT=1                   do not check/install the apt packages
-#   OMNIWARP_FORCE_INSTALL=1              reinstall even if the stamp matches
+#   OMNIWARP_PYTHON=/path/to/python3.13     interpreter for the 5.2 line (no search)
+#   OMNIWARP_PYTHON311=/path/to/python3.11  interpreter for the 4.x lines (no search)
+#   OMNIWARP_SKIP_APT=1                     do not check/install the apt packages
+#   OMNIWARP_FORCE_INSTALL=1                reinstall even if the stamp matches
 #
 # Everything this script says goes to stderr; it exits non-zero on failure.
 set -euo pipefail
@@ -21,13 +30,19 @@ set -euo pipefail
 REPO_ROOT="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
 cd "$REPO_ROOT"
 
-VENV="$REPO_ROOT/.venv"
-STAMP="$VENV/.omniwarp-stamp"
+LINE="${1:-5.2}"
 APT_PACKAGES=(libegl1 libegl-mesa0 libgl1-mesa-dri)
-PY_WANT="3.13"
 
 say() { printf 'setup_env: %s\n' "$*" >&2; }
 die() { printf 'setup_env: error: %s\n' "$*" >&2; exit 1; }
+
+case "$LINE" in
+    5.2) VENV="$REPO_ROOT/.venv";         PY_WANT="3.13"; EXTRA="blender";     PY_OVERRIDE="${OMNIWARP_PYTHON:-}" ;;
+    4.5) VENV="$REPO_ROOT/.venv-bpy4.5";  PY_WANT="3.11"; EXTRA="blender-4.5"; PY_OVERRIDE="${OMNIWARP_PYTHON311:-}" ;;
+    4.2) VENV="$REPO_ROOT/.venv-bpy4.2";  PY_WANT="3.11"; EXTRA="blender-4.2"; PY_OVERRIDE="${OMNIWARP_PYTHON311:-}" ;;
+    *) die "unknown Blender line '$LINE'; tested lines: 5.2 4.5 4.2" ;;
+esac
+STAMP="$VENV/.omniwarp-stamp"
 
 # --- 1. Mesa EGL ------------------------------------------------------------
 ensure_apt_packages() {
@@ -69,22 +84,21 @@ ensure_apt_packages() {
         || die "'apt-get install ${missing[*]}' failed; install them manually and re-run."
 }
 
-# --- 2. Python 3.13 ---------------------------------------------------------
-# True when "$1" runs, is CPython 3.13 and can create a venv with pip.
+# --- 2. the line's Python -----------------------------------------------------
+# True when "$1" runs, is CPython $PY_WANT and can create a venv with pip.
 is_good_python() {
-    "$1" -c 'import sys, venv, ensurepip; sys.exit(0 if sys.version_info[:2] == (3, 13) else 1)' \
+    "$1" -c "import sys, venv, ensurepip; sys.exit(0 if sys.version_info[:2] == (${PY_WANT/./, }) else 1)" \
         >/dev/null 2>&1
 }
 
 find_python() {
     local c tried=()
-    if [[ -n "${OMNIWARP_PYTHON:-}" ]]; then
-        if is_good_python "$OMNIWARP_PYTHON"; then
-            printf '%s\n' "$OMNIWARP_PYTHON"
+    if [[ -n "$PY_OVERRIDE" ]]; then
+        if is_good_python "$PY_OVERRIDE"; then
+            printf '%s\n' "$PY_OVERRIDE"
             return 0
         fi
-        python_missing "OMNIWARP_PYTHON=$OMNIWARP_PYTHON is not a working Python $PY_WANT" \
-            "with the venv and ensurepip modules"
+        die "$PY_OVERRIDE (from the environment) is not a working Python $PY_WANT with venv and ensurepip"
     fi
 
     local candidates=()
@@ -114,13 +128,9 @@ find_python() {
 }
 
 python_missing() {
-    die "$*.
-  Python $PY_WANT is needed: bpy==5.2.3 (Blender 5.2 LTS as a Python module) is only
-  published for CPython $PY_WANT. Get one of these, then re-run:
-    pyenv install $PY_WANT          (pyenv; this script finds ~/.pyenv/versions/$PY_WANT*)
-    uv python install $PY_WANT      (then OMNIWARP_PYTHON=\$(uv python find $PY_WANT))
-    apt-get install python$PY_WANT python$PY_WANT-venv   (Debian 13 / Ubuntu 24.10+)
-  or point OMNIWARP_PYTHON at a python$PY_WANT binary."
+    local var=OMNIWARP_PYTHON
+    [[ "$PY_WANT" == "3.13" ]] || var=OMNIWARP_PYTHON311
+    die "$* -- Blender $LINE's bpy needs Python $PY_WANT: run 'pyenv install $PY_WANT' (or 'uv python install $PY_WANT' and set $var=\$(uv python find $PY_WANT)), then re-run."
 }
 
 # --- 3. the virtual environment ---------------------------------------------
@@ -141,7 +151,7 @@ ensure_venv() {
 
 # --- 4. the packages --------------------------------------------------------
 stamp_value() {
-    { sha256sum pyproject.toml; printf '%s\n' "$REPO_ROOT"; } | sha256sum | cut -d' ' -f1
+    { sha256sum pyproject.toml; printf '%s\n' "$REPO_ROOT" "$LINE"; } | sha256sum | cut -d' ' -f1
 }
 
 ensure_install() {
@@ -152,12 +162,12 @@ ensure_install() {
         say "packages up to date (stamp matches pyproject.toml); skipping pip install"
         return 0
     fi
-    say "installing -e .[blender,dev] into $VENV (the first install downloads bpy, ~1-2 min)"
+    say "installing -e .[$EXTRA,dev] into $VENV (the first install downloads bpy, ~1-2 min)"
     rm -f -- "$STAMP"
-    "$VENV/bin/python" -m pip install --disable-pip-version-check -q -e ".[blender,dev]" >&2 \
-        || die "pip install -e .[blender,dev] failed (see the pip output above)"
+    "$VENV/bin/python" -m pip install --disable-pip-version-check -q -e ".[$EXTRA,dev]" >&2 \
+        || die "pip install -e .[$EXTRA,dev] failed (see the pip output above)"
     printf '%s\n' "$want" >"$STAMP"
-    say "environment ready: $VENV"
+    say "environment ready: $VENV (Blender $LINE)"
 }
 
 ensure_apt_packages

@@ -37,6 +37,7 @@ from .blender_gpu import (
     count_gpu_objects,
     create_info,
     empty_texture,
+    read_uint,
 )
 from .shaders import (
     DEPTH_PROGRAM,
@@ -433,8 +434,7 @@ class BlenderGPUBackend(ShadowBackend):
         gpu.compute.dispatch(shader, iface.groups(width * height), 1, 1)
         # dispatch() ends with a texture-fetch and image-access barrier (pygpu_compute_dispatch);
         # read() then waits for the GPU.
-        raw = np.asarray(target.read(), dtype=np.uint32)
-        return raw.reshape(size, size * tiles).astype(np.float32)
+        return read_uint(target).astype(np.float32)
 
     def link_samples(self, size: int, tiles: int, uniforms: UniformValues) -> None:
         import gpu
@@ -462,14 +462,13 @@ class BlenderGPUBackend(ShadowBackend):
         if self._links is None:
             raise BackendError("read_links called before link_samples")
         heads, links, _ = self._links
-        return (np.asarray(heads.read(), dtype=np.uint32).reshape(heads.height, heads.width).copy(),
-                np.asarray(links.read(), dtype=np.uint32).reshape(links.height, links.width).copy())
+        return read_uint(heads), read_uint(links)
 
     def read_hits(self) -> tuple[np.ndarray, np.ndarray]:
         if self._links is None:
             raise BackendError("read_hits called before link_samples")
         hits = self._links[2]
-        raw = np.asarray(hits.read(), dtype=np.uint32).reshape(hits.height, hits.width)
+        raw = read_uint(hits)
         return raw[:-1].copy(), raw[-1, :3].copy()
 
     def reduce_samples(self, uniforms: UniformValues, clear: bool) -> np.ndarray:
@@ -486,7 +485,7 @@ class BlenderGPUBackend(ShadowBackend):
         width, height = self._sample_size
         gpu.compute.dispatch(shader, SAMPLE_STATS_PROGRAM.groups(-(-width * height // STAT_SPAN)), 1, 1)
         # dispatch() ends with an image-access barrier; read() waits for the GPU.
-        return np.asarray(self._stats_target.read(), dtype=np.uint32).ravel().copy()
+        return read_uint(self._stats_target).ravel()
 
     def shadow_test(self, uniforms: UniformValues) -> np.ndarray:
         import gpu

@@ -12,6 +12,8 @@ from __future__ import annotations
 import logging
 from typing import Any, Callable
 
+import numpy as np
+
 log = logging.getLogger(__name__)
 
 # The multilayer EXR names the Diffuse Direct pass "DiffDir" before Blender 5.0.
@@ -60,6 +62,19 @@ def gpu_texture(size: tuple[int, int], fmt: str, buffer: Any = None) -> Any:
     if buffer is None:
         return gpu.types.GPUTexture(size, format=fmt)
     return gpu.types.GPUTexture(size, format=fmt, data=buffer)
+
+
+def buffer_array(buffer: Any, dtype: Any) -> np.ndarray:
+    """A `gpu.types.Buffer` (e.g. from `GPUTexture.read()`) as a flat numpy array in memory order.
+
+    Before 5.0 a multi-dimensional Buffer exports Fortran strides over C-ordered memory, so
+    `np.asarray` would transpose it; there the Buffer is viewed as one dimension first."""
+    with memoryview(buffer) as view:
+        in_order = view.ndim <= 1 or view.c_contiguous
+        count = view.nbytes // view.itemsize
+    if not in_order:
+        buffer.dimensions = [count]
+    return np.asarray(buffer, dtype=dtype).ravel()
 
 
 def set_multilayer_exr(image_settings: Any, setter: Callable[[Any, str, Any], None]) -> None:

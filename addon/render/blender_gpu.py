@@ -165,6 +165,12 @@ def empty_texture(size: tuple[int, int], fmt: str):
     return blender_compat.gpu_texture(size, fmt)
 
 
+def read_uint(texture) -> np.ndarray:
+    """An R32UI texture's contents as (height, width) uint32, row 0 at the bottom."""
+    raw = blender_compat.buffer_array(texture.read(), np.uint32)
+    return raw.reshape(texture.height, texture.width).copy()
+
+
 def _framebuffer(**slots):
     import gpu
 
@@ -190,7 +196,7 @@ def _components(fmt: str) -> int:
 
 def _read(texture, fmt: str) -> np.ndarray:
     """Texture contents as (height, width[, channels]) float32, row 0 at the bottom."""
-    raw = np.asarray(texture.read(), dtype=np.float32)
+    raw = blender_compat.buffer_array(texture.read(), np.float32)
     channels = _components(fmt)
     shape = (texture.height, texture.width) + ((channels,) if channels > 1 else ())
     return raw.reshape(shape).copy()
