@@ -159,6 +159,7 @@ def cmd_reference(args: argparse.Namespace) -> int:
     if not 1 <= args.samples <= MAX_SAMPLES:
         raise InputError(f"bad --samples {args.samples}: use 1-{MAX_SAMPLES}")
     names = select_presets(args.preset)
+    _say_line_gaps()
     if args.samples != DEFAULT_SAMPLES:
         _say(f"note: compare and preview read the {DEFAULT_SAMPLES}-sample reference; "
              f"this {args.samples}-sample one is cached beside it")
@@ -170,12 +171,25 @@ def cmd_reference(args: argparse.Namespace) -> int:
     return 0
 
 
+def _say_line_gaps() -> None:
+    """One note per API the installed Blender line lacks (docs/versions.md); none on 5.2 or without bpy."""
+    import importlib.util
+
+    if importlib.util.find_spec("bpy") is None:
+        return
+    from .render.blender_compat import line_gaps
+
+    for gap in line_gaps():
+        _say(f"note: {gap.text}")
+
+
 def _need_bpy(option: str) -> None:
     """InputError (exit 2) when bpy is missing, before anything is loaded."""
     import importlib.util
 
     if importlib.util.find_spec("bpy") is None:
-        raise InputError(f"{option} needs the bpy module (pip install bpy==5.2.3)")
+        pin = "bpy==5.2.3" if sys.version_info[:2] >= (3, 13) else "bpy==4.5.15"  # PyPI: one CPython per line
+        raise InputError(f"{option} needs the bpy module (pip install {pin})")
 
 
 def _blend_reference(args: argparse.Namespace, check: Callable[[str], None] | None = None) -> Callable[[], object]:
@@ -246,6 +260,7 @@ def cmd_compare(args: argparse.Namespace) -> int:
     options = CompareOptions(methods, resolutions, cull=not args.no_cull, cull_both=args.cull_both, frames=args.frames,
                              out_dir=out, write_images=not args.no_images,
                              command="omniwarp " + " ".join(args.argv))
+    _say_line_gaps()
     rows = run_compare(references, options, lambda: ShadowPipeline(ModernGLBackend()), sources)
     for row in rows:
         passes = f"  passes {row['passes']}" if "passes" in row else ""
@@ -293,6 +308,7 @@ def cmd_preview(args: argparse.Namespace) -> int:
         reference = load()
         source = ["--blend", str(Path(args.blend).resolve())] + (["--light", args.light] if args.light else [])
     fits(reference.emission)
+    _say_line_gaps()
     method = entry.name if entry is not None else None
     with StagedOutput(out) as stage, interrupt.temporary_dir("omniwarp_preview_") as tmp:
         ref_path = reference.save(tmp / "reference.npz")

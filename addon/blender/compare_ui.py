@@ -16,7 +16,7 @@ from .compare_props import (
     method_prop,
     preset_info,
 )
-from .panels import SIDEBAR_CATEGORY  # one tab for the preview and the comparison
+from .panels import SIDEBAR_CATEGORY, draw_line_gaps  # one tab for the preview and the comparison
 
 
 # ----------------------------------------------------------------------------
@@ -132,6 +132,7 @@ class OMNIWARP_PT_compare(bpy.types.Panel):
         row = layout.row(align=True)
         row.prop(settings, "export_path", text="")
         row.operator(OMNIWARP_OT_export_results.bl_idname, text="Export", icon="EXPORT")
+        draw_line_gaps(layout)
 
 
 CLASSES: tuple[type, ...] = (

@@ -6,6 +6,7 @@ import logging
 
 import bpy
 
+from ..render import blender_compat
 from . import events
 from .properties import (
     EXACT_PARAMETERIZATIONS,
@@ -53,6 +54,12 @@ def _note(layout: bpy.types.UILayout, text: str) -> None:
     row = layout.row()
     row.alignment = "RIGHT"
     row.label(text=text, icon="INFO")
+
+
+def draw_line_gaps(layout: bpy.types.UILayout) -> None:
+    """One line per API this Blender line lacks (docs/versions.md); nothing on 5.2."""
+    for gap in blender_compat.line_gaps():
+        layout.label(text=gap.text, icon="INFO")
 
 
 class OMNIWARP_PT_light(bpy.types.Panel):
@@ -125,6 +132,7 @@ class OMNIWARP_PT_light(bpy.types.Panel):
         col.prop(props, "bias_normal")
 
         layout.prop(props, "cull")
+        draw_line_gaps(layout)
 
 
 def _preview_error() -> str:

@@ -19,7 +19,7 @@ summary. The parent side, `eevee_rows`, needs only numpy (and matplotlib for the
 mismatch images); it runs the child and turns its output into compare rows.
 
 EEVEE Next facts used here (verified on 5.2.3):
-- the engine id is `BLENDER_EEVEE` in 4.5 and 5.x, `BLENDER_EEVEE_NEXT` in 4.2-4.4;
+- the engine id is `BLENDER_EEVEE` in 5.x, `BLENDER_EEVEE_NEXT` in 4.2-4.5;
 - `Light.shadow_maximum_resolution` is a world-space texel size in metres (RNA
   default 0.001); it is a *cap*: the virtual shadow map picks its LOD per pixel
   footprint and never goes finer than this. At 640x480 the footprint is coarser
@@ -266,7 +266,7 @@ def _apply_eevee_settings(scene, view_layer, light_obj, visible: set[str], engin
     s(eevee, "use_fast_gi", False, optional=True)
     s(eevee, "use_overscan", False, optional=True)
     s(eevee, "clamp_surface_direct", 0.0, optional=True)
-    s(eevee, "direct_light_intensity", 1.0, optional=True)
+    s(eevee, blender_compat.EEVEE_DIRECT_LIGHT, 1.0, optional=True)  # 5.0+ (blender_compat.line_gaps)
     s(eevee, "use_bloom", False, optional=True)  # 4.1 and older only
     s(eevee, "use_gtao", False, optional=True)
     s(eevee, "use_ssr", False, optional=True)

@@ -4,12 +4,14 @@
 Each gate is decided by `bpy.app.version` or by feature detection on the RNA/type, never by
 catching the failure of a whole feature. `bpy` and `gpu` are imported lazily, so this module
 imports without Blender. The table of what differs and what the extension does on each line
-is docs/versions.md; `missing_features()` is the one-line-per-gap summary the CLI and the
-panel show.
+is docs/versions.md; `line_gaps()` is the one-line-per-gap summary the CLI and the panels
+show.
 """
 from __future__ import annotations
 
+import functools
 import logging
+from dataclasses import dataclass
 from typing import Any, Callable
 
 import numpy as np
@@ -17,6 +19,8 @@ import numpy as np
 log = logging.getLogger(__name__)
 
 # The multilayer EXR names the Diffuse Direct pass "DiffDir" before Blender 5.0.
+# The EEVEE option (5.0+) that scales direct light; the eevee row sets it to 1 where it exists.
+EEVEE_DIRECT_LIGHT = "direct_light_intensity"
 _SHORT_PASS_NAMES = {"Diffuse Direct": "DiffDir", "Diffuse Indirect": "DiffInd", "Diffuse Color": "DiffCol"}
 
 
@@ -97,7 +101,7 @@ def has_light_linking() -> bool:
 def eevee_engine_id() -> str | None:
     """The render engine id of EEVEE Next (virtual shadow maps), or None when this line lacks it.
 
-    4.2-4.4 name it BLENDER_EEVEE_NEXT; 4.5 and 5.x call it BLENDER_EEVEE again."""
+    4.2-4.5 name it BLENDER_EEVEE_NEXT; 5.x calls it BLENDER_EEVEE again."""
     import bpy
 
     ids = {item.identifier for item in bpy.types.RenderSettings.bl_rna.properties["engine"].enum_items}
@@ -138,29 +142,38 @@ def system_properties(id_block: Any) -> Any:
     return getter() if getter is not None else id_block
 
 
-def missing_features() -> tuple[str, ...]:
-    """One line per feature this Blender line lacks, with what the extension does instead."""
-    lines = []
+@dataclass(frozen=True)
+class LineGap:
+    """Something this Blender line lacks, and what the extension does instead."""
+
+    name: str  # stable id (tests, logs)
+    text: str  # one line for the CLI and the panel
+
+
+@functools.cache
+def line_gaps() -> tuple[LineGap, ...]:
+    """What the running line lacks of the APIs the extension uses; empty on 5.2 (cached: the
+    panels call it on every redraw, and the line never changes within a process)."""
+    import bpy
+
+    line = "Blender %d.%d" % version()[:2]
+    gaps = []
     if eevee_engine_id() is None:
-        lines.append(f"Blender {_version_string()} has no EEVEE Next: the eevee row is not available")
+        gaps.append(LineGap("eevee_next", f"{line} has no EEVEE Next: the eevee row is not available"))
+    elif EEVEE_DIRECT_LIGHT not in bpy.types.SceneEEVEE.bl_rna.properties:
+        gaps.append(LineGap(EEVEE_DIRECT_LIGHT, f"{line} EEVEE has no direct light intensity: "
+                                                "the eevee row renders direct light unscaled"))
     if not has_light_linking():
-        lines.append(f"Blender {_version_string()} has no light linking: every object casts on every light")
+        gaps.append(LineGap("light_linking", f"{line} has no light linking: every object shadows every light"))
     if not has_compute():
-        lines.append(f"Blender {_version_string()} has no compute shaders: the gpu backend cannot run; "
-                     "use the moderngl backend")
-    return tuple(lines)
-
-
-def degraded_features() -> tuple[str, ...]:
-    """One line per API this line lacks but the extension works around (shown as notes)."""
-    lines = []
+        gaps.append(LineGap("compute", f"{line} has no compute shaders: the viewport preview cannot run"))
     if not has_depth_write():
-        lines.append(f"Blender {_version_string()}: shaders cannot declare depth_write; "
-                     "gl_FragDepth is written undeclared (same result on OpenGL)")
+        gaps.append(LineGap("depth_write", f"{line} shaders cannot declare depth_write: "
+                                           "depth is written undeclared (OpenGL honours it)"))
     if not has_get_transform():
-        lines.append(f"Blender {_version_string()}: no get_transform on properties; "
-                     "stale stored settings are repaired when read")
-    return tuple(lines)
+        gaps.append(LineGap("get_transform", f"{line} has no property get_transform: "
+                                             "a stale stored method shows blank; the panel names the one used"))
+    return tuple(gaps)
 
 
 def _version_string() -> str:
