@@ -267,7 +267,8 @@ def _apply_eevee_settings(scene, view_layer, light_obj, visible: set[str], engin
     s(eevee, "use_overscan", False, optional=True)
     s(eevee, "clamp_surface_direct", 0.0, optional=True)
     s(eevee, blender_compat.EEVEE_DIRECT_LIGHT, 1.0, optional=True)  # 5.0+ (blender_compat.line_gaps)
-    s(eevee, "use_bloom", False, optional=True)  # 4.1 and older only
+    # use_bloom (legacy EEVEE) is left alone: on 4.2.23 setting it False removed every
+    # EEVEE Next shadow (docs/versions.md), and EEVEE Next has no bloom to turn off.
     s(eevee, "use_gtao", False, optional=True)
     s(eevee, "use_ssr", False, optional=True)
     s(render, "filter_size", PIXEL_FILTER_WIDTH)
