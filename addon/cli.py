@@ -159,7 +159,6 @@ def cmd_reference(args: argparse.Namespace) -> int:
     if not 1 <= args.samples <= MAX_SAMPLES:
         raise InputError(f"bad --samples {args.samples}: use 1-{MAX_SAMPLES}")
     names = select_presets(args.preset)
-    _say_line_gaps()
     if args.samples != DEFAULT_SAMPLES:
         _say(f"note: compare and preview read the {DEFAULT_SAMPLES}-sample reference; "
              f"this {args.samples}-sample one is cached beside it")
@@ -168,11 +167,14 @@ def cmd_reference(args: argparse.Namespace) -> int:
         seconds = ref.meta.get("render_seconds", {})
         _result(args, f"{name}: {size[0]}x{size[1]}, {int(ref.hit.sum())} hit pixels, {len(ref.triangles)} triangles, "
                       f"key {ref.meta.get('cache_key', '?')}, render s {seconds}")
+    _say_line_gaps()
     return 0
 
 
 def _say_line_gaps() -> None:
-    """One note per API the installed Blender line lacks (docs/versions.md); none on 5.2 or without bpy."""
+    """One note per API the installed Blender line lacks (docs/versions.md); none on 5.2 or without bpy.
+
+    Said after a run's results, so bad input stays the one error line."""
     import importlib.util
 
     if importlib.util.find_spec("bpy") is None:
@@ -260,12 +262,12 @@ def cmd_compare(args: argparse.Namespace) -> int:
     options = CompareOptions(methods, resolutions, cull=not args.no_cull, cull_both=args.cull_both, frames=args.frames,
                              out_dir=out, write_images=not args.no_images,
                              command="omniwarp " + " ".join(args.argv))
-    _say_line_gaps()
     rows = run_compare(references, options, lambda: ShadowPipeline(ModernGLBackend()), sources)
     for row in rows:
         passes = f"  passes {row['passes']}" if "passes" in row else ""
         _result(args, f"{row['preset']:12s} {row_label(row):6s} {row.get('resolution', ''):>5}  "
                       f"error {row['error_pct']:6.3f} %  total {row['time_ms']['total']:8.1f} ms{passes}")
+    _say_line_gaps()
     return 0
 
 
@@ -308,7 +310,6 @@ def cmd_preview(args: argparse.Namespace) -> int:
         reference = load()
         source = ["--blend", str(Path(args.blend).resolve())] + (["--light", args.light] if args.light else [])
     fits(reference.emission)
-    _say_line_gaps()
     method = entry.name if entry is not None else None
     with StagedOutput(out) as stage, interrupt.temporary_dir("omniwarp_preview_") as tmp:
         ref_path = reference.save(tmp / "reference.npz")
@@ -342,6 +343,7 @@ def cmd_preview(args: argparse.Namespace) -> int:
     report = json.loads((out / "preview.json").read_text())
     _result(args, f"error {report['error_pct']:.3f} % of {report['evaluated_pixels']} px; "
                   f"total {report['time_ms']['total']:.1f} ms (+ G-buffer {report['time_ms']['gbuffer']:.1f} ms)")
+    _say_line_gaps()
     return 0
 
 
