@@ -4,6 +4,7 @@ Nothing here is autouse; tests ask for what they need.
 """
 from __future__ import annotations
 
+import re
 import sys
 from pathlib import Path
 
@@ -47,3 +48,20 @@ def gl_backend():
     backend = ModernGLBackend()
     yield backend
     backend.release()
+
+
+# A test module that imports bpy anywhere (at the top, inside a test, or via importorskip).
+_IMPORTS_BPY = re.compile(r"^\s*(?:import bpy\b|from bpy\b|.*importorskip\(\s*[\"']bpy[\"'])", re.MULTILINE)
+
+
+@pytest.hookimpl(tryfirst=True)  # before `-m` deselects by marker
+def pytest_collection_modifyitems(config: pytest.Config, items: list[pytest.Item]) -> None:
+    """Every test of a module that imports bpy gets the `blender` marker, so the LTS lines
+    (`-m blender`, scripts/test.sh) run it even where a test forgot its mark."""
+    imports_bpy: dict[Path, bool] = {}
+    for item in items:
+        path = Path(str(item.fspath))
+        if path not in imports_bpy:
+            imports_bpy[path] = bool(_IMPORTS_BPY.search(path.read_text(encoding="utf-8")))
+        if imports_bpy[path] and item.get_closest_marker("blender") is None:
+            item.add_marker(pytest.mark.blender)
