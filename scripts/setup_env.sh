@@ -21,6 +21,7 @@
 # Environment overrides:
 #   OMNIWARP_PYTHON=/path/to/python3.13     interpreter for the 5.2 line (no search)
 #   OMNIWARP_PYTHON311=/path/to/python3.11  interpreter for the 4.x lines (no search)
+#   OMNIWARP_PYTHON_PREFIXES="/a /b"        folders searched after pyenv (default: /usr/local/bin /usr/bin)
 #   OMNIWARP_SKIP_APT=1                     do not check/install the apt packages
 #   OMNIWARP_FORCE_INSTALL=1                reinstall even if the stamp matches
 #
@@ -43,6 +44,7 @@ case "$LINE" in
     *) die "unknown Blender line '$LINE'; tested lines: 5.2 4.5 4.2" ;;
 esac
 STAMP="$VENV/.omniwarp-stamp"
+PY_PREFIXES="${OMNIWARP_PYTHON_PREFIXES:-/usr/local/bin /usr/bin}"
 
 # --- 1. Mesa EGL ------------------------------------------------------------
 ensure_apt_packages() {
@@ -111,8 +113,9 @@ find_python() {
             [[ -n "$c" ]] && candidates+=("$c")
         done < <(pyenv versions --bare 2>/dev/null || true)
     fi
-    for c in "${PYENV_ROOT:-${HOME:-/root}/.pyenv}"/versions/"$PY_WANT"*/bin/"python$PY_WANT" \
-             /usr/local/bin/"python$PY_WANT" /usr/bin/"python$PY_WANT"; do
+    local prefix
+    for prefix in "${PYENV_ROOT:-${HOME:-/root}/.pyenv}"/versions/"$PY_WANT"*/bin $PY_PREFIXES; do
+        c="$prefix/python$PY_WANT"
         [[ -x "$c" ]] && candidates+=("$c")
     done
     command -v python3 >/dev/null 2>&1 && candidates+=("$(command -v python3)")
