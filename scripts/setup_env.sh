@@ -5,8 +5,8 @@
 #
 #   line  venv            Python  packages
 #   5.2   .venv           3.13    -e .[blender,dev]      (bpy 5.2.3)
-#   4.5   .venv-bpy4.5    3.11    -e .[blender-4.5,dev]  (bpy 4.5.15)
-#   4.2   .venv-bpy4.2    3.11    -e .[blender-4.2,dev]  (bpy 4.2.23)
+#   4.5   .venv-bpy4.5    3.11    -e .[blender45,dev]    (bpy 4.5.15)
+#   4.2   .venv-bpy4.2    3.11    -e .[blender42,dev]    (bpy 4.2.23)
 #
 # The bpy pins live in pyproject.toml's optional dependencies. Steps:
 #  1. Mesa EGL system libraries (libegl1 libegl-mesa0 libgl1-mesa-dri):
@@ -39,8 +39,8 @@ die() { printf 'setup_env: error: %s\n' "$*" >&2; exit 1; }
 
 case "$LINE" in
     5.2) VENV="$REPO_ROOT/.venv";         PY_WANT="3.13"; EXTRA="blender";     PY_OVERRIDE="${OMNIWARP_PYTHON:-}" ;;
-    4.5) VENV="$REPO_ROOT/.venv-bpy4.5";  PY_WANT="3.11"; EXTRA="blender-4.5"; PY_OVERRIDE="${OMNIWARP_PYTHON311:-}" ;;
-    4.2) VENV="$REPO_ROOT/.venv-bpy4.2";  PY_WANT="3.11"; EXTRA="blender-4.2"; PY_OVERRIDE="${OMNIWARP_PYTHON311:-}" ;;
+    4.5) VENV="$REPO_ROOT/.venv-bpy4.5";  PY_WANT="3.11"; EXTRA="blender45"; PY_OVERRIDE="${OMNIWARP_PYTHON311:-}" ;;
+    4.2) VENV="$REPO_ROOT/.venv-bpy4.2";  PY_WANT="3.11"; EXTRA="blender42"; PY_OVERRIDE="${OMNIWARP_PYTHON311:-}" ;;
     *) die "unknown Blender line '$LINE'; tested lines: 5.2 4.5 4.2" ;;
 esac
 STAMP="$VENV/.omniwarp-stamp"
@@ -169,6 +169,9 @@ ensure_install() {
     rm -f -- "$STAMP"
     "$VENV/bin/python" -m pip install --disable-pip-version-check -q -e ".[$EXTRA,dev]" >&2 \
         || die "pip install -e .[$EXTRA,dev] failed (see the pip output above)"
+    local got
+    got="$("$VENV/bin/python" -c 'import importlib.metadata as m; print(m.version("bpy"))' 2>/dev/null || true)"
+    [[ "$got" == "$LINE".* ]] || die "after the install $VENV has bpy '${got:-none}', not Blender $LINE's"
     printf '%s\n' "$want" >"$STAMP"
     say "environment ready: $VENV (Blender $LINE)"
 }

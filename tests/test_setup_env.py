@@ -69,8 +69,8 @@ def test_each_line_has_its_extra():
 
     extras = tomllib.loads((REPO_ROOT / "pyproject.toml").read_text())["project"]["optional-dependencies"]
     assert extras["blender"] == ["bpy==5.2.3"]
-    assert extras["blender-4.5"] == ["bpy==4.5.15"]
-    assert extras["blender-4.2"] == ["bpy==4.2.23"]
+    assert extras["blender45"] == ["bpy==4.5.15"]
+    assert extras["blender42"] == ["bpy==4.2.23"]
     script = (REPO_ROOT / "scripts" / "setup_env.sh").read_text()
     for extra in extras:
         if extra.startswith("blender"):
