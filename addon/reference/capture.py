@@ -278,10 +278,9 @@ def _black_world(overrides: _Overrides):
 
     world = bpy.data.worlds.new("OmniWarp reference black")
     overrides.on_restore(lambda: bpy.data.worlds.remove(world))
-    world.color = (0.0, 0.0, 0.0)
-    tree = world.node_tree
-    if tree is not None:
-        for node in tree.nodes:
+    world.color = (0.0, 0.0, 0.0)  # what a world without nodes shows (a new one before 5.0)
+    if blender_compat.uses_nodes(world):
+        for node in world.node_tree.nodes:
             if node.type == "BACKGROUND":
                 node.inputs["Color"].default_value = (0.0, 0.0, 0.0, 1.0)
                 node.inputs["Strength"].default_value = 0.0

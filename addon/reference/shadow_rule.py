@@ -126,8 +126,9 @@ class LinkSet:
 
 
 def _linking(obj: Any, attr: str) -> "bpy.types.Collection | None":
-    linking = getattr(obj, "light_linking", None)  # None before Blender 4.0
-    return getattr(linking, attr, None) if linking is not None else None
+    if not blender_compat.has_light_linking():  # Blender 4.0+
+        return None
+    return getattr(obj.light_linking, attr, None)
 
 
 def _mentioned(objects: Iterable[Any], attr: str) -> frozenset[str]:

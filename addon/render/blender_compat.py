@@ -91,6 +91,7 @@ def set_multilayer_exr(image_settings: Any, setter: Callable[[Any, str, Any], No
     setter(image_settings, "file_format", "OPEN_EXR_MULTILAYER")
 
 
+@functools.cache  # the shadow rule asks once per object
 def has_light_linking() -> bool:
     """Light and shadow linking (`Object.light_linking`, 4.0+)."""
     import bpy
