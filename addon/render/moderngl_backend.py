@@ -10,6 +10,7 @@ import logging
 
 import numpy as np
 
+from ..core import interrupt
 from ..core.errors import BackendError
 from ..core.samples import STAT_SPAN, STAT_TEXELS
 from .backend import (
@@ -127,11 +128,16 @@ class ModernGLBackend(ShadowBackend):
         prog = self._programs.get(iface.name)
         if prog is None:
             try:
-                if isinstance(iface, ComputeInterface):
-                    prog = self.ctx.compute_shader(moderngl_compute_source(iface))
-                else:
-                    vertex, fragment = moderngl_sources(iface)
-                    prog = self.ctx.program(vertex_shader=vertex, fragment_shader=fragment)
+                # Deferred: the Ctrl-C handler raising while moderngl compiles segfaulted the
+                # process (10 of 30 interrupted compares, 2026-12-02; blocking the signal on the
+                # main thread did not help, deferring the Python handler did: 0 of 32). The
+                # interruption is raised once the program is built.
+                with interrupt.deferred():
+                    if isinstance(iface, ComputeInterface):
+                        prog = self.ctx.compute_shader(moderngl_compute_source(iface))
+                    else:
+                        vertex, fragment = moderngl_sources(iface)
+                        prog = self.ctx.program(vertex_shader=vertex, fragment_shader=fragment)
             except Exception as exc:  # moderngl reports compile errors as plain Exception
                 raise BackendError(f"GLSL program {iface.name} failed to build: {exc}") from exc
             for binding, sampler in enumerate(iface.samplers):
