@@ -127,23 +127,27 @@ class ModernGLBackend(ShadowBackend):
         """Compile (once) and return the program (or compute shader) for an interface."""
         prog = self._programs.get(iface.name)
         if prog is None:
-            try:
-                # Deferred: the Ctrl-C handler raising while moderngl compiles segfaulted the
-                # process (10 of 30 interrupted compares, 2026-12-02; blocking the signal on the
-                # main thread did not help, deferring the Python handler did: 0 of 32). The
-                # interruption is raised once the program is built.
-                with interrupt.deferred():
-                    if isinstance(iface, ComputeInterface):
-                        prog = self.ctx.compute_shader(moderngl_compute_source(iface))
-                    else:
-                        vertex, fragment = moderngl_sources(iface)
-                        prog = self.ctx.program(vertex_shader=vertex, fragment_shader=fragment)
-            except Exception as exc:  # moderngl reports compile errors as plain Exception
-                raise BackendError(f"GLSL program {iface.name} failed to build: {exc}") from exc
-            for binding, sampler in enumerate(iface.samplers):
-                if sampler in prog:
-                    prog[sampler].value = binding
-            self._programs[iface.name] = prog
+            # Deferred: the Ctrl-C handler raising while moderngl compiles segfaulted the
+            # process (10 of 30 interrupted compares, 2026-12-02; blocking the signal on the
+            # main thread did not help, deferring the Python handler did: 0 of 32). The
+            # interruption is raised once the program is built and kept.
+            with interrupt.deferred():
+                prog = self._build(iface)
+        return prog
+
+    def _build(self, iface: ProgramInterface | ComputeInterface):
+        try:
+            if isinstance(iface, ComputeInterface):
+                prog = self.ctx.compute_shader(moderngl_compute_source(iface))
+            else:
+                vertex, fragment = moderngl_sources(iface)
+                prog = self.ctx.program(vertex_shader=vertex, fragment_shader=fragment)
+        except Exception as exc:  # moderngl reports compile errors as plain Exception
+            raise BackendError(f"GLSL program {iface.name} failed to build: {exc}") from exc
+        for binding, sampler in enumerate(iface.samplers):
+            if sampler in prog:
+                prog[sampler].value = binding
+        self._programs[iface.name] = prog
         return prog
 
     def _use(self, iface: ProgramInterface | ComputeInterface, uniforms: UniformValues):
