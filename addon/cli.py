@@ -71,8 +71,12 @@ def _parser() -> argparse.ArgumentParser:
     sub.add_parser("presets", help="list presets and what each stresses", epilog=EXIT_CONTRACT)
 
     ref = sub.add_parser("reference", help="build or refresh the Cycles reference cache", epilog=EXIT_CONTRACT)
-    ref.add_argument("--preset", required=True, help="a preset, a comma list, 'all' or 'stress_all'")
-    ref.add_argument("--size", default="640x480", help="camera size WxH (default 640x480)")
+    rsource = ref.add_mutually_exclusive_group(required=True)
+    rsource.add_argument("--preset", help="a preset, a comma list, 'all' or 'stress_all'")
+    rsource.add_argument("--blend", help="a saved .blend file (its scene camera and one point/spot light or sun)")
+    ref.add_argument("--light", help="with --blend: the light object to use")
+    ref.add_argument("--camera", help="with --blend: the camera object to use")
+    ref.add_argument("--size", default="640x480", help="camera size WxH for presets (default 640x480)")
     ref.add_argument("--refresh", action="store_true", help="render again even when cached")
     ref.add_argument("--samples", type=int, default=DEFAULT_SAMPLES,
                      help=f"Cycles samples per pixel, 1-{MAX_SAMPLES} (default {DEFAULT_SAMPLES}: exact for a hard "
@@ -158,6 +162,14 @@ def cmd_reference(args: argparse.Namespace) -> int:
     size = parse_size(args.size)
     if not 1 <= args.samples <= MAX_SAMPLES:
         raise InputError(f"bad --samples {args.samples}: use 1-{MAX_SAMPLES}")
+    if args.blend is not None:
+        ref = _blend_reference(args)()
+        _result(args, f"{Path(args.blend).name}: {ref.hit.shape[1]}x{ref.hit.shape[0]}, {int(ref.hit.sum())} hit "
+                      f"pixels, {len(ref.triangles)} triangles, key {ref.meta.get('cache_key', '?')}")
+        _say_line_gaps()
+        return 0
+    if args.light or args.camera:
+        raise InputError("--light and --camera apply to --blend only")
     names = select_presets(args.preset)
     if args.samples != DEFAULT_SAMPLES:
         _say(f"note: compare and preview read the {DEFAULT_SAMPLES}-sample reference; "
@@ -207,8 +219,8 @@ def _blend_reference(args: argparse.Namespace, check: Callable[[str], None] | No
     def load():
         import bpy
 
+        from .reference.blend_cache import load_or_capture_blend
         from .reference.blend_file import open_blend
-        from .reference.capture import capture
 
         # Loading replaces bpy's in-memory data only; nothing is ever saved back.
         open_blend(path)
@@ -220,13 +232,8 @@ def _blend_reference(args: argparse.Namespace, check: Callable[[str], None] | No
             scene.camera = cam
         if args.light and (bpy.data.objects.get(args.light) is None):
             raise InputError(f"--light {args.light!r}: no object of that name in {path.name}")
-        def checked(emission: str) -> None:
-            if check is not None:
-                check(emission)
-            # Said only once the file, its light and camera passed: bad input stays one line.
-            _say(f"rendering Cycles reference of {path.name}")
-
-        return capture(scene, light=args.light, progress=_say, check=checked)
+        return load_or_capture_blend(path, scene, args.light, samples=getattr(args, "samples", DEFAULT_SAMPLES),
+                                     refresh=getattr(args, "refresh", False), progress=_say, check=check)
 
     return load
 

@@ -1,0 +1,109 @@
+"""Cache of the Cycles references of a user's .blend, beside the presets' (cache.py).
+
+The key is what changes the render: the bytes of the file and of every library it links,
+the scene, the requested light (or none: the scene's only one), the camera, the frame, the
+output size, the samples, the Blender version and `capture.CAPTURE_VERSION`. Files are
+`<stem>_<W>x<H>_<key>.npz` under the same folder as the presets' references, with the
+same fields. bpy is imported only inside functions; the file must already be open.
+"""
+from __future__ import annotations
+
+import hashlib
+import logging
+import time
+from pathlib import Path
+from typing import TYPE_CHECKING, Any, Callable
+
+from ..core.errors import ReferenceCaptureError
+from .cache import CACHE_ENV, blender_version, cache_dir_path, cache_key, cache_path, check_cache_dir
+from .capture import CAPTURE_VERSION, DEFAULT_SAMPLES, capture
+from .data import ReferenceData
+
+if TYPE_CHECKING:  # pragma: no cover - typing only
+    import bpy
+
+log = logging.getLogger(__name__)
+
+Progress = Callable[[str], None]
+_CHUNK = 1 << 20
+
+
+def file_digest(path: Path) -> str:
+    """sha256 of a file's bytes ("missing" for a library that is not there)."""
+    digest = hashlib.sha256()
+    try:
+        with open(path, "rb") as fh:
+            for block in iter(lambda: fh.read(_CHUNK), b""):
+                digest.update(block)
+    except OSError:
+        return "missing"
+    return digest.hexdigest()
+
+
+def output_size(scene: "bpy.types.Scene") -> tuple[int, int]:
+    """The render's size in pixels (Blender's own rounding of the percentage)."""
+    render = scene.render
+    return (int(render.resolution_x * render.resolution_percentage / 100),
+            int(render.resolution_y * render.resolution_percentage / 100))
+
+
+def blend_key_fields(path: Path, scene: "bpy.types.Scene", light: str | None, samples: int) -> dict[str, Any]:
+    """What a cached reference of the open file depends on."""
+    import bpy
+
+    libraries = sorted(file_digest(Path(bpy.path.abspath(lib.filepath))) for lib in bpy.data.libraries)
+    return {
+        "blend_sha256": file_digest(path),
+        "libraries": libraries,
+        "scene": scene.name,
+        "light": light or "",
+        "camera": scene.camera.name if scene.camera is not None else "",
+        "frame": int(scene.frame_current),
+        "resolution": list(output_size(scene)),
+        "samples": int(samples),
+        "blender": blender_version(),
+        "capture_version": CAPTURE_VERSION,
+    }
+
+
+def load_or_capture_blend(path: Path, scene: "bpy.types.Scene", light: str | None = None, *,
+                          samples: int = DEFAULT_SAMPLES, refresh: bool = False, cache_dir: Path | None = None,
+                          progress: Progress | None = None,
+                          check: Callable[[str], None] | None = None) -> ReferenceData:
+    """The reference of the open .blend `path` (its `scene`): cached, or rendered and cached.
+
+    `check(emission)` runs before a render, and on a cached reference too, so a misfit is
+    refused the same way either way."""
+    say = progress or (lambda message: None)
+    folder = cache_dir_path(cache_dir)
+    fields = blend_key_fields(path, scene, light, samples)
+    key = cache_key(fields)
+    target = cache_path(path.stem, output_size(scene), key, folder)
+    if not refresh and target.exists():
+        try:
+            ref = ReferenceData.load(target)
+        except ReferenceCaptureError as exc:
+            log.warning("%s; rendering it again", exc)  # a damaged file heals, as a preset's does
+        else:
+            if check is not None:
+                check(ref.emission)
+            say(f"using the cached Cycles reference of {path.name}: {target}")
+            return ref
+
+    def checked(emission: str) -> None:
+        if check is not None:
+            check(emission)
+        # Said only once the file, its light and camera passed: bad input stays one line.
+        say(f"rendering Cycles reference of {path.name}")
+
+    check_cache_dir(folder)  # before the render, not after it
+    start = time.perf_counter()
+    ref = capture(scene, samples=samples, light=light, progress=progress, check=checked)
+    ref.meta.update(blend=str(path), cache_key=key, key_fields=fields)
+    try:
+        ref.save(target)
+    except OSError as exc:
+        raise ReferenceCaptureError(f"cannot write the reference cache file {target}: {exc.strerror or exc}; "
+                                    f"set {CACHE_ENV} to a writable folder") from exc
+    say(f"reference of {path.name} cached in {time.perf_counter() - start:.1f} s: {target}")
+    return ref
