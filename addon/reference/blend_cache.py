@@ -1,7 +1,7 @@
 """Cache of the Cycles references of a user's .blend, beside the presets' (cache.py).
 
-The key is what changes the render: the bytes of the file and of every library it links,
-the scene, the requested light (or none: the scene's only one), the camera, the frame, the
+The key is what changes the render: the bytes of the file and of the files outside it that
+can change the geometry (linked libraries, unpacked images, Alembic/USD caches), the scene, the requested light (or none: the scene's only one), the camera, the frame, the
 output size, the samples, the Blender version and `capture.CAPTURE_VERSION`. Files are
 `<stem>_<W>x<H>_<key>.npz` under the same folder as the presets' references, with the
 same fields. bpy is imported only inside functions; the file must already be open.
@@ -26,6 +26,7 @@ log = logging.getLogger(__name__)
 
 Progress = Callable[[str], None]
 _CHUNK = 1 << 20
+_FILE_SOURCES = frozenset({"FILE", "SEQUENCE", "MOVIE", "TILED"})
 
 
 def file_digest(path: Path) -> str:
@@ -47,14 +48,25 @@ def output_size(scene: "bpy.types.Scene") -> tuple[int, int]:
             int(render.resolution_y * render.resolution_percentage / 100))
 
 
+def _external_files() -> list[str]:
+    """Files outside the .blend that can change the render's geometry: linked libraries,
+    images that are not packed (a displacement or a modifier's texture) and Alembic/USD caches."""
+    import bpy
+
+    names = [lib.filepath for lib in bpy.data.libraries]
+    names += [image.filepath for image in bpy.data.images
+              if image.source in _FILE_SOURCES and image.packed_file is None and image.filepath]
+    names += [cache.filepath for cache in bpy.data.cache_files]
+    return names
+
+
 def blend_key_fields(path: Path, scene: "bpy.types.Scene", light: str | None, samples: int) -> dict[str, Any]:
     """What a cached reference of the open file depends on."""
     import bpy
 
-    libraries = sorted(file_digest(Path(bpy.path.abspath(lib.filepath))) for lib in bpy.data.libraries)
     return {
         "blend_sha256": file_digest(path),
-        "libraries": libraries,
+        "external_files": sorted(file_digest(Path(bpy.path.abspath(name))) for name in _external_files()),
         "scene": scene.name,
         "light": light or "",
         "camera": scene.camera.name if scene.camera is not None else "",

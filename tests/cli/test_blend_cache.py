@@ -60,3 +60,30 @@ def test_light_and_camera_need_a_blend(tmp_path):
     line = refused(omniwarp("reference", "--preset", "room_omni", "--light", "Lamp",
                             env=env_with(OMNIWARP_CACHE=tmp_path / "cache")))
     assert "--light and --camera apply to --blend only" in line
+
+
+def test_files_outside_the_blend_are_in_the_key(tmp_path):
+    """An unpacked image (a displacement's, say) can change the geometry: its bytes are keyed."""
+    import bpy
+
+    from addon.reference.blend_cache import blend_key_fields
+
+    blend = tmp_path / "shot.blend"
+    blend.write_bytes(b"BLENDER-stand-in")
+    png = tmp_path / "height.png"
+    image = bpy.data.images.new("omniwarp_key_height", 2, 2)
+    scene = bpy.data.scenes.new("omniwarp_key_scene")
+    try:
+        image.filepath_raw = str(png)
+        image.file_format = "PNG"
+        image.save()
+        image.source = "FILE"
+        before = blend_key_fields(blend, scene, None, 1)
+        png.write_bytes(png.read_bytes() + b"\0")
+        after = blend_key_fields(blend, scene, None, 1)
+        assert before["external_files"] != after["external_files"]
+        assert {k: v for k, v in before.items() if k != "external_files"} == \
+               {k: v for k, v in after.items() if k != "external_files"}
+    finally:
+        bpy.data.images.remove(image)
+        bpy.data.scenes.remove(scene)
