@@ -1,8 +1,8 @@
 """Cache of the Cycles references of a user's .blend, beside the presets' (cache.py).
 
 The key is what changes the render: the bytes of the file and of the files outside it that
-can change the geometry (linked libraries, unpacked images, Alembic/USD caches), the scene, the requested light (or none: the scene's only one), the camera, the frame, the
-output size, the samples, the Blender version and `capture.CAPTURE_VERSION`. Files are
+can change the geometry (linked libraries, unpacked images, Alembic/USD caches), the scene,
+the requested light (or none: the scene's only one), the camera, the frame, the output size, the samples, the Blender version and `capture.CAPTURE_VERSION`. Files are
 `<stem>_<W>x<H>_<key>.npz` under the same folder as the presets' references, with the
 same fields. bpy is imported only inside functions; the file must already be open.
 """
@@ -14,9 +14,8 @@ import time
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, Callable
 
-from ..core.errors import ReferenceCaptureError
-from .cache import CACHE_ENV, blender_version, cache_dir_path, cache_key, cache_path, check_cache_dir
-from .capture import CAPTURE_VERSION, DEFAULT_SAMPLES, capture
+from .cache import blender_version, cache_dir_path, cache_key, cache_path, check_cache_dir, load_cached, store
+from .capture import CAPTURE_VERSION, DEFAULT_SAMPLES, capture, output_size
 from .data import ReferenceData
 
 if TYPE_CHECKING:  # pragma: no cover - typing only
@@ -39,13 +38,6 @@ def file_digest(path: Path) -> str:
     except OSError:
         return "missing"
     return digest.hexdigest()
-
-
-def output_size(scene: "bpy.types.Scene") -> tuple[int, int]:
-    """The render's size in pixels (Blender's own rounding of the percentage)."""
-    render = scene.render
-    return (int(render.resolution_x * render.resolution_percentage / 100),
-            int(render.resolution_y * render.resolution_percentage / 100))
 
 
 def _external_files() -> list[str]:
@@ -91,16 +83,12 @@ def load_or_capture_blend(path: Path, scene: "bpy.types.Scene", light: str | Non
     fields = blend_key_fields(path, scene, light, samples)
     key = cache_key(fields)
     target = cache_path(path.stem, output_size(scene), key, folder)
-    if not refresh and target.exists():
-        try:
-            ref = ReferenceData.load(target)
-        except ReferenceCaptureError as exc:
-            log.warning("%s; rendering it again", exc)  # a damaged file heals, as a preset's does
-        else:
-            if check is not None:
-                check(ref.emission)
-            say(f"using the cached Cycles reference of {path.name}: {target}")
-            return ref
+    cached = load_cached(target) if not refresh and target.exists() else None
+    if cached is not None:
+        if check is not None:
+            check(cached.emission)
+        say(f"using the cached Cycles reference of {path.name}: {target}")
+        return cached
 
     def checked(emission: str) -> None:
         if check is not None:
@@ -112,10 +100,6 @@ def load_or_capture_blend(path: Path, scene: "bpy.types.Scene", light: str | Non
     start = time.perf_counter()
     ref = capture(scene, samples=samples, light=light, progress=progress, check=checked)
     ref.meta.update(blend=str(path), cache_key=key, key_fields=fields)
-    try:
-        ref.save(target)
-    except OSError as exc:
-        raise ReferenceCaptureError(f"cannot write the reference cache file {target}: {exc.strerror or exc}; "
-                                    f"set {CACHE_ENV} to a writable folder") from exc
+    store(ref, target)
     say(f"reference of {path.name} cached in {time.perf_counter() - start:.1f} s: {target}")
     return ref

@@ -152,16 +152,11 @@ def load_or_capture(preset: str, resolution: tuple[int, int] = DEFAULT_RESOLUTIO
             path = cache_path(preset, resolution, cache_key(fields), folder)
             path = path if path.exists() else None
         if path is not None:
-            try:
-                ref = ReferenceData.load(path)
-                log.debug("reference cache hit: %s", path)
+            if version is None:
+                return ReferenceData.load(path)  # nothing could render it again
+            ref = load_cached(path)
+            if ref is not None:
                 return ref
-            except ReferenceCaptureError as exc:
-                if version is None:
-                    raise
-                # A damaged file (a run killed mid-write before writes were atomic, a full
-                # disk, a copy cut short) heals: one line, then rendered and replaced.
-                log.warning("%s; rendering it again", exc)
 
     if version is None:
         raise ReferenceCaptureError(
@@ -177,13 +172,31 @@ def load_or_capture(preset: str, resolution: tuple[int, int] = DEFAULT_RESOLUTIO
     start = time.perf_counter()
     ref = _capture_preset(preset, resolution, samples, log_progress)
     ref.meta.update(preset=preset, cache_key=key, key_fields=fields)
+    store(ref, path)
+    say(f"reference of {preset} cached in {time.perf_counter() - start:.1f} s: {path}")
+    return ref
+
+
+def load_cached(path: Path) -> ReferenceData | None:
+    """A cached reference, or None when the file is damaged (a run killed mid-write before
+    writes were atomic, a full disk, a copy cut short): it heals, one line, then rendered
+    and replaced by the caller."""
     try:
-        ref.save(path)  # a temporary name, renamed into place (ReferenceData.save)
+        ref = ReferenceData.load(path)
+    except ReferenceCaptureError as exc:
+        log.warning("%s; rendering it again", exc)
+        return None
+    log.debug("reference cache hit: %s", path)
+    return ref
+
+
+def store(ref: ReferenceData, path: Path) -> None:
+    """Write a reference into the cache (a temporary name, renamed into place: ReferenceData.save)."""
+    try:
+        ref.save(path)
     except OSError as exc:
         raise ReferenceCaptureError(f"cannot write the reference cache file {path}: {exc.strerror or exc}; "
                                     f"set {CACHE_ENV} to a writable folder") from exc
-    say(f"reference of {preset} cached in {time.perf_counter() - start:.1f} s: {path}")
-    return ref
 
 
 def check_cache_dir(folder: Path) -> None:

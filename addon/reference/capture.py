@@ -423,6 +423,14 @@ def _render(scene, view_layer, path: Path, what: str = "Cycles render") -> float
     return seconds
 
 
+def output_size(scene: "bpy.types.Scene") -> tuple[int, int]:
+    """The render's size in pixels: Blender's own rounding of the percentage (integer
+    division of positive sizes)."""
+    render = scene.render
+    return (int(render.resolution_x * render.resolution_percentage / 100),
+            int(render.resolution_y * render.resolution_percentage / 100))
+
+
 def _check_finite_transforms(light_obj, cam_obj, depsgraph) -> None:
     """A light or camera with a NaN or infinite transform renders nothing useful (and
     the shadow maps evaluate no pixel): refuse it before any render, by name."""
@@ -521,9 +529,7 @@ def capture(scene: "bpy.types.Scene", samples: int = DEFAULT_SAMPLES, *, light: 
     say = progress or (lambda message: None)
 
     render = scene.render
-    # Blender's own rounding of the percentage (integer division of positive sizes).
-    width = int(render.resolution_x * render.resolution_percentage / 100)
-    height = int(render.resolution_y * render.resolution_percentage / 100)
+    width, height = output_size(scene)
     # Lens shift, sensor fit, pixel aspect and orthographic scale: the camera's window.
     camera_window = _camera_window(cam_obj.data, render, width, height)
     camera_ortho = cam_obj.data.type == "ORTHO"

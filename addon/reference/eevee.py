@@ -325,7 +325,8 @@ def _apply_eevee_settings(scene, view_layer, light_obj, visible: set[str], engin
 def _diffuse(channels: dict[str, np.ndarray], layer: str, hit: np.ndarray) -> np.ndarray:
     from .capture import _stack
 
-    return np.where(hit, _stack(channels, layer, blender_compat.exr_pass_name("Diffuse Direct"), "RGB").mean(axis=-1), 0.0).astype(np.float32)
+    diffuse = _stack(channels, layer, blender_compat.exr_pass_name("Diffuse Direct"), "RGB")
+    return np.where(hit, diffuse.mean(axis=-1), 0.0).astype(np.float32)
 
 
 def render_eevee(scene: "bpy.types.Scene", out_dir: Path, settings: Sequence[str] = SETTINGS, *,
@@ -348,6 +349,7 @@ def render_eevee(scene: "bpy.types.Scene", out_dir: Path, settings: Sequence[str
         _remove_dir,
         _render_visible_objects,
         evaluated_depsgraph,
+        output_size,
         pick_view_layer,
         read_exr_channels,
     )
@@ -369,9 +371,7 @@ def render_eevee(scene: "bpy.types.Scene", out_dir: Path, settings: Sequence[str
         raise InputError(f"light {light_obj.name!r} is a {emission} light; the eevee row needs an omni or hemi light")
     chosen = resolve_settings(names, light_obj.data)
     say = progress or (lambda message: None)
-    render = scene.render
-    width = int(render.resolution_x * render.resolution_percentage / 100)
-    height = int(render.resolution_y * render.resolution_percentage / 100)
+    width, height = output_size(scene)
     out_dir.mkdir(parents=True, exist_ok=True)
 
     tmpdir = Path(tempfile.mkdtemp(prefix="omniwarp_eevee_"))

@@ -18,9 +18,9 @@ import numpy as np
 
 log = logging.getLogger(__name__)
 
-# The multilayer EXR names the Diffuse Direct pass "DiffDir" before Blender 5.0.
 # The EEVEE option (5.0+) that scales direct light; the eevee row sets it to 1 where it exists.
 EEVEE_DIRECT_LIGHT = "direct_light_intensity"
+# The multilayer EXR names the Diffuse Direct pass "DiffDir" before Blender 5.0.
 _SHORT_PASS_NAMES = {"Diffuse Direct": "DiffDir", "Diffuse Indirect": "DiffInd", "Diffuse Color": "DiffCol"}
 
 
