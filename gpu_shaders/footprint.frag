@@ -6,6 +6,19 @@
 // triangle and however curved its image.
 #include "lib/projection.glsl"
 #include "lib/mapping.glsl"
+#ifdef OW_ALPHA
+#include "lib/alpha.glsl"
+
+// The alpha where a ray from the light along `d` meets the triangle: barycentrics from
+// the edge planes through the light (v_edge_i = orientation * v_i x v_i+1), whose dot
+// products with d are proportional to them, then the corners' UVs.
+float ow_alpha_along(vec3 d)
+{
+  vec3 w = vec3(dot(d, v_edge1), dot(d, v_edge2), dot(d, v_edge0));
+  w /= (w.x + w.y + w.z);
+  return ow_alpha_at(w.x * v_uv01.xy + w.y * v_uv01.zw + w.z * v_uv2);
+}
+#endif
 
 #ifdef OW_EXACT
 // The irregular z-buffer (shaders.exact_variant): this fragment's texel holds a list of
@@ -30,7 +43,17 @@ void ow_exact_walk()
     if (dot(p, v_edge0) >= 0.0 && dot(p, v_edge1) >= 0.0 && dot(p, v_edge2) >= 0.0 && s != 0.0) {
       float f = v_plane.w / s;  // where the plane cuts the segment, 1 at the sample
       if (f > 0.0 && f < 1.0 - ow_exact_eps) {
-        imageAtomicOr(ow_hits, at, 1u);
+#ifdef OW_ALPHA
+        // A see-through crossing: its optical depth, summed in any order (core/alpha.py).
+        float alpha = ow_alpha_along(p);
+        if (alpha >= OW_OPAQUE_ALPHA) {
+          imageAtomicOr(ow_hits, at, OW_HIT_OPAQUE);
+        } else if (alpha > OW_CLEAR_ALPHA) {
+          imageAtomicAdd(ow_hits, at, uint(-log(1.0 - alpha) * OW_OPTICAL_SCALE + 0.5));
+        }
+#else
+        imageAtomicOr(ow_hits, at, OW_HIT_OPAQUE);
+#endif
       }
     }
     node = imageLoad(ow_next, at).x;
@@ -57,6 +80,11 @@ void main()
 #ifndef OW_FIXED_KIND
   if (ow_projective != 0) {
     // As in depth.frag: the map's own depth; an inverted light (PSM) keeps the farthest.
+#ifdef OW_ALPHA
+    if (ow_alpha_at(v_uv) < 0.5) {
+      discard;  // a map stores one depth a texel: the surface is there where alpha >= 1/2
+    }
+#endif
     float z01 = (ow_map_inverted != 0) ? 1.0 - gl_FragCoord.z : gl_FragCoord.z;
     gl_FragDepth = z01;
     ow_depth = z01;
@@ -78,6 +106,11 @@ void main()
   if (!(t > 0.0)) {
     discard;  // grazing, in float32 rounding
   }
+#ifdef OW_ALPHA
+  if (ow_alpha_along(dir) < 0.5) {
+    discard;  // a map stores one depth a texel: the surface is there where alpha >= 1/2
+  }
+#endif
   float depth = clamp((t - ow_near) / (ow_far - ow_near), 0.0, 1.0);
   gl_FragDepth = depth;
   ow_depth = depth;

@@ -29,6 +29,18 @@ vec3 ow_pull(int index)
   return ow_object_linear * local;
 }
 
+#ifdef OW_ALPHA
+// Vertex `index`'s UV: u in its hi texel's w, v in its lo texel's (resident.vertex_texels).
+vec2 ow_pull_uv(int index)
+{
+  int texel = 2 * index;
+  float u = texelFetch(ow_vertices, ivec2(texel % OW_VERTEX_WIDTH, texel / OW_VERTEX_WIDTH), 0).w;
+  texel += 1;
+  float v = texelFetch(ow_vertices, ivec2(texel % OW_VERTEX_WIDTH, texel / OW_VERTEX_WIDTH), 0).w;
+  return vec2(u, v);
+}
+#endif
+
 // All three corners beyond one plane of the occluder region (plan.outside_region).
 bool ow_outside_region(vec3 v0, vec3 v1, vec3 v2)
 {
@@ -67,6 +79,14 @@ void main()
   v_edge0 = n0 * orientation;
   v_edge1 = n1 * orientation;
   v_edge2 = n2 * orientation;
+#ifdef OW_ALPHA
+  vec2 uv0 = ow_pull_uv(base);
+  vec2 uv1 = ow_pull_uv(base + 1);
+  vec2 uv2 = ow_pull_uv(base + 2);
+  v_uv01 = vec4(uv0, uv1);
+  v_uv2 = uv2;
+  v_uv = (corner == 0) ? uv0 : ((corner == 1) ? uv1 : uv2);  // the projective path's corners
+#endif
   const vec4 parked = vec4(2.0, 2.0, 2.0, 1.0);  // outside the clip volume: nothing drawn
   if (orientation == 0.0 || ow_outside_region(v0, v1, v2)) {
     gl_Position = parked;

@@ -75,13 +75,30 @@ def test_compute_header_declares_work_group_and_images():
     assert S.SCATTER_PROGRAM.groups(0) == 1
 
 
+def _strip_block(text: str, define: str) -> str:
+    """`text` without its `#ifdef define` blocks (nested conditionals inside them included)."""
+    out, depth = [], 0
+    for line in text.splitlines(keepends=True):
+        word = line.strip().split()[0] if line.strip() else ""
+        if depth:
+            depth += 1 if word in ("#ifdef", "#ifndef", "#if") else -1 if word == "#endif" else 0
+            continue
+        if line.strip() == f"#ifdef {define}":
+            depth = 1
+            continue
+        out.append(line)
+    return "".join(out)
+
+
 @pytest.mark.parametrize("iface", S.PROGRAMS, ids=lambda i: i.name)
 def test_every_program_loads_and_uses_only_declared_names(iface):
     vertex, fragment = S.moderngl_sources(iface)
     body = S.load_source(iface.fragment_file) + S.load_source(iface.vertex_file)
-    if S.EXACT_DEFINE not in iface.defines:
-        # The exact pass's code is compiled only into its own variants (shaders.exact_of).
-        body = re.sub(r"#ifdef OW_EXACT\b.*?#endif", "", body, flags=re.S)
+    # The exact pass's and the see-through code are compiled only into their own variants
+    # (shaders.exact_of, shaders.alpha_of).
+    for define in (S.EXACT_DEFINE, S.ALPHA_DEFINE):
+        if define not in iface.defines:
+            body = _strip_block(body, define)
     declared = {u.name for u in iface.uniforms} | set(iface.samplers) | {name for _, name in iface.images}
     used = set(re.findall(r"\b(ow_[a-z_0-9]+)\b", body))
     # Every ow_ name a body reads is either declared here or defined in the GLSL itself.

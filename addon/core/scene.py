@@ -17,6 +17,7 @@ from typing import Literal
 import numpy as np
 
 from . import validate
+from .alpha import AlphaMap, Surface
 # CameraSpec lives in camera.py; it is re-exported here, where the other scene types are.
 from .camera import CameraSpec, blender_camera_window, camera_from_matrices  # noqa: F401
 from .errors import InputError
@@ -46,6 +47,16 @@ class MeshSpec:
     vertices: np.ndarray  # (n, 3) float64, object space
     triangles: np.ndarray  # (m, 3) int64
     matrix_world: np.ndarray = field(default_factory=lambda: np.eye(4))
+    # A see-through material (issue 25): its alpha over the per-vertex UVs; None: opaque.
+    alpha: AlphaMap | None = None
+    uvs: np.ndarray | None = None  # (n, 2) float64 per vertex, with `alpha`
+
+    def surface(self) -> Surface:
+        """Per-triangle UVs and material (index 0 of its own maps, or -1 when opaque)."""
+        if self.alpha is None or self.uvs is None:
+            return Surface.opaque(len(self.triangles))
+        uvs = np.asarray(self.uvs, dtype=np.float64)[np.asarray(self.triangles, dtype=np.int64)]
+        return Surface(uvs, np.zeros(len(self.triangles), np.int32), (self.alpha,))
 
     def world_triangles(self) -> np.ndarray:
         """Return (m, 3, 3) float64 world-space triangle corners."""
@@ -121,6 +132,10 @@ class SceneSpec:
         if not parts:
             return np.zeros((0, 3, 3), dtype=np.float64)
         return np.concatenate(parts, axis=0)
+
+    def surface(self) -> Surface:
+        """The see-through materials of `world_triangles`, in the same order."""
+        return Surface.concatenate([m.surface() for m in self.meshes])
 
 
 def parse_size(text: str) -> tuple[int, int]:
@@ -203,13 +218,21 @@ class SceneBuilder:
         self._camera: CameraSpec | None = None
 
     # geometry -------------------------------------------------------------
-    def mesh(self, name: str, vertices, triangles, matrix_world=None) -> MeshSpec:
-        """Add an arbitrary triangle mesh."""
+    def mesh(self, name: str, vertices, triangles, matrix_world=None, *, uvs=None,
+             alpha: AlphaMap | None = None) -> MeshSpec:
+        """Add an arbitrary triangle mesh, see-through with an `alpha` over per-vertex `uvs`."""
         verts = np.asarray(vertices, dtype=np.float64).reshape(-1, 3)
         tris = np.asarray(triangles, dtype=np.int64).reshape(-1, 3)
         if len(tris) and (tris.min() < 0 or tris.max() >= len(verts)):
             raise InputError(f"mesh {name!r}: triangle index out of range")
-        spec = MeshSpec(name, verts, tris, np.eye(4) if matrix_world is None else np.asarray(matrix_world, float))
+        if (alpha is None) != (uvs is None):
+            raise InputError(f"mesh {name!r}: a see-through material needs both its alpha and the UVs")
+        if uvs is not None:
+            uvs = np.asarray(uvs, dtype=np.float64).reshape(-1, 2)
+            if len(uvs) != len(verts):
+                raise InputError(f"mesh {name!r}: {len(uvs)} UVs for {len(verts)} vertices")
+        spec = MeshSpec(name, verts, tris, np.eye(4) if matrix_world is None else np.asarray(matrix_world, float),
+                        alpha, uvs)
         self._meshes.append(spec)
         return spec
 

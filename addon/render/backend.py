@@ -14,7 +14,15 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..core.errors import BackendError
-from .shaders import FOOTPRINT_PROGRAM, FOOTPRINT_VERTICES, ProgramInterface, exact_variant, program_variant
+from .shaders import (
+    ALPHA_SAMPLERS,
+    FOOTPRINT_PROGRAM,
+    FOOTPRINT_VERTICES,
+    ProgramInterface,
+    alpha_of,
+    exact_variant,
+    program_variant,
+)
 
 
 @dataclass(frozen=True)
@@ -90,35 +98,74 @@ class ShadowBackend(ABC):
     # with nothing changed adds none.
     geometry_bytes: int = 0
 
+    def __init__(self) -> None:
+        # See-through materials' textures, shared by the parts that use them (issue 25):
+        # digest -> (channel image, transfer table), and part key -> digest.
+        self._alpha_textures: dict[str, tuple[object, object]] = {}
+        self._alpha_users: dict[str, str] = {}
+
     def sync_scene(self, scene) -> None:
         """Make the GPU hold `scene`'s objects as they are now (a `resident.ResidentScene`).
 
         Uploads the vertex texture of each object that is new or whose geometry changed
         (by revision) and frees those of the objects removed from it. A moved object
-        keeps its texture: its matrix travels as a uniform. Objects of other scenes stay
-        resident until `release_scene`.
+        keeps its texture: its matrix travels as a uniform. A see-through part's alpha
+        image and transfer are uploaded once for every part that shares them (by the
+        map's digest) and freed with the last of those parts. Objects of other scenes
+        stay resident until `release_scene`.
         """
         held = self._resident_revisions()
         for key in scene.removed:
             if key in held:
-                self._drop_vertices(key)
+                self._drop_part(key)
         scene.removed.clear()
         for key, obj in scene.objects.items():
             if held.get(key) != obj.revision:
                 texels = obj.vertex_texels()
                 self._upload_vertices(key, obj.revision, texels)
                 self.geometry_bytes += int(texels.nbytes)
+                self._hold_alpha(key, obj.alpha)
+
+    def _hold_alpha(self, key: str, amap) -> None:
+        """Record which alpha map a part uses, uploading the map the first time."""
+        previous = self._alpha_users.pop(key, None)
+        if amap is not None:
+            if amap.digest not in self._alpha_textures:
+                image, transfer = amap.image, amap.transfer_table()
+                self._alpha_textures[amap.digest] = (self._upload_channel(image),
+                                                     self._upload_channel(transfer[None, :]))
+                self.geometry_bytes += int(image.nbytes + transfer.nbytes)
+            self._alpha_users[key] = amap.digest
+        if previous is not None and previous not in self._alpha_users.values():
+            for texture in self._alpha_textures.pop(previous):
+                self._free_channel(texture)
+
+    def _drop_part(self, key: str) -> None:
+        self._drop_vertices(key)
+        self._hold_alpha(key, None)
 
     def release_scene(self, scene) -> None:
-        """Free the vertex textures of every object of `scene`."""
+        """Free the vertex textures (and alpha maps no other part uses) of every object of `scene`."""
         held = self._resident_revisions()
         for key in list(scene.objects) + list(scene.removed):
             if key in held:
-                self._drop_vertices(key)
+                self._drop_part(key)
+
+    def _release_alpha(self) -> None:
+        """Free every alpha texture (a backend's release)."""
+        for textures in self._alpha_textures.values():
+            for texture in textures:
+                self._free_channel(texture)
+        self._alpha_textures.clear()
+        self._alpha_users.clear()
 
     def resident_objects(self) -> int:
         """Objects whose vertex textures this backend holds."""
         return len(self._resident_revisions())
+
+    def resident_alpha_maps(self) -> int:
+        """Alpha maps (image and transfer) this backend holds."""
+        return len(self._alpha_textures)
 
     @staticmethod
     def _layer_viewport(layout: AtlasLayout | None, tile: int, span: int = 1, caller: str = "draw_layer") -> Rect:
@@ -132,17 +179,26 @@ class ShadowBackend(ABC):
             raise BackendError(str(exc)) from None
 
     def _footprint_program(self, draw: FootprintDraw, uniforms: UniformValues, exact: bool,
-                           points: bool) -> tuple[ProgramInterface, object]:
+                           points: bool) -> tuple[ProgramInterface, dict[str, object]]:
         """The program one footprint draw runs (the exact pass's variant with `exact`, after
-        `link_samples`) and the object's vertex texture; a BackendError for an object not
-        resident."""
+        `link_samples`; the alpha variant for a see-through part) and the textures it
+        reads from the object: its vertex texture and alpha map. A BackendError for an
+        object not resident."""
         if exact and self._links is None:
             raise BackendError("the exact footprint pass needs link_samples first")
         held = self._vertices.get(draw.key)
         if held is None:
             raise BackendError(f"object {draw.key!r} is not resident; call sync_scene first")
-        iface = exact_variant(uniforms, points) if exact else program_variant(FOOTPRINT_PROGRAM, uniforms, points)
-        return iface, held[1]
+        textures: dict[str, object] = {"ow_vertices": held[1]}
+        digest = self._alpha_users.get(draw.key)
+        if digest is not None:
+            textures.update(zip(ALPHA_SAMPLERS, self._alpha_textures[digest]))
+        if exact:
+            iface = exact_variant(uniforms, points, see_through=digest is not None)
+        else:
+            iface = program_variant(FOOTPRINT_PROGRAM, uniforms, points)
+            iface = alpha_of(iface) if digest is not None else iface
+        return iface, textures
 
     @staticmethod
     def _clear_rects(layout: AtlasLayout, boxes: dict[int, tuple[int, int, int, int]] | None) -> list[Rect] | None:
@@ -175,6 +231,14 @@ class ShadowBackend(ABC):
     @abstractmethod
     def _drop_vertices(self, key: str) -> None:
         """Free the object's vertex texture."""
+
+    @abstractmethod
+    def _upload_channel(self, data: np.ndarray) -> object:
+        """A one-channel float texture (R32F) of `data` (rows, columns), row 0 first."""
+
+    @abstractmethod
+    def _free_channel(self, texture: object) -> None:
+        """Free a texture `_upload_channel` made."""
 
     @abstractmethod
     def build_ray_table(self, tile: int, uniforms: UniformValues) -> None:

@@ -67,6 +67,7 @@ class BlenderGPUBackend(ShadowBackend):
             import gpu  # noqa: F401
         except ImportError as exc:
             raise BackendError("the Blender gpu backend needs Blender (bpy) to run") from exc
+        super().__init__()
         self._shaders: dict[str, Any] = {}
         self._layout: AtlasLayout | None = None
         self._atlas = self._atlas_depth = self._atlas_fb = None
@@ -266,6 +267,13 @@ class BlenderGPUBackend(ShadowBackend):
     def _drop_vertices(self, key: str) -> None:
         self._vertices.pop(key, None)  # Blender frees the texture with its last reference
 
+    def _upload_channel(self, data: np.ndarray):
+        rows, columns = data.shape
+        return _float_texture((columns, rows), "R32F", data)
+
+    def _free_channel(self, texture) -> None:
+        """Nothing to do: Blender frees the texture with its last reference."""
+
     def _corner_batch(self, shader, triangles: int, points: bool):
         """The footprint pass's batch (quads, or points) over one corner buffer of at least
         `triangles`: both batches share its vertex buffer, uploaded once per growth."""
@@ -334,8 +342,8 @@ class BlenderGPUBackend(ShadowBackend):
                     if draw.count <= 0:
                         continue  # a count of 0 would mean "all" to gpu
                     points = draw.points and self.point_sprites
-                    iface, vertices = self._footprint_program(draw, uniforms, exact, points)
-                    shader = self._bind(iface, {**uniforms, **draw.uniforms}, {"ow_vertices": vertices})
+                    iface, textures = self._footprint_program(draw, uniforms, exact, points)
+                    shader = self._bind(iface, {**uniforms, **draw.uniforms}, textures)
                     if exact:
                         for (_, name), texture in zip(iface.images, self._links):
                             shader.image(name, texture)
@@ -571,6 +579,7 @@ class BlenderGPUBackend(ShadowBackend):
         self._edge_fbs = ()
         self._edge_size = None
         self._vertices.clear()
+        self._release_alpha()
         self._ray_fb = None
         self._corner_triangles = 0
         self._released = True

@@ -24,6 +24,7 @@ from .backend import (
     pack_warp_table,
 )
 from .shaders import (
+    ALPHA_SAMPLERS,
     DEPTH_PROGRAM,
     EDGE_PROGRAM,
     FOOTPRINT_PROGRAM,
@@ -88,6 +89,7 @@ class ModernGLBackend(ShadowBackend):
             import moderngl
         except ImportError as exc:  # the package is a hard dependency of the CLI
             raise BackendError("moderngl is not installed; run scripts/setup_env.sh") from exc
+        super().__init__()
         self._mgl = moderngl
         try:
             self.ctx = moderngl.create_standalone_context(backend=backend)
@@ -258,6 +260,15 @@ class ModernGLBackend(ShadowBackend):
         if held is not None:
             held[1].release()
 
+    @_current
+    def _upload_channel(self, data: np.ndarray):
+        rows, columns = data.shape
+        return self._float_texture((columns, rows), 1, np.ascontiguousarray(data, dtype="f4").tobytes())
+
+    @_current
+    def _free_channel(self, texture) -> None:
+        texture.release()
+
     def _ensure_corners(self, triangles: int) -> None:
         """A corner buffer for at least `triangles` (the footprint vertex arrays use it)."""
         capacity = corner_capacity(triangles, self._corner_triangles)
@@ -306,7 +317,8 @@ class ModernGLBackend(ShadowBackend):
             for draw in draws:
                 if draw.count <= 0:
                     continue
-                iface, self._textures["ow_vertices"] = self._footprint_program(draw, uniforms, exact, draw.points)
+                iface, textures = self._footprint_program(draw, uniforms, exact, draw.points)
+                self._textures.update(textures)
                 self._ensure_corners(draw.first + draw.count)
                 prog = self._use(iface, {**uniforms, **draw.uniforms})
                 if exact:
@@ -324,7 +336,8 @@ class ModernGLBackend(ShadowBackend):
                     vao.render(self._mgl.TRIANGLES, vertices=draw.count * FOOTPRINT_VERTICES,
                                first=draw.first * FOOTPRINT_VERTICES)
         finally:
-            self._textures.pop("ow_vertices", None)
+            for name in ("ow_vertices", *ALPHA_SAMPLERS):
+                self._textures.pop(name, None)  # the object's own: not released here
             self.ctx.disable(self._mgl.DEPTH_TEST)
             self.ctx.disable(self._mgl.PROGRAM_POINT_SIZE)
             self._atlas_fbo.scissor = None
@@ -537,6 +550,7 @@ class ModernGLBackend(ShadowBackend):
             for _, texture in self._vertices.values():
                 texture.release()
             self._vertices.clear()
+            self._release_alpha()
             for tex in self._textures.values():
                 tex.release()
             self._textures.clear()

@@ -405,8 +405,10 @@ def footprint_draws(scene: ResidentScene, light: LightSpec) -> list[FootprintDra
     for key, obj in scene.objects.items():
         if obj.triangles:
             hi, lo = obj.light_split(light.position)
-            draws.append(FootprintDraw(key, 0, obj.triangles, {"ow_object_linear": obj.matrix[:3, :3],
-                                                               "ow_light_hi": hi, "ow_light_lo": lo}))
+            uniforms = {"ow_object_linear": obj.matrix[:3, :3], "ow_light_hi": hi, "ow_light_lo": lo}
+            if obj.alpha is not None:
+                uniforms["ow_alpha_mode"] = obj.alpha.mode  # the see-through variant's
+            draws.append(FootprintDraw(key, 0, obj.triangles, uniforms))
     return draws
 
 

@@ -36,6 +36,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..core import perspective, projection
+from ..core.alpha import hits_visibility
 from ..core.errors import InputError
 from ..core.plan import Plan, hit_points
 from ..core.samples import STAT_COUNT, Reduction, SampleStats, depth_axis
@@ -280,7 +281,7 @@ class ShadowPipeline:
             # The atlas holds no depth (every texel empty), so the test lit every tested
             # sample; the exact pass's marks shadow the ones a triangle crosses.
             hits, counters = backend.read_hits()
-            result[..., 0] = np.where(hits > 0, 0.0, result[..., 0])
+            result[..., 0] *= hits_visibility(hits)  # opaque crossings and see-through ones
             exact_work = {"cut": int(counters[0]), "entries": int(counters[1]), "fragments": int(counters[2])}
         visibility = result[..., 0][::-1].copy()
         flags = result[..., 1][::-1].astype(np.int8)

@@ -13,6 +13,12 @@ the light in a 110 m scene keeps its shape), as the host's float64 light-centrin
 
 What the frame needs from the scene on the host is per object, not per triangle:
 the bounding box (the depth range) and the triangle count.
+
+See-through materials (issue 25): an object's triangles of one alpha material are a part
+of their own, which carries that `AlphaMap` and each vertex's UV (in the w of its two
+texels); the depth pass draws such a part with the alpha variant. The opaque triangles
+stay a part as before, drawn by the same programs, so a scene without alpha is
+uploaded and drawn exactly as it was.
 """
 from __future__ import annotations
 
@@ -23,6 +29,7 @@ from itertools import count
 
 import numpy as np
 
+from ..core.alpha import AlphaMap, Surface
 from ..core.errors import InputError
 from ..core.projection import MAX_COORDINATE
 from .shaders import VERTEX_TEXTURE_WIDTH
@@ -109,6 +116,8 @@ class ResidentObject:
     revision: int
     counts: SanitizeCounts = SanitizeCounts()
     chunks: Chunks | None = None
+    alpha: AlphaMap | None = None  # the part's see-through material; None: opaque
+    uvs: np.ndarray | None = None  # (T, 3, 2) float32 with `alpha`, in the order of `local`
     _local_lo: np.ndarray = field(default_factory=lambda: np.zeros(3))
     _local_hi: np.ndarray = field(default_factory=lambda: np.zeros(3))
 
@@ -152,12 +161,13 @@ class ResidentObject:
 
     def vertex_texels(self) -> np.ndarray:
         """The vertex texture: (rows, VERTEX_TEXTURE_WIDTH, 4) float32 (`vertex_texels`)."""
-        return vertex_texels(self.local)
+        return vertex_texels(self.local, self.uvs)
 
 
-def vertex_texels(local: np.ndarray) -> np.ndarray:
+def vertex_texels(local: np.ndarray, uvs: np.ndarray | None = None) -> np.ndarray:
     """(T, 3, 3) vertices -> (rows, VERTEX_TEXTURE_WIDTH, 4) float32: vertex i is texels 2i
-    (hi = float32(p)) and 2i + 1 (lo = float32(p - hi)), w = 0."""
+    (hi = float32(p)) and 2i + 1 (lo = float32(p - hi)); their w hold the vertex's u and v
+    when `uvs` (T, 3, 2) are given, else 0."""
     points = np.asarray(local, dtype=np.float64).reshape(-1, 3)
     hi = points.astype(np.float32)
     lo = (points - hi.astype(np.float64)).astype(np.float32)
@@ -165,24 +175,31 @@ def vertex_texels(local: np.ndarray) -> np.ndarray:
     texels = np.zeros((rows * VERTEX_TEXTURE_WIDTH, 4), dtype=np.float32)
     texels[0:2 * len(points):2, :3] = hi
     texels[1:2 * len(points):2, :3] = lo
+    if uvs is not None:
+        corners = np.asarray(uvs, dtype=np.float32).reshape(-1, 2)
+        texels[0:2 * len(points):2, 3] = corners[:, 0]
+        texels[1:2 * len(points):2, 3] = corners[:, 1]
     return texels.reshape(rows, VERTEX_TEXTURE_WIDTH, 4)
 
 
 def _sanitized(triangles: np.ndarray) -> tuple[np.ndarray, SanitizeCounts]:
-    """Drop non-finite and zero-area triangles (tessellate.sanitize's scene-only rules).
+    """The triangles to keep: not non-finite, not of zero area (tessellate.sanitize's
+    scene-only rules), as a boolean mask, with the counts of those left out.
 
     Triangles whose plane passes through the light cover no texel; the depth pass's
     inside test leaves them out per light, so they are not dropped here.
     """
     tris = np.asarray(triangles, dtype=np.float64).reshape(-1, 3, 3)
     finite = np.all(np.isfinite(tris) & (np.abs(tris) < MAX_COORDINATE), axis=(1, 2))
-    tris = tris[finite]
-    if not len(tris):
-        return tris, SanitizeCounts(int(np.count_nonzero(~finite)), 0)
-    scale = float(np.max(np.abs(tris))) or 1.0
-    area2 = np.linalg.norm(np.cross(tris[:, 1] - tris[:, 0], tris[:, 2] - tris[:, 0]), axis=1)
+    keep = finite.copy()
+    if not finite.any():
+        return keep, SanitizeCounts(int(np.count_nonzero(~finite)), 0)
+    kept = tris[finite]
+    scale = float(np.max(np.abs(kept))) or 1.0
+    area2 = np.linalg.norm(np.cross(kept[:, 1] - kept[:, 0], kept[:, 2] - kept[:, 0]), axis=1)
     degenerate = area2 <= (1e-12 * scale) ** 2
-    return tris[~degenerate], SanitizeCounts(int(np.count_nonzero(~finite)), int(np.count_nonzero(degenerate)))
+    keep[np.flatnonzero(finite)[degenerate]] = False
+    return keep, SanitizeCounts(int(np.count_nonzero(~finite)), int(np.count_nonzero(degenerate)))
 
 
 class ResidentScene:
@@ -195,40 +212,66 @@ class ResidentScene:
         self._world: tuple[tuple, np.ndarray] | None = None
 
     @classmethod
-    def of_triangles(cls, triangles: np.ndarray, key: str | None = None) -> "ResidentScene":
-        """A scene of one object holding a world-space triangle soup (identity matrix).
+    def of_triangles(cls, triangles: np.ndarray, key: str | None = None,
+                     surface: Surface | None = None) -> "ResidentScene":
+        """A scene of one object holding a world-space triangle soup (identity matrix),
+        with its see-through materials when a `surface` is given.
 
         Its key is unique unless given, so several soups can be resident at once.
         """
         scene = cls()
-        scene.set_geometry(key if key is not None else f"soup{next(_soups)}", triangles)
+        scene.set_geometry(key if key is not None else f"soup{next(_soups)}", triangles, surface=surface)
         return scene
 
-    def set_geometry(self, key: str, triangles: np.ndarray, matrix: np.ndarray | None = None) -> ResidentObject:
+    def set_geometry(self, key: str, triangles: np.ndarray, matrix: np.ndarray | None = None,
+                     surface: Surface | None = None) -> ResidentObject:
         """Add or replace an object's triangles (in its own frame); the next frame uploads them.
 
         Beyond MAX_PART_TRIANGLES the object is kept as parts "key", "key#1", ... (one
-        texture each); `set_matrix` and `remove` take the key and act on all of them.
+        texture each), and so are its triangles of each see-through material of `surface`
+        (their UVs and material indices, core/alpha.Surface); `set_matrix` and `remove`
+        take the key and act on all of them.
         """
         matrix = self._matrix(matrix)  # checked first: a refused matrix leaves the object as it was
-        tris, counts = _sanitized(triangles)
-        tris = tris[morton_order(tris)]
+        tris = np.asarray(triangles, dtype=np.float64).reshape(-1, 3, 3)
+        if surface is not None and len(surface) != len(tris):
+            raise InputError(f"object {key!r}: {len(tris)} triangles but a surface of {len(surface)}")
+        keep, counts = _sanitized(tris)
+        groups: list[tuple[AlphaMap | None, np.ndarray]] = []
+        if surface is None or not surface.see_through:
+            groups.append((None, np.flatnonzero(keep)))
+        else:
+            for index in range(-1, len(surface.maps)):
+                chosen = np.flatnonzero(keep & (surface.material == index))
+                amap = surface.maps[index] if index >= 0 else None
+                if amap is not None and amap.opaque:
+                    amap = None  # drawn as plain geometry, in a part of its own
+                if len(chosen) or index == -1:
+                    groups.append((amap, chosen))
         self.remove(key)
-        parts = [tris[start:start + MAX_PART_TRIANGLES] for start in range(0, max(len(tris), 1), MAX_PART_TRIANGLES)]
-        keys = [key] + [f"{key}#{index}" for index in range(1, len(parts))]
-        for index, (part_key, part) in enumerate(zip(keys, parts)):
-            if len(part):
-                lo, hi = part.reshape(-1, 3).min(axis=0), part.reshape(-1, 3).max(axis=0)
-            else:
-                lo = hi = np.zeros(3)
-            origin = 0.5 * (lo + hi)
-            local = part - origin
-            self.objects[part_key] = ResidentObject(part_key, local, origin, matrix.copy(), next(_revisions),
-                                                    counts if index == 0 else SanitizeCounts(),
-                                                    chunk_bounds(local), lo - origin, hi - origin)
-            self.removed.discard(part_key)
+        keys: list[str] = []
+        for amap, chosen in groups:
+            order = chosen[morton_order(tris[chosen])]
+            for start in range(0, max(len(order), 1), MAX_PART_TRIANGLES):
+                picked = order[start:start + MAX_PART_TRIANGLES]
+                part_key = key if not keys else f"{key}#{len(keys)}"
+                uvs = surface.uvs[picked] if amap is not None else None
+                self._add_part(part_key, tris[picked], matrix, counts if not keys else SanitizeCounts(), amap, uvs)
+                keys.append(part_key)
         self._parts[key] = keys
         return self.objects[key]
+
+    def _add_part(self, part_key: str, part: np.ndarray, matrix: np.ndarray, counts: SanitizeCounts,
+                  amap: AlphaMap | None, uvs: np.ndarray | None) -> None:
+        if len(part):
+            lo, hi = part.reshape(-1, 3).min(axis=0), part.reshape(-1, 3).max(axis=0)
+        else:
+            lo = hi = np.zeros(3)
+        origin = 0.5 * (lo + hi)
+        local = part - origin
+        self.objects[part_key] = ResidentObject(part_key, local, origin, matrix.copy(), next(_revisions), counts,
+                                                chunk_bounds(local), amap, uvs, lo - origin, hi - origin)
+        self.removed.discard(part_key)
 
     def subset(self, keys: Iterable[str]) -> "ResidentScene":
         """A scene of some of this scene's objects (by the keys `set_geometry` took), sharing

@@ -15,7 +15,7 @@ import re
 from dataclasses import dataclass, field, replace
 from pathlib import Path
 
-from ..core import footprint, projection, samples
+from ..core import alpha, footprint, projection, samples
 from ..core.errors import BackendError
 
 log = logging.getLogger(__name__)
@@ -36,6 +36,11 @@ SHARED_DEFINES: dict[str, str] = {
     "OW_KIND_UNFOLD": str(projection.UNFOLD),
     "OW_SLOTS": str(SLOTS),
     "OW_EDGE_ON": repr(float(footprint.GPU_EDGE_ON)),  # the host's count of drawn triangles uses it
+    # See-through surfaces (core/alpha.py): the exact pass's word and the alpha bounds.
+    "OW_OPAQUE_ALPHA": repr(float(alpha.OPAQUE_ALPHA)),
+    "OW_CLEAR_ALPHA": repr(float(alpha.CLEAR_ALPHA)),
+    "OW_HIT_OPAQUE": f"{alpha.HIT_OPAQUE:#x}u",
+    "OW_OPTICAL_SCALE": repr(float(alpha.OPTICAL_SCALE)),
 }
 
 
@@ -441,11 +446,34 @@ def exact_of(base: ProgramInterface) -> ProgramInterface:
     return held
 
 
-def exact_variant(uniforms: dict, points: bool = False) -> ProgramInterface:
+def exact_variant(uniforms: dict, points: bool = False, see_through: bool = False) -> ProgramInterface:
     """The footprint pass of the irregular z-buffer (issue 19): each fragment walks its
     texel's list of samples (link_variant) and marks those whose segment to the light the
-    triangle crosses, instead of storing a depth."""
-    return exact_of(program_variant(FOOTPRINT_PROGRAM, uniforms, points))
+    triangle crosses, instead of storing a depth; `see_through` for an object with alpha."""
+    base = program_variant(FOOTPRINT_PROGRAM, uniforms, points)
+    return exact_of(alpha_of(base) if see_through else base)
+
+
+ALPHA_DEFINE = "OW_ALPHA"
+ALPHA_SAMPLERS = ("ow_alpha_image", "ow_alpha_transfer")  # the material's channel and transfer (R32F)
+_ALPHA_VARIANTS: dict[str, ProgramInterface] = {}  # footprint variant name -> its see-through variant
+
+
+def alpha_of(base: ProgramInterface) -> ProgramInterface:
+    """The see-through variant of a footprint program (issue 25): the texel's ray meets the
+    triangle, its barycentrics give the UV and the material's alpha (lib/alpha.glsl) drops
+    the fragment or, in the exact pass, weighs the crossing. Objects without alpha keep the
+    plain programs, unchanged."""
+    held = _ALPHA_VARIANTS.get(base.name)
+    if held is None:
+        held = _ALPHA_VARIANTS[base.name] = replace(
+            base, name=base.name + "_alpha", defines={**base.defines, ALPHA_DEFINE: "1"},
+            samplers=base.samplers + ALPHA_SAMPLERS,
+            uniforms=base.uniforms + (Uniform("int", "ow_alpha_mode"),),
+            varyings=base.varyings + (Varying("vec4", "v_uv01", flat=True), Varying("vec2", "v_uv2", flat=True),
+                                      Varying("vec2", "v_uv")))
+    return held
+
 
 
 SCATTER_MODE_DEFINE = "OW_SCATTER_MODE"
@@ -501,9 +529,12 @@ VARIANT_PROGRAMS = tuple(_variant(base, warped, kind) for base in _VARIANT_BASES
     _variant(FOOTPRINT_PROGRAM.name, warped, kind, True) for warped in (True, False) for kind in FIXED_KIND_NAMES)
 
 
-EXACT_PROGRAMS = tuple(exact_of(iface) for iface in (FOOTPRINT_PROGRAM, *VARIANT_PROGRAMS)
-                      if iface.fragment_file == FOOTPRINT_PROGRAM.fragment_file)
-PROGRAMS = (*VARIANT_PROGRAMS, *EXACT_PROGRAMS, RAY_TABLE_PROGRAM, GBUFFER_PROGRAM, GBUFFER_SAMPLES_PROGRAM, PREVIEW_PROGRAM, OVERLAY_PROGRAM, EDGE_PROGRAM)
+_FOOTPRINTS = tuple({iface.name: iface for iface in (FOOTPRINT_PROGRAM, *VARIANT_PROGRAMS)
+                     if iface.fragment_file == FOOTPRINT_PROGRAM.fragment_file}.values())
+EXACT_PROGRAMS = tuple(exact_of(iface) for iface in _FOOTPRINTS)
+ALPHA_PROGRAMS = tuple(alpha_of(iface) for iface in _FOOTPRINTS) + tuple(
+    exact_of(alpha_of(iface)) for iface in _FOOTPRINTS)
+PROGRAMS = (*VARIANT_PROGRAMS, *EXACT_PROGRAMS, *ALPHA_PROGRAMS, RAY_TABLE_PROGRAM, GBUFFER_PROGRAM, GBUFFER_SAMPLES_PROGRAM, PREVIEW_PROGRAM, OVERLAY_PROGRAM, EDGE_PROGRAM)
 COMPUTE_PROGRAMS = (SCATTER_PROGRAM, SAMPLE_STATS_PROGRAM, *(_scatter_variant(mode, kind) for mode in SCATTER_MODES
                                                              for kind in (None, *FIXED_KIND_NAMES)),
                     *(_link_variant(kind) for kind in (None, *FIXED_KIND_NAMES)))

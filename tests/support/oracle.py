@@ -87,3 +87,40 @@ def view_samples(scene: SceneSpec, occluders: np.ndarray | None = None):
     shape = (height, width)
     samples = ViewSamples(pos.reshape(height, width, 3), nrm.reshape(height, width, 3), hit.reshape(shape), camera)
     return samples, lit.reshape(shape), evaluable.reshape(shape)
+
+
+def transmittance(light: np.ndarray, points: np.ndarray, tris: np.ndarray, surface) -> np.ndarray:
+    """The light that reaches each point from a point light through every triangle on the
+    way: 0 past an opaque one, else the product of (1 - alpha) of the see-through ones at
+    their crossings (UVs interpolated barycentrically; core/alpha.Surface)."""
+    light = np.asarray(light, dtype=np.float64)
+    pts = np.asarray(points, dtype=np.float64).reshape(-1, 3)
+    tris = np.asarray(tris, dtype=np.float64).reshape(-1, 3, 3)
+    to = pts - light
+    dist = np.linalg.norm(to, axis=1)
+    dirs = to / np.maximum(dist, 1e-300)[:, None]
+    scale = max(1.0, float(np.abs(tris).max()))
+    limit = dist - 1e-7 * scale
+    out = np.ones(len(pts))
+    opaque = surface.material < 0
+    if opaque.any():
+        ts, _ = ray_hits(np.repeat(light[None], len(pts), axis=0), dirs, tris[opaque], t_max=limit)
+        out[np.isfinite(ts)] = 0.0
+    for index in np.flatnonzero(~opaque):
+        v0, v1, v2 = tris[index]
+        e1, e2 = v1 - v0, v2 - v0
+        pvec = np.cross(dirs, e2)
+        det = pvec @ e1
+        ok = np.abs(det) > 1e-14
+        inv = np.where(ok, 1.0 / np.where(ok, det, 1.0), 0.0)
+        tvec = light - v0
+        u = (pvec @ tvec) * inv
+        qvec = np.cross(tvec, e1)
+        v = (dirs @ qvec) * inv
+        t = (qvec @ e2) * inv
+        crossed = ok & (u >= 0) & (v >= 0) & (u + v <= 1) & (t > 1e-9) & (t < limit)
+        corners = surface.uvs[index].astype(np.float64)
+        uv = (1 - u - v)[:, None] * corners[0] + u[:, None] * corners[1] + v[:, None] * corners[2]
+        a = surface.maps[surface.material[index]].sample(uv)
+        out = np.where(crossed, out * (1.0 - a), out)
+    return out
