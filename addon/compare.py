@@ -122,7 +122,8 @@ def _median_times(frames: Sequence[dict[str, float]]) -> dict[str, float]:
 def resident_scene(ref: ReferenceData) -> ResidentScene:
     """The reference's triangles as one resident object: build it once per reference and
     pass it to every row, so the GPU holds the scene across rows and frames."""
-    return ResidentScene.of_triangles(ref.triangles.astype(np.float64), key=f"reference:{id(ref)}")
+    return ResidentScene.of_triangles(ref.triangles.astype(np.float64), key=f"reference:{id(ref)}",
+                                      surface=ref.surface)
 
 
 def run_row(pipeline: ShadowPipeline, ref: ReferenceData, preset: str, method: str, resolution: int,
@@ -140,16 +141,16 @@ def run_row(pipeline: ShadowPipeline, ref: ReferenceData, preset: str, method: s
     ref_lit = metrics.reference_visibility(ref.shadowed, ref.unshadowed)
     evaluable = metrics.evaluable_mask(ref.position, ref.normal, ref.hit, ref.unshadowed, light)
     est_lit = last.visibility > 0.5
-    figure = metrics.error_figure(est_lit, ref_lit, evaluable)
+    judged = metrics.judge(last.visibility, ref.shadowed, ref.unshadowed, evaluable)
     times = _median_times([f.time_ms for f in frames])
     row = make_row(
-        preset, method, light.emission, figure, times, pipeline.backend.renderer(), pipeline.backend.name,
+        preset, method, light.emission, judged.figure, times, pipeline.backend.renderer(), pipeline.backend.name,
         len(frames), ref.resolution,
         **(_list_columns(pipeline, light, scene, samples, settings, counts) if settings.exact else {}),
         resolution=resolution,
-        # Mean |visibility - reference| in %: equal to error_pct for binary methods; the
-        # antialiased rows' fractional visibility shows here.
-        soft_error_pct=metrics.soft_error_pct(last.visibility, ref_lit, evaluable),
+        # Mean |visibility - reference| in %: equal to error_pct for binary methods without
+        # fractional pixels; the antialiased rows' and see-through shadows' fractions show here.
+        **judged.columns(),
         passes=last.passes,
         triangles_drawn=last.geometry.triangles_drawn,
         scene_triangles=scene.triangles,  # resident, after dropping non-finite and zero-area ones

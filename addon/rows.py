@@ -36,6 +36,10 @@ class Row(TypedDict, total=False):
     resolution: int  # side of each map, texels
     passes: int
     soft_error_pct: float
+    # pixels Cycles lights fractionally (see-through surfaces, metrics.FRACTIONAL_BAND): left
+    # out of error_pct, and their own soft error
+    fractional_pixels: int
+    fractional_soft_error_pct: float
     triangles_drawn: int
     scene_triangles: int
     texels: int

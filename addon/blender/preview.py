@@ -161,12 +161,11 @@ def run(reference: ReferenceData, lights: list[tuple[str, LightSpec, ShadowSetti
 
 def _report(reference: ReferenceData, per_light, gbuffer, gbuffer_ms: float, renderer: str) -> dict:
     """Error of the combined preview visibility against Cycles, and the times."""
-    ref_lit = metrics.reference_visibility(reference.shadowed, reference.unshadowed)
     name, light, settings, result, stats, _ = per_light[0]
     evaluable = metrics.evaluable_mask(reference.position, reference.normal, reference.hit, reference.unshadowed, light)
     # The preview's own G-buffer must see the same surfaces as Cycles to be compared.
     agree = gbuffer.hit == reference.hit
-    figure = metrics.error_figure(result.visibility > 0.5, ref_lit, evaluable & agree)
+    figure = metrics.judge(result.visibility, reference.shadowed, reference.unshadowed, evaluable & agree).figure
     lights = []
     for name, light, settings, result, stats, _ in per_light:
         lights.append({

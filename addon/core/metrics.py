@@ -8,6 +8,10 @@ import numpy as np
 from .scene import LightSpec
 
 UNSHADOWED_EPS = 1e-6
+# A reference visibility strictly inside this band is fractional: light through see-through
+# surfaces (a curtain, a filtered cut-out edge; issue 25). The binary error leaves such
+# pixels out, as neither lit nor shadowed; the soft error measures them.
+FRACTIONAL_BAND = (0.02, 0.98)
 
 
 def reference_visibility(shadowed: np.ndarray, unshadowed: np.ndarray, eps: float = UNSHADOWED_EPS) -> np.ndarray:
@@ -16,6 +20,13 @@ def reference_visibility(shadowed: np.ndarray, unshadowed: np.ndarray, eps: floa
     un = np.asarray(unshadowed, dtype=np.float64)
     ratio = np.divide(sh, un, out=np.zeros_like(sh), where=un > eps)
     return (un > eps) & (ratio >= 0.5)
+
+
+def reference_ratio(shadowed: np.ndarray, unshadowed: np.ndarray, eps: float = UNSHADOWED_EPS) -> np.ndarray:
+    """Cycles visibility as a fraction: shadowed / unshadowed in [0, 1], 0 where unshadowed <= eps."""
+    sh = np.asarray(shadowed, dtype=np.float64)
+    un = np.asarray(unshadowed, dtype=np.float64)
+    return np.clip(np.divide(sh, un, out=np.zeros_like(sh), where=un > eps), 0.0, 1.0)
 
 
 def evaluable_mask(position: np.ndarray, normal: np.ndarray, hit: np.ndarray, unshadowed: np.ndarray,
@@ -67,8 +78,9 @@ def error_figure(estimate_lit: np.ndarray, reference_lit: np.ndarray, evaluable:
 
 
 def soft_error_pct(visibility: np.ndarray, reference_lit: np.ndarray, evaluable: np.ndarray) -> float:
-    """Mean |visibility - reference| over evaluated pixels, in %; for a binary estimate
-    it equals the mismatch share. Non-finite visibility counts as fully wrong."""
+    """Mean |visibility - reference| over evaluated pixels, in %; the reference is binary
+    (lit) or fractional (`reference_ratio`). For a binary estimate and reference it
+    equals the mismatch share. Non-finite visibility counts as fully wrong."""
     ev = np.asarray(evaluable, dtype=bool)
     if not ev.any():
         return 0.0
@@ -77,6 +89,36 @@ def soft_error_pct(visibility: np.ndarray, reference_lit: np.ndarray, evaluable:
     bad = ~np.isfinite(np.asarray(visibility, dtype=np.float64)[ev])
     diff = np.where(bad, 1.0, np.abs(vis - ref))
     return float(100.0 * diff.mean())
+
+
+@dataclass
+class Judgement:
+    """An estimate against the reference: the binary figure on the decisive pixels, the
+    soft error on all of them, and the fractional pixels' own soft error."""
+
+    figure: ErrorFigure
+    soft_error_pct: float
+    fractional_pixels: int
+    fractional_soft_error_pct: float | None  # None without fractional pixels
+
+    def columns(self) -> dict:
+        """The results columns (rows.make_row) besides the figure."""
+        return {"soft_error_pct": self.soft_error_pct,
+                "fractional_pixels": self.fractional_pixels or None,
+                "fractional_soft_error_pct": self.fractional_soft_error_pct}
+
+
+def judge(visibility: np.ndarray, shadowed: np.ndarray, unshadowed: np.ndarray,
+          evaluable: np.ndarray) -> Judgement:
+    """The one way an estimate's visibility (H, W) is scored against Cycles' two passes."""
+    ratio = reference_ratio(shadowed, unshadowed)
+    ev = np.asarray(evaluable, dtype=bool)
+    fractional = ev & (ratio > FRACTIONAL_BAND[0]) & (ratio < FRACTIONAL_BAND[1])
+    vis = np.asarray(visibility, dtype=np.float64)
+    figure = error_figure(vis > 0.5, ratio >= 0.5, ev & ~fractional)
+    count = int(np.count_nonzero(fractional))
+    return Judgement(figure, soft_error_pct(vis, ratio, ev), count,
+                     soft_error_pct(vis, ratio, fractional) if count else None)
 
 
 def mismatch_image(grey_source: np.ndarray, estimate_lit: np.ndarray, reference_lit: np.ndarray,

@@ -88,7 +88,7 @@ def preset_source_hash(name: str, preset_dir: Path = PRESET_DIR) -> str:
     camera a builder makes) refreshes caches."""
     digest = hashlib.sha256()
     digest.update((preset_dir / f"{name}.py").read_bytes())
-    for module in ("scene.py", "camera.py"):
+    for module in ("scene.py", "camera.py", "alpha.py"):
         digest.update(Path(__file__).with_name(module).read_bytes())
     return digest.hexdigest()[:16]
 

@@ -260,6 +260,23 @@ class SceneBuilder:
         tris = np.concatenate([np.stack([a, b, c], 1), np.stack([a, c, d], 1)])
         return self.mesh(name, verts, tris, translation(center))
 
+    def quad(self, name: str, corners, tiles=(1.0, 1.0), alpha: AlphaMap | None = None) -> MeshSpec:
+        """A quad of four world corners (counter-clockwise seen from its front), its UVs
+        spanning `tiles` repeats of the square: a card, a fence, a curtain."""
+        verts = np.asarray(corners, dtype=np.float64).reshape(4, 3)
+        uvs = np.array([[0.0, 0.0], [1.0, 0.0], [1.0, 1.0], [0.0, 1.0]]) * np.asarray(tiles, dtype=np.float64)
+        return self.mesh(name, verts, [[0, 1, 2], [0, 2, 3]], uvs=None if alpha is None else uvs, alpha=alpha)
+
+    @staticmethod
+    def alpha_image(name: str, image, interpolation: str = "linear", extension: str = "repeat") -> AlphaMap:
+        """A see-through material's alpha image ((H, W), row 0 at v = 0), for `quad` and `mesh`."""
+        return AlphaMap(name, image, interpolation, extension)
+
+    @staticmethod
+    def constant_alpha(name: str, alpha: float) -> AlphaMap:
+        """A see-through material of one alpha (a curtain, a pane)."""
+        return AlphaMap.constant(name, alpha)
+
     # light and camera -----------------------------------------------------
     def point_light(self, location, energy: float = 1000.0) -> None:
         """Omnidirectional point light."""

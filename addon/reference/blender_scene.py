@@ -58,11 +58,55 @@ def build_mesh(spec: MeshSpec) -> "bpy.types.Mesh":
     # New faces are smooth by default since Blender 4.1; the box corners are shared,
     # so smooth shading would bend the lighting at every edge. Shade flat.
     mesh.polygons.foreach_set("use_smooth", np.zeros(len(tris), dtype=bool))
+    if spec.alpha is not None and spec.uvs is not None:
+        layer = mesh.uv_layers.new(name="UVMap")
+        corners = np.asarray(spec.uvs, dtype=np.float32)[tris.ravel()]
+        layer.data.foreach_set("uv", corners.ravel())
     mesh.update(calc_edges=True)
     if mesh.validate(verbose=False):
         # validate() returns True when it had to fix something (e.g. degenerate faces).
         log.warning("mesh %r had invalid geometry that Blender corrected", spec.name)
     return mesh
+
+
+_INTERPOLATION = {"closest": "Closest", "linear": "Linear"}
+
+
+def build_material(spec: MeshSpec, tag: str) -> "bpy.types.Material":
+    """The see-through material of a MeshSpec, as an artist builds one: a white Principled
+    BSDF whose Alpha comes from an image texture's alpha (a float image, so the values are
+    the map's own), or a constant Alpha for a 1 x 1 map. A map's transfer is baked into the
+    image: the Blender side needs no math nodes to reproduce it."""
+    import bpy
+
+    from ..render import blender_compat
+
+    amap = spec.alpha
+    mat = bpy.data.materials.new(amap.name)
+    mat[TAG] = tag
+    blender_compat.set_see_through(mat)
+    tree = blender_compat.ensure_node_tree(mat)
+    principled = next(node for node in tree.nodes if node.type == "BSDF_PRINCIPLED")
+    principled.inputs["Base Color"].default_value = (1.0, 1.0, 1.0, 1.0)
+    values = amap.values().reshape(amap.image.shape).astype(np.float32)  # the transfer applied
+    if values.size == 1:
+        principled.inputs["Alpha"].default_value = float(values[0, 0])
+        return mat
+    height, width = values.shape
+    image = bpy.data.images.new(amap.name, width, height, alpha=True, float_buffer=True)
+    image[TAG] = tag
+    image.colorspace_settings.name = "Non-Color"
+    image.alpha_mode = "STRAIGHT"
+    rgba = np.ones((height, width, 4), dtype=np.float32)
+    rgba[..., 3] = values
+    image.pixels.foreach_set(rgba.ravel())
+    image.pack()  # saved with the file, as an artist's packed texture
+    texture = tree.nodes.new("ShaderNodeTexImage")
+    texture.image = image
+    texture.interpolation = _INTERPOLATION[amap.interpolation]
+    texture.extension = amap.extension.upper()
+    tree.links.new(texture.outputs["Alpha"], principled.inputs["Alpha"])
+    return mat
 
 
 def _check_light(spec: SceneSpec) -> None:
@@ -98,9 +142,15 @@ def build_blender_scene(spec: SceneSpec) -> "bpy.types.Scene":
             obj.data[TAG] = scene.name
         collection.objects.link(obj)
 
+    materials: dict[str, "bpy.types.Material"] = {}  # alpha digest -> its material, shared as artists do
     for mesh_spec in spec.meshes:
         obj = bpy.data.objects.new(mesh_spec.name, build_mesh(mesh_spec))
         obj.matrix_world = _matrix(mesh_spec.matrix_world)
+        if mesh_spec.alpha is not None:
+            digest = mesh_spec.alpha.digest
+            if digest not in materials:
+                materials[digest] = build_material(mesh_spec, scene.name)
+            obj.data.materials.append(materials[digest])
         link(obj)
 
     light_spec = spec.light
@@ -168,6 +218,8 @@ def remove_blender_scene(scene: "bpy.types.Scene") -> None:
         raise InputError(f"scene {scene.name!r} was not built by OmniWarp; refusing to remove it")
     objects = [o for o in scene.collection.all_objects if o.get(TAG) == name]
     data = [o.data for o in objects if o.data is not None and o.data.get(TAG) == name]
+    materials = [m for m in bpy.data.materials if m.get(TAG) == name]
+    images = [i for i in bpy.data.images if i.get(TAG) == name]
     bpy.data.scenes.remove(scene)
     for obj in objects:
         bpy.data.objects.remove(obj)
@@ -181,3 +233,9 @@ def remove_blender_scene(scene: "bpy.types.Scene") -> None:
             bpy.data.lights.remove(datablock)
         elif isinstance(datablock, bpy.types.Camera):
             bpy.data.cameras.remove(datablock)
+    for material in materials:
+        if not material.users:
+            bpy.data.materials.remove(material)
+    for image in images:
+        if not image.users:
+            bpy.data.images.remove(image)

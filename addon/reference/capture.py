@@ -39,7 +39,9 @@ from ..core.camera import Window, blender_camera_window, window_fov_deg
 from ..core.errors import InputError, ReferenceCaptureError
 from ..core.scene import orthonormalize, spot_emission
 from ..render import blender_compat
+from . import reference_materials
 from .data import ReferenceData
+from .reference_materials import AOV_NORMAL
 from .render_geometry import GEOMETRY_TYPES, render_triangles
 from .shadow_rule import ShadowRule
 
@@ -49,13 +51,16 @@ if TYPE_CHECKING:  # pragma: no cover - typing only
 log = logging.getLogger(__name__)
 
 # Part of the cache key: bump whenever the capture settings or outputs change.
-CAPTURE_VERSION = 1
+# 2: see-through materials keep their alpha (reference_materials), and the file's
+# triangles carry their surface (UVs, alpha maps).
+CAPTURE_VERSION = 2
+# Transparent bounces a camera or shadow ray may take through see-through surfaces.
+TRANSPARENT_BOUNCES = 256
 
 # One sample is exact: a point light with direct light only has no randomness, and
 # on 5.2 later samples land slightly off the pixel centre (see _apply_render_settings),
 # where data passes (Position) keep the first sample only.
 DEFAULT_SAMPLES = 1
-AOV_NORMAL = "OmniWarpTrueNormal"
 PIXEL_FILTER_WIDTH = 0.01  # px; effectively no filter (Blender's minimum)
 # Light types the reference accepts. A SUN has a direction only: nothing in the capture
 # depends on its position (Cycles' culling is off, and there is no near/far to fit).
@@ -252,27 +257,6 @@ _evaluated_depsgraph = evaluated_depsgraph
 # ----------------------------------------------------------------------------
 # temporary datablocks
 # ----------------------------------------------------------------------------
-def _override_material(overrides: _Overrides):
-    """White diffuse material that also writes the geometric normal to the AOV."""
-    import bpy
-
-    mat = bpy.data.materials.new("OmniWarp reference white")
-    overrides.on_restore(lambda: bpy.data.materials.remove(mat))
-    tree = blender_compat.ensure_node_tree(mat)
-    tree.nodes.clear()
-    out = tree.nodes.new("ShaderNodeOutputMaterial")
-    out.target = "ALL"
-    diffuse = tree.nodes.new("ShaderNodeBsdfDiffuse")
-    diffuse.inputs["Color"].default_value = (1.0, 1.0, 1.0, 1.0)
-    diffuse.inputs["Roughness"].default_value = 0.0  # Lambert
-    tree.links.new(diffuse.outputs["BSDF"], out.inputs["Surface"])
-    geometry = tree.nodes.new("ShaderNodeNewGeometry")
-    aov = tree.nodes.new("ShaderNodeOutputAOV")
-    aov.aov_name = AOV_NORMAL
-    tree.links.new(geometry.outputs["True Normal"], aov.inputs["Color"])
-    return mat
-
-
 def _black_world(overrides: _Overrides):
     import bpy
 
@@ -298,8 +282,9 @@ def _add_aov(view_layer, overrides: _Overrides) -> None:
 
 
 def _apply_render_settings(scene, view_layer, light_obj, visible: set[str], samples: int,
-                           filepath: str, overrides: _Overrides) -> None:
-    """Switch the scene to the reference set-up (docs/design.md section 5)."""
+                           filepath: str, overrides: _Overrides) -> list[str]:
+    """Switch the scene to the reference set-up (docs/design.md section 5); returns the
+    notes of the reference materials (reference_materials.apply)."""
     s = overrides.set
     render = scene.render
     s(render, "engine", "CYCLES")
@@ -321,9 +306,11 @@ def _apply_render_settings(scene, view_layer, light_obj, visible: set[str], samp
     s(cycles, "light_sampling_threshold", 0.0)
     s(cycles, "sample_clamp_direct", 0.0)
     s(cycles, "sample_clamp_indirect", 0.0)
-    for attr in ("max_bounces", "diffuse_bounces", "glossy_bounces", "transmission_bounces",
-                 "volume_bounces", "transparent_max_bounces"):
+    for attr in ("max_bounces", "diffuse_bounces", "glossy_bounces", "transmission_bounces", "volume_bounces"):
         s(cycles, attr, 0)
+    # Shadow and camera rays pass see-through surfaces as transparent bounces: as many as
+    # a thick canopy needs (an opaque scene takes none).
+    s(cycles, "transparent_max_bounces", TRANSPARENT_BOUNCES)
     s(cycles, "use_guiding", False, optional=True)
     # Culling would drop geometry that still casts shadows into the view.
     s(cycles, "use_camera_cull", False, optional=True)
@@ -345,7 +332,7 @@ def _apply_render_settings(scene, view_layer, light_obj, visible: set[str], samp
     s(view_layer, "use_pass_position", True)
     s(view_layer, "use_pass_diffuse_direct", True)
     s(view_layer, "samples", 0)  # 0: use the scene's sample count
-    s(view_layer, "material_override", _override_material(overrides))
+    notes = reference_materials.apply(scene, view_layer, overrides)
     s(view_layer.cycles, "use_denoising", False, optional=True)
     _add_aov(view_layer, overrides)
 
@@ -364,6 +351,7 @@ def _apply_render_settings(scene, view_layer, light_obj, visible: set[str], samp
             s(obj, "is_holdout", False)
         if obj.type == "LIGHT" and obj != light_obj and obj.name_full in visible:
             s(obj, "hide_render", True)  # only the captured light may light the scene
+    return notes
 
 
 def _disable_shadows(scene, light_obj, overrides: _Overrides) -> None:
@@ -545,8 +533,12 @@ def capture(scene: "bpy.types.Scene", samples: int = DEFAULT_SAMPLES, *, light: 
     with interrupt.temporary_dir("omniwarp_ref_") as tmpdir:
         try:
             exr_path = tmpdir / "pass.exr"
-            _apply_render_settings(scene, layer, light_obj, visible, samples,
-                                   str(tmpdir / "pass"), overrides)
+            say("collecting triangles (render depsgraph)")
+            # The render depsgraph: render-level modifiers, hide_render, instancer flags;
+            # read before the reference materials replace the file's (their alpha).
+            scene_triangles = render_triangles(scene, layer)
+            material_notes = _apply_render_settings(scene, layer, light_obj, visible, samples,
+                                                    str(tmpdir / "pass"), overrides)
 
             depsgraph = _evaluated_depsgraph(scene, layer)
             camera_matrix = _rigid(cam_obj.evaluated_get(depsgraph).matrix_world)
@@ -555,10 +547,8 @@ def capture(scene: "bpy.types.Scene", samples: int = DEFAULT_SAMPLES, *, light: 
             scale = np.array(light_eval.matrix_world.to_scale())
             if light_obj.data.type == "SPOT" and np.ptp(np.abs(scale)) > 1e-4:
                 log.warning("spot light %r has non-uniform scale %s: its cone is not circular", light_obj.name, scale)
-            say("collecting triangles (render depsgraph)")
-            # The render depsgraph: render-level modifiers, hide_render, instancer flags.
-            scene_triangles = render_triangles(scene, layer)
             triangles = scene_triangles.select(rule.blocks)
+            surface = scene_triangles.select_surface(rule.blocks)
             empty = {o.name for o in scene.objects
                      if o.type in GEOMETRY_TYPES and o.name_full in visible} - scene_triangles.names
             if empty:
@@ -606,7 +596,7 @@ def capture(scene: "bpy.types.Scene", samples: int = DEFAULT_SAMPLES, *, light: 
         "occluder_triangles": int(len(triangles)),
         "scene_triangles": int(sum(len(t) for t in scene_triangles.triangles)),
         "light_casts_shadows": rule.casts_shadows,
-        "notes": list(rule.notes),
+        "notes": list(rule.notes) + material_notes + scene_triangles.alpha_notes(),
     }
     if light_obj.data.type == "SPOT":
         meta["spot_size_deg"] = math.degrees(light_obj.data.spot_size)
@@ -634,4 +624,5 @@ def capture(scene: "bpy.types.Scene", samples: int = DEFAULT_SAMPLES, *, light: 
         camera_window=camera_window,
         camera_ortho=camera_ortho,
         camera_clip=camera_clip,
+        surface=surface if surface.see_through else None,
     )

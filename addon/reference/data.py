@@ -21,6 +21,10 @@ Conventions (verified in tests/blender/test_reference.py):
   `camera_ortho`. A centred perspective camera with square pixels stores no window,
   exactly as before these fields existed; older files load without them (a centred
   camera, clip 0.05 to 200 as then), so they need no format bump either.
+- `surface` (core/alpha.Surface): the see-through materials of `triangles` as the
+  capture read them (reference/material_alpha.py), stored as `uvs`, `material` and one
+  `alpha{i}_image` / `alpha{i}_transfer` pair a map (their names, interpolations and
+  extensions in meta["alpha_maps"]); a file without them is all opaque.
 """
 from __future__ import annotations
 
@@ -36,6 +40,7 @@ from typing import Any
 
 import numpy as np
 
+from ..core.alpha import AlphaMap, Surface
 from ..core.camera import CameraSpec, Window
 from ..core.errors import ReferenceCaptureError
 
@@ -72,6 +77,7 @@ class ReferenceData:
     camera_window: Window | None = None
     camera_ortho: bool = False
     camera_clip: tuple[float, float] | None = None  # (start, end); None: CameraSpec's defaults
+    surface: Surface | None = None  # see-through materials of `triangles`; None: all opaque
 
     def __post_init__(self) -> None:
         self.position = np.asarray(self.position, dtype=np.float32)
@@ -95,6 +101,9 @@ class ReferenceData:
             self.camera_clip = (float(self.camera_clip[0]), float(self.camera_clip[1]))
         if self.camera_ortho and self.camera_window is None:
             raise ReferenceCaptureError("an orthographic reference camera needs its camera_window")
+        if self.surface is not None and len(self.surface) != len(self.triangles):
+            raise ReferenceCaptureError(f"reference surface has {len(self.surface)} triangles, "
+                                        f"the triangles {len(self.triangles)}")
         self._check_shapes()
 
     def _check_shapes(self) -> None:
@@ -147,6 +156,10 @@ class ReferenceData:
         np.divide(self.shadowed, self.unshadowed, out=ratio, where=lit)
         return lit & (ratio >= 0.5)
 
+    def scene_surface(self) -> Surface:
+        """The triangles' see-through materials (all opaque for a file without them)."""
+        return self.surface if self.surface is not None else Surface.opaque(len(self.triangles))
+
     def lit_domain(self, eps: float = 1e-6) -> np.ndarray:
         """(H, W) bool: hit pixels that receive light when no shadows are cast."""
         return self.hit & (self.unshadowed > eps)
@@ -160,6 +173,20 @@ class ReferenceData:
             arrays["camera_ortho"] = np.array(self.camera_ortho)
         if self.camera_clip is not None:
             arrays["camera_clip"] = np.array(self.camera_clip, dtype=np.float64)
+        return arrays
+
+    def _surface_arrays(self, meta: dict[str, Any]) -> dict[str, np.ndarray]:
+        """The see-through materials as arrays (none for an all-opaque scene); their
+        descriptions go to `meta`."""
+        if self.surface is None or not self.surface.see_through:
+            return {}
+        arrays = {"uvs": self.surface.uvs, "material": self.surface.material}
+        for index, amap in enumerate(self.surface.maps):
+            arrays[f"alpha{index}_image"] = amap.image
+            if amap.transfer is not None:
+                arrays[f"alpha{index}_transfer"] = amap.transfer
+        meta["alpha_maps"] = [{"name": m.name, "interpolation": m.interpolation, "extension": m.extension}
+                              for m in self.surface.maps]
         return arrays
 
     def save(self, path: str | os.PathLike) -> Path:
@@ -186,8 +213,9 @@ class ReferenceData:
                     camera_fov_deg=np.array(self.camera_fov_deg, dtype=np.float64),
                     resolution=np.array(self.resolution, dtype=np.int64),
                     spot_size=np.array(self.spot_size, dtype=np.float64),
-                    meta=np.array(json.dumps(meta, sort_keys=True)),
                     **self._camera_arrays(),
+                    **self._surface_arrays(meta),
+                    meta=np.array(json.dumps(meta, sort_keys=True)),
                 )
             os.replace(tmp, path)
         finally:
@@ -222,6 +250,7 @@ class ReferenceData:
                     resolution=tuple(int(v) for v in npz["resolution"]),
                     meta=meta,
                     spot_size=_stored_spot_size(npz, meta),
+                    surface=_stored_surface(npz, meta),
                     **_stored_camera(npz),
                 )
         except _UNREADABLE as exc:
@@ -237,6 +266,16 @@ def _stored_camera(npz) -> dict[str, Any]:
     if "camera_clip" in npz.files:
         fields["camera_clip"] = tuple(float(v) for v in npz["camera_clip"])
     return fields
+
+
+def _stored_surface(npz, meta: dict[str, Any]) -> Surface | None:
+    """The see-through materials of a loaded file; None when it has none."""
+    if "material" not in npz.files:
+        return None
+    maps = tuple(AlphaMap(d["name"], npz[f"alpha{i}_image"], d["interpolation"], d["extension"],
+                          npz[f"alpha{i}_transfer"] if f"alpha{i}_transfer" in npz.files else None)
+                 for i, d in enumerate(meta.get("alpha_maps", ())))
+    return Surface(npz["uvs"], npz["material"], maps)
 
 
 def _stored_spot_size(npz, meta: dict[str, Any]) -> float:

@@ -52,6 +52,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from ..core import interrupt, metrics
+from ..core.alpha import AlphaMap
 from ..core.errors import (
     EXIT_BAD_INPUT,
     ChildProcessCrash,
@@ -105,6 +106,11 @@ def save_scene_spec(spec: SceneSpec, path: str | os.PathLike) -> Path:
         arrays[f"mesh{i}_vertices"] = np.asarray(mesh.vertices, dtype=np.float64).reshape(-1, 3)
         arrays[f"mesh{i}_triangles"] = np.asarray(mesh.triangles, dtype=np.int64).reshape(-1, 3)
         arrays[f"mesh{i}_matrix"] = np.asarray(mesh.matrix_world, dtype=np.float64).reshape(4, 4)
+        if mesh.alpha is not None and mesh.uvs is not None:
+            arrays[f"mesh{i}_uvs"] = np.asarray(mesh.uvs, dtype=np.float64)
+            arrays[f"mesh{i}_alpha_image"] = mesh.alpha.image
+            if mesh.alpha.transfer is not None:
+                arrays[f"mesh{i}_alpha_transfer"] = mesh.alpha.transfer
     arrays["light_matrix"] = np.asarray(spec.light.matrix_world, dtype=np.float64).reshape(4, 4)
     arrays["camera_matrix"] = np.asarray(spec.camera.matrix_world, dtype=np.float64).reshape(4, 4)
     header = {
@@ -113,6 +119,9 @@ def save_scene_spec(spec: SceneSpec, path: str | os.PathLike) -> Path:
         "description": spec.description,
         "stresses": spec.stresses,
         "mesh_names": [mesh.name for mesh in spec.meshes],
+        "alpha_maps": {str(i): {"name": m.alpha.name, "interpolation": m.alpha.interpolation,
+                                "extension": m.alpha.extension}
+                       for i, m in enumerate(spec.meshes) if m.alpha is not None},
         "light": {"emission": spec.light.emission, "energy": float(spec.light.energy)},
         "camera": {"fov_deg": float(spec.camera.fov_deg), "resolution": [int(v) for v in spec.camera.resolution],
                    "clip_start": float(spec.camera.clip_start), "clip_end": float(spec.camera.clip_end),
@@ -134,7 +143,8 @@ def load_scene_spec(path: str | os.PathLike) -> SceneSpec:
             header = json.loads(str(npz["header"]))
             if header.get("format") != SPEC_FORMAT:
                 raise InputError(f"scene spec {path} has format {header.get('format')}, expected {SPEC_FORMAT}")
-            meshes = [MeshSpec(name, npz[f"mesh{i}_vertices"], npz[f"mesh{i}_triangles"], npz[f"mesh{i}_matrix"])
+            meshes = [MeshSpec(name, npz[f"mesh{i}_vertices"], npz[f"mesh{i}_triangles"], npz[f"mesh{i}_matrix"],
+                               *_stored_alpha(npz, header, i))
                       for i, name in enumerate(header["mesh_names"])]
             light = LightSpec(header["light"]["emission"], npz["light_matrix"], header["light"]["energy"])
             cam = header["camera"]
@@ -146,6 +156,17 @@ def load_scene_spec(path: str | os.PathLike) -> SceneSpec:
         raise InputError(f"cannot read scene spec {path}: {exc}") from exc
     return SceneSpec(header["name"], meshes, light, camera, header.get("description", ""),
                      header.get("stresses", ""))
+
+
+def _stored_alpha(npz, header: dict, index: int) -> tuple[AlphaMap | None, np.ndarray | None]:
+    """A stored mesh's see-through material and UVs, (None, None) when it is opaque."""
+    described = header.get("alpha_maps", {}).get(str(index))
+    if described is None:
+        return None, None
+    transfer = npz[f"mesh{index}_alpha_transfer"] if f"mesh{index}_alpha_transfer" in npz.files else None
+    amap = AlphaMap(described["name"], npz[f"mesh{index}_alpha_image"], described["interpolation"],
+                    described["extension"], transfer)
+    return amap, npz[f"mesh{index}_uvs"]
 
 
 # ----------------------------------------------------------------------------
@@ -250,7 +271,8 @@ def light_reach(depsgraph, light_obj, visible: set[str]) -> float:
 def _apply_eevee_settings(scene, view_layer, light_obj, visible: set[str], engine: str,
                           filepath: str, overrides) -> dict[str, Any]:
     """The reference set-up for EEVEE (hard light, white diffuse, black world); returns what was set."""
-    from .capture import _black_world, _override_material, set_pass_output
+    from . import reference_materials
+    from .capture import _black_world, set_pass_output
 
     s = overrides.set
     render = scene.render
@@ -281,7 +303,7 @@ def _apply_eevee_settings(scene, view_layer, light_obj, visible: set[str], engin
     s(view_layer, "use_pass_combined", True)
     s(view_layer, "use_pass_diffuse_direct", True)
     s(view_layer, "samples", 0)
-    s(view_layer, "material_override", _override_material(overrides))
+    reference_materials.apply(scene, view_layer, overrides)  # keeps each material's transparent shadows
 
     light = light_obj.data
     s(light, "shadow_soft_size", 0.0)
@@ -632,12 +654,12 @@ def eevee_rows(source_args: list[str], reference: ReferenceData, preset_label: s
             log.warning("EEVEE and Cycles disagree on the hit mask at %.2f %% of pixels: other camera or scene?",
                         100.0 - hit_agreement)
         est_lit = data["visibility"].astype(bool)
-        figure = metrics.error_figure(est_lit, ref_lit, evaluable)
+        judged = metrics.judge(est_lit, reference.shadowed, reference.unshadowed, evaluable)
         cap = _finite(entry["shadow_maximum_resolution"], "shadow_maximum_resolution")
         # No map resolution, passes, texels or pipeline stages: EEVEE's virtual shadow maps
         # have none of them (rows.Row); the setting and its finest texel say what was run.
         row = make_row(
-            preset_label, "eevee", reference.emission, figure,
+            preset_label, "eevee", reference.emission, judged.figure,
             {"total": _finite(entry["render_ms"], "render time"), "warmup": warmup_ms},
             str(summary["renderer"]), "eevee", int(summary["frames"]), (width, height),
             scene_triangles=int(len(reference.triangles)),
@@ -647,6 +669,7 @@ def eevee_rows(source_args: list[str], reference: ReferenceData, preset_label: s
             hit_agreement_pct=hit_agreement,
             render_settings=summary["render_settings"],
             note=ROW_NOTE,
+            **judged.columns(),
         )
         if image_dir is not None:
             image_dir.mkdir(parents=True, exist_ok=True)

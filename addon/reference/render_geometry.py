@@ -10,7 +10,8 @@ one: `render_triangles` registers a tiny engine, "renders" one frame with it and
 reads `depsgraph.object_instances` inside its `render` call.
 
 Every instance is kept with the names of its original object and instancer
-(`Owner`), so one read serves any light's `ShadowRule`.
+(`Owner`), so one read serves any light's `ShadowRule`, and with its see-through
+materials (`material_alpha.mesh_surface`: per-triangle UVs and alpha maps).
 """
 from __future__ import annotations
 
@@ -20,7 +21,9 @@ from typing import TYPE_CHECKING, Any, Callable
 
 import numpy as np
 
+from ..core.alpha import Surface
 from ..core.errors import ReferenceCaptureError
+from .material_alpha import MaterialAlpha, mesh_surface
 
 if TYPE_CHECKING:  # pragma: no cover - typing only
     import bpy
@@ -43,10 +46,26 @@ class Owner:
 
 @dataclass
 class SceneTriangles:
-    """World-space triangles (T, 3, 3) float32 grouped by owner."""
+    """World-space triangles (T, 3, 3) float32 grouped by owner, with their surfaces."""
 
     owners: list[Owner]
     triangles: list[np.ndarray]
+    surfaces: list[Surface] | None = None  # one a batch; None: all opaque
+    notes: dict[str, str] | None = None  # material -> why its alpha was not followed
+
+    def select_surface(self, keep: Callable[[str, str | None], bool]) -> Surface:
+        """The surfaces of the triangles `select(keep)` returns, in the same order."""
+        surfaces = self.surfaces or [Surface.opaque(len(t)) for t in self.triangles]
+        return Surface.concatenate([surface for owner, surface in zip(self.owners, surfaces)
+                                    if keep(owner.name, owner.parent)])
+
+    def alpha_notes(self) -> list[str]:
+        """One note naming the see-through materials whose alpha the rule could not
+        follow: the reference renders them as the file has them, OmniWarp as opaque."""
+        if not self.notes:
+            return []
+        listed = ", ".join(f"{name} ({why})" for name, why in sorted(self.notes.items()))
+        return [f"materials whose alpha OmniWarp draws as opaque: {listed}"]
 
     def select(self, keep: Callable[[str, str | None], bool], key: object = None) -> np.ndarray:
         """The triangles of the owners `keep(name, parent)` accepts, concatenated.
@@ -66,11 +85,19 @@ class SceneTriangles:
 
 def local_triangles(obj: Any, depsgraph: Any) -> np.ndarray:
     """Object-space triangles (n, 3, 3) float32 of an evaluated object."""
+    return local_geometry(obj, depsgraph)[0]
+
+
+def local_geometry(obj: Any, depsgraph: Any, materials: dict[str, MaterialAlpha] | None = None
+                   ) -> tuple[np.ndarray, Surface, dict[str, str]]:
+    """Object-space triangles (n, 3, 3) float32 of an evaluated object, their surface and
+    the notes of the materials not followed; the surface is read only with `materials`
+    (a cache shared by the scene's objects), else it is opaque."""
     temporary = obj.type != "MESH"
     mesh = obj.to_mesh(preserve_all_data_layers=False, depsgraph=depsgraph) if temporary else obj.data
     try:
         if mesh is None:
-            return np.zeros((0, 3, 3), dtype=np.float32)
+            return np.zeros((0, 3, 3), dtype=np.float32), Surface.opaque(0), {}
         if len(mesh.polygons) and not len(mesh.loop_triangles):
             mesh.calc_loop_triangles()
         n_tris = len(mesh.loop_triangles)
@@ -78,7 +105,10 @@ def local_triangles(obj: Any, depsgraph: Any) -> np.ndarray:
         mesh.vertices.foreach_get("co", coords)
         indices = np.empty(n_tris * 3, dtype=np.int32)
         mesh.loop_triangles.foreach_get("vertices", indices)
-        return coords.reshape(-1, 3)[indices].reshape(n_tris, 3, 3)
+        tris = coords.reshape(-1, 3)[indices].reshape(n_tris, 3, 3)
+        if materials is None:
+            return tris, Surface.opaque(n_tris), {}
+        return (tris, *mesh_surface(obj, mesh, materials))
     finally:
         if temporary:
             obj.to_mesh_clear()
@@ -92,7 +122,10 @@ def collect(depsgraph: Any) -> SceneTriangles:
     """
     owners: list[Owner] = []
     triangles: list[np.ndarray] = []
-    local_cache: dict[Any, np.ndarray] = {}
+    surfaces: list[Surface] = []
+    notes: dict[str, str] = {}
+    materials: dict[str, MaterialAlpha] = {}
+    local_cache: dict[Any, tuple[np.ndarray, Surface]] = {}
     for inst in depsgraph.object_instances:
         obj = inst.object
         # Cycles renders evaluated meshes only. A curve, text, surface or metaball
@@ -106,16 +139,20 @@ def collect(depsgraph: Any) -> SceneTriangles:
         # Geometry-nodes instance geometry has no object of its own: key on its data.
         key = obj.original.name_full if parent is None or obj.original != parent.original else \
             ("data", obj.data.as_pointer() if obj.data is not None else obj.as_pointer())
-        local = local_cache.get(key)
-        if local is None:
-            local = local_cache[key] = local_triangles(obj, depsgraph)
+        held = local_cache.get(key)
+        if held is None:
+            local, surface, found = local_geometry(obj, depsgraph, materials)
+            held = local_cache[key] = (local, surface)
+            notes.update(found)
+        local, surface = held
         if not len(local):
             continue
         matrix = np.array(inst.matrix_world, dtype=np.float64)
         corners = local.reshape(-1, 3).astype(np.float64) @ matrix[:3, :3].T + matrix[:3, 3]
         owners.append(Owner(obj.original.name_full, None if parent is None else parent.original.name_full))
         triangles.append(corners.reshape(-1, 3, 3).astype(np.float32))
-    return SceneTriangles(owners, triangles)
+        surfaces.append(surface)
+    return SceneTriangles(owners, triangles, surfaces, notes)
 
 
 def render_triangles(scene: "bpy.types.Scene", view_layer: "bpy.types.ViewLayer") -> SceneTriangles:

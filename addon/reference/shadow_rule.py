@@ -43,6 +43,7 @@ from typing import TYPE_CHECKING, Any, Callable, Hashable, Iterable
 import numpy as np
 
 from ..render import blender_compat
+from . import reference_materials
 
 if TYPE_CHECKING:  # pragma: no cover - typing only
     import bpy
@@ -161,21 +162,22 @@ def _indirect_only(view_layer: "bpy.types.ViewLayer | None") -> set[str]:
 
 
 def _see_through_material(material: "bpy.types.Material") -> str | None:
-    """Why a material lets shadow rays through in Cycles, or None."""
+    """Why a material lets shadow rays through in Cycles in a way the reference does not
+    keep, or None. Alpha (a Principled BSDF's, Transparent BSDFs in Mix Shaders) is kept
+    (reference_materials); transmission, refraction and glass are not."""
     if not blender_compat.uses_nodes(material):
         return None
     tree = material.node_tree
+    follows_alpha = reference_materials.see_through(material)
     for node in tree.nodes:
-        if node.type in _SEE_THROUGH_NODES:
+        if node.type in _SEE_THROUGH_NODES and not (node.type == "BSDF_TRANSPARENT" and follows_alpha):
             return f"a {node.type.replace('BSDF_', '').lower()} shader"
         if node.type == "BSDF_PRINCIPLED":
-            for socket_name in ("Alpha", "Transmission Weight", "Transmission"):
+            for socket_name in ("Transmission Weight", "Transmission"):
                 socket = node.inputs.get(socket_name)
                 if socket is None:
                     continue
-                value = float(socket.default_value)
-                see_through = value > 0.0 if socket_name != "Alpha" else value < 1.0
-                if socket.is_linked or see_through:
+                if socket.is_linked or float(socket.default_value) > 0.0:
                     return f"Principled {socket_name.lower()}"
     if getattr(material, "displacement_method", "BUMP") in ("DISPLACEMENT", "BOTH"):
         output = tree.get_output_node("CYCLES") if hasattr(tree, "get_output_node") else None

@@ -123,6 +123,15 @@ def ensure_node_tree(id_block: Any) -> Any:
     return id_block.node_tree
 
 
+def set_see_through(material: Any) -> None:
+    """EEVEE's settings for a material with alpha: dithered surfaces and transparent shadows
+    (EEVEE Next, 4.2+, on every line the manifest names); Cycles reads the nodes alone."""
+    if hasattr(material, "surface_render_method"):
+        material.surface_render_method = "DITHERED"
+    if hasattr(material, "use_transparent_shadow"):
+        material.use_transparent_shadow = True
+
+
 def uses_nodes(id_block: Any) -> bool:
     """Whether a material or world renders through its node tree on this line."""
     if id_block.node_tree is None:

@@ -1,0 +1,233 @@
+"""The materials the reference renders with: white diffuse, keeping the file's alpha (issue 25).
+
+The reference measures visibility, so every surface renders as a white Lambert that
+also writes its geometric normal to an AOV. A scene without see-through materials gets
+that as the view layer's material override, as before. A scene with them cannot: the
+override would remove the alpha that Cycles' shadow rays see. Then every material slot
+of the rendered objects gets a white copy instead, and a see-through material's copy
+keeps its own node graph in front of the white:
+
+    surface = Mix(fac, Transparent, white diffuse)
+    fac     = alpha for shadow (and every other) rays; alpha >= 1/2 ? 1 : 0 for camera rays
+
+so Cycles lets shadow rays through with weight 1 - alpha, evaluating the file's own
+graph (images, math, even procedural textures), while the camera sees each surface as
+opaque or absent, as the position pass (pass_alpha_threshold 0.5) and OmniWarp's view
+samples take it. The alpha is read from the shader that reaches the Material Output:
+a Principled BSDF's Alpha, Transparent BSDFs (alpha 0), and Mix Shaders of them,
+(1 - f) alpha_A + f alpha_B; any other shader is opaque.
+"""
+from __future__ import annotations
+
+import logging
+from typing import Any
+
+from ..render import blender_compat
+
+log = logging.getLogger(__name__)
+
+AOV_NORMAL = "OmniWarpTrueNormal"  # the geometric normal, written by every reference material
+# Alpha at or above which a camera ray stops at the surface (Cycles' pass_alpha_threshold).
+CAMERA_ALPHA = 0.5
+
+
+def white_material(overrides, name: str = "OmniWarp reference white"):
+    """White diffuse material that also writes the geometric normal to the AOV."""
+    import bpy
+
+    mat = bpy.data.materials.new(name)
+    overrides.on_restore(lambda: bpy.data.materials.remove(mat))
+    tree = blender_compat.ensure_node_tree(mat)
+    tree.nodes.clear()
+    out = tree.nodes.new("ShaderNodeOutputMaterial")
+    out.target = "ALL"
+    tree.links.new(_white_diffuse(tree), out.inputs["Surface"])
+    _normal_aov(tree)
+    return mat
+
+
+def _white_diffuse(tree) -> Any:
+    diffuse = tree.nodes.new("ShaderNodeBsdfDiffuse")
+    diffuse.inputs["Color"].default_value = (1.0, 1.0, 1.0, 1.0)
+    diffuse.inputs["Roughness"].default_value = 0.0  # Lambert
+    return diffuse.outputs["BSDF"]
+
+
+def _normal_aov(tree) -> None:
+    geometry = tree.nodes.new("ShaderNodeNewGeometry")
+    aov = tree.nodes.new("ShaderNodeOutputAOV")
+    aov.aov_name = AOV_NORMAL
+    tree.links.new(geometry.outputs["True Normal"], aov.inputs["Color"])
+
+
+def surface_output(tree) -> Any:
+    """The Material Output Cycles renders (its own target first, then any active one)."""
+    if hasattr(tree, "get_output_node"):
+        node = tree.get_output_node("CYCLES")
+        if node is not None:
+            return node
+    outputs = [n for n in tree.nodes if n.type == "OUTPUT_MATERIAL"]
+    return next((n for n in outputs if getattr(n, "is_active_output", False)), outputs[0] if outputs else None)
+
+
+def _linked_from(socket) -> Any:
+    """The output socket feeding `socket` (through reroutes), or None."""
+    while socket.is_linked:
+        link = socket.links[0]
+        if not getattr(link, "is_valid", True) or getattr(link, "is_muted", False):
+            return None
+        node = link.from_node
+        if node.type == "REROUTE":
+            socket = node.inputs[0]
+            continue
+        return link.from_socket
+    return None
+
+
+class _Expression:
+    """Builds the alpha as math nodes in a tree, folding constants (a float or a socket)."""
+
+    def __init__(self, tree) -> None:
+        self.tree = tree
+
+    def math(self, operation: str, a, b):
+        if isinstance(a, float) and isinstance(b, float):
+            return {"MULTIPLY": a * b, "ADD": a + b, "SUBTRACT": a - b, "GREATER_THAN": float(a > b)}[operation]
+        node = self.tree.nodes.new("ShaderNodeMath")
+        node.operation = operation
+        for slot, value in zip(node.inputs[:2], (a, b)):
+            if isinstance(value, float):
+                slot.default_value = value
+            else:
+                self.tree.links.new(value, slot)
+        return node.outputs[0]
+
+    def value_of(self, socket):
+        """A float input's value: its link or its default."""
+        source = _linked_from(socket)
+        return source if source is not None else float(socket.default_value)
+
+    def alpha(self, shader_output, depth: int = 0):
+        """The alpha of the shader behind an output socket; None when it is opaque."""
+        node = shader_output.node
+        if depth > 16:
+            return None
+        if node.type == "BSDF_PRINCIPLED":
+            value = self.value_of(node.inputs["Alpha"])
+            return None if value == 1.0 else value
+        if node.type == "BSDF_TRANSPARENT":
+            return 0.0
+        if node.type == "MIX_SHADER":
+            fac = self.value_of(node.inputs[0])
+            parts = []
+            for socket in node.inputs[1:3]:
+                source = _linked_from(socket)
+                parts.append(1.0 if source is None else self.alpha(source, depth + 1))
+            if parts[0] is None and parts[1] is None:
+                return None
+            a, b = (1.0 if p is None else p for p in parts)
+            # (1 - f) a + f b
+            return self.math("ADD", self.math("MULTIPLY", self.math("SUBTRACT", 1.0, fac), a),
+                             self.math("MULTIPLY", fac, b))
+        return None
+
+
+def see_through(material) -> bool:
+    """Whether a material's shader lets shadow rays through by its alpha (read-only check)."""
+    if material is None or not blender_compat.uses_nodes(material):
+        return False
+    output = surface_output(material.node_tree)
+    source = _linked_from(output.inputs["Surface"]) if output is not None else None
+    return source is not None and _has_alpha(source, 0)
+
+
+def _has_alpha(shader_output, depth: int) -> bool:
+    node = shader_output.node
+    if depth > 16:
+        return False
+    if node.type == "BSDF_PRINCIPLED":
+        socket = node.inputs["Alpha"]
+        return _linked_from(socket) is not None or float(socket.default_value) < 1.0
+    if node.type == "BSDF_TRANSPARENT":
+        return True
+    if node.type == "MIX_SHADER":
+        return any(_has_alpha(s, depth + 1) for s in map(_linked_from, node.inputs[1:3]) if s is not None)
+    return False
+
+
+def _see_through_copy(material, overrides):
+    """A copy of a see-through material: its graph, with the white in front (module docstring)."""
+    import bpy
+
+    copy = material.copy()
+    overrides.on_restore(lambda: bpy.data.materials.remove(copy))
+    tree = copy.node_tree
+    output = surface_output(tree)
+    expr = _Expression(tree)
+    alpha = expr.alpha(_linked_from(output.inputs["Surface"]))
+    alpha = 1.0 if alpha is None else alpha
+    for node in [n for n in tree.nodes if n.type in ("OUTPUT_MATERIAL", "OUTPUT_AOV")]:
+        tree.nodes.remove(node)
+    light_path = tree.nodes.new("ShaderNodeLightPath")
+    opaque_for_camera = expr.math("GREATER_THAN", alpha, CAMERA_ALPHA - 1e-6)  # alpha >= 1/2
+    fac = expr.math("ADD", alpha, expr.math("MULTIPLY", light_path.outputs["Is Camera Ray"],
+                                            expr.math("SUBTRACT", opaque_for_camera, alpha)))
+    mix = tree.nodes.new("ShaderNodeMixShader")
+    if isinstance(fac, float):
+        mix.inputs[0].default_value = fac
+    else:
+        tree.links.new(fac, mix.inputs[0])
+    transparent = tree.nodes.new("ShaderNodeBsdfTransparent")
+    transparent.inputs["Color"].default_value = (1.0, 1.0, 1.0, 1.0)
+    tree.links.new(transparent.outputs["BSDF"], mix.inputs[1])
+    tree.links.new(_white_diffuse(tree), mix.inputs[2])
+    out = tree.nodes.new("ShaderNodeOutputMaterial")
+    out.target = "ALL"
+    tree.links.new(mix.outputs["Shader"], out.inputs["Surface"])
+    _normal_aov(tree)
+    blender_compat.set_see_through(copy)
+    return copy
+
+
+def apply(scene, view_layer, overrides) -> list[str]:
+    """Give the scene its reference materials (module docstring); returns notes for the
+    objects whose materials could not be replaced (linked, read-only data)."""
+    objects = _rendered_objects(scene, view_layer)
+    materials = {slot.material for obj in objects for slot in obj.material_slots if slot.material is not None}
+    if not any(see_through(m) for m in materials):
+        overrides.set(view_layer, "material_override", white_material(overrides))
+        return []
+    white = white_material(overrides)
+    copies = {m: (_see_through_copy(m, overrides) if see_through(m) else white) for m in materials}
+    refused = []
+    for obj in objects:
+        try:
+            if not obj.material_slots and obj.data is not None and hasattr(obj.data, "materials"):
+                obj.data.materials.append(white)
+                overrides.on_restore(lambda data=obj.data: data.materials.pop())
+            for slot in obj.material_slots:
+                overrides.set(slot, "material", copies.get(slot.material, white))
+        except (AttributeError, TypeError, RuntimeError) as exc:
+            log.warning("object %r keeps its own materials in the reference: %s", obj.name, exc)
+            refused.append(obj.name)
+    log.info("reference materials: %d see-through of %d", sum(c is not white for c in copies.values()), len(copies))
+    if refused:
+        return [f"objects whose materials the reference could not replace (read-only data): {', '.join(refused)}"]
+    return []
+
+
+_SURFACE_TYPES = {"MESH", "CURVE", "SURFACE", "META", "FONT", "CURVES", "POINTCLOUD", "VOLUME"}
+
+
+def _rendered_objects(scene, view_layer) -> list:
+    """The original objects whose surfaces render: the scene's, and those only instanced
+    (collection instances, geometry-node instances), found through the evaluated instances."""
+    found: dict[str, Any] = {}
+    for obj in scene.objects:
+        found[obj.name_full] = obj
+    depsgraph = getattr(view_layer, "depsgraph", None)
+    if depsgraph is not None:
+        for instance in depsgraph.object_instances:
+            original = instance.object.original
+            found.setdefault(original.name_full, original)
+    return [obj for obj in found.values() if obj.type in _SURFACE_TYPES and hasattr(obj, "material_slots")]
