@@ -12,6 +12,17 @@ vec3 ow_world_vertex(int index)
   return ow_object_linear * (hi + lo) + ow_object_origin;
 }
 
+#ifdef OW_ALPHA
+// Vertex `index`'s UV (the w of its two texels, resident.vertex_texels).
+vec2 ow_vertex_uv(int index)
+{
+  int texel = 2 * index;
+  float u = texelFetch(ow_vertices, ivec2(texel % OW_VERTEX_WIDTH, texel / OW_VERTEX_WIDTH), 0).w;
+  texel += 1;
+  return vec2(u, texelFetch(ow_vertices, ivec2(texel % OW_VERTEX_WIDTH, texel / OW_VERTEX_WIDTH), 0).w);
+}
+#endif
+
 void main()
 {
   int corner = clamp(int(ow_corner + 0.5), 0, OW_FOOTPRINT_VERTICES - 1);
@@ -21,6 +32,10 @@ void main()
   vec3 c = ow_world_vertex(base + 2);
   vec3 p = (corner == 1) ? b : ((corner == 2) ? c : a);
   v_world = p;
+#ifdef OW_ALPHA
+  int own = (corner == 1) ? 1 : ((corner == 2) ? 2 : 0);
+  v_uv = ow_vertex_uv(base + own);  // perspective-correct across the triangle
+#endif
   v_normal = cross(b - a, c - a);
   gl_Position = ow_view_proj * vec4(p, 1.0);
 }

@@ -45,7 +45,10 @@ import bpy
 import numpy as np
 
 from ..core.errors import InputError
-from ..reference.render_geometry import GEOMETRY_TYPES, local_triangles
+from ..core.alpha import Surface
+from ..reference.material_alpha import MaterialAlpha, material_alpha
+from ..reference.render_geometry import GEOMETRY_TYPES, local_geometry
+from ..reference import reference_materials
 from ..reference.shadow_rule import rules_for
 from ..reference.shadow_rule import shadow_inputs as _shadow_inputs
 from ..render.resident import ResidentScene
@@ -171,6 +174,11 @@ class SceneGeometryCache:
         self._resident_held: dict[str, tuple[np.ndarray, np.ndarray, tuple[str, str | None]]] = {}
         self._resident_version = -1
         self._resident_selections: dict[Hashable, tuple[int, ResidentScene]] = {}
+        # See-through materials (issue 25): each material's alpha as read, and the surface
+        # of each read source (by the id of its triangle array, which it keeps alive).
+        self._materials: dict[str, MaterialAlpha] = {}
+        self._surfaces: dict[int, tuple[np.ndarray, Surface]] = {}
+        self._dirty_materials: set[str] = set()
         self.stats: dict[str, int] = {
             "geometry_reads": 0, "matrix_updates": 0, "instance_collections": 0, "version": 0,
         }
@@ -190,6 +198,8 @@ class SceneGeometryCache:
         id_type = getattr(id_data, "id_type", "")
         key = id_key(id_data)
         if not (geometry or transform):
+            if id_type in ("MATERIAL", "IMAGE") and self._alpha_changed(id_data):
+                return "geometry"  # the objects using it are read again (update)
             if id_type == "OBJECT" and update.is_updated_shading:
                 flags = _ray_flags(id_data)
                 if self._ray_flags.get(key) != flags:
@@ -204,6 +214,30 @@ class SceneGeometryCache:
         elif geometry and id_type == "COLLECTION":
             self._dirty.collections.add(key)
         return "geometry" if geometry else "transform"
+
+    def _alpha_changed(self, id_data: Any) -> bool:
+        """Whether an edited material (or image) changes a see-through alpha; its users are
+        then flagged for a re-read. Materials that never had alpha cost one graph check."""
+        original = getattr(id_data, "original", None) or id_data
+        if getattr(original, "id_type", "") == "IMAGE":
+            names = [n for n, found in self._materials.items() if found.alpha is not None]
+        else:
+            names = [original.name_full]
+        changed = False
+        for name in names:
+            material = bpy.data.materials.get(name)
+            held = self._materials.get(name)
+            if material is None or (held is None and not reference_materials.see_through(material)):
+                continue
+            found = material_alpha(material)
+            before = None if held is None or held.alpha is None else (held.alpha.digest, held.uv_map,
+                                                                       held.uv_matrix.tobytes())
+            after = None if found.alpha is None else (found.alpha.digest, found.uv_map, found.uv_matrix.tobytes())
+            if before != after:
+                self._materials[name] = found
+                self._dirty_materials.add(name)
+                changed = True
+        return changed
 
     def mark_updates(self, updates: Iterable[Any]) -> tuple[bool, bool]:
         """`mark_dirty` for every update; return (any geometry, any other change to redraw)."""
@@ -230,6 +264,8 @@ class SceneGeometryCache:
         changed = False
         seen: set[tuple[str, Key]] = set()
         instancers: dict[Key, Any] = {}
+        if self._dirty_materials:
+            self._flag_material_users(depsgraph)
         for obj in depsgraph.objects:
             key = id_key(obj)
             if obj.is_instancer or _has_nodes_modifier(obj):
@@ -246,9 +282,29 @@ class SceneGeometryCache:
         changed |= self._sync_instances(instancers, depsgraph)
         changed |= self._drop(lambda k: k[0] == "instances" and k[1] not in instancers)
         self._dirty.clear()  # flags of objects not seen are moot: they are read afresh on sight
+        if changed and self._surfaces:
+            live = {id(held[0]) for part in self._parts.values() for held in part.sources}
+            live |= {id(held[0]) for held in self._sources.values()}
+            for stale in [k for k in self._surfaces if k not in live]:
+                del self._surfaces[stale]  # sources no longer held
         if changed:
             self._world_valid = False
             self.stats["version"] += 1
+
+    def _flag_material_users(self, depsgraph: Any) -> None:
+        """Flag the objects whose slots hold a material whose alpha changed, for a re-read."""
+        for obj in depsgraph.objects:
+            names = {slot.material.original.name_full for slot in getattr(obj, "material_slots", ())
+                     if slot.material is not None}
+            if names & self._dirty_materials:
+                key = id_key(obj)
+                self._dirty.objects[key] = self._dirty.objects.get(key, 0) | GEOMETRY
+        self._dirty_materials.clear()
+
+    def surface_of(self, local: np.ndarray) -> Surface | None:
+        """The see-through surface of a source's triangles, or None when opaque."""
+        held = self._surfaces.get(id(local))
+        return held[1] if held is not None and held[0] is local else None
 
     def _drop(self, gone: Callable[[tuple[str, Key]], bool]) -> bool:
         """Remove the parts `gone` selects; return whether there were any."""
@@ -373,10 +429,13 @@ class SceneGeometryCache:
         """Read one evaluated object's triangles (counted); a failed read gives none."""
         self.stats["geometry_reads"] += 1
         try:
-            return local_triangles(obj, depsgraph)
+            local, surface, _ = local_geometry(obj, depsgraph, self._materials)
         except (RuntimeError, ReferenceError) as exc:
             log.warning("could not read the geometry of %r: %s; it casts no shadow", obj.name, exc)
             return _EMPTY_LOCAL
+        if surface.see_through:
+            self._surfaces[id(local)] = (local, surface)
+        return local
 
     # ------------------------------------------------------------------ output
     def world_triangles(self) -> np.ndarray:
@@ -467,14 +526,15 @@ class SceneGeometryCache:
         return scene
 
     def _set_resident(self, key: str, local: np.ndarray, matrix: np.ndarray) -> None:
+        surface = self.surface_of(local)
         try:
-            self._resident.set_geometry(key, local, matrix)
+            self._resident.set_geometry(key, local, matrix, surface=surface)
         except InputError:
             # A zero scale or a non-finite matrix: its world triangles (flat, or dropped as
             # non-finite by the scene) with no matrix.
             with np.errstate(invalid="ignore", over="ignore"):
                 world = np.asarray(local, np.float64) @ matrix[:3, :3].T + matrix[:3, 3]
-            self._resident.set_geometry(key, world)
+            self._resident.set_geometry(key, world, surface=surface)
 
     def select_resident(self, keep: Callable[[str, str | None], bool], key: Hashable) -> ResidentScene:
         """`select` as a subset of `resident()`: the same objects, already on the GPU."""
@@ -496,6 +556,8 @@ class SceneGeometryCache:
         had = bool(self._parts) or (self._world is not None and len(self._world) > 0)
         self._parts.clear()
         self._sources.clear()
+        self._surfaces.clear()
+        self._materials.clear()
         self._dirty.clear()
         self._layout.clear()
         self._stale.clear()

@@ -460,18 +460,20 @@ _ALPHA_VARIANTS: dict[str, ProgramInterface] = {}  # footprint variant name -> i
 
 
 def alpha_of(base: ProgramInterface) -> ProgramInterface:
-    """The see-through variant of a footprint program (issue 25): the texel's ray meets the
-    triangle, its barycentrics give the UV and the material's alpha (lib/alpha.glsl) drops
-    the fragment or, in the exact pass, weighs the crossing. Objects without alpha keep the
-    plain programs, unchanged."""
+    """The see-through variant of a footprint or G-buffer program (issue 25): the texel's
+    ray meets the triangle, its barycentrics give the UV and the material's alpha
+    (lib/alpha.glsl) drops the fragment or, in the exact pass, weighs the crossing; the
+    G-buffer drops what the camera sees through. Objects without alpha keep the plain
+    programs, unchanged."""
     held = _ALPHA_VARIANTS.get(base.name)
     if held is None:
+        varyings = (Varying("vec2", "v_uv"),)
+        if base.fragment_file == FOOTPRINT_PROGRAM.fragment_file:
+            varyings = (Varying("vec4", "v_uv01", flat=True), Varying("vec2", "v_uv2", flat=True)) + varyings
         held = _ALPHA_VARIANTS[base.name] = replace(
             base, name=base.name + "_alpha", defines={**base.defines, ALPHA_DEFINE: "1"},
-            samplers=base.samplers + ALPHA_SAMPLERS,
-            uniforms=base.uniforms + (Uniform("int", "ow_alpha_mode"),),
-            varyings=base.varyings + (Varying("vec4", "v_uv01", flat=True), Varying("vec2", "v_uv2", flat=True),
-                                      Varying("vec2", "v_uv")))
+            samplers=base.samplers + ALPHA_SAMPLERS, uniforms=base.uniforms + (Uniform("int", "ow_alpha_mode"),),
+            varyings=base.varyings + varyings)
     return held
 
 
@@ -534,7 +536,8 @@ _FOOTPRINTS = tuple({iface.name: iface for iface in (FOOTPRINT_PROGRAM, *VARIANT
 EXACT_PROGRAMS = tuple(exact_of(iface) for iface in _FOOTPRINTS)
 ALPHA_PROGRAMS = tuple(alpha_of(iface) for iface in _FOOTPRINTS) + tuple(
     exact_of(alpha_of(iface)) for iface in _FOOTPRINTS)
-PROGRAMS = (*VARIANT_PROGRAMS, *EXACT_PROGRAMS, *ALPHA_PROGRAMS, RAY_TABLE_PROGRAM, GBUFFER_PROGRAM, GBUFFER_SAMPLES_PROGRAM, PREVIEW_PROGRAM, OVERLAY_PROGRAM, EDGE_PROGRAM)
+GBUFFER_ALPHA_PROGRAM = alpha_of(GBUFFER_PROGRAM)
+PROGRAMS = (*VARIANT_PROGRAMS, *EXACT_PROGRAMS, *ALPHA_PROGRAMS, GBUFFER_ALPHA_PROGRAM, RAY_TABLE_PROGRAM, GBUFFER_PROGRAM, GBUFFER_SAMPLES_PROGRAM, PREVIEW_PROGRAM, OVERLAY_PROGRAM, EDGE_PROGRAM)
 COMPUTE_PROGRAMS = (SCATTER_PROGRAM, SAMPLE_STATS_PROGRAM, *(_scatter_variant(mode, kind) for mode in SCATTER_MODES
                                                              for kind in (None, *FIXED_KIND_NAMES)),
                     *(_link_variant(kind) for kind in (None, *FIXED_KIND_NAMES)))

@@ -70,3 +70,46 @@ def test_hits_word_is_the_product_of_transmittances():
     assert got == pytest.approx(alpha.transmittance(alphas), abs=1e-4)
     assert alpha.hits_visibility(np.array([alpha.HIT_OPAQUE | 5], dtype=np.uint32))[0] == 0.0
     assert alpha.hits_visibility(np.array([0], dtype=np.uint32))[0] == 1.0
+
+
+def test_reference_surface_round_trips(tmp_path):
+    """A reference keeps its see-through materials through save and load; an opaque one
+    stores none of the fields."""
+    from addon.core.scene import look_at
+    from addon.reference.data import ReferenceData
+
+    w, h = 8, 6
+    leaf = AlphaMap("leaf", np.eye(4, dtype=np.float32), "linear", "clip",
+                    np.linspace(0.0, 1.0, alpha.TRANSFER_SIZE) ** 3)
+    surface = Surface(np.random.default_rng(1).uniform(size=(3, 3, 2)), np.array([0, -1, 1]),
+                      (leaf, AlphaMap.constant("curtain", 0.5)))
+
+    def reference(surface):
+        return ReferenceData(position=np.zeros((h, w, 3)), normal=np.zeros((h, w, 3)), hit=np.zeros((h, w), bool),
+                             shadowed=np.zeros((h, w)), unshadowed=np.zeros((h, w)), triangles=np.zeros((3, 3, 3)),
+                             light_matrix=np.eye(4), emission="omni", camera_matrix=look_at((0, -5, 1), (0, 0, 0)),
+                             camera_fov_deg=50.0, resolution=(w, h), surface=surface)
+
+    loaded = ReferenceData.load(reference(surface).save(tmp_path / "alpha.npz")).surface
+    assert loaded is not None and [m.digest for m in loaded.maps] == [m.digest for m in surface.maps]
+    assert np.array_equal(loaded.material, surface.material) and np.array_equal(loaded.uvs, surface.uvs)
+    plain = reference(None).save(tmp_path / "plain.npz")
+    with np.load(plain) as npz:
+        assert "material" not in npz.files
+    assert not ReferenceData.load(plain).scene_surface().see_through
+
+
+def test_the_judgement_leaves_fractional_pixels_to_the_soft_error():
+    from addon.core import metrics
+
+    unshadowed = np.ones((1, 4))
+    shadowed = np.array([[0.0, 1.0, 0.5, 0.5]])  # shadow, lit, and a curtain's half light twice
+    evaluable = np.ones((1, 4), bool)
+    judged = metrics.judge(np.array([[0.0, 1.0, 0.0, 0.5]]), shadowed, unshadowed, evaluable)
+    assert judged.figure.error_pct == 0.0 and judged.figure.evaluated_pixels == 2
+    assert judged.fractional_pixels == 2
+    assert judged.fractional_soft_error_pct == pytest.approx(25.0)  # |0 - 0.5| and 0, halved
+    assert judged.soft_error_pct == pytest.approx(12.5)
+    opaque = metrics.judge(np.array([[0.0, 0.0, 1.0, 1.0]]), np.array([[0.0, 1.0, 1.0, 0.0]]), unshadowed, evaluable)
+    assert opaque.fractional_pixels == 0 and opaque.fractional_soft_error_pct is None
+    assert opaque.figure.error_pct == pytest.approx(50.0) == opaque.soft_error_pct

@@ -100,3 +100,25 @@ def test_alpha_maps_upload_once_and_free_with_their_last_part(gl_backend, alpha_
     assert gl_backend.resident_alpha_maps() == before + 3
     gl_backend.release_scene(b)
     assert gl_backend.resident_alpha_maps() == before
+
+
+def test_the_foliage_preset_shadows_through_its_alpha(gl_backend):
+    """On the foliage preset (leaf cards, chain-link, a curtain) `exact` gives the ray
+    caster's transmittance; with the alpha ignored it gives the shadows of rectangles."""
+    from addon.core.presets import build_preset
+    from addon.render.resident import ResidentScene
+
+    scene = build_preset("foliage", (128, 96))
+    samples, _, evaluable = view_samples(scene)
+    expected = transmittance(scene.light.position, samples.positions.reshape(-1, 3), scene.world_triangles(),
+                             scene.surface()).reshape(evaluable.shape)[evaluable]
+    pipe = ShadowPipeline(gl_backend)
+    settings = ShadowSettings("dpsm", 1024, warp="notw", exact=True)
+    wrong = {}
+    for name, surface in (("alpha", scene.surface()), ("ignored", None)):
+        resident = ResidentScene.of_triangles(scene.world_triangles(), surface=surface)
+        got = pipe.render(scene.light, resident, samples, settings).visibility[evaluable]
+        wrong[name] = int((np.abs(got - expected) > 1e-3).sum())
+        gl_backend.release_scene(resident)
+    assert wrong["alpha"] <= max(2, int(1e-3 * evaluable.sum())), wrong
+    assert wrong["ignored"] > 0.05 * evaluable.sum(), wrong
