@@ -119,6 +119,15 @@ def _median_times(frames: Sequence[dict[str, float]]) -> dict[str, float]:
     return {k: float(statistics.median(f.get(k, 0.0) for f in frames)) for k in keys}
 
 
+# The one method that does not follow see-through materials: its host-built stream has no UVs.
+UNFOLD_ALPHA_NOTE = "unfold draws see-through materials opaque (its tessellated stream carries no UVs)"
+
+
+def scene_has_alpha(scene: ResidentScene) -> bool:
+    """Whether any resident part has a see-through material."""
+    return any(obj.alpha is not None for obj in scene.objects.values())
+
+
 def resident_scene(ref: ReferenceData) -> ResidentScene:
     """The reference's triangles as one resident object: build it once per reference and
     pass it to every row, so the GPU holds the scene across rows and frames."""
@@ -164,6 +173,7 @@ def run_row(pipeline: ShadowPipeline, ref: ReferenceData, preset: str, method: s
         layers=[layer.name for layer in last.plan.drawn],
         warp=_warp_summary(last),
         cull=options.cull,
+        note=UNFOLD_ALPHA_NOTE if settings.parameterization == "unfold" and scene_has_alpha(scene) else None,
     )
     if image_dir is not None:
         image_dir.mkdir(parents=True, exist_ok=True)
