@@ -30,6 +30,10 @@ def markdown_table(rows: Sequence[Row]) -> str:
     head = ("| preset | method | res | error % | false shadow % | false lit % | soft error % | evaluated px | total ms | "
             "prepare ms | analysis ms | maps ms | test ms | passes | triangles | tess. added | texels | "
             "max count before | max count after | texel use |")
+    # Scenes with see-through materials: the fractional pixels and their soft error.
+    fractional = any("fractional_pixels" in r for r in rows)
+    if fractional:
+        head += " fractional px | fractional soft error % |"
     lines = [head, "|" + "|".join(["---"] * (head.count("|") - 1)) + "|"]
     for r in rows:
         t = r["time_ms"]
@@ -40,16 +44,22 @@ def markdown_table(rows: Sequence[Row]) -> str:
                  _cell(r.get("passes")), _cell(r.get("triangles_drawn")), _cell(r.get("tessellated_triangles")),
                  _cell(r.get("texels")), _cell(r.get("max_count_before"), ".0f"),
                  _cell(r.get("max_count_after"), ".0f"), _cell(r.get("texel_utilization"), ".3f")]
+        if fractional:
+            cells += [_cell(r.get("fractional_pixels")), _cell(r.get("fractional_soft_error_pct"), ".3f")]
         lines.append("| " + " | ".join(cells) + " |")
     return "\n".join(lines) + "\n"
 
 
 def _scene_notes(rows: Sequence[dict]) -> list[str]:
-    """One line per scene and note: what its rows cannot follow (see shadow_rule.unfollowed)."""
+    """One line per scene and note: what its rows cannot follow (see shadow_rule.unfollowed),
+    and each distinct row note (a method's own limit there)."""
     lines = []
     for preset in sorted({r["preset"] for r in rows}):
         notes = next((r["scene_notes"] for r in rows if r["preset"] == preset and r.get("scene_notes")), [])
         lines += [f"- note on {preset}: {note}" for note in notes]
+        row_notes = sorted({f"{r['method']}: {r['note']}" for r in rows
+                            if r["preset"] == preset and r.get("note") and r["method"] != "eevee"})
+        lines += [f"- note on {preset}: {note}" for note in row_notes]
     return lines
 
 
@@ -70,6 +80,9 @@ def write_markdown(rows: Sequence[dict], path: Path, stamp: str, command: str = 
         "- error % = mismatching evaluated pixels against the Cycles visibility; soft error % = mean "
         "|visibility - Cycles| (equal to error % for binary methods; antialiased rows differ); times on a "
         "software rasteriser mean little in absolute terms, compare them as ratios within this table",
+        *(["- fractional px: pixels Cycles lights through see-through surfaces (visibility in (0.02, 0.98)), "
+           "left out of error % and measured by their own soft error"]
+          if any("fractional_pixels" in r for r in rows) else []),
         *_scene_notes(rows),
         "",
         markdown_table(rows),
