@@ -22,6 +22,7 @@ from ..core.errors import OmniWarpError, report_error
 from ..core.scene import LightSpec
 from ..reference.data import ReferenceData
 from ..render.pipeline import ShadowSettings, settings_for
+from ..render.resident import ResidentScene
 from . import properties, registration
 from .preview import run
 
@@ -95,7 +96,12 @@ def main(argv: list[str] | None = None) -> int:
             # like the Cycles reference it is measured against; the interactive
             # viewport reads its own depsgraph (scene_cache.py).
             found = render_triangles(scene, layer)
-            seen, occluders = shadow_inputs(found.select, rules_for(scene, [name for name, _, _ in lights]))
+
+            def resident(keep, key) -> ResidentScene:
+                # With the see-through materials, for the G-buffer and each light's blockers.
+                return ResidentScene.of_triangles(found.select(keep), surface=found.select_surface(keep))
+
+            seen, occluders = shadow_inputs(resident, rules_for(scene, [name for name, _, _ in lights]))
             report = run(reference, lights, seen, Path(args.out), occluders=occluders)
         finally:
             registration.unregister()

@@ -91,14 +91,22 @@ def stats_line(name: str, result, stats) -> str:
             + (f", {skipped} broken triangles skipped" if skipped else ""))
 
 
-def run(reference: ReferenceData, lights: list[tuple[str, LightSpec, ShadowSettings]], triangles: np.ndarray,
+def _resident(triangles: "np.ndarray | ResidentScene") -> ResidentScene:
+    """A resident scene as given (with its see-through parts), or one of a triangle soup."""
+    return triangles if isinstance(triangles, ResidentScene) else ResidentScene.of_triangles(triangles)
+
+
+def run(reference: ReferenceData, lights: list[tuple[str, LightSpec, ShadowSettings]],
+        triangles: "np.ndarray | ResidentScene",
         out_dir: Path, strength: float = 0.6, maps: frozenset[str] = frozenset({"DEPTH", "COUNT", "IMPORTANCE"}),
         thumb: int = 150,
-        occluders: dict[str, np.ndarray] | None = None) -> dict:
+        occluders: "dict[str, np.ndarray | ResidentScene] | None" = None) -> dict:
     """Render the preview of `lights` from the reference's camera and write the three files.
 
     `triangles` are what the camera sees (the G-buffer); `occluders` gives, per light
-    name, what blocks that light (`scene_cache.shadow_inputs`), else `triangles` do.
+    name, what blocks that light (`scene_cache.shadow_inputs`), else `triangles` do. Either
+    may be a resident scene, which keeps its see-through materials (the G-buffer then
+    sees through them where alpha < 1/2, as Cycles' camera does).
     """
     from ..render.blender_backend import BlenderGPUBackend
     from ..render.blender_gpu import ensure_gpu
@@ -114,7 +122,7 @@ def run(reference: ReferenceData, lights: list[tuple[str, LightSpec, ShadowSetti
         pipeline = ShadowPipeline(backend)
         # Resident before the clock starts, as in the viewport: the timed G-buffer is a
         # plain draw of the scene from the camera.
-        seen = ResidentScene.of_triangles(triangles)
+        seen = _resident(triangles)
         backend.sync_scene(seen)
         t0 = time.perf_counter()
         gbuffer = render_gbuffer(backend, seen, view_proj, camera.eye_homogeneous(), camera.resolution)
@@ -124,7 +132,7 @@ def run(reference: ReferenceData, lights: list[tuple[str, LightSpec, ShadowSetti
         per_light = []
         for name, light, settings in lights:
             # Resident once per light, as compare has it: the warm-up frame uploads it.
-            blockers = ResidentScene.of_triangles((occluders or {}).get(name, triangles))
+            blockers = _resident((occluders or {}).get(name, seen))
             pipeline.render(light, blockers, samples, settings)  # warm-up (shader compile, upload)
             result = pipeline.render(light, blockers, samples, settings, keep_atlas=True)
             stats = count_statistics(pipeline, light, settings, result, samples)

@@ -9,6 +9,7 @@ the reference's own visibility. With the alpha ignored the share is far off.
 """
 from __future__ import annotations
 
+import json
 import os
 import subprocess
 import sys
@@ -32,10 +33,11 @@ SUPPORT = REPO / "tests" / "support"
 MAX_SHARE_POINTS = 1.5
 
 
-def _run(*args: str, env: dict | None = None) -> None:
+def _run(*args: str, env: dict | None = None) -> str:
     proc = subprocess.run([sys.executable, *args], capture_output=True, text=True, timeout=600, cwd=REPO,
                           env={**os.environ, **(env or {})})
     assert proc.returncode == 0, proc.stderr[-3000:]
+    return proc.stdout
 
 
 @pytest.fixture(scope="module")
@@ -46,7 +48,7 @@ def captured(tmp_path_factory):
     _run("-m", "addon.cli", "reference", "--blend", str(blend), env={"OMNIWARP_CACHE": str(folder / "cache")})
     _run(str(SUPPORT / "plain_cycles.py"), str(blend), str(folder / "plain.npz"))
     (path,) = (folder / "cache").glob("foliage_*.npz")
-    return ReferenceData.load(path), dict(np.load(folder / "plain.npz"))
+    return ReferenceData.load(path), dict(np.load(folder / "plain.npz")), blend
 
 
 def _share(shadowed: np.ndarray, unshadowed: np.ndarray, domain: np.ndarray) -> float:
@@ -54,7 +56,7 @@ def _share(shadowed: np.ndarray, unshadowed: np.ndarray, domain: np.ndarray) -> 
 
 
 def test_the_reference_shadows_as_a_plain_render_of_the_file(captured):
-    ref, plain = captured
+    ref, plain, _ = captured
     assert ref.surface is not None and {m.name for m in ref.surface.maps} == {"Leaf", "ChainLink", "NetCurtain"}
     assert not ref.meta["notes"]
     reference = _share(ref.shadowed, ref.unshadowed, ref.lit_domain())
@@ -71,9 +73,22 @@ def test_the_reference_shadows_as_a_plain_render_of_the_file(captured):
 def test_the_stored_surface_gives_the_reference_visibility(captured):
     """The triangles' UVs and alpha maps, as stored, reproduce Cycles' visibility with the
     numpy ray caster: the material rule reads the graphs as Cycles evaluates them."""
-    ref, _ = captured
+    ref, _, _ = captured
     domain = ref.lit_domain()
     expected = transmittance(ref.light_position, ref.position[domain], ref.triangles, ref.scene_surface())
     ratio = metrics.reference_ratio(ref.shadowed, ref.unshadowed)[domain]
     wrong = np.abs(expected - ratio) > 0.05
     assert wrong.mean() < 2e-3, int(wrong.sum())
+
+
+@pytest.mark.gl
+def test_the_preview_draws_the_alpha(captured, tmp_path):
+    """`omniwarp preview --blend` (Blender's gpu backend, its own G-buffer) shadows through
+    the file's alpha: exact matches Cycles there as compare does."""
+    ref, _, blend = captured
+    out = tmp_path / "preview"
+    _run("-m", "addon", "preview", "--blend", str(blend), "--method", "exact", "--resolution", "512",
+         "--out", str(out), env={"OMNIWARP_CACHE": str(blend.parent / "cache")})
+    report = json.loads((out / "preview.json").read_text())
+    assert report["evaluated_pixels"] > 0.5 * ref.lit_domain().sum()  # the G-buffer sees what Cycles sees
+    assert report["error_pct"] < 0.2, report["error_pct"]
