@@ -103,6 +103,7 @@ class ShadowBackend(ABC):
         # digest -> (channel image, transfer table), and part key -> digest.
         self._alpha_textures: dict[str, tuple[object, object]] = {}
         self._alpha_users: dict[str, str] = {}
+        self._alpha_counts: dict[str, int] = {}  # digest -> parts using it (thousands of instances)
 
     def sync_scene(self, scene) -> None:
         """Make the GPU hold `scene`'s objects as they are now (a `resident.ResidentScene`).
@@ -136,9 +137,13 @@ class ShadowBackend(ABC):
                                                      self._upload_channel(transfer[None, :]))
                 self.geometry_bytes += int(image.nbytes + transfer.nbytes)
             self._alpha_users[key] = amap.digest
-        if previous is not None and previous not in self._alpha_users.values():
-            for texture in self._alpha_textures.pop(previous):
-                self._free_channel(texture)
+            self._alpha_counts[amap.digest] = self._alpha_counts.get(amap.digest, 0) + 1
+        if previous is not None:
+            self._alpha_counts[previous] -= 1
+            if not self._alpha_counts[previous]:
+                del self._alpha_counts[previous]
+                for texture in self._alpha_textures.pop(previous):
+                    self._free_channel(texture)
 
     def _drop_part(self, key: str) -> None:
         self._drop_vertices(key)
@@ -158,6 +163,7 @@ class ShadowBackend(ABC):
                 self._free_channel(texture)
         self._alpha_textures.clear()
         self._alpha_users.clear()
+        self._alpha_counts.clear()
 
     def resident_objects(self) -> int:
         """Objects whose vertex textures this backend holds."""

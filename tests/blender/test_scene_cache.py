@@ -519,3 +519,29 @@ def test_resident_inputs_are_the_shadow_inputs(world: World) -> None:
     assert_same_triangles(r_seen.world_triangles(), _with_area(seen))
     assert_same_triangles(r_occluders["resident_lamp"].world_triangles(), _with_area(occluders["resident_lamp"]))
     assert scene_cache.resident_inputs(world.cache, world.scene, ["resident_lamp"])[0] is r_seen
+
+
+def test_see_through_materials_become_alpha_parts_and_follow_edits(world):
+    """A card whose Principled Alpha is 0.5 is resident as a see-through part; setting the
+    alpha to 1 re-reads it as plain geometry, and another edit of that material that
+    leaves the alpha alone reads nothing again (issue 25)."""
+    from addon.render import blender_compat
+
+    card = world.mesh("card", [(0, 0, 1), (1, 0, 1), (1, 1, 1), (0, 1, 1)], [(0, 1, 2, 3)])
+    card.data.uv_layers.new(name="UVMap")
+    material = bpy.data.materials.new("curtain_test")
+    principled = next(n for n in blender_compat.ensure_node_tree(material).nodes if n.type == "BSDF_PRINCIPLED")
+    principled.inputs["Alpha"].default_value = 0.5
+    card.data.materials.append(material)
+    world.datablocks.append((bpy.data.materials, material.name_full))
+    world.evaluate()
+    alphas = [obj.alpha for obj in world.cache.resident().objects.values() if obj.triangles]
+    assert len(alphas) == 1 and alphas[0] is not None and alphas[0].sample(np.array([0.3, 0.3])) == pytest.approx(0.5)
+    reads = world.cache.stats["geometry_reads"]
+    principled.inputs["Base Color"].default_value = (1.0, 0.0, 0.0, 1.0)  # not the alpha
+    world.evaluate()
+    assert world.cache.stats["geometry_reads"] == reads
+    principled.inputs["Alpha"].default_value = 1.0
+    world.evaluate()
+    assert world.cache.stats["geometry_reads"] == reads + 1
+    assert all(obj.alpha is None for obj in world.cache.resident().objects.values())
