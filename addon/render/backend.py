@@ -195,16 +195,19 @@ class ShadowBackend(ABC):
         held = self._vertices.get(draw.key)
         if held is None:
             raise BackendError(f"object {draw.key!r} is not resident; call sync_scene first")
-        textures: dict[str, object] = {"ow_vertices": held[1]}
-        digest = self._alpha_users.get(draw.key)
-        if digest is not None:
-            textures.update(zip(ALPHA_SAMPLERS, self._alpha_textures[digest]))
+        see_through = draw.key in self._alpha_users
         if exact:
-            iface = exact_variant(uniforms, points, see_through=digest is not None)
+            iface = exact_variant(uniforms, points, see_through=see_through)
         else:
             iface = program_variant(FOOTPRINT_PROGRAM, uniforms, points)
-            iface = alpha_of(iface) if digest is not None else iface
-        return iface, textures
+            iface = alpha_of(iface) if see_through else iface
+        return iface, {"ow_vertices": held[1], **self.alpha_textures(draw.key)}
+
+    def alpha_textures(self, key: str) -> dict[str, object]:
+        """The alpha map a see-through part's programs sample (ALPHA_SAMPLERS); empty for
+        an opaque part."""
+        digest = self._alpha_users.get(key)
+        return {} if digest is None else dict(zip(ALPHA_SAMPLERS, self._alpha_textures[digest]))
 
     @staticmethod
     def _clear_rects(layout: AtlasLayout, boxes: dict[int, tuple[int, int, int, int]] | None) -> list[Rect] | None:

@@ -40,7 +40,6 @@ from .blender_gpu import (
     read_uint,
 )
 from .shaders import (
-    ALPHA_SAMPLERS,
     DEPTH_PROGRAM,
     EDGE_PROGRAM,
     FOOTPRINT_VERTICES,
@@ -302,12 +301,10 @@ class BlenderGPUBackend(ShadowBackend):
                 continue
             origin = obj.matrix[:3, :3] @ obj.origin + obj.matrix[:3, 3]
             values = {**uniforms, "ow_object_linear": obj.matrix[:3, :3], "ow_object_origin": origin}
-            textures = {"ow_vertices": self._vertices[key][1]}
-            digest = self._alpha_users.get(key)
-            if digest is not None:  # a see-through part: the camera sees it where alpha >= 1/2
+            textures = {"ow_vertices": self._vertices[key][1], **self.alpha_textures(key)}
+            if obj.alpha is not None:  # a see-through part: the camera sees it where alpha >= 1/2
                 values["ow_alpha_mode"] = obj.alpha.mode
-                textures.update(zip(ALPHA_SAMPLERS, self._alpha_textures[digest]))
-            shader = self._bind(GBUFFER_ALPHA_PROGRAM if digest is not None else GBUFFER_PROGRAM, values, textures)
+            shader = self._bind(GBUFFER_ALPHA_PROGRAM if obj.alpha is not None else GBUFFER_PROGRAM, values, textures)
             batch = self._corner_batch(shader, obj.triangles, False)
             batch.draw_range(shader, elem_start=0, elem_count=obj.triangles * FOOTPRINT_VERTICES)
 
