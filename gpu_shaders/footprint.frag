@@ -8,6 +8,9 @@
 #include "lib/mapping.glsl"
 #ifdef OW_ALPHA
 #include "lib/alpha.glsl"
+#ifdef OW_VEIL
+#include "lib/veil.glsl"
+#endif
 
 // The alpha where a ray from the light along `d` meets the triangle: barycentrics from
 // the edge planes through the light (v_edge_i = orientation * v_i x v_i+1), whose dot
@@ -17,6 +20,22 @@ float ow_alpha_along(vec3 d)
   vec3 w = vec3(dot(d, v_edge1), dot(d, v_edge2), dot(d, v_edge0));
   w /= (w.x + w.y + w.z);
   return ow_alpha_at(w.x * v_uv01.xy + w.y * v_uv01.zw + w.z * v_uv2);
+}
+#endif
+
+#ifdef OW_VEIL
+// A see-through surface in a map (shaders.alpha_of): an opaque point stores its depth;
+// a partly transparent one goes to the texel's veil (lib/veil.glsl) and a clear one
+// nowhere. Both of those leave the depth untouched. The fragment writes its depth, so
+// it runs whatever the depth test says, and every crossing reaches the veil.
+void ow_see_through(float alpha, float depth)
+{
+  if (alpha < OW_OPAQUE_ALPHA) {
+    if (alpha > OW_CLEAR_ALPHA) {
+      ow_veil_add(ivec2(gl_FragCoord.xy), alpha, depth);
+    }
+    discard;
+  }
 }
 #endif
 
@@ -80,12 +99,10 @@ void main()
 #ifndef OW_FIXED_KIND
   if (ow_projective != 0) {
     // As in depth.frag: the map's own depth; an inverted light (PSM) keeps the farthest.
-#ifdef OW_ALPHA
-    if (ow_alpha_at(v_uv) < 0.5) {
-      discard;  // a map stores one depth a texel: the surface is there where alpha >= 1/2
-    }
-#endif
     float z01 = (ow_map_inverted != 0) ? 1.0 - gl_FragCoord.z : gl_FragCoord.z;
+#ifdef OW_VEIL
+    ow_see_through(ow_alpha_at(v_uv), z01);
+#endif
     gl_FragDepth = z01;
     ow_depth = z01;
     return;
@@ -106,12 +123,10 @@ void main()
   if (!(t > 0.0)) {
     discard;  // grazing, in float32 rounding
   }
-#ifdef OW_ALPHA
-  if (ow_alpha_along(dir) < 0.5) {
-    discard;  // a map stores one depth a texel: the surface is there where alpha >= 1/2
-  }
-#endif
   float depth = clamp((t - ow_near) / (ow_far - ow_near), 0.0, 1.0);
+#ifdef OW_VEIL
+  ow_see_through(ow_alpha_along(dir), depth);
+#endif
   gl_FragDepth = depth;
   ow_depth = depth;
 }

@@ -10,6 +10,9 @@
 #include "lib/layers.glsl"
 #include "lib/mapping.glsl"
 #include "lib/projective.glsl"
+#ifdef OW_VEIL
+#include "lib/veil.glsl"
+#endif
 
 // Spot and sun maps (sm, psm). Same bias rule as the point-light maps, in world
 // space: a normal offset and a move towards the light, in texel footprints; then the
@@ -42,7 +45,13 @@ vec2 ow_projective_test(vec3 p, vec3 n)
   float z01 = (ow_map_inverted != 0) ? 1.0 - uvz.z : uvz.z;
   // A cleared texel (1.0: nothing drawn) is empty, even for a receiver beyond the
   // occluders' far plane (one that casts no shadow itself, see shadow_rule.py).
-  return vec2((stored >= 1.0 || z01 - ow_depth_offset <= stored) ? 1.0 : 0.0, 0.0);
+  float visibility = (stored >= 1.0 || z01 - ow_depth_offset <= stored) ? 1.0 : 0.0;
+#ifdef OW_VEIL
+  if (visibility > 0.0) {
+    visibility *= ow_veil_light(texel + ivec2(ow_layer_tile[0].xy), z01 - ow_depth_offset);
+  }
+#endif
+  return vec2(visibility, 0.0);
 }
 
 void main()
@@ -140,6 +149,12 @@ void main()
   // (visible_shadow off, shadow linking) may lie beyond far. A cleared texel (1.0:
   // nothing drawn; drawn depths stay below it, projection.depth_range) is empty.
   float visibility = (stored >= 1.0 || qdist - bias <= t_map) ? 1.0 : 0.0;
+#ifdef OW_VEIL
+  if (visibility > 0.0) {
+    // Through the see-through surfaces in front, under the same bias (lib/veil.glsl).
+    visibility *= ow_veil_light(texel + ivec2(tile.xy), (qdist - bias - ow_near) / (ow_far - ow_near));
+  }
+#endif
   if (ow_edge_radius > 0 && visibility > 0.5) {
     // Edge-distance antialiasing (dual sphere-unfolding paper): a lit sample z texels
     // (Manhattan) from a nearer occluder's edge is dimmed, down to just above one half

@@ -18,10 +18,13 @@ from .shaders import (
     ALPHA_SAMPLERS,
     FOOTPRINT_PROGRAM,
     FOOTPRINT_VERTICES,
+    SHADOW_TEST_PROGRAM,
+    VEIL_IMAGES,
     ProgramInterface,
     alpha_of,
     exact_variant,
     program_variant,
+    veil_of,
 )
 
 
@@ -104,6 +107,11 @@ class ShadowBackend(ABC):
         self._alpha_textures: dict[str, tuple[object, object]] = {}
         self._alpha_users: dict[str, str] = {}
         self._alpha_counts: dict[str, int] = {}  # digest -> parts using it (thousands of instances)
+        # The maps' veil (lib/veil.glsl): R32UI images the atlas's size, made at the first
+        # see-through draw and cleared once per atlas (`_veil_live` until the next begin_atlas).
+        self._veil_images: tuple[object, ...] | None = None
+        self._veil_size: tuple[int, int] | None = None
+        self._veil_live = False
 
     def sync_scene(self, scene) -> None:
         """Make the GPU hold `scene`'s objects as they are now (a `resident.ResidentScene`).
@@ -184,11 +192,12 @@ class ShadowBackend(ABC):
         except ValueError as exc:
             raise BackendError(str(exc)) from None
 
-    def _footprint_program(self, draw: FootprintDraw, uniforms: UniformValues, exact: bool,
-                           points: bool) -> tuple[ProgramInterface, dict[str, object]]:
+    def _footprint_program(self, draw: FootprintDraw, uniforms: UniformValues, exact: bool, points: bool,
+                           layout: AtlasLayout) -> tuple[ProgramInterface, dict[str, object], dict[str, object]]:
         """The program one footprint draw runs (the exact pass's variant with `exact`, after
-        `link_samples`; the alpha variant for a see-through part) and the textures it
-        reads from the object: its vertex texture and alpha map. A BackendError for an
+        `link_samples`; the alpha variant for a see-through part), the textures it reads
+        from the object (its vertex texture and alpha map) and the images it writes, by
+        name: the exact pass's lists and marks, or the atlas's veil. A BackendError for an
         object not resident."""
         if exact and self._links is None:
             raise BackendError("the exact footprint pass needs link_samples first")
@@ -198,10 +207,45 @@ class ShadowBackend(ABC):
         see_through = draw.key in self._alpha_users
         if exact:
             iface = exact_variant(uniforms, points, see_through=see_through)
+            images = dict(zip((name for _, name in iface.images), self._links))
         else:
             iface = program_variant(FOOTPRINT_PROGRAM, uniforms, points)
             iface = alpha_of(iface) if see_through else iface
-        return iface, {"ow_vertices": held[1], **self.alpha_textures(draw.key)}
+            images = self._veil(layout) if see_through else {}
+        return iface, {"ow_vertices": held[1], **self.alpha_textures(draw.key)}, images
+
+    def _ready_veil(self, draws: list[FootprintDraw], exact: bool, layout: AtlasLayout) -> None:
+        """Clear the veil before a depth pass with see-through parts binds its target
+        (a backend may clear through a framebuffer of its own)."""
+        if not exact and any(draw.key in self._alpha_users for draw in draws):
+            self._veil(layout)
+
+    def _veil(self, layout: AtlasLayout) -> dict[str, object]:
+        """The veil's images by name, made for the atlas's size and cleared at the first
+        see-through draw into this atlas."""
+        if self._veil_images is None or self._veil_size != layout.size:
+            self._release_veil()
+            self._veil_images = self._new_veil(layout.size)
+            self._veil_size = layout.size
+        if not self._veil_live:
+            self._clear_veil(self._veil_images)
+            self._veil_live = True
+        return dict(zip((name for _, name in VEIL_IMAGES), self._veil_images))
+
+    def _release_veil(self) -> None:
+        """Free the veil's images (a new atlas size, or the backend's release)."""
+        for image in self._veil_images or ():
+            self._free_veil(image)
+        self._veil_images = self._veil_size = None
+        self._veil_live = False
+
+    def _shadow_test_program(self, uniforms: UniformValues) -> tuple[ProgramInterface, dict[str, object]]:
+        """The shadow test's variant for `uniforms` and the images it reads: the veil's when
+        this atlas drew see-through parts, none otherwise (the plain test, unchanged)."""
+        iface = program_variant(SHADOW_TEST_PROGRAM, uniforms)
+        if not self._veil_live:
+            return iface, {}
+        return veil_of(iface), dict(zip((name for _, name in VEIL_IMAGES), self._veil_images))
 
     def alpha_textures(self, key: str) -> dict[str, object]:
         """The alpha map a see-through part's programs sample (ALPHA_SAMPLERS); empty for
@@ -248,6 +292,18 @@ class ShadowBackend(ABC):
     @abstractmethod
     def _free_channel(self, texture: object) -> None:
         """Free a texture `_upload_channel` made."""
+
+    @abstractmethod
+    def _new_veil(self, size: tuple[int, int]) -> tuple[object, ...]:
+        """One R32UI texture of `size` (width, height) per veil word (shaders.VEIL_IMAGES)."""
+
+    @abstractmethod
+    def _clear_veil(self, images: tuple[object, ...]) -> None:
+        """Zero the veil's textures (no crossing)."""
+
+    @abstractmethod
+    def _free_veil(self, image: object) -> None:
+        """Free one veil texture."""
 
     @abstractmethod
     def build_ray_table(self, tile: int, uniforms: UniformValues) -> None:

@@ -40,6 +40,7 @@ from .blender_gpu import (
     read_uint,
 )
 from .shaders import (
+    BARRIER_PROGRAM,
     DEPTH_PROGRAM,
     EDGE_PROGRAM,
     FOOTPRINT_VERTICES,
@@ -48,7 +49,7 @@ from .shaders import (
     GBUFFER_SAMPLES_PROGRAM,
     RAY_TABLE_PROGRAM,
     SAMPLE_STATS_PROGRAM,
-    SHADOW_TEST_PROGRAM,
+    VEIL_IMAGES,
     ComputeInterface,
     ProgramInterface,
     link_variant,
@@ -213,6 +214,7 @@ class BlenderGPUBackend(ShadowBackend):
             self._atlas_fb = _framebuffer(color_slots=(self._atlas,), depth_slot=self._atlas_depth)
             self._layout = layout
             self._textures["ow_atlas"] = self._atlas
+        self._veil_live = False  # cleared again at this atlas's first see-through draw
         with self._atlas_fb.bind():
             rects = self._clear_rects(layout, boxes)
             if rects is None:
@@ -275,6 +277,24 @@ class BlenderGPUBackend(ShadowBackend):
     def _free_channel(self, texture) -> None:
         """Nothing to do: Blender frees the texture with its last reference."""
 
+    def _new_veil(self, size: tuple[int, int]) -> tuple[object, ...]:
+        return tuple(empty_texture(size, "R32UI") for _ in VEIL_IMAGES)
+
+    def _clear_veil(self, images: tuple[object, ...]) -> None:
+        for image in images:
+            image.clear(format="UINT", value=(0,))
+
+    def _free_veil(self, image: object) -> None:
+        """Nothing to do: Blender frees the texture with its last reference."""
+
+    def _image_barrier(self) -> None:
+        """Make image stores of earlier draws visible to later image loads. The `gpu` module
+        has no barrier call, but every compute dispatch ends with one (texture fetch and
+        image access, pygpu_compute_dispatch): an empty one-group dispatch."""
+        import gpu
+
+        gpu.compute.dispatch(self._bind(BARRIER_PROGRAM, {}), 1, 1, 1)
+
     def _corner_batch(self, shader, triangles: int, points: bool):
         """The footprint pass's batch (quads, or points) over one corner buffer of at least
         `triangles`: both batches share its vertex buffer, uploaded once per growth."""
@@ -330,6 +350,7 @@ class BlenderGPUBackend(ShadowBackend):
         import gpu
 
         viewport = self._layer_viewport(self._layout, tile, caller="draw_footprints")
+        self._ready_veil(draws, exact, self._layout)
         # Always scissored: point sprites may reach past the tile's edge.
         rect = self._layout.scissor_rect(tile, scissor) if scissor is not None else viewport
         with self._atlas_fb.bind():
@@ -345,11 +366,10 @@ class BlenderGPUBackend(ShadowBackend):
                     if draw.count <= 0:
                         continue  # a count of 0 would mean "all" to gpu
                     points = draw.points and self.point_sprites
-                    iface, textures = self._footprint_program(draw, uniforms, exact, points)
+                    iface, textures, images = self._footprint_program(draw, uniforms, exact, points, self._layout)
                     shader = self._bind(iface, {**uniforms, **draw.uniforms}, textures)
-                    if exact:
-                        for (_, name), texture in zip(iface.images, self._links):
-                            shader.image(name, texture)
+                    for name, image in images.items():
+                        shader.image(name, image)
                     batch = self._corner_batch(shader, draw.first + draw.count, points)
                     if points:
                         gpu.state.program_point_size_set(True)
@@ -508,8 +528,13 @@ class BlenderGPUBackend(ShadowBackend):
         if "ow_edges" not in self._textures:
             # Bound even when no antialiasing runs (ow_edge_radius = 0 never reads it).
             self._textures["ow_edges"] = _float_texture((1, 1), "R32F", np.zeros(1, np.float32))
+        iface, images = self._shadow_test_program(uniforms)
+        if images:
+            self._image_barrier()  # the depth pass's veil atomics, before the test's loads
         with fb.bind():
-            shader = self._bind(program_variant(SHADOW_TEST_PROGRAM, uniforms), uniforms)
+            shader = self._bind(iface, uniforms)
+            for name, image in images.items():
+                shader.image(name, image)
             batch = self._fullscreen_batch(shader)
             gpu.state.viewport_set(0, 0, width, height)
             gpu.state.depth_test_set("NONE")
@@ -583,6 +608,7 @@ class BlenderGPUBackend(ShadowBackend):
         self._edge_size = None
         self._vertices.clear()
         self._release_alpha()
+        self._release_veil()
         self._ray_fb = None
         self._corner_triangles = 0
         self._released = True

@@ -301,6 +301,10 @@ SAMPLE_STATS_PROGRAM = ComputeInterface(
              **{f"OW_STAT_{name}": str(index) for index, name in enumerate(samples.STAT_FIELDS)}},
 )
 
+# Nothing but the barrier that ends every compute dispatch in Blender's `gpu` module, which
+# has no call of its own for one (blender_backend._image_barrier).
+BARRIER_PROGRAM = ComputeInterface(name="omniwarp_barrier", compute_file="barrier.comp", local_size=1)
+
 # The G-buffer, drawn from resident objects (blender_backend.draw_gbuffer).
 GBUFFER_PROGRAM = ProgramInterface(
     name="omniwarp_gbuffer",
@@ -436,9 +440,11 @@ def exact_of(base: ProgramInterface) -> ProgramInterface:
     backends cache programs by name)."""
     held = _EXACT_VARIANTS.get(base.name)
     if held is None:
+        # The exact pass sums see-through crossings per sample, so it has no veil.
+        defines = {name: value for name, value in base.defines.items() if name != VEIL_DEFINE}
         held = _EXACT_VARIANTS[base.name] = replace(
             base, name=base.name + "_exact",
-            defines={**base.defines, EXACT_DEFINE: "1", "OW_EXACT_MAX_WALK": str(EXACT_MAX_WALK)},
+            defines={**defines, EXACT_DEFINE: "1", "OW_EXACT_MAX_WALK": str(EXACT_MAX_WALK)},
             samplers=base.samplers + ("ow_positions",),
             uniforms=base.uniforms + (Uniform("int", "ow_exact_tile"), Uniform("float", "ow_exact_eps"),
                                       Uniform("int", "ow_exact_count")),
@@ -457,6 +463,11 @@ def exact_variant(uniforms: dict, points: bool = False, see_through: bool = Fals
 ALPHA_DEFINE = "OW_ALPHA"
 ALPHA_SAMPLERS = ("ow_alpha_image", "ow_alpha_transfer")  # the material's channel and transfer (R32F)
 _ALPHA_VARIANTS: dict[str, ProgramInterface] = {}  # footprint variant name -> its see-through variant
+# The veil of a map (lib/veil.glsl): the see-through crossings of each atlas texel, written
+# by the see-through footprint programs and read by the shadow test's veil variant.
+VEIL_DEFINE = "OW_VEIL"
+VEIL_IMAGES = (("r32ui", "ow_veil_optical"), ("r32ui", "ow_veil_near"), ("r32ui", "ow_veil_far"))
+_VEIL_VARIANTS: dict[str, ProgramInterface] = {}  # shadow-test variant name -> its veil variant
 
 
 def alpha_of(base: ProgramInterface) -> ProgramInterface:
@@ -468,12 +479,29 @@ def alpha_of(base: ProgramInterface) -> ProgramInterface:
     held = _ALPHA_VARIANTS.get(base.name)
     if held is None:
         varyings = (Varying("vec2", "v_uv"),)
+        defines = {**base.defines, ALPHA_DEFINE: "1"}
+        images = base.images
         if base.fragment_file == FOOTPRINT_PROGRAM.fragment_file:
             varyings = (Varying("vec4", "v_uv01", flat=True), Varying("vec2", "v_uv2", flat=True)) + varyings
+            # A map's depth pass puts the partly transparent crossings in the veil.
+            defines[VEIL_DEFINE] = "1"
+            images = VEIL_IMAGES
         held = _ALPHA_VARIANTS[base.name] = replace(
-            base, name=base.name + "_alpha", defines={**base.defines, ALPHA_DEFINE: "1"},
+            base, name=base.name + "_alpha", defines=defines, images=images,
             samplers=base.samplers + ALPHA_SAMPLERS, uniforms=base.uniforms + (Uniform("int", "ow_alpha_mode"),),
             varyings=base.varyings + varyings)
+    return held
+
+
+def veil_of(base: ProgramInterface) -> ProgramInterface:
+    """The shadow test's variant that also reads the map's veil (lib/veil.glsl): for a
+    frame that drew see-through parts. Other frames keep the plain test, unchanged."""
+    if base.fragment_file != SHADOW_TEST_PROGRAM.fragment_file:
+        raise BackendError(f"program {base.name!r} has no veil variant")
+    held = _VEIL_VARIANTS.get(base.name)
+    if held is None:
+        held = _VEIL_VARIANTS[base.name] = replace(
+            base, name=base.name + "_veil", defines={**base.defines, VEIL_DEFINE: "1"}, images=VEIL_IMAGES)
     return held
 
 
@@ -537,8 +565,10 @@ EXACT_PROGRAMS = tuple(exact_of(iface) for iface in _FOOTPRINTS)
 ALPHA_PROGRAMS = tuple(alpha_of(iface) for iface in _FOOTPRINTS) + tuple(
     exact_of(alpha_of(iface)) for iface in _FOOTPRINTS)
 GBUFFER_ALPHA_PROGRAM = alpha_of(GBUFFER_PROGRAM)
-PROGRAMS = (*VARIANT_PROGRAMS, *EXACT_PROGRAMS, *ALPHA_PROGRAMS, GBUFFER_ALPHA_PROGRAM, RAY_TABLE_PROGRAM, GBUFFER_PROGRAM, GBUFFER_SAMPLES_PROGRAM, PREVIEW_PROGRAM, OVERLAY_PROGRAM, EDGE_PROGRAM)
-COMPUTE_PROGRAMS = (SCATTER_PROGRAM, SAMPLE_STATS_PROGRAM, *(_scatter_variant(mode, kind) for mode in SCATTER_MODES
+VEIL_PROGRAMS = tuple(veil_of(iface) for iface in VARIANT_PROGRAMS
+                      if iface.fragment_file == SHADOW_TEST_PROGRAM.fragment_file)
+PROGRAMS = (*VARIANT_PROGRAMS, *EXACT_PROGRAMS, *ALPHA_PROGRAMS, *VEIL_PROGRAMS, GBUFFER_ALPHA_PROGRAM, RAY_TABLE_PROGRAM, GBUFFER_PROGRAM, GBUFFER_SAMPLES_PROGRAM, PREVIEW_PROGRAM, OVERLAY_PROGRAM, EDGE_PROGRAM)
+COMPUTE_PROGRAMS = (SCATTER_PROGRAM, SAMPLE_STATS_PROGRAM, BARRIER_PROGRAM, *(_scatter_variant(mode, kind) for mode in SCATTER_MODES
                                                              for kind in (None, *FIXED_KIND_NAMES)),
                     *(_link_variant(kind) for kind in (None, *FIXED_KIND_NAMES)))
 

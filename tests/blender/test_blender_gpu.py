@@ -28,6 +28,7 @@ from tests.support.blender_gpu_worker import (  # noqa: E402
     EXACT_CASES,
     POINT_CASES,
     PROJECTIVE_CASES,
+    alpha_frames,
     boxed_scene,
     case_key,
     weighted_samples,
@@ -102,6 +103,11 @@ def test_blender_backend_matches_moderngl(gl_backend, tmp_path, monkeypatch):
                             ShadowSettings("dpsm", 128, warp="notw", exact=True))
     assert np.array_equal(exact.visibility, theirs["exact_random_visibility"])
     assert ((exact.visibility > 0.5) == (rnd_exact > 0.5))[rnd_evaluable].mean() >= 0.999
+    # See-through surfaces: the veil and the exact pass's optical depths, alike.
+    alpha = alpha_frames(pipeline)
+    for key, visibility in alpha.items():
+        assert np.array_equal(visibility, theirs[key]), key
+        assert ((visibility > 0.0) & (visibility < 1.0)).any(), key
     court = boxed_scene()
     court_samples, _, _ = view_samples(court)
     for param in BOXED_CASES:

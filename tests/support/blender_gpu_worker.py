@@ -41,6 +41,26 @@ def weighted_samples(samples):
 
 # The exact pass's cases the backends must agree on (parameterization, warp).
 EXACT_CASES = (("dpsm", "notw"), ("cube", "none"))
+# See-through surfaces (tests/gl/test_alpha_pass.py's scene): the maps' veil and `exact`.
+ALPHA_CASES = (("dpsm", "notw", False), ("cube", "none", False), ("dpsm", "notw", True))
+
+
+def alpha_frames(pipeline):
+    """Visibility of the see-through scene for every ALPHA_CASES entry, by key."""
+    from addon.render.pipeline import ShadowSettings
+    from addon.render.resident import ResidentScene
+    from tests.gl.test_alpha_pass import _scene
+    from tests.support.oracle import view_samples
+
+    scene = _scene()
+    samples, _, _ = view_samples(scene)
+    resident = ResidentScene.of_triangles(scene.world_triangles(), surface=scene.surface())
+    frames = {}
+    for param, warp, exact in ALPHA_CASES:
+        result = pipeline.render(scene.light, resident, samples, ShadowSettings(param, 256, warp=warp, exact=exact))
+        frames[f"alpha_{param}_{warp}{'_exact' if exact else ''}_visibility"] = result.visibility
+    pipeline.backend.release_scene(resident)
+    return frames
 
 
 def case_key(param: str, warp: str, aa: bool) -> str:
@@ -101,6 +121,7 @@ def backends(out: str, reference: str | None = None) -> None:
     result = pipeline.render(rnd.light, rnd.world_triangles(), rnd_samples,
                              ShadowSettings("dpsm", 128, warp="notw", exact=True))
     arrays["exact_random_visibility"] = result.visibility
+    arrays.update(alpha_frames(pipeline))
     court = boxed_scene()
     court_samples, _, _ = view_samples(court)
     for param in BOXED_CASES:
