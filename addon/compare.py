@@ -193,7 +193,8 @@ def _list_columns(pipeline: ShadowPipeline, light: LightSpec, scene: ResidentSce
     occupied = lengths[lengths > 0]
     work = pipeline.render(light, scene, samples, settings, count_work=True).exact_work
     return {"list_longest": int(lengths.max()), "list_mean": float(occupied.mean()) if occupied.size else 0.0,
-            "list_fragments": work["fragments"], "list_entries": work["entries"], "list_cut": work["cut"]}
+            "list_fragments": work["fragments"], "list_entries": work["entries"], "list_cut": work["cut"],
+            "list_moved_entries": work["moved"], "list_rounds": work["rounds"]}
 
 
 def nonfinite_texels(result: FrameResult, counts) -> int:

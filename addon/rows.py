@@ -58,7 +58,9 @@ class Row(TypedDict, total=False):
     list_mean: float  # over the texels holding a list
     list_fragments: int  # fragments of the triangle pass that walked a list
     list_entries: int  # list entries they walked: the pass's work
-    list_cut: int  # walks cut at EXACT_MAX_WALK
+    list_cut: int  # walks that stopped at their round's bound and went on in the next round
+    list_moved_entries: int  # entries the later rounds walked (work moved, none dropped)
+    list_rounds: int  # rounds after the first (0: every list fit the first bound)
     # EEVEE
     eevee_setting: str
     shadow_maximum_resolution: float

@@ -45,8 +45,9 @@ void ow_see_through(float alpha, float depth)
 // is shadowed by this triangle when its segment from the light crosses it: its own
 // direction lies inside the three edge planes, and the triangle's plane cuts the segment
 // before the sample, by more than ow_exact_eps of its length (the receiver's own surface
-// is left out). Marked in ow_hits; at most OW_EXACT_MAX_WALK entries are walked, and a
-// longer list counts one cut in the extra row's texel 0 (texels 1 and 2: the work).
+// is left out). Marked in ow_hits. A fragment walks at most ow_exact_bound entries; a
+// longer list is counted in ow_work and finished by the next round, which starts where
+// this one stopped (list_advance.comp moves the heads on), so every entry is walked once.
 void ow_exact_walk()
 {
   ivec2 texel = ivec2(gl_FragCoord.xy - ow_tile_origin);
@@ -54,7 +55,7 @@ void ow_exact_walk()
   uint node = imageLoad(ow_counts, texel + ivec2(ow_exact_tile * res, 0)).x;
   int width = textureSize(ow_positions, 0).x;
   int step = 0;
-  for (; step < OW_EXACT_MAX_WALK && node != 0u; step++) {
+  for (; step < ow_exact_bound && node != 0u; step++) {
     int index = int(node) - 1;
     ivec2 at = ivec2(index % width, index / width);
     vec3 p = texelFetch(ow_positions, at, 0).xyz;  // light-centred
@@ -77,15 +78,17 @@ void ow_exact_walk()
     }
     node = imageLoad(ow_next, at).x;
   }
-  int extra = textureSize(ow_positions, 0).y;  // the hits image's extra row: counters
   if (node != 0u) {
-    imageAtomicAdd(ow_hits, ivec2(0, extra), 1u);
+    imageAtomicAdd(ow_work, ivec2(OW_WORK_CUT, 0), 1u);
   }
   if (ow_exact_count != 0) {
     // A measurement frame (ShadowPipeline.render(count_work=True)): the entries walked and
-    // the fragments that walked them, the pass's work.
-    imageAtomicAdd(ow_hits, ivec2(1, extra), uint(step));
-    imageAtomicAdd(ow_hits, ivec2(2, extra), 1u);
+    // the fragments that walked them, the pass's work, and the later rounds' entries.
+    imageAtomicAdd(ow_work, ivec2(OW_WORK_ENTRIES, 0), uint(step));
+    imageAtomicAdd(ow_work, ivec2(OW_WORK_FRAGMENTS, 0), 1u);
+    if (ow_exact_round > 0) {
+      imageAtomicAdd(ow_work, ivec2(OW_WORK_MOVED, 0), uint(step));
+    }
   }
 }
 #endif

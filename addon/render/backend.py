@@ -20,6 +20,11 @@ from .shaders import (
     FOOTPRINT_VERTICES,
     SHADOW_TEST_PROGRAM,
     VEIL_IMAGES,
+    WORK_BOX,
+    WORK_CUT,
+    WORK_ENTRIES,
+    WORK_FRAGMENTS,
+    WORK_MOVED,
     ProgramInterface,
     alpha_of,
     exact_variant,
@@ -112,6 +117,8 @@ class ShadowBackend(ABC):
         self._veil_images: tuple[object, ...] | None = None
         self._veil_size: tuple[int, int] | None = None
         self._veil_live = False
+        self._exact_work: dict[str, int] = {}
+        self._reset_work()
 
     def sync_scene(self, scene) -> None:
         """Make the GPU hold `scene`'s objects as they are now (a `resident.ResidentScene`).
@@ -388,12 +395,60 @@ class ShadowBackend(ABC):
         resolution): the irregular z-buffer's lists, kept on the GPU. A heads strip like
         scatter_counts' (0: empty, else sample index + 1) and one next-link per sample."""
 
-    @abstractmethod
-    def read_hits(self) -> tuple[np.ndarray, np.ndarray]:
+    def read_hits(self) -> tuple[np.ndarray, dict[str, int]]:
         """The exact pass's marks since the last `link_samples`: (H, W) uint32, non-zero
         where a triangle crossed the sample's segment to the light (row 0 at the bottom);
-        and its counters (3,) uint32: the list walks cut at EXACT_MAX_WALK, and on a frame
-        drawn with ow_exact_count the list entries walked and the fragments walking them."""
+        and its work over every round (`exact_round`): `cut`, the walks that stopped at
+        their round's bound and went on in the next; `rounds`, the rounds after the first;
+        and on a frame drawn with ow_exact_count `entries` and `fragments` walked, and
+        `moved`, the entries the later rounds walked."""
+        if self._links is None:
+            raise BackendError("read_hits called before link_samples")
+        self.exact_round()  # the last round's counters
+        return self._read_hit_words(), dict(self._exact_work)
+
+    def exact_round(self) -> int:
+        """Fold the exact pass's counters since the last call into the frame's work, zero
+        them, and return the walks of that round which stopped short of their list's end."""
+        words = self._take_work()
+        cut = int(words[WORK_CUT])
+        self._exact_work["cut"] += cut
+        self._exact_work["entries"] += int(words[WORK_ENTRIES])
+        self._exact_work["fragments"] += int(words[WORK_FRAGMENTS])
+        self._exact_work["moved"] += int(words[WORK_MOVED])
+        return cut
+
+    def advance_lists(self, steps: int, layout: AtlasLayout) -> dict[int, tuple[int, int, int, int]]:
+        """Move every list's head past `steps` entries (ADVANCE_PROGRAM), after a round of
+        the exact pass; returns, per tile, the box (x0, y0, x1, y1) of the texels whose
+        lists go on, the next round's scissor (tiles without any left out)."""
+        if self._links is None:
+            raise BackendError("advance_lists called before link_samples")
+        self._dispatch_advance(int(steps), layout.resolution)
+        words = self._take_work()
+        self._exact_work["rounds"] += 1
+        boxes = {}
+        for tile in range(layout.tiles):
+            nx0, ny0, x1, y1 = (int(w) for w in words[WORK_BOX + 4 * tile:WORK_BOX + 4 * tile + 4])
+            if x1 > 0:
+                boxes[tile] = (~nx0 & 0xFFFFFFFF, ~ny0 & 0xFFFFFFFF, x1, y1)
+        return boxes
+
+    def _reset_work(self) -> None:
+        """A new frame's lists: no work counted yet (link_samples)."""
+        self._exact_work = dict.fromkeys(("cut", "entries", "fragments", "moved", "rounds"), 0)
+
+    @abstractmethod
+    def _read_hit_words(self) -> np.ndarray:
+        """The hits image as (H, W) uint32, row 0 at the bottom."""
+
+    @abstractmethod
+    def _take_work(self) -> np.ndarray:
+        """The work image as (WORK_TEXELS,) uint32, then zeroed."""
+
+    @abstractmethod
+    def _dispatch_advance(self, steps: int, tile_size: int) -> None:
+        """Run ADVANCE_PROGRAM over the heads strip (ow_advance_steps, ow_tile_size)."""
 
     @abstractmethod
     def read_links(self) -> tuple[np.ndarray, np.ndarray]:

@@ -40,6 +40,7 @@ from .blender_gpu import (
     read_uint,
 )
 from .shaders import (
+    ADVANCE_PROGRAM,
     BARRIER_PROGRAM,
     DEPTH_PROGRAM,
     EDGE_PROGRAM,
@@ -50,6 +51,7 @@ from .shaders import (
     RAY_TABLE_PROGRAM,
     SAMPLE_STATS_PROGRAM,
     VEIL_IMAGES,
+    WORK_TEXELS,
     ComputeInterface,
     ProgramInterface,
     link_variant,
@@ -476,13 +478,15 @@ class BlenderGPUBackend(ShadowBackend):
         held = self._links
         if (held is None or (held[0].width, held[0].height) != (size * tiles, size)
                 or (held[1].width, held[1].height) != (width, height)):
-            # heads, links, and the exact pass's marks (one row more: the overflow count)
+            # heads, links, the exact pass's marks and its work (shaders.EXACT_IMAGES)
             self._links = (empty_texture((size * tiles, size), "R32UI"),
                            empty_texture((width, height), "R32UI"),
-                           empty_texture((width, height + 1), "R32UI"))
-        heads, links, _ = self._links
+                           empty_texture((width, height), "R32UI"),
+                           empty_texture((WORK_TEXELS, 1), "R32UI"))
+        heads, links = self._links[:2]
         for texture in self._links:
             texture.clear(format="UINT", value=(0,))
+        self._reset_work()
         iface = link_variant(uniforms)
         shader = self._bind(iface, uniforms)
         shader.image("ow_counts", heads)
@@ -492,15 +496,28 @@ class BlenderGPUBackend(ShadowBackend):
     def read_links(self) -> tuple[np.ndarray, np.ndarray]:
         if self._links is None:
             raise BackendError("read_links called before link_samples")
-        heads, links, _ = self._links
+        heads, links = self._links[:2]
         return read_uint(heads), read_uint(links)
 
-    def read_hits(self) -> tuple[np.ndarray, np.ndarray]:
-        if self._links is None:
-            raise BackendError("read_hits called before link_samples")
-        hits = self._links[2]
-        raw = read_uint(hits)
-        return raw[:-1].copy(), raw[-1, :3].copy()
+    def _read_hit_words(self) -> np.ndarray:
+        self._image_barrier()  # the exact pass's fragment atomics, before the read
+        return read_uint(self._links[2])
+
+    def _take_work(self) -> np.ndarray:
+        self._image_barrier()
+        work = self._links[3]
+        words = read_uint(work).ravel()
+        work.clear(format="UINT", value=(0,))
+        return words
+
+    def _dispatch_advance(self, steps: int, tile_size: int) -> None:
+        import gpu
+
+        shader = self._bind(ADVANCE_PROGRAM, {"ow_advance_steps": steps, "ow_tile_size": tile_size})
+        heads, links, _, work = self._links
+        for (_, name), texture in zip(ADVANCE_PROGRAM.images, (heads, links, work)):
+            shader.image(name, texture)
+        gpu.compute.dispatch(shader, ADVANCE_PROGRAM.groups(heads.width * heads.height), 1, 1)
 
     def reduce_samples(self, uniforms: UniformValues, clear: bool) -> np.ndarray:
         import gpu

@@ -235,8 +235,9 @@ class FrameResult:
     mappings: dict[int, LayerMapping] = field(default_factory=dict)
     count_maps: dict[int, np.ndarray] = field(default_factory=dict)  # analysis count map per slot
     boxes: dict[int, tuple[int, int, int, int]] = field(default_factory=dict)  # slot -> readable texel box
-    # The exact pass's counters: list walks cut at the bound, and on a count_work frame the
-    # list entries walked and the fragments that walked them (None for the other methods).
+    # The exact pass's work (backend.read_hits): walks that went on into a later round, the
+    # rounds after the first, and on a count_work frame the list entries walked, the
+    # fragments that walked them and the later rounds' entries (None for the other methods).
     exact_work: dict[str, int] | None = None
 
     @property

@@ -24,6 +24,7 @@ from .backend import (
     pack_warp_table,
 )
 from .shaders import (
+    ADVANCE_PROGRAM,
     ALPHA_SAMPLERS,
     DEPTH_PROGRAM,
     EDGE_PROGRAM,
@@ -32,6 +33,7 @@ from .shaders import (
     RAY_TABLE_PROGRAM,
     SAMPLE_STATS_PROGRAM,
     VEIL_IMAGES,
+    WORK_TEXELS,
     ComputeInterface,
     ProgramInterface,
     moderngl_compute_source,
@@ -422,14 +424,17 @@ class ModernGLBackend(ShadowBackend):
         if self._links is None or self._links[0].size != (size * tiles, size) or self._links[1].size != (width, height):
             for tex in self._links or ():
                 tex.release()
-            # heads, links, and the exact pass's marks (one row more: the overflow count)
+            # heads, links, the exact pass's marks and its work (shaders.EXACT_IMAGES)
             self._links = (self.ctx.texture((size * tiles, size), 1, dtype="u4"),
                            self.ctx.texture((width, height), 1, dtype="u4"),
-                           self.ctx.texture((width, height + 1), 1, dtype="u4"))
-        heads, links, hits = self._links
+                           self.ctx.texture((width, height), 1, dtype="u4"),
+                           self.ctx.texture((WORK_TEXELS, 1), 1, dtype="u4"))
+        heads, links, hits, work = self._links
         heads.write(np.zeros(size * tiles * size, dtype="u4").tobytes())
         links.write(np.zeros(width * height, dtype="u4").tobytes())
-        hits.write(np.zeros(width * (height + 1), dtype="u4").tobytes())
+        hits.write(np.zeros(width * height, dtype="u4").tobytes())
+        work.write(np.zeros(WORK_TEXELS, dtype="u4").tobytes())
+        self._reset_work()
         iface = link_variant(uniforms)
         prog = self._use(iface, uniforms)
         heads.bind_to_image(0, read=True, write=True)
@@ -441,18 +446,32 @@ class ModernGLBackend(ShadowBackend):
     def read_links(self) -> tuple[np.ndarray, np.ndarray]:
         if self._links is None:
             raise BackendError("read_links called before link_samples")
-        heads, links, _ = self._links
+        heads, links = self._links[:2]
         return (np.frombuffer(heads.read(), dtype="u4").reshape(heads.size[1], heads.size[0]).copy(),
                 np.frombuffer(links.read(), dtype="u4").reshape(links.size[1], links.size[0]).copy())
 
     @_current
-    def read_hits(self) -> tuple[np.ndarray, np.ndarray]:
-        if self._links is None:
-            raise BackendError("read_hits called before link_samples")
+    def _read_hit_words(self) -> np.ndarray:
         self.ctx.memory_barrier()
         hits = self._links[2]
-        raw = np.frombuffer(hits.read(), dtype="u4").reshape(hits.size[1], hits.size[0])
-        return raw[:-1].copy(), raw[-1, :3].copy()
+        return np.frombuffer(hits.read(), dtype="u4").reshape(hits.size[1], hits.size[0]).copy()
+
+    @_current
+    def _take_work(self) -> np.ndarray:
+        self.ctx.memory_barrier()
+        work = self._links[3]
+        words = np.frombuffer(work.read(), dtype="u4").copy()
+        work.write(np.zeros(WORK_TEXELS, dtype="u4").tobytes())
+        return words
+
+    @_current
+    def _dispatch_advance(self, steps: int, tile_size: int) -> None:
+        prog = self._use(ADVANCE_PROGRAM, {"ow_advance_steps": steps, "ow_tile_size": tile_size})
+        heads, links, _, work = self._links
+        for unit, texture in enumerate((heads, links, work)):
+            texture.bind_to_image(unit, read=True, write=True)
+        prog.run(group_x=ADVANCE_PROGRAM.groups(heads.width * heads.height))
+        self.ctx.memory_barrier()
 
     @_current
     def reduce_samples(self, uniforms: UniformValues, clear: bool) -> np.ndarray:

@@ -40,7 +40,7 @@ from ..core.warping import LayerMapping, max_shear
 from .backend import AtlasLayout, FootprintDraw, ShadowBackend
 from .frame import PreparedGeometry, ShadowSettings
 from .resident import CHUNK_TRIANGLES, ResidentScene
-from .shaders import FOOTPRINT_VERTICES, MAX_POINT_SIZE, REGION_PLANES, SLOTS
+from .shaders import EXACT_MAX_WALK, FOOTPRINT_VERTICES, MAX_POINT_SIZE, REGION_PLANES, SLOTS
 from .unfold import VERTEX_FLOATS, edge_aa_parameters, prepare_unfold
 
 log = logging.getLogger(__name__)
@@ -48,6 +48,9 @@ log = logging.getLogger(__name__)
 # The exact pass leaves out an occluder within this share of the segment's length from the
 # sample: the receiver's own surface, and its coplanar neighbours, in float32 rounding.
 EXACT_EPS = 1e-4
+# Rounds of the exact pass after the first (_finish_lists): the bound doubles each round, so
+# 16 of them walk lists of up to 4096 * 2^17 entries, far more than any frame's samples.
+EXACT_MAX_ROUNDS = 16
 
 # Near clip of cube faces, relative to far: geometry closer to the light than this
 # is lost to clipping; 1e-6 keeps it far below a texel at any supported resolution.
@@ -106,27 +109,60 @@ class Parameterization:
         if not inputs.draws:
             return 0  # nothing to draw (no blockers): the cleared atlas is the map
         res = inputs.settings.resolution
+        exact = inputs.settings.exact
         # Per object, the chunks' light-centred spheres, the same on every layer.
         spheres = {draw.key: _chunk_spheres(inputs.scene.objects[draw.key], inputs.light) for draw in inputs.draws}
+        passes = []  # (tile, draws, uniforms, scissor) per drawn layer
         for layer in inputs.plan.drawn:
             tile = inputs.tile_of_slot[layer.slot]
             mapping = inputs.mappings.get(layer.slot, LayerMapping.identity())
             uniforms = {**layer_uniforms(layer, inputs.geometry, res, inputs.layout.origin(tile), mapping,
                                          inputs.warp_size), **inputs.region}
-            exact = inputs.settings.exact
             if exact:
                 # The irregular z-buffer: the tile's lists are strip tile `tile` (link_lists).
-                uniforms.update(ow_exact_tile=tile, ow_exact_eps=EXACT_EPS, ow_exact_count=int(inputs.count_work))
+                uniforms.update(ow_exact_tile=tile, ow_exact_eps=EXACT_EPS, ow_exact_count=int(inputs.count_work),
+                                ow_exact_bound=EXACT_MAX_WALK, ow_exact_round=0)
             elif mapping.warp is not None:
                 backend.build_ray_table(tile, uniforms)
             stretch = map_stretch(mapping)
             draws = [run for draw in inputs.draws
                      for run in footprint_ranges(draw, spheres[draw.key], layer, stretch, res, inputs.region)]
-            backend.draw_footprints(tile, draws, uniforms, scissor=inputs.boxes.get(layer.slot), exact=exact)
+            scissor = inputs.boxes.get(layer.slot)
+            backend.draw_footprints(tile, draws, uniforms, scissor=scissor, exact=exact)
+            passes.append((tile, draws, uniforms, scissor))
+        if exact:
+            _finish_lists(backend, inputs.layout, passes)
         return 0
 
     def test_uniforms(self, plan: Plan) -> dict:
         return {}
+
+
+def _finish_lists(backend: ShadowBackend, layout: AtlasLayout, passes: list) -> None:
+    """Later rounds of the exact pass until every list entry met every triangle over its
+    texel (issue 26). A round whose walks stopped at their bound moves each list's head past
+    the entries walked (backend.advance_lists) and draws the layers again, scissored to the
+    texels whose lists go on, with twice the bound; so a texel of n samples takes about
+    log2(n / EXACT_MAX_WALK) + 1 rounds, each entry is walked once per triangle, and a frame
+    whose lists all fit (every ordinary one) pays one read of the work counters."""
+    bound = EXACT_MAX_WALK
+    for round_index in range(1, EXACT_MAX_ROUNDS + 1):
+        if not backend.exact_round():
+            return
+        remaining = backend.advance_lists(bound, layout)
+        bound *= 2
+        for tile, draws, uniforms, scissor in passes:
+            box = remaining.get(tile)
+            if box is not None:
+                clip = box if scissor is None else _intersect(box, scissor)
+                backend.draw_footprints(tile, draws, {**uniforms, "ow_exact_bound": bound,
+                                                      "ow_exact_round": round_index}, scissor=clip, exact=True)
+    log.warning("exact pass: lists still unfinished after %d rounds", EXACT_MAX_ROUNDS)
+
+
+def _intersect(a: tuple[int, int, int, int], b: tuple[int, int, int, int]) -> tuple[int, int, int, int]:
+    """The common part of two texel boxes (x0, y0, x1, y1); empty ones have x1 <= x0."""
+    return max(a[0], b[0]), max(a[1], b[1]), min(a[2], b[2]), min(a[3], b[3])
 
 
 class DualParaboloid(Parameterization):

@@ -280,9 +280,8 @@ class ShadowPipeline:
         if settings.exact:
             # The atlas holds no depth (every texel empty), so the test lit every tested
             # sample; the exact pass's marks shadow the ones a triangle crosses.
-            hits, counters = backend.read_hits()
+            hits, exact_work = backend.read_hits()
             result[..., 0] *= hits_visibility(hits)  # opaque crossings and see-through ones
-            exact_work = {"cut": int(counters[0]), "entries": int(counters[1]), "fragments": int(counters[2])}
         visibility = result[..., 0][::-1].copy()
         flags = result[..., 1][::-1].astype(np.int8)
         return FrameResult(visibility, flags, timings, plan, geometry, layout,

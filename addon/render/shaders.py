@@ -42,6 +42,15 @@ SHARED_DEFINES: dict[str, str] = {
     "OW_HIT_OPAQUE": f"{alpha.HIT_OPAQUE:#x}u",
     "OW_OPTICAL_SCALE": repr(float(alpha.OPTICAL_SCALE)),
 }
+# The exact pass's work image (R32UI, WORK_TEXELS x 1; footprint.frag, list_advance.comp):
+# a round's walks cut at its bound, and on measurement frames the entries and fragments
+# walked and the later rounds' entries; from WORK_BOX, four words per tile, the box of the
+# texels whose lists go on into the next round.
+WORK_CUT, WORK_ENTRIES, WORK_FRAGMENTS, WORK_MOVED, WORK_BOX = 0, 1, 2, 3, 8
+WORK_TEXELS = WORK_BOX + 4 * SLOTS
+SHARED_DEFINES.update({"OW_WORK_CUT": str(WORK_CUT), "OW_WORK_ENTRIES": str(WORK_ENTRIES),
+                       "OW_WORK_FRAGMENTS": str(WORK_FRAGMENTS), "OW_WORK_MOVED": str(WORK_MOVED),
+                       "OW_WORK_BOX": str(WORK_BOX)})
 
 
 @dataclass(frozen=True)
@@ -427,9 +436,19 @@ def program_variant(iface: ProgramInterface, uniforms: dict, points: bool = Fals
 
 
 EXACT_DEFINE = "OW_EXACT"
-# Most list entries one fragment of the exact pass walks (footprint.frag): a longer list is
-# cut there, and the cut is counted (texel 0 of ow_hits' overflow row).
+# Most list entries one fragment of the exact pass walks in its first round (footprint.frag's
+# ow_exact_bound): a longer list is finished by later rounds, each with twice the bound of
+# the one before (parameterizations.Parameterization.draw).
 EXACT_MAX_WALK = 4096
+EXACT_IMAGES = (("r32ui", "ow_counts"), ("r32ui", "ow_next"), ("r32ui", "ow_hits"), ("r32ui", "ow_work"))
+
+# Between two rounds of the exact pass: each list's head moves past the entries walked.
+ADVANCE_PROGRAM = ComputeInterface(
+    name="omniwarp_list_advance",
+    compute_file="list_advance.comp",
+    uniforms=(Uniform("int", "ow_advance_steps"), Uniform("int", "ow_tile_size")),
+    images=(("r32ui", "ow_counts"), ("r32ui", "ow_next"), ("r32ui", "ow_work")),
+)
 
 
 _EXACT_VARIANTS: dict[str, ProgramInterface] = {}  # footprint variant name -> its exact variant
@@ -444,11 +463,12 @@ def exact_of(base: ProgramInterface) -> ProgramInterface:
         defines = {name: value for name, value in base.defines.items() if name != VEIL_DEFINE}
         held = _EXACT_VARIANTS[base.name] = replace(
             base, name=base.name + "_exact",
-            defines={**defines, EXACT_DEFINE: "1", "OW_EXACT_MAX_WALK": str(EXACT_MAX_WALK)},
+            defines={**defines, EXACT_DEFINE: "1"},
             samplers=base.samplers + ("ow_positions",),
             uniforms=base.uniforms + (Uniform("int", "ow_exact_tile"), Uniform("float", "ow_exact_eps"),
-                                      Uniform("int", "ow_exact_count")),
-            images=(("r32ui", "ow_counts"), ("r32ui", "ow_next"), ("r32ui", "ow_hits")))
+                                      Uniform("int", "ow_exact_count"), Uniform("int", "ow_exact_bound"),
+                                      Uniform("int", "ow_exact_round")),
+            images=EXACT_IMAGES)
     return held
 
 
@@ -568,7 +588,7 @@ GBUFFER_ALPHA_PROGRAM = alpha_of(GBUFFER_PROGRAM)
 VEIL_PROGRAMS = tuple(veil_of(iface) for iface in VARIANT_PROGRAMS
                       if iface.fragment_file == SHADOW_TEST_PROGRAM.fragment_file)
 PROGRAMS = (*VARIANT_PROGRAMS, *EXACT_PROGRAMS, *ALPHA_PROGRAMS, *VEIL_PROGRAMS, GBUFFER_ALPHA_PROGRAM, RAY_TABLE_PROGRAM, GBUFFER_PROGRAM, GBUFFER_SAMPLES_PROGRAM, PREVIEW_PROGRAM, OVERLAY_PROGRAM, EDGE_PROGRAM)
-COMPUTE_PROGRAMS = (SCATTER_PROGRAM, SAMPLE_STATS_PROGRAM, BARRIER_PROGRAM, *(_scatter_variant(mode, kind) for mode in SCATTER_MODES
+COMPUTE_PROGRAMS = (SCATTER_PROGRAM, SAMPLE_STATS_PROGRAM, BARRIER_PROGRAM, ADVANCE_PROGRAM, *(_scatter_variant(mode, kind) for mode in SCATTER_MODES
                                                              for kind in (None, *FIXED_KIND_NAMES)),
                     *(_link_variant(kind) for kind in (None, *FIXED_KIND_NAMES)))
 

@@ -30,6 +30,7 @@ from tests.support.blender_gpu_worker import (  # noqa: E402
     PROJECTIVE_CASES,
     alpha_frames,
     boxed_scene,
+    one_texel_case,
     case_key,
     weighted_samples,
 )
@@ -103,6 +104,11 @@ def test_blender_backend_matches_moderngl(gl_backend, tmp_path, monkeypatch):
                             ShadowSettings("dpsm", 128, warp="notw", exact=True))
     assert np.array_equal(exact.visibility, theirs["exact_random_visibility"])
     assert ((exact.visibility > 0.5) == (rnd_exact > 0.5))[rnd_evaluable].mean() >= 0.999
+    texel_scene, texel_samples = one_texel_case()
+    exact = pipeline.render(texel_scene.light, texel_scene.world_triangles(), texel_samples,
+                            ShadowSettings("dpsm", 256, exact=True))
+    assert exact.exact_work["rounds"] >= 1 and int(theirs["exact_one_texel_rounds"]) == exact.exact_work["rounds"]
+    assert np.array_equal(exact.visibility, theirs["exact_one_texel_visibility"])
     # See-through surfaces: the veil and the exact pass's optical depths, alike.
     alpha = alpha_frames(pipeline)
     for key, visibility in alpha.items():

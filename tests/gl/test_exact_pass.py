@@ -50,15 +50,43 @@ def test_the_map_resolution_does_not_matter(gl_backend):
     assert np.array_equal(shadowed[0], shadowed[1]) and shadowed[0].any()
 
 
-def test_a_list_past_the_walk_bound_is_cut_and_counted(gl_backend):
-    """stress_one_texel puts every sample in a texel or two: the walk stops at the bound
-    (no hang) and says how many walks it cut."""
+def test_a_list_past_the_walk_bound_is_finished_by_later_rounds(gl_backend):
+    """stress_one_texel puts every sample in a texel or two: the first round stops at the
+    bound (no hang), the later rounds walk the rest, and no sample is left untested: the
+    pass equals the ray caster there too, and says what work it moved."""
     scene = build_preset("stress_one_texel", (96, 72))
-    samples, _, _ = view_samples(scene)
+    samples, exact, evaluable = view_samples(scene)
     assert samples.hit.sum() > EXACT_MAX_WALK
     pipe = ShadowPipeline(gl_backend)
-    result = pipe.render(scene.light, scene.world_triangles(), samples, ShadowSettings("dpsm", 256, exact=True))
-    assert result.exact_work["cut"] > 0
+    result = pipe.render(scene.light, scene.world_triangles(), samples, ShadowSettings("dpsm", 256, exact=True),
+                         count_work=True)
+    work = result.exact_work
+    assert work["cut"] > 0 and work["rounds"] >= 1 and work["moved"] > 0, work
+    wrong = ((result.visibility > 0.5) != (exact > 0.5))[evaluable]
+    assert wrong.sum() <= max(1, int(1e-3 * evaluable.sum())), int(wrong.sum())
+
+
+@pytest.mark.parametrize("bound", [1, 2])
+def test_rounds_walk_every_entry_once(gl_backend, monkeypatch, bound):
+    """With a first bound of one or two entries every list takes several rounds; the marks,
+    see-through optical depths included (summed, so an entry walked twice would show), are
+    those of one round, and the entries walked are the same."""
+    from addon.render import parameterizations
+    from addon.render.resident import ResidentScene
+    from tests.gl.test_alpha_pass import _scene
+
+    scene = _scene()
+    samples, _, _ = view_samples(scene)
+    pipe = ShadowPipeline(gl_backend)
+    settings = ShadowSettings("dpsm", 128, warp="none", exact=True)  # plain: lists of up to ~10
+    resident = ResidentScene.of_triangles(scene.world_triangles(), surface=scene.surface())
+    once = pipe.render(scene.light, resident, samples, settings, count_work=True)
+    monkeypatch.setattr(parameterizations, "EXACT_MAX_WALK", bound)
+    rounds = pipe.render(scene.light, resident, samples, settings, count_work=True)
+    gl_backend.release_scene(resident)
+    assert once.exact_work["rounds"] == 0 and rounds.exact_work["rounds"] >= 2, rounds.exact_work
+    assert np.array_equal(rounds.visibility, once.visibility)
+    assert rounds.exact_work["entries"] == once.exact_work["entries"] > rounds.exact_work["moved"] > 0
 
 
 def test_exact_takes_only_footprint_parameterizations():

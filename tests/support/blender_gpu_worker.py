@@ -45,6 +45,15 @@ EXACT_CASES = (("dpsm", "notw"), ("cube", "none"))
 ALPHA_CASES = (("dpsm", "notw", False), ("cube", "none", False), ("dpsm", "notw", True))
 
 
+def one_texel_case():
+    """stress_one_texel at test size: lists longer than the exact pass's first bound."""
+    from addon.core.presets import build_preset
+    from tests.support.oracle import view_samples
+
+    scene = build_preset("stress_one_texel", (96, 72))
+    return scene, view_samples(scene)[0]
+
+
 def alpha_frames(pipeline):
     """Visibility of the see-through scene for every ALPHA_CASES entry, by key."""
     from addon.render.pipeline import ShadowSettings
@@ -121,6 +130,12 @@ def backends(out: str, reference: str | None = None) -> None:
     result = pipeline.render(rnd.light, rnd.world_triangles(), rnd_samples,
                              ShadowSettings("dpsm", 128, warp="notw", exact=True))
     arrays["exact_random_visibility"] = result.visibility
+    # ... and on lists longer than the first round's bound (later rounds finish them).
+    texel_scene, texel_samples = one_texel_case()
+    result = pipeline.render(texel_scene.light, texel_scene.world_triangles(), texel_samples,
+                             ShadowSettings("dpsm", 256, exact=True))
+    arrays["exact_one_texel_visibility"] = result.visibility
+    arrays["exact_one_texel_rounds"] = np.array(result.exact_work["rounds"])
     arrays.update(alpha_frames(pipeline))
     court = boxed_scene()
     court_samples, _, _ = view_samples(court)
