@@ -60,9 +60,15 @@ void ow_exact_walk()
     ivec2 at = ivec2(index % width, index / width);
     vec3 p = texelFetch(ow_positions, at, 0).xyz;  // light-centred
     float s = dot(v_plane.xyz, p);
-    if (dot(p, v_edge0) >= 0.0 && dot(p, v_edge1) >= 0.0 && dot(p, v_edge2) >= 0.0 && s != 0.0) {
-      float f = v_plane.w / s;  // where the plane cuts the segment, 1 at the sample
-      if (f > 0.0 && f < 1.0 - ow_exact_eps) {
+    precise float side0 = dot(p - v_edge_at0, v_edge0);
+    precise float side1 = dot(p - v_edge_at1, v_edge1);
+    precise float side2 = dot(p - v_edge_at2, v_edge2);
+    if (side0 >= 0.0 && side1 >= 0.0 && side2 >= 0.0 && s != 0.0) {
+      // The plane cuts the segment at f = w / s (1 at the sample); 1 - f = h / s with h the
+      // sample's height over the plane, taken from a point of it, not as s - w: the
+      // margin test keeps its precision for an occluder just in front of the sample.
+      precise float h = dot(v_plane.xyz, p - v_edge_at0);
+      if (v_plane.w / s > 0.0 && h / s > ow_exact_eps) {
 #ifdef OW_ALPHA
         // A see-through crossing: its optical depth, summed in any order (core/alpha.py).
         float alpha = ow_alpha_along(p);

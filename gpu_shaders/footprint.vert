@@ -76,6 +76,12 @@ void main()
   v_plane = vec4(normal, dot(normal, v0));
   vec3 n0, n1, n2;
   float orientation = ow_edge_planes(v0, v1, v2, ow_edge_on_distance, n0, n1, n2);
+#ifdef OW_EXACT
+  // The samples' side of each edge, relative to a point of it (lib/footprint.glsl).
+  ow_relative_edge(v0, v1, n0, v_edge_at0);
+  ow_relative_edge(v1, v2, n1, v_edge_at1);
+  ow_relative_edge(v2, v0, n2, v_edge_at2);
+#endif
   v_edge0 = n0 * orientation;
   v_edge1 = n1 * orientation;
   v_edge2 = n2 * orientation;

@@ -468,7 +468,8 @@ def exact_of(base: ProgramInterface) -> ProgramInterface:
             uniforms=base.uniforms + (Uniform("int", "ow_exact_tile"), Uniform("float", "ow_exact_eps"),
                                       Uniform("int", "ow_exact_count"), Uniform("int", "ow_exact_bound"),
                                       Uniform("int", "ow_exact_round")),
-            images=EXACT_IMAGES)
+            images=EXACT_IMAGES,
+            varyings=base.varyings + tuple(Varying("vec3", f"v_edge_at{i}", flat=True) for i in range(3)))
     return held
 
 
