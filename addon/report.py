@@ -50,6 +50,23 @@ def markdown_table(rows: Sequence[Row]) -> str:
     return "\n".join(lines) + "\n"
 
 
+def list_table(rows: Sequence[Row]) -> str:
+    """The exact rows' work (rows.Row's list_* fields): the lists, the triangle pass's
+    fragments and entries, and the walks and entries moved to later rounds; empty when
+    no row has them."""
+    listed = [r for r in rows if "list_entries" in r]
+    if not listed:
+        return ""
+    lines = ["| preset | method | res | longest list | mean list | fragments | entries walked | "
+             "walks moved on | later rounds | entries in later rounds |", "|" + "---|" * 10]
+    for r in listed:
+        lines.append("| " + " | ".join([
+            r["preset"], row_label(r), _cell(r.get("resolution")), _cell(r.get("list_longest")),
+            _cell(r.get("list_mean"), ".2f"), _cell(r.get("list_fragments"), ","), _cell(r.get("list_entries"), ","),
+            _cell(r.get("list_cut"), ","), _cell(r.get("list_rounds")), _cell(r.get("list_moved_entries"), ",")]) + " |")
+    return "\n".join(lines) + "\n"
+
+
 def _scene_notes(rows: Sequence[dict]) -> list[str]:
     """One line per scene and note: what its rows cannot follow (see shadow_rule.unfollowed),
     and each distinct row note (a method's own limit there)."""
@@ -87,6 +104,9 @@ def write_markdown(rows: Sequence[dict], path: Path, stamp: str, command: str = 
         "",
         markdown_table(rows),
     ]
+    work = list_table(rows)
+    if work:
+        text += ["The `exact` rows' work (one untimed frame each, `count_work`):", "", work]
     path.write_text("\n".join(text), encoding="utf-8")
 
 

@@ -33,3 +33,15 @@ def test_a_row_keeps_its_method_columns_and_labels_its_work():
     assert row["resolution"] == 1024 and row["passes"] == 2 and row_label(row) == "exact (no cull)"
     assert report._point_label(row) == "1024 (2.5M entries)"
     assert report._point_label(_map_row()) == "1024"
+
+
+def test_the_exact_rows_work_gets_its_own_table(tmp_path):
+    row = _map_row(list_longest=9361, list_mean=312.5, list_fragments=6_370_739, list_entries=3_686_400,
+                   list_cut=420, list_rounds=1, list_moved_entries=1_762_860)
+    table = report.list_table([row, _map_row()])
+    assert table.splitlines()[-1] == ("| room_omni | exact | 1024 | 9361 | 312.50 | 6,370,739 | 3,686,400 | 420 | 1 "
+                                      "| 1,762,860 |")
+    assert len(table.splitlines()) == 3  # the row without list columns has no line
+    assert report.list_table([_map_row()]) == ""
+    report.write_markdown([row], tmp_path / "report.md", "now")
+    assert "walks moved on" in (tmp_path / "report.md").read_text()
