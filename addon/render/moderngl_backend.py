@@ -113,6 +113,7 @@ class ModernGLBackend(ShadowBackend):
         self._stats_target = None  # R32UI row of the planning statistics (reduce_samples)
         self._links = None  # (heads strip, next links) of link_samples, R32UI
         self._veil_fbo = None  # the veil's images as one framebuffer, for their clear
+        self._link_fbos: tuple = ()  # the lists' images as framebuffers, for their clears
         with self.ctx:
             self._fullscreen_vbo = self.ctx.buffer(_FULLSCREEN.tobytes())
             self._set_table("ow_warp_rows", None)
@@ -422,18 +423,21 @@ class ModernGLBackend(ShadowBackend):
             raise BackendError("link_samples called before upload_samples")
         width, height = self._sample_size
         if self._links is None or self._links[0].size != (size * tiles, size) or self._links[1].size != (width, height):
-            for tex in self._links or ():
-                tex.release()
+            self._free_links()
             # heads, links, the exact pass's marks and its work (shaders.EXACT_IMAGES)
             self._links = (self.ctx.texture((size * tiles, size), 1, dtype="u4"),
                            self.ctx.texture((width, height), 1, dtype="u4"),
                            self.ctx.texture((width, height), 1, dtype="u4"),
                            self.ctx.texture((WORK_TEXELS, 1), 1, dtype="u4"))
+            # Zeroed through framebuffers (an integer clear per attachment, on the GPU),
+            # not written from the host: about 3x faster on llvmpipe (see _new_veil).
+            heads, links, hits, work = self._links
+            self._link_fbos = (self.ctx.framebuffer(color_attachments=[heads]),
+                               self.ctx.framebuffer(color_attachments=[links, hits]),
+                               self.ctx.framebuffer(color_attachments=[work]))
         heads, links, hits, work = self._links
-        heads.write(np.zeros(size * tiles * size, dtype="u4").tobytes())
-        links.write(np.zeros(width * height, dtype="u4").tobytes())
-        hits.write(np.zeros(width * height, dtype="u4").tobytes())
-        work.write(np.zeros(WORK_TEXELS, dtype="u4").tobytes())
+        for fbo in self._link_fbos:
+            fbo.clear(0.0, 0.0, 0.0, 0.0)
         self._reset_work()
         iface = link_variant(uniforms)
         prog = self._use(iface, uniforms)
@@ -441,6 +445,12 @@ class ModernGLBackend(ShadowBackend):
         links.bind_to_image(1, read=False, write=True)
         prog.run(group_x=iface.groups(width * height))
         self.ctx.memory_barrier()
+
+    def _free_links(self) -> None:
+        for obj in (*self._link_fbos, *(self._links or ())):
+            obj.release()
+        self._links = None
+        self._link_fbos = ()
 
     @_current
     def read_links(self) -> tuple[np.ndarray, np.ndarray]:
@@ -584,9 +594,7 @@ class ModernGLBackend(ShadowBackend):
             if self._stats_target is not None:
                 self._stats_target.release()
                 self._stats_target = None
-            for tex in self._links or ():
-                tex.release()
-            self._links = None
+            self._free_links()
             for fbo in self._edge_fbos or ():
                 fbo.release()
             self._edge_fbos = None
