@@ -237,6 +237,9 @@ class ShadowBackend(ABC):
         if not self._veil_live:
             self._clear_veil(self._veil_images)
             self._veil_live = True
+        return self._veil_by_name()
+
+    def _veil_by_name(self) -> dict[str, object]:
         return dict(zip((name for _, name in VEIL_IMAGES), self._veil_images))
 
     def _release_veil(self) -> None:
@@ -252,7 +255,7 @@ class ShadowBackend(ABC):
         iface = program_variant(SHADOW_TEST_PROGRAM, uniforms)
         if not self._veil_live:
             return iface, {}
-        return veil_of(iface), dict(zip((name for _, name in VEIL_IMAGES), self._veil_images))
+        return veil_of(iface), self._veil_by_name()
 
     def alpha_textures(self, key: str) -> dict[str, object]:
         """The alpha map a see-through part's programs sample (ALPHA_SAMPLERS); empty for
@@ -398,13 +401,12 @@ class ShadowBackend(ABC):
     def read_hits(self) -> tuple[np.ndarray, dict[str, int]]:
         """The exact pass's marks since the last `link_samples`: (H, W) uint32, non-zero
         where a triangle crossed the sample's segment to the light (row 0 at the bottom);
-        and its work over every round (`exact_round`): `cut`, the walks that stopped at
-        their round's bound and went on in the next; `rounds`, the rounds after the first;
-        and on a frame drawn with ow_exact_count `entries` and `fragments` walked, and
-        `moved`, the entries the later rounds walked."""
+        and its work as `exact_round` folded it, round by round: `cut`, the walks that
+        stopped at their round's bound and went on in the next; `rounds`, the rounds after
+        the first; and on a frame drawn with ow_exact_count `entries` and `fragments`
+        walked, and `moved`, the entries the later rounds walked."""
         if self._links is None:
             raise BackendError("read_hits called before link_samples")
-        self.exact_round()  # the last round's counters
         return self._read_hit_words(), dict(self._exact_work)
 
     def exact_round(self) -> int:
@@ -433,6 +435,11 @@ class ShadowBackend(ABC):
             if x1 > 0:
                 boxes[tile] = (~nx0 & 0xFFFFFFFF, ~ny0 & 0xFFFFFFFF, x1, y1)
         return boxes
+
+    def _advance_images(self) -> dict[str, object]:
+        """ADVANCE_PROGRAM's images by name: the lists' heads and links, and the work."""
+        heads, links, _, work = self._links
+        return {"ow_counts": heads, "ow_next": links, "ow_work": work}
 
     def _reset_work(self) -> None:
         """A new frame's lists: no work counted yet (link_samples)."""

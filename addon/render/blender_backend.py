@@ -514,9 +514,9 @@ class BlenderGPUBackend(ShadowBackend):
         import gpu
 
         shader = self._bind(ADVANCE_PROGRAM, {"ow_advance_steps": steps, "ow_tile_size": tile_size})
-        heads, links, _, work = self._links
-        for (_, name), texture in zip(ADVANCE_PROGRAM.images, (heads, links, work)):
+        for name, texture in self._advance_images().items():
             shader.image(name, texture)
+        heads = self._links[0]
         gpu.compute.dispatch(shader, ADVANCE_PROGRAM.groups(heads.width * heads.height), 1, 1)
 
     def reduce_samples(self, uniforms: UniformValues, clear: bool) -> np.ndarray:

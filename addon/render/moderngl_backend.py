@@ -178,7 +178,7 @@ class ModernGLBackend(ShadowBackend):
         return prog
 
     @staticmethod
-    def _bind_images(iface: ProgramInterface, images: dict[str, object]) -> None:
+    def _bind_images(iface: ProgramInterface | ComputeInterface, images: dict[str, object]) -> None:
         """Bind a program's images (`iface.images`, unit = index) from `images` by name."""
         for unit, (_, name) in enumerate(iface.images):
             images[name].bind_to_image(unit, read=True, write=True)
@@ -471,15 +471,14 @@ class ModernGLBackend(ShadowBackend):
         self.ctx.memory_barrier()
         work = self._links[3]
         words = np.frombuffer(work.read(), dtype="u4").copy()
-        work.write(np.zeros(WORK_TEXELS, dtype="u4").tobytes())
+        self._link_fbos[2].clear(0.0, 0.0, 0.0, 0.0)  # the work image's own framebuffer
         return words
 
     @_current
     def _dispatch_advance(self, steps: int, tile_size: int) -> None:
         prog = self._use(ADVANCE_PROGRAM, {"ow_advance_steps": steps, "ow_tile_size": tile_size})
-        heads, links, _, work = self._links
-        for unit, texture in enumerate((heads, links, work)):
-            texture.bind_to_image(unit, read=True, write=True)
+        self._bind_images(ADVANCE_PROGRAM, self._advance_images())
+        heads = self._links[0]
         prog.run(group_x=ADVANCE_PROGRAM.groups(heads.width * heads.height))
         self.ctx.memory_barrier()
 

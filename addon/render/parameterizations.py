@@ -144,7 +144,8 @@ def _finish_lists(backend: ShadowBackend, layout: AtlasLayout, passes: list) -> 
     the entries walked (backend.advance_lists) and draws the layers again, scissored to the
     texels whose lists go on, with twice the bound; so a texel of n samples takes about
     log2(n / EXACT_MAX_WALK) + 1 rounds, each entry is walked once per triangle, and a frame
-    whose lists all fit (every ordinary one) pays one read of the work counters."""
+    whose lists all fit (every ordinary one) pays one read of the work counters, which
+    also folds the frame's work for `read_hits`."""
     bound = EXACT_MAX_WALK
     for round_index in range(1, EXACT_MAX_ROUNDS + 1):
         if not backend.exact_round():
@@ -157,7 +158,8 @@ def _finish_lists(backend: ShadowBackend, layout: AtlasLayout, passes: list) -> 
                 clip = box if scissor is None else _intersect(box, scissor)
                 backend.draw_footprints(tile, draws, {**uniforms, "ow_exact_bound": bound,
                                                       "ow_exact_round": round_index}, scissor=clip, exact=True)
-    log.warning("exact pass: lists still unfinished after %d rounds", EXACT_MAX_ROUNDS)
+    if backend.exact_round():  # the last round's counters
+        log.warning("exact pass: lists still unfinished after %d rounds", EXACT_MAX_ROUNDS)
 
 
 def _intersect(a: tuple[int, int, int, int], b: tuple[int, int, int, int]) -> tuple[int, int, int, int]:
