@@ -87,15 +87,12 @@ void ow_exact_walk()
   if (node != 0u) {
     imageAtomicAdd(ow_work, ivec2(OW_WORK_CUT, 0), 1u);
   }
-  if (ow_exact_count != 0) {
-    // A measurement frame (ShadowPipeline.render(count_work=True)): the entries walked and
-    // the fragments that walked them, the pass's work, and the later rounds' entries.
-    imageAtomicAdd(ow_work, ivec2(OW_WORK_ENTRIES, 0), uint(step));
-    imageAtomicAdd(ow_work, ivec2(OW_WORK_FRAGMENTS, 0), 1u);
-    if (ow_exact_round > 0) {
-      imageAtomicAdd(ow_work, ivec2(OW_WORK_MOVED, 0), uint(step));
-    }
-  }
+#ifdef OW_EXACT_COUNT
+  // A measurement frame (shaders.EXACT_COUNT_DEFINE): the entries walked and the fragments
+  // that walked them, this round's work (the host folds it round by round).
+  imageAtomicAdd(ow_work, ivec2(OW_WORK_ENTRIES, 0), uint(step));
+  imageAtomicAdd(ow_work, ivec2(OW_WORK_FRAGMENTS, 0), 1u);
+#endif
 }
 #endif
 

@@ -24,7 +24,6 @@ from .shaders import (
     WORK_CUT,
     WORK_ENTRIES,
     WORK_FRAGMENTS,
-    WORK_MOVED,
     ProgramInterface,
     alpha_of,
     exact_variant,
@@ -403,8 +402,8 @@ class ShadowBackend(ABC):
         where a triangle crossed the sample's segment to the light (row 0 at the bottom);
         and its work as `exact_round` folded it, round by round: `cut`, the walks that
         stopped at their round's bound and went on in the next; `rounds`, the rounds after
-        the first; and on a frame drawn with ow_exact_count `entries` and `fragments`
-        walked, and `moved`, the entries the later rounds walked."""
+        the first; and on a measurement frame (shaders.EXACT_COUNT_KEY) `entries` and
+        `fragments` walked, and `moved`, the entries the later rounds walked."""
         if self._links is None:
             raise BackendError("read_hits called before link_samples")
         return self._read_hit_words(), dict(self._exact_work)
@@ -415,9 +414,11 @@ class ShadowBackend(ABC):
         words = self._take_work()
         cut = int(words[WORK_CUT])
         self._exact_work["cut"] += cut
-        self._exact_work["entries"] += int(words[WORK_ENTRIES])
+        entries = int(words[WORK_ENTRIES])
+        self._exact_work["entries"] += entries
         self._exact_work["fragments"] += int(words[WORK_FRAGMENTS])
-        self._exact_work["moved"] += int(words[WORK_MOVED])
+        if self._exact_work["rounds"] > 0:  # a later round's counters (advance_lists came first)
+            self._exact_work["moved"] += entries
         return cut
 
     def advance_lists(self, steps: int, layout: AtlasLayout) -> dict[int, tuple[int, int, int, int]]:

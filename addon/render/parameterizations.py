@@ -40,7 +40,7 @@ from ..core.warping import LayerMapping, max_shear
 from .backend import AtlasLayout, FootprintDraw, ShadowBackend
 from .frame import PreparedGeometry, ShadowSettings
 from .resident import CHUNK_TRIANGLES, ResidentScene
-from .shaders import EXACT_MAX_WALK, FOOTPRINT_VERTICES, MAX_POINT_SIZE, REGION_PLANES, SLOTS
+from .shaders import EXACT_COUNT_KEY, EXACT_MAX_WALK, FOOTPRINT_VERTICES, MAX_POINT_SIZE, REGION_PLANES, SLOTS
 from .unfold import VERTEX_FLOATS, edge_aa_parameters, prepare_unfold
 
 log = logging.getLogger(__name__)
@@ -120,8 +120,8 @@ class Parameterization:
                                          inputs.warp_size), **inputs.region}
             if exact:
                 # The irregular z-buffer: the tile's lists are strip tile `tile` (link_lists).
-                uniforms.update(ow_exact_tile=tile, ow_exact_eps=EXACT_EPS, ow_exact_count=int(inputs.count_work),
-                                ow_exact_bound=EXACT_MAX_WALK, ow_exact_round=0)
+                uniforms.update({"ow_exact_tile": tile, "ow_exact_eps": EXACT_EPS, "ow_exact_bound": EXACT_MAX_WALK,
+                                 EXACT_COUNT_KEY: int(inputs.count_work)})
             elif mapping.warp is not None:
                 backend.build_ray_table(tile, uniforms)
             stretch = map_stretch(mapping)
@@ -147,7 +147,7 @@ def _finish_lists(backend: ShadowBackend, layout: AtlasLayout, passes: list) -> 
     whose lists all fit (every ordinary one) pays one read of the work counters, which
     also folds the frame's work for `read_hits`."""
     bound = EXACT_MAX_WALK
-    for round_index in range(1, EXACT_MAX_ROUNDS + 1):
+    for _ in range(EXACT_MAX_ROUNDS):
         if not backend.exact_round():
             return
         remaining = backend.advance_lists(bound, layout)
@@ -156,8 +156,7 @@ def _finish_lists(backend: ShadowBackend, layout: AtlasLayout, passes: list) -> 
             box = remaining.get(tile)
             if box is not None:
                 clip = box if scissor is None else _intersect(box, scissor)
-                backend.draw_footprints(tile, draws, {**uniforms, "ow_exact_bound": bound,
-                                                      "ow_exact_round": round_index}, scissor=clip, exact=True)
+                backend.draw_footprints(tile, draws, {**uniforms, "ow_exact_bound": bound}, scissor=clip, exact=True)
     if backend.exact_round():  # the last round's counters
         log.warning("exact pass: lists still unfinished after %d rounds", EXACT_MAX_ROUNDS)
 

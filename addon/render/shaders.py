@@ -44,13 +44,12 @@ SHARED_DEFINES: dict[str, str] = {
 }
 # The exact pass's work image (R32UI, WORK_TEXELS x 1; footprint.frag, list_advance.comp):
 # a round's walks cut at its bound, and on measurement frames the entries and fragments
-# walked and the later rounds' entries; from WORK_BOX, four words per tile, the box of the
+# walked (the host folds them round by round); from WORK_BOX, four words per tile, the box of the
 # texels whose lists go on into the next round.
-WORK_CUT, WORK_ENTRIES, WORK_FRAGMENTS, WORK_MOVED, WORK_BOX = 0, 1, 2, 3, 8
+WORK_CUT, WORK_ENTRIES, WORK_FRAGMENTS, WORK_BOX = 0, 1, 2, 8
 WORK_TEXELS = WORK_BOX + 4 * SLOTS
 SHARED_DEFINES.update({"OW_WORK_CUT": str(WORK_CUT), "OW_WORK_ENTRIES": str(WORK_ENTRIES),
-                       "OW_WORK_FRAGMENTS": str(WORK_FRAGMENTS), "OW_WORK_MOVED": str(WORK_MOVED),
-                       "OW_WORK_BOX": str(WORK_BOX)})
+                       "OW_WORK_FRAGMENTS": str(WORK_FRAGMENTS), "OW_WORK_BOX": str(WORK_BOX)})
 
 
 @dataclass(frozen=True)
@@ -451,23 +450,30 @@ ADVANCE_PROGRAM = ComputeInterface(
 )
 
 
-_EXACT_VARIANTS: dict[str, ProgramInterface] = {}  # footprint variant name -> its exact variant
+# The exact pass's counting variant (a measurement frame, ShadowPipeline.render(count_work=
+# True)): its fragments also count the entries they walk. A define, not a uniform: on
+# llvmpipe a branch on a uniform still runs its atomics masked, and those cost ordinary
+# frames about a tenth of the pass (issue 26).
+EXACT_COUNT_DEFINE = "OW_EXACT_COUNT"
+EXACT_COUNT_KEY = "ow_exact_count"  # the uniforms' key that picks the counting variant
+_EXACT_VARIANTS: dict[tuple[str, bool], ProgramInterface] = {}  # (footprint variant, count) -> exact variant
 
 
-def exact_of(base: ProgramInterface) -> ProgramInterface:
-    """The irregular z-buffer's variant of a footprint program (one object per variant:
-    backends cache programs by name)."""
-    held = _EXACT_VARIANTS.get(base.name)
+def exact_of(base: ProgramInterface, count: bool = False) -> ProgramInterface:
+    """The irregular z-buffer's variant of a footprint program, counting its work with
+    `count` (one object per variant: backends cache programs by name)."""
+    held = _EXACT_VARIANTS.get((base.name, count))
     if held is None:
         # The exact pass sums see-through crossings per sample, so it has no veil.
         defines = {name: value for name, value in base.defines.items() if name != VEIL_DEFINE}
-        held = _EXACT_VARIANTS[base.name] = replace(
-            base, name=base.name + "_exact",
-            defines={**defines, EXACT_DEFINE: "1"},
+        defines[EXACT_DEFINE] = "1"
+        if count:
+            defines[EXACT_COUNT_DEFINE] = "1"
+        held = _EXACT_VARIANTS[base.name, count] = replace(
+            base, name=base.name + ("_exact_count" if count else "_exact"), defines=defines,
             samplers=base.samplers + ("ow_positions",),
             uniforms=base.uniforms + (Uniform("int", "ow_exact_tile"), Uniform("float", "ow_exact_eps"),
-                                      Uniform("int", "ow_exact_count"), Uniform("int", "ow_exact_bound"),
-                                      Uniform("int", "ow_exact_round")),
+                                      Uniform("int", "ow_exact_bound")),
             images=EXACT_IMAGES,
             varyings=base.varyings + tuple(Varying("vec3", f"v_edge_at{i}", flat=True) for i in range(3)))
     return held
@@ -476,9 +482,10 @@ def exact_of(base: ProgramInterface) -> ProgramInterface:
 def exact_variant(uniforms: dict, points: bool = False, see_through: bool = False) -> ProgramInterface:
     """The footprint pass of the irregular z-buffer (issue 19): each fragment walks its
     texel's list of samples (link_variant) and marks those whose segment to the light the
-    triangle crosses, instead of storing a depth; `see_through` for an object with alpha."""
+    triangle crosses, instead of storing a depth; `see_through` for an object with alpha,
+    and the counting variant when uniforms[EXACT_COUNT_KEY] is set."""
     base = program_variant(FOOTPRINT_PROGRAM, uniforms, points)
-    return exact_of(alpha_of(base) if see_through else base)
+    return exact_of(alpha_of(base) if see_through else base, bool(uniforms.get(EXACT_COUNT_KEY, 0)))
 
 
 ALPHA_DEFINE = "OW_ALPHA"
@@ -582,9 +589,9 @@ VARIANT_PROGRAMS = tuple(_variant(base, warped, kind) for base in _VARIANT_BASES
 
 _FOOTPRINTS = tuple({iface.name: iface for iface in (FOOTPRINT_PROGRAM, *VARIANT_PROGRAMS)
                      if iface.fragment_file == FOOTPRINT_PROGRAM.fragment_file}.values())
-EXACT_PROGRAMS = tuple(exact_of(iface) for iface in _FOOTPRINTS)
+EXACT_PROGRAMS = tuple(exact_of(iface, count) for iface in _FOOTPRINTS for count in (False, True))
 ALPHA_PROGRAMS = tuple(alpha_of(iface) for iface in _FOOTPRINTS) + tuple(
-    exact_of(alpha_of(iface)) for iface in _FOOTPRINTS)
+    exact_of(alpha_of(iface), count) for iface in _FOOTPRINTS for count in (False, True))
 GBUFFER_ALPHA_PROGRAM = alpha_of(GBUFFER_PROGRAM)
 VEIL_PROGRAMS = tuple(veil_of(iface) for iface in VARIANT_PROGRAMS
                       if iface.fragment_file == SHADOW_TEST_PROGRAM.fragment_file)
