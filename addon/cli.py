@@ -44,7 +44,7 @@ from .core.outputs import StagedOutput, check_output_dir
 from .core.presets import available_presets, build_preset, select_presets
 from .core.scene import parse_size
 # capture.py imports bpy only inside functions: this import needs no Blender.
-from .reference.capture import DEFAULT_SAMPLES
+from .reference.capture import DEFAULT_SAMPLES, SOFT_SAMPLES
 from .rows import row_label
 
 log = logging.getLogger("omniwarp")
@@ -52,6 +52,7 @@ log = logging.getLogger("omniwarp")
 PROGRAM = "omniwarp"
 MAX_FRAMES = 1000
 MAX_SAMPLES = 64
+MAX_SOFT_SAMPLES = 4096
 
 
 class _Parser(argparse.ArgumentParser):
@@ -81,6 +82,7 @@ def _parser() -> argparse.ArgumentParser:
     ref.add_argument("--samples", type=int, default=DEFAULT_SAMPLES,
                      help=f"Cycles samples per pixel, 1-{MAX_SAMPLES} (default {DEFAULT_SAMPLES}: exact for a hard "
                           f"point light, and the reference compare and preview read)")
+    _add_light_size_options(ref)
 
     cmp_ = sub.add_parser("compare", help="measure methods against Cycles: error %% and time per stage",
                           epilog=EXIT_CONTRACT)
@@ -103,6 +105,7 @@ def _parser() -> argparse.ArgumentParser:
                       help=f"timed frames per row after one warm-up, 1-{MAX_FRAMES} (default 3)")
     cmp_.add_argument("--no-images", action="store_true",
                       help="skip the mismatch images (and remove the images/ of an earlier run)")
+    _add_light_size_options(cmp_)
 
     prev = sub.add_parser("preview", help="the viewport preview and map overlay, drawn headless with Blender's gpu",
                           epilog=EXIT_CONTRACT)
@@ -150,6 +153,24 @@ def _result(args: argparse.Namespace, line: str) -> None:
     print(line, file=getattr(args, "results", None) or sys.stdout, flush=True)
 
 
+def _add_light_size_options(parser: argparse.ArgumentParser) -> None:
+    """The light's size in the reference (capture.capture): kept as the file has it, or not."""
+    parser.add_argument("--hard", action="store_true",
+                        help="give the light no size in the references (radius 0, a sun's angle 0, a tiny area "
+                             "light): the hard-shadow study")
+    parser.add_argument("--soft-samples", type=int, default=SOFT_SAMPLES,
+                        help=f"Cycles samples per pixel of a sized light's reference, even, 2-{MAX_SOFT_SAMPLES} "
+                             f"(default {SOFT_SAMPLES}, in two halves that measure its noise)")
+
+
+def _light_size(args: argparse.Namespace) -> dict:
+    """The reference loaders' light-size arguments, checked (exit 2 on a bad count)."""
+    soft = getattr(args, "soft_samples", SOFT_SAMPLES)
+    if not 2 <= soft <= MAX_SOFT_SAMPLES or soft % 2:
+        raise InputError(f"bad --soft-samples {soft}: use an even number in 2-{MAX_SOFT_SAMPLES}")
+    return {"hard": bool(getattr(args, "hard", False)), "soft_samples": soft}
+
+
 def cmd_presets(args: argparse.Namespace) -> int:
     for info in available_presets().values():
         _result(args, f"{info.name:14s} {info.description}\n{'':14s} stresses: {info.stresses}")
@@ -175,7 +196,8 @@ def cmd_reference(args: argparse.Namespace) -> int:
         _say(f"note: compare and preview read the {DEFAULT_SAMPLES}-sample reference; "
              f"this {args.samples}-sample one is cached beside it")
     for name in names:
-        ref = load_or_capture(name, size, refresh=args.refresh, samples=args.samples, log_progress=_say)
+        ref = load_or_capture(name, size, refresh=args.refresh, samples=args.samples, log_progress=_say,
+                              **_light_size(args))
         seconds = ref.meta.get("render_seconds", {})
         _result(args, f"{name}: {size[0]}x{size[1]}, {int(ref.hit.sum())} hit pixels, {len(ref.triangles)} triangles, "
                       f"key {ref.meta.get('cache_key', '?')}, render s {seconds}")
@@ -214,6 +236,7 @@ def _blend_reference(args: argparse.Namespace, check: Callable[[str], None] | No
     from .reference.blend_file import check_blend_file
 
     path = check_blend_file(args.blend)
+    size_options = _light_size(args)
     _need_bpy("--blend")
 
     def load():
@@ -233,7 +256,8 @@ def _blend_reference(args: argparse.Namespace, check: Callable[[str], None] | No
         if args.light and (bpy.data.objects.get(args.light) is None):
             raise InputError(f"--light {args.light!r}: no object of that name in {path.name}")
         return load_or_capture_blend(path, scene, args.light, samples=getattr(args, "samples", DEFAULT_SAMPLES),
-                                     refresh=getattr(args, "refresh", False), progress=_say, check=check)
+                                     refresh=getattr(args, "refresh", False), progress=_say, check=check,
+                                     **size_options)
 
     return load
 
@@ -258,7 +282,9 @@ def cmd_compare(args: argparse.Namespace) -> int:
         names = select_presets(args.preset)
         # Building a preset is cheap (no Blender): its light says which methods fit.
         check_methods_fit(methods, {name: build_preset(name, size).light.emission for name in names})
-        references = {name: (lambda n=name: load_or_capture(n, size, log_progress=_say)) for name in names}
+        size_options = _light_size(args)
+        references = {name: (lambda n=name: load_or_capture(n, size, log_progress=_say, **size_options))
+                      for name in names}
         sources = {name: ["--preset", name, "--size", f"{size[0]}x{size[1]}"] for name in names}
     else:
         stem = Path(args.blend).stem

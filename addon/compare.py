@@ -78,7 +78,8 @@ def parse_resolutions(text: str) -> tuple[int, ...]:
 def light_from_reference(ref: ReferenceData) -> LightSpec:
     if ref.emission not in POINT_EMISSIONS + PROJECTIVE_EMISSIONS:
         raise InputError(f"the reference light is {ref.emission!r}; expected omni, hemi, spot or sun")
-    return LightSpec(ref.emission, ref.light_matrix, spot_size=ref.spot_size)  # type: ignore[arg-type]
+    return LightSpec(ref.emission, ref.light_matrix, spot_size=ref.spot_size,  # type: ignore[arg-type]
+                     shape=ref.light_shape())
 
 
 def camera_from_reference(ref: ReferenceData) -> CameraSpec:
@@ -150,7 +151,8 @@ def run_row(pipeline: ShadowPipeline, ref: ReferenceData, preset: str, method: s
     ref_lit = metrics.reference_visibility(ref.shadowed, ref.unshadowed)
     evaluable = metrics.evaluable_mask(ref.position, ref.normal, ref.hit, ref.unshadowed, light)
     est_lit = last.visibility > 0.5
-    judged = metrics.judge(last.visibility, ref.shadowed, ref.unshadowed, evaluable)
+    judged = metrics.judge(last.visibility, ref.shadowed, ref.unshadowed, evaluable, sized=light.sized,
+                           noise=ref.visibility_noise)
     times = _median_times([f.time_ms for f in frames])
     row = make_row(
         preset, method, light.emission, judged.figure, times, pipeline.backend.renderer(), pipeline.backend.name,
@@ -173,6 +175,7 @@ def run_row(pipeline: ShadowPipeline, ref: ReferenceData, preset: str, method: s
         layers=[layer.name for layer in last.plan.drawn],
         warp=_warp_summary(last),
         cull=options.cull,
+        light_shape=light.shape.describe() if light.sized else None,
         note=UNFOLD_ALPHA_NOTE if settings.parameterization == "unfold" and scene_has_alpha(scene) else None,
     )
     if image_dir is not None:

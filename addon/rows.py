@@ -40,6 +40,11 @@ class Row(TypedDict, total=False):
     # out of error_pct, and their own soft error
     fractional_pixels: int
     fractional_soft_error_pct: float
+    # a sized light (core/light_shape.py): its shape as the reference rendered it, and the
+    # reference's own noise in soft_error_pct's unit (data.ReferenceData.visibility_noise);
+    # its error_pct counts the penumbra's pixels too (metrics.judge)
+    light_shape: str
+    reference_noise_pct: float
     triangles_drawn: int
     scene_triangles: int
     texels: int

@@ -94,31 +94,42 @@ def soft_error_pct(visibility: np.ndarray, reference_lit: np.ndarray, evaluable:
 @dataclass
 class Judgement:
     """An estimate against the reference: the binary figure on the decisive pixels, the
-    soft error on all of them, and the fractional pixels' own soft error."""
+    soft error on all of them, the fractional pixels' own soft error, and a sized light's
+    reference noise in the soft error's unit."""
 
     figure: ErrorFigure
     soft_error_pct: float
     fractional_pixels: int
     fractional_soft_error_pct: float | None  # None without fractional pixels
+    reference_noise_pct: float | None = None  # None for a noise-free (hard) reference
 
     def columns(self) -> dict:
         """The results columns (rows.make_row) besides the figure."""
         return {"soft_error_pct": self.soft_error_pct,
                 "fractional_pixels": self.fractional_pixels or None,
-                "fractional_soft_error_pct": self.fractional_soft_error_pct}
+                "fractional_soft_error_pct": self.fractional_soft_error_pct,
+                "reference_noise_pct": self.reference_noise_pct}
 
 
 def judge(visibility: np.ndarray, shadowed: np.ndarray, unshadowed: np.ndarray,
-          evaluable: np.ndarray) -> Judgement:
-    """The one way an estimate's visibility (H, W) is scored against Cycles' two passes."""
+          evaluable: np.ndarray, sized: bool = False, noise: np.ndarray | None = None) -> Judgement:
+    """The one way an estimate's visibility (H, W) is scored against Cycles' two passes.
+
+    A hard light's binary figure leaves its fractional pixels out (see-through light,
+    filtered rims). A sized light's penumbra is what is measured, so its figure counts
+    every evaluated pixel on the side of 0.5 it falls (issue 27); `noise` (H, W), the
+    reference's own per pixel, gives reference_noise_pct = 100 x its mean there."""
     ratio = reference_ratio(shadowed, unshadowed)
     ev = np.asarray(evaluable, dtype=bool)
     fractional = ev & (ratio > FRACTIONAL_BAND[0]) & (ratio < FRACTIONAL_BAND[1])
     vis = np.asarray(visibility, dtype=np.float64)
-    figure = error_figure(vis > 0.5, ratio >= 0.5, ev & ~fractional)
+    figure = error_figure(vis > 0.5, ratio >= 0.5, ev if sized else ev & ~fractional)
     count = int(np.count_nonzero(fractional))
+    noise_pct = None
+    if noise is not None:
+        noise_pct = float(100.0 * np.asarray(noise, dtype=np.float64)[ev].mean()) if ev.any() else 0.0
     return Judgement(figure, soft_error_pct(vis, ratio, ev), count,
-                     soft_error_pct(vis, ratio, fractional) if count else None)
+                     soft_error_pct(vis, ratio, fractional) if count else None, noise_pct)
 
 
 def mismatch_image(grey_source: np.ndarray, estimate_lit: np.ndarray, reference_lit: np.ndarray,

@@ -84,11 +84,12 @@ def select_presets(selection: str, preset_dir: Path = PRESET_DIR) -> list[str]:
 
 
 def preset_source_hash(name: str, preset_dir: Path = PRESET_DIR) -> str:
-    """Hash of the builder file, scene.py and camera.py, so a changed builder (or the
-    camera a builder makes) refreshes caches."""
+    """Hash of the builder file and the core modules a scene is made of (scene.py, camera.py,
+    alpha.py, light_shape.py), so a changed builder (or the camera or light it makes)
+    refreshes caches."""
     digest = hashlib.sha256()
     digest.update((preset_dir / f"{name}.py").read_bytes())
-    for module in ("scene.py", "camera.py", "alpha.py"):
+    for module in ("scene.py", "camera.py", "alpha.py", "light_shape.py"):
         digest.update(Path(__file__).with_name(module).read_bytes())
     return digest.hexdigest()[:16]
 

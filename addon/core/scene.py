@@ -21,6 +21,7 @@ from .alpha import AlphaMap, Surface
 # CameraSpec lives in camera.py; it is re-exported here, where the other scene types are.
 from .camera import CameraSpec, blender_camera_window, camera_from_matrices  # noqa: F401
 from .errors import InputError
+from .light_shape import POINT, Area, LightShape, Sphere, SunDisk
 
 Emission = Literal["omni", "hemi", "spot", "sun"]
 # Point-light emissions (a position, every direction or a half space) take the
@@ -73,13 +74,16 @@ class LightSpec:
     omni: a POINT; hemi: a 180 degree SPOT along local -Z; spot: a SPOT whose full
     cone angle `spot_size` (radians) is below 180 degrees, with blend 0; sun: a SUN
     (angle 0) whose light travels along local -Z. A sun's position only fixes the
-    origin the pipeline centres coordinates on.
+    origin the pipeline centres coordinates on. `shape` is the light's own size
+    (core/light_shape.py): a sphere for omni, hemi and spot, a disk for a sun, and an
+    area light's outline, which takes the hemispherical emission (it is one-sided).
     """
 
     emission: Emission
     matrix_world: np.ndarray
     energy: float = 1000.0  # W for point and spot lights, W/m^2 (strength) for the sun
     spot_size: float = math.pi
+    shape: LightShape = POINT
 
     def __post_init__(self) -> None:
         if self.emission not in ("omni", "hemi", "spot", "sun"):
@@ -92,6 +96,14 @@ class LightSpec:
         if self.emission == "spot" and not (float(self.spot_size) > 0.0 and spot_emission(self.spot_size) == "spot"):
             raise InputError(f"spot cone {math.degrees(self.spot_size):.4g} degrees is outside (0, 179): "
                              "a cone of 179 degrees or more is the hemispherical light")
+        fits = {Sphere: ("omni", "hemi", "spot"), SunDisk: ("sun",), Area: ("hemi",)}.get(type(self.shape))
+        if fits is not None and self.emission not in fits:
+            raise InputError(f"a {self.emission} light cannot have the shape {self.shape.describe()!r}")
+
+    @property
+    def sized(self) -> bool:
+        """True when the light has a size, so its shadows have penumbrae."""
+        return self.shape.sized
 
     @property
     def position(self) -> np.ndarray:
@@ -278,25 +290,33 @@ class SceneBuilder:
         return AlphaMap.constant(name, alpha)
 
     # light and camera -----------------------------------------------------
-    def point_light(self, location, energy: float = 1000.0) -> None:
-        """Omnidirectional point light."""
-        self._light = LightSpec("omni", translation(location), energy)
+    def point_light(self, location, energy: float = 1000.0, radius: float = 0.0) -> None:
+        """Omnidirectional point light, a sphere of `radius` (0: hard)."""
+        self._light = LightSpec("omni", translation(location), energy, shape=Sphere(radius) if radius else POINT)
 
-    def hemi_light(self, location, target, energy: float = 1000.0) -> None:
+    def hemi_light(self, location, target, energy: float = 1000.0, radius: float = 0.0) -> None:
         """Hemispherical light at `location` whose axis points at `target`."""
-        self._light = LightSpec("hemi", look_at(location, target), energy)
+        self._light = LightSpec("hemi", look_at(location, target), energy, shape=Sphere(radius) if radius else POINT)
 
-    def spot_light(self, location, target, spot_size_deg: float, energy: float = 1000.0) -> None:
+    def area_light(self, location, target, size_x: float, size_y: float, outline: str = "rectangle",
+                   energy: float = 1000.0) -> None:
+        """A one-sided area light at `location` facing `target` (the hemispherical emission)."""
+        self._light = LightSpec("hemi", look_at(location, target), energy, shape=Area(outline, size_x, size_y))
+
+    def spot_light(self, location, target, spot_size_deg: float, energy: float = 1000.0, radius: float = 0.0) -> None:
         """Spot light at `location` aimed at `target`, full cone `spot_size_deg`, blend 0."""
-        self._light = LightSpec("spot", look_at(location, target), energy, math.radians(spot_size_deg))
+        self._light = LightSpec("spot", look_at(location, target), energy, math.radians(spot_size_deg),
+                                shape=Sphere(radius) if radius else POINT)
 
-    def sun_light(self, direction, strength: float = 3.0, origin=(0.0, 0.0, 0.0)) -> None:
-        """Sun (angle 0) whose light travels along `direction`; `origin` only places the lamp."""
+    def sun_light(self, direction, strength: float = 3.0, origin=(0.0, 0.0, 0.0), angle_deg: float = 0.0) -> None:
+        """Sun whose light travels along `direction`, `angle_deg` across (0: hard); `origin`
+        only places the lamp."""
         d = np.asarray(direction, dtype=np.float64)
         if not np.all(np.isfinite(d)) or np.linalg.norm(d) == 0.0:
             raise InputError(f"sun direction {tuple(d)} must be a finite non-zero vector")
         origin = np.asarray(origin, dtype=np.float64)
-        self._light = LightSpec("sun", look_at(origin, origin + d), strength)
+        self._light = LightSpec("sun", look_at(origin, origin + d), strength,
+                                shape=SunDisk(math.radians(angle_deg)) if angle_deg else POINT)
 
     def camera(self, location, target, fov_deg: float = 60.0, clip_end: float = 200.0,
                clip_start: float = 0.05, *, shift: tuple[float, float] = (0.0, 0.0),

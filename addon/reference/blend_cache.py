@@ -2,7 +2,8 @@
 
 The key is what changes the render: the bytes of the file and of the files outside it that
 can change the geometry (linked libraries, unpacked images, Alembic/USD caches), the scene,
-the requested light (or none: the scene's only one), the camera, the frame, the output size, the samples, the Blender version and `capture.CAPTURE_VERSION`. Files are
+the requested light (or none: the scene's only one), the camera, the frame, the output size, the samples
+(and a sized light's: `hard`, `soft_samples`), the Blender version and `capture.CAPTURE_VERSION`. Files are
 `<stem>_<W>x<H>_<key>.npz` under the same folder as the presets' references, with the
 same fields. bpy is imported only inside functions; the file must already be open.
 """
@@ -15,7 +16,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Any, Callable
 
 from .cache import blender_version, cache_dir_path, cache_key, cache_path, check_cache_dir, load_cached, store
-from .capture import CAPTURE_VERSION, DEFAULT_SAMPLES, capture, output_size
+from .capture import CAPTURE_VERSION, DEFAULT_SAMPLES, SOFT_SAMPLES, capture, output_size
 from .data import ReferenceData
 
 if TYPE_CHECKING:  # pragma: no cover - typing only
@@ -52,7 +53,8 @@ def _external_files() -> list[str]:
     return names
 
 
-def blend_key_fields(path: Path, scene: "bpy.types.Scene", light: str | None, samples: int) -> dict[str, Any]:
+def blend_key_fields(path: Path, scene: "bpy.types.Scene", light: str | None, samples: int,
+                     hard: bool = False, soft_samples: int = SOFT_SAMPLES) -> dict[str, Any]:
     """What a cached reference of the open file depends on."""
     import bpy
 
@@ -65,6 +67,9 @@ def blend_key_fields(path: Path, scene: "bpy.types.Scene", light: str | None, sa
         "frame": int(scene.frame_current),
         "resolution": list(output_size(scene)),
         "samples": int(samples),
+        # A sized light's reference (capture.py): its samples, or its size taken away.
+        "hard": bool(hard),
+        "soft_samples": int(soft_samples),
         "blender": blender_version(),
         "capture_version": CAPTURE_VERSION,
     }
@@ -73,14 +78,15 @@ def blend_key_fields(path: Path, scene: "bpy.types.Scene", light: str | None, sa
 def load_or_capture_blend(path: Path, scene: "bpy.types.Scene", light: str | None = None, *,
                           samples: int = DEFAULT_SAMPLES, refresh: bool = False, cache_dir: Path | None = None,
                           progress: Progress | None = None,
-                          check: Callable[[str], None] | None = None) -> ReferenceData:
+                          check: Callable[[str], None] | None = None, hard: bool = False,
+                          soft_samples: int = SOFT_SAMPLES) -> ReferenceData:
     """The reference of the open .blend `path` (its `scene`): cached, or rendered and cached.
 
     `check(emission)` runs before a render, and on a cached reference too, so a misfit is
     refused the same way either way."""
     say = progress or (lambda message: None)
     folder = cache_dir_path(cache_dir)
-    fields = blend_key_fields(path, scene, light, samples)
+    fields = blend_key_fields(path, scene, light, samples, hard, soft_samples)
     key = cache_key(fields)
     target = cache_path(path.stem, output_size(scene), key, folder)
     cached = load_cached(target) if not refresh and target.exists() else None
@@ -98,7 +104,8 @@ def load_or_capture_blend(path: Path, scene: "bpy.types.Scene", light: str | Non
 
     check_cache_dir(folder)  # before the render, not after it
     start = time.perf_counter()
-    ref = capture(scene, samples=samples, light=light, progress=progress, check=checked)
+    ref = capture(scene, samples=samples, light=light, progress=progress, check=checked, hard=hard,
+                  soft_samples=soft_samples)
     ref.meta.update(blend=str(path), cache_key=key, key_fields=fields)
     store(ref, target)
     say(f"reference of {path.name} cached in {time.perf_counter() - start:.1f} s: {target}")

@@ -12,6 +12,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from ..core.camera import blender_camera_settings
+from ..core.light_shape import Area, Sphere, SunDisk
 from ..core.errors import InputError
 from ..core.scene import MeshSpec, SceneSpec
 
@@ -154,7 +155,14 @@ def build_blender_scene(spec: SceneSpec) -> "bpy.types.Scene":
         link(obj)
 
     light_spec = spec.light
-    if light_spec.emission == "omni":
+    shape = light_spec.shape
+    if isinstance(shape, Area):  # one-sided: the hemispherical emission with a size
+        light = bpy.data.lights.new(f"{spec.name}_light", "AREA")
+        light.shape = "RECTANGLE" if shape.outline == "rectangle" else "ELLIPSE"
+        light.size, light.size_y = float(shape.size_x), float(shape.size_y)
+        if hasattr(light, "spread"):
+            light.spread = float(shape.spread)
+    elif light_spec.emission == "omni":
         light = bpy.data.lights.new(f"{spec.name}_light", "POINT")
     elif light_spec.emission == "hemi":
         light = bpy.data.lights.new(f"{spec.name}_light", "SPOT")
@@ -166,11 +174,14 @@ def build_blender_scene(spec: SceneSpec) -> "bpy.types.Scene":
         light.spot_blend = 0.0  # a hard cone edge, as the projective maps assume
     elif light_spec.emission == "sun":
         light = bpy.data.lights.new(f"{spec.name}_light", "SUN")
-        light.angle = 0.0  # a hard sun (Blender's default 0.526 degrees gives penumbrae)
+        # The spec's disk, or a hard sun (Blender's default 0.526 degrees gives penumbrae).
+        light.angle = float(shape.angle) if isinstance(shape, SunDisk) else 0.0
     else:
         raise InputError(f"scene {spec.name!r}: unknown light emission {light_spec.emission!r}")
     light.energy = float(light_spec.energy)  # W, or W/m^2 (strength) for a sun
-    light.shadow_soft_size = 0.0  # a hard point light, as the shadow maps assume
+    if light.type != "AREA":
+        # The spec's sphere, or a hard point light, as the shadow maps assume.
+        light.shadow_soft_size = float(shape.radius) if isinstance(shape, Sphere) else 0.0
     light_obj = bpy.data.objects.new(f"{spec.name}_light", light)
     light_obj.matrix_world = _matrix(light_spec.matrix_world)
     link(light_obj)

@@ -30,7 +30,7 @@ from typing import Any, Callable
 from ..core.errors import ReferenceCaptureError
 from ..core.presets import DEFAULT_RESOLUTION, build_preset, preset_source_hash
 # capture.py imports bpy only inside functions, so this import is bpy-free.
-from .capture import CAPTURE_VERSION, DEFAULT_SAMPLES
+from .capture import CAPTURE_VERSION, DEFAULT_SAMPLES, SOFT_SAMPLES
 from .data import ReferenceData, read_meta
 
 log = logging.getLogger(__name__)
@@ -70,15 +70,22 @@ def blender_version() -> str | None:
     return "%d.%d.%d" % tuple(bpy.app.version[:3])
 
 
-def key_fields(preset: str, resolution: tuple[int, int], samples: int, version: str | None) -> dict[str, Any]:
-    """What a cached reference depends on."""
-    return {
+def key_fields(preset: str, resolution: tuple[int, int], samples: int, version: str | None,
+               hard: bool = False, soft_samples: int = SOFT_SAMPLES) -> dict[str, Any]:
+    """What a cached reference depends on. A sized light's settings join the key only
+    when they differ from the defaults, so the hard presets' keys stay as they were."""
+    fields: dict[str, Any] = {
         "preset_hash": preset_source_hash(preset),
         "blender": version,
         "resolution": [int(resolution[0]), int(resolution[1])],
         "samples": int(samples),
         "capture_version": CAPTURE_VERSION,
     }
+    if hard:
+        fields["hard"] = True
+    if soft_samples != SOFT_SAMPLES:
+        fields["soft_samples"] = int(soft_samples)
+    return fields
 
 
 def cache_key(fields: dict[str, Any]) -> str:
@@ -111,7 +118,7 @@ def _find_without_blender(preset: str, resolution: tuple[int, int], fields: dict
 
 
 def _capture_preset(preset: str, resolution: tuple[int, int], samples: int,
-                    progress: Progress | None) -> ReferenceData:
+                    progress: Progress | None, hard: bool, soft_samples: int) -> ReferenceData:
     """Build the preset in a new Blender scene, capture it and delete everything created."""
     try:
         import bpy  # noqa: F401  (only to fail early with a clear message)
@@ -126,23 +133,25 @@ def _capture_preset(preset: str, resolution: tuple[int, int], samples: int,
     spec = build_preset(preset, tuple(resolution))
     scene = build_blender_scene(spec)
     try:
-        return capture(scene, samples=samples, progress=progress)
+        return capture(scene, samples=samples, progress=progress, hard=hard, soft_samples=soft_samples)
     finally:
         remove_blender_scene(scene)
 
 
 def load_or_capture(preset: str, resolution: tuple[int, int] = DEFAULT_RESOLUTION, refresh: bool = False,
                     samples: int = DEFAULT_SAMPLES, cache_dir: str | os.PathLike | None = None,
-                    log_progress: Progress | None = None) -> ReferenceData:
+                    log_progress: Progress | None = None, hard: bool = False,
+                    soft_samples: int = SOFT_SAMPLES) -> ReferenceData:
     """The reference of `preset`: from the cache, or rendered with Cycles and cached.
 
     `refresh` renders anew even when a cached file exists. `log_progress` receives
-    one-line progress messages during a render.
+    one-line progress messages during a render. `hard` and `soft_samples` are for a
+    sized light (capture.capture).
     """
     resolution = (int(resolution[0]), int(resolution[1]))
     folder = cache_dir_path(cache_dir)
     version = blender_version()
-    fields = key_fields(preset, resolution, samples, version)
+    fields = key_fields(preset, resolution, samples, version, hard, soft_samples)
 
     if not refresh:
         path: Path | None
@@ -170,7 +179,7 @@ def load_or_capture(preset: str, resolution: tuple[int, int] = DEFAULT_RESOLUTIO
     say = log_progress or (lambda message: None)
     say(f"rendering Cycles reference of {preset} at {resolution[0]}x{resolution[1]}")
     start = time.perf_counter()
-    ref = _capture_preset(preset, resolution, samples, log_progress)
+    ref = _capture_preset(preset, resolution, samples, log_progress, hard, soft_samples)
     ref.meta.update(preset=preset, cache_key=key, key_fields=fields)
     store(ref, path)
     say(f"reference of {preset} cached in {time.perf_counter() - start:.1f} s: {path}")

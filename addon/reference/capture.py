@@ -1,23 +1,28 @@
 """Render the Cycles ground truth of a Blender scene into a `ReferenceData`.
 
 `capture(scene)` works on any scene with a perspective or orthographic camera (any
-sensor fit, lens shift, pixel aspect and resolution percentage) and one point, spot or
-sun light (the presets, and user .blend files). It temporarily switches the scene to
+sensor fit, lens shift, pixel aspect and resolution percentage) and one point, spot, sun
+or area light (the presets, and user .blend files). It temporarily switches the scene to
 the reference set-up of docs/design.md section 5 and restores every setting it touched:
 
 - Cycles on the CPU, by default 1 sample at the pixel centre (no pixel jitter,
   Gaussian filter 0.01 px: Cycles ignores the width of a box filter), no denoising,
   no adaptive sampling, light threshold 0, no bounces (direct light only);
-- the light is hard (radius 0; a sun's angle 0, logged when it was not); a spot's
-  blend is kept but logged, since it fades the light towards the cone's edge; other
-  lights are hidden from the render;
+- the light keeps its size, as the artist renders it (`light_size.py`: a sphere's
+  radius, a sun's angle, an area light's outline), unless `hard` makes it a point (size
+  0); a spot's blend is kept but logged, since it fades the light towards the cone's
+  edge; other lights are hidden from the render;
 - every material is replaced by a white diffuse one (view-layer material override),
   which also writes the Geometry node's True Normal into a shader AOV;
 - a black world and a transparent film (its alpha is the hit mask);
 - the camera's depth of field off (every pixel's ray starts at the pinhole).
 
 It renders twice: once as is and once with the light's shadow casting off, which
-gives the `shadowed` and `unshadowed` Diffuse Direct passes. The stored triangles
+gives the `shadowed` and `unshadowed` Diffuse Direct passes. A sized light renders each
+pass twice, with `soft_samples` / 2 samples and two seeds: the halves' mean is the
+reference, and half their difference, `visibility_noise`, its own noise per pixel. The
+same seed in the shadowed and unshadowed renders draws the same light points, so their
+ratio is the share of those points the pixel sees. The stored triangles
 are the ones that block the light: the render depsgraph's geometry
 (`render_geometry.py`) sorted by `shadow_rule.ShadowRule`, which follows ray
 visibility, shadow linking and the light's own `use_shadow` as Cycles does. `bpy`
@@ -37,9 +42,12 @@ import numpy as np
 from ..core import interrupt, validate
 from ..core.camera import Window, blender_camera_window, window_fov_deg
 from ..core.errors import InputError, ReferenceCaptureError
+from ..core.light_shape import POINT
+from ..core.metrics import reference_ratio
 from ..core.scene import orthonormalize, spot_emission
 from ..render import blender_compat
 from . import reference_materials
+from . import light_size
 from .data import ReferenceData
 from .reference_materials import AOV_NORMAL
 from .render_geometry import GEOMETRY_TYPES, render_triangles
@@ -61,10 +69,14 @@ TRANSPARENT_BOUNCES = 256
 # on 5.2 later samples land slightly off the pixel centre (see _apply_render_settings),
 # where data passes (Position) keep the first sample only.
 DEFAULT_SAMPLES = 1
+# A sized light's samples per pixel, both halves together: the reference's noise then is
+# about 1 % of visibility in a penumbra (reported per row as reference_noise_pct).
+SOFT_SAMPLES = 256
+SOFT_SEEDS = (0, 1)  # one per half
 PIXEL_FILTER_WIDTH = 0.01  # px; effectively no filter (Blender's minimum)
 # Light types the reference accepts. A SUN has a direction only: nothing in the capture
 # depends on its position (Cycles' culling is off, and there is no near/far to fit).
-_LIGHT_TYPES = {"POINT", "SPOT", "SUN"}
+_LIGHT_TYPES = {"POINT", "SPOT", "SUN", "AREA"}
 # A sun angle or spot blend at or below this counts as hard.
 _SOFT_TOLERANCE = 1e-6
 
@@ -172,7 +184,7 @@ def _pick_light(scene: "bpy.types.Scene", visible: set[str], light: "bpy.types.O
 
 
 def _emission_of(light: "bpy.types.Light") -> str:
-    """"omni" (POINT), "hemi" (SPOT wider than 179 degrees), "spot" or "sun".
+    """"omni" (POINT), "hemi" (SPOT wider than 179 degrees, or AREA), "spot" or "sun".
 
     A blend does not change the emission: it fades the light inside the cone, whose
     edge stays where spot_size puts it.
@@ -181,17 +193,14 @@ def _emission_of(light: "bpy.types.Light") -> str:
         return "omni"
     if light.type == "SUN":
         return "sun"
+    if light.type == "AREA":
+        return "hemi"  # one-sided: it lights the half space in front of it
     return spot_emission(light.spot_size)
 
 
 def _warn_soft_light(light_obj: "bpy.types.Object") -> None:
-    """Log what makes the captured light differ from the hard light the shadow maps assume."""
+    """Log what makes the captured light differ from the light the shadow maps assume."""
     light = light_obj.data
-    if light.type == "SUN" and light.angle > _SOFT_TOLERANCE:
-        # One sample of a soft sun gives a random binary penumbra, no reference at all;
-        # the angle is set to 0 for the capture like a point light's radius.
-        log.warning("sun %r has angle %.3g degrees: the scene's shadows are soft; the reference captures "
-                    "it hard (angle 0)", light_obj.name, math.degrees(light.angle))
     if light.type == "SPOT" and light.spot_blend > _SOFT_TOLERANCE:
         log.warning("spot light %r has blend %.3g: the reference's cone edge is soft (light fades towards "
                     "it); visibility (shadowed/unshadowed) is unaffected, but pixels near the edge get "
@@ -282,7 +291,7 @@ def _add_aov(view_layer, overrides: _Overrides) -> None:
 
 
 def _apply_render_settings(scene, view_layer, light_obj, visible: set[str], samples: int,
-                           filepath: str, overrides: _Overrides) -> list[str]:
+                           filepath: str, overrides: _Overrides, hard: bool) -> list[str]:
     """Switch the scene to the reference set-up (docs/design.md section 5); returns the
     notes of the reference materials (reference_materials.apply)."""
     s = overrides.set
@@ -337,11 +346,11 @@ def _apply_render_settings(scene, view_layer, light_obj, visible: set[str], samp
     _add_aov(view_layer, overrides)
 
     light = light_obj.data
-    s(light, "shadow_soft_size", 0.0)
-    if light.type == "SUN":
-        s(light, "angle", 0.0)  # a sun's softness is its angle, not its radius
+    if hard:
+        light_size.make_hard(light_obj, s)
     # The light's own use_shadow is the file's: off, nothing blocks it (ShadowRule).
-    s(light, "use_soft_falloff", False, optional=True)
+    if hard:
+        s(light, "use_soft_falloff", False, optional=True)
     s(light_obj, "visible_diffuse", True, optional=True)
     for obj in scene.objects:
         # Catchers and holdouts would change the passes and the alpha mask.
@@ -474,18 +483,23 @@ def _stack(channels: dict[str, np.ndarray], layer: str, name: str, comps: str) -
 
 def capture(scene: "bpy.types.Scene", samples: int = DEFAULT_SAMPLES, *, light: "bpy.types.Object | str | None" = None,
             view_layer: str | None = None, progress: Progress | None = None,
-            check: Callable[[str], None] | None = None) -> ReferenceData:
+            check: Callable[[str], None] | None = None, hard: bool = False,
+            soft_samples: int = SOFT_SAMPLES) -> ReferenceData:
     """Render the Cycles reference of `scene` from its camera; the scene is left as it was.
 
-    `light` picks the point, spot or sun light when the scene has several (else exactly
-    one rendered light of those types must exist); every other light is hidden from the
-    render. `check(emission)` runs once the light is known and before any render, so a
-    caller can refuse it (e.g. no requested method fits) without waiting for Cycles.
+    `light` picks the point, spot, sun or area light when the scene has several (else
+    exactly one rendered light of those types must exist); every other light is hidden
+    from the render. `check(emission)` runs once the light is known and before any render,
+    so a caller can refuse it (e.g. no requested method fits) without waiting for Cycles.
+    A sized light renders with `soft_samples` in two halves (module docstring) unless
+    `hard` takes its size away; `samples` is the hard light's count.
     """
     import bpy
 
     if samples < 1:
         raise ReferenceCaptureError(f"samples must be at least 1, got {samples}")
+    if soft_samples < 2 or soft_samples % 2:
+        raise ReferenceCaptureError(f"soft samples must be an even number of at least 2, got {soft_samples}")
     cam_obj = scene.camera
     if cam_obj is None or cam_obj.type != "CAMERA":
         raise ReferenceCaptureError(f"scene {scene.name!r} has no active camera; the reference needs one")
@@ -511,6 +525,8 @@ def capture(scene: "bpy.types.Scene", samples: int = DEFAULT_SAMPLES, *, light: 
         raise ReferenceCaptureError(f"light {light_obj.name!r} emits nothing (energy or colour is zero)")
     _check_finite_transforms(light_obj, cam_obj, depsgraph)
     emission = _emission_of(light_obj.data)
+    authored = light_size.light_shape(light_obj, light_obj.evaluated_get(depsgraph).matrix_world)
+    sized = authored.sized and not hard
     if check is not None:
         check(emission)
     _warn_soft_light(light_obj)
@@ -537,8 +553,9 @@ def capture(scene: "bpy.types.Scene", samples: int = DEFAULT_SAMPLES, *, light: 
             # The render depsgraph: render-level modifiers, hide_render, instancer flags;
             # read before the reference materials replace the file's (their alpha).
             scene_triangles = render_triangles(scene, layer)
-            material_notes = _apply_render_settings(scene, layer, light_obj, visible, samples,
-                                                    str(tmpdir / "pass"), overrides)
+            material_notes = _apply_render_settings(scene, layer, light_obj, visible,
+                                                    soft_samples // 2 if sized else samples,
+                                                    str(tmpdir / "pass"), overrides, hard)
 
             depsgraph = _evaluated_depsgraph(scene, layer)
             camera_matrix = _rigid(cam_obj.evaluated_get(depsgraph).matrix_world)
@@ -554,14 +571,25 @@ def capture(scene: "bpy.types.Scene", samples: int = DEFAULT_SAMPLES, *, light: 
             if empty:
                 log.info("rendered objects without triangles: %s", ", ".join(sorted(empty)))
 
-            say(f"Cycles render 1/2 (shadowed, {width}x{height}, {samples} spp)")
-            t_shadowed = _render(scene, layer, exr_path, "Cycles render 1/2")
-            lit = read_exr_channels(exr_path)
-            exr_path.unlink()
+            seeds = SOFT_SEEDS if sized else SOFT_SEEDS[:1]
+            spp = soft_samples // 2 if sized else samples
+            lits, frees, t_shadowed, t_unshadowed = [], [], 0.0, 0.0
+            count = 2 * len(seeds)
+            for i, seed in enumerate(seeds):
+                overrides.set(scene.cycles, "seed", seed)
+                say(f"Cycles render {i + 1}/{count} (shadowed, {width}x{height}, {spp} spp)")
+                t_shadowed += _render(scene, layer, exr_path, f"Cycles render {i + 1}/{count}")
+                lits.append(read_exr_channels(exr_path))
+                exr_path.unlink()
             _disable_shadows(scene, light_obj, overrides)
-            say(f"Cycles render 2/2 (unshadowed, {width}x{height}, {samples} spp)")
-            t_unshadowed = _render(scene, layer, exr_path, "Cycles render 2/2")
-            free = read_exr_channels(exr_path)
+            for i, seed in enumerate(seeds):
+                overrides.set(scene.cycles, "seed", seed)  # the same light points as its shadowed half
+                step = len(seeds) + i + 1
+                say(f"Cycles render {step}/{count} (unshadowed, {width}x{height}, {spp} spp)")
+                t_unshadowed += _render(scene, layer, exr_path, f"Cycles render {step}/{count}")
+                frees.append(read_exr_channels(exr_path))
+                exr_path.unlink()
+            lit, free = lits[0], frees[0]
         finally:
             overrides.restore()
 
@@ -576,8 +604,16 @@ def capture(scene: "bpy.types.Scene", samples: int = DEFAULT_SAMPLES, *, light: 
     # Several samples average the AOV; re-normalize (only silhouettes can shrink it).
     normal = np.where(hit[..., None] & (length > 1e-12), normal / np.maximum(length, 1e-12), 0.0)
     diffuse = blender_compat.exr_pass_name("Diffuse Direct")
-    shadowed = np.where(hit, _stack(lit, name, diffuse, "RGB").mean(axis=-1), 0.0)
-    unshadowed = np.where(hit, _stack(free, name, diffuse, "RGB").mean(axis=-1), 0.0)
+    shadowed_halves = [np.where(hit, _stack(c, name, diffuse, "RGB").mean(axis=-1), 0.0) for c in lits]
+    unshadowed_halves = [np.where(hit, _stack(c, name, diffuse, "RGB").mean(axis=-1), 0.0) for c in frees]
+    shadowed = np.mean(shadowed_halves, axis=0).astype(np.float32)
+    unshadowed = np.mean(unshadowed_halves, axis=0).astype(np.float32)
+    noise = None
+    if sized:
+        # Half the halves' difference: for independent halves, its mean is the mean
+        # distance of their average (the reference) from the converged visibility.
+        a, b = (reference_ratio(sh, un) for sh, un in zip(shadowed_halves, unshadowed_halves))
+        noise = (0.5 * np.abs(a - b)).astype(np.float32)
     if position.shape[:2] != (height, width):
         raise ReferenceCaptureError(f"Cycles output is {position.shape[1]}x{position.shape[0]}, expected {width}x{height}")
 
@@ -587,8 +623,11 @@ def capture(scene: "bpy.types.Scene", samples: int = DEFAULT_SAMPLES, *, light: 
         "light": light_obj.name,
         "camera": cam_obj.name,
         "blender_version": bpy.app.version_string,
-        "samples": int(samples),
+        "samples": int(soft_samples if sized else samples),
         "mixed_pixels": mixed,
+        # The light as the reference rendered it, and as the file has it.
+        "light_shape": (authored if sized else POINT).as_dict(),
+        "light_shape_file": authored.as_dict(),
         "capture_version": CAPTURE_VERSION,
         "render_seconds": {"shadowed": round(t_shadowed, 3), "unshadowed": round(t_unshadowed, 3)},
         "light_energy": float(light_obj.data.energy),
@@ -602,7 +641,7 @@ def capture(scene: "bpy.types.Scene", samples: int = DEFAULT_SAMPLES, *, light: 
         meta["spot_size_deg"] = math.degrees(light_obj.data.spot_size)
         meta["spot_blend"] = float(light_obj.data.spot_blend)
     if light_obj.data.type == "SUN":
-        meta["sun_angle_deg"] = math.degrees(light_obj.data.angle)  # as authored; captured at 0
+        meta["sun_angle_deg"] = math.degrees(light_obj.data.angle)  # as authored
     log.info("captured %r %dx%d: %d triangles, %.1f%% hit, renders %.2f s + %.2f s",
              scene.name, width, height, len(triangles), 100.0 * hit.mean(), t_shadowed, t_unshadowed)
     return ReferenceData(
@@ -625,4 +664,5 @@ def capture(scene: "bpy.types.Scene", samples: int = DEFAULT_SAMPLES, *, light: 
         camera_ortho=camera_ortho,
         camera_clip=camera_clip,
         surface=surface if surface.see_through else None,
+        visibility_noise=noise,
     )

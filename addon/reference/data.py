@@ -25,6 +25,10 @@ Conventions (verified in tests/blender/test_reference.py):
   capture read them (reference/material_alpha.py), stored as `uvs`, `material` and one
   `alpha{i}_image` / `alpha{i}_transfer` pair a map (their names, interpolations and
   extensions in meta["alpha_maps"]); a file without them is all opaque.
+- The light's size as rendered (`light_shape()`, core/light_shape.py) is meta["light_shape"],
+  as the file has it meta["light_shape_file"]; files without them are hard. A sized light's
+  reference also stores `visibility_noise` (H, W): half the difference of the two halves'
+  visibility (capture.py), the reference's own noise per pixel; a hard one has none.
 """
 from __future__ import annotations
 
@@ -43,6 +47,7 @@ import numpy as np
 from ..core.alpha import AlphaMap, Surface
 from ..core.camera import CameraSpec, Window
 from ..core.errors import ReferenceCaptureError
+from ..core.light_shape import LightShape, shape_from_dict
 
 log = logging.getLogger(__name__)
 
@@ -78,6 +83,7 @@ class ReferenceData:
     camera_ortho: bool = False
     camera_clip: tuple[float, float] | None = None  # (start, end); None: CameraSpec's defaults
     surface: Surface | None = None  # see-through materials of `triangles`; None: all opaque
+    visibility_noise: np.ndarray | None = None  # (H, W) float32, a sized light's; None: noise-free
 
     def __post_init__(self) -> None:
         self.position = np.asarray(self.position, dtype=np.float32)
@@ -101,6 +107,8 @@ class ReferenceData:
             self.camera_clip = (float(self.camera_clip[0]), float(self.camera_clip[1]))
         if self.camera_ortho and self.camera_window is None:
             raise ReferenceCaptureError("an orthographic reference camera needs its camera_window")
+        if self.visibility_noise is not None:
+            self.visibility_noise = np.asarray(self.visibility_noise, dtype=np.float32)
         if self.surface is not None and len(self.surface) != len(self.triangles):
             raise ReferenceCaptureError(f"reference surface has {len(self.surface)} triangles, "
                                         f"the triangles {len(self.triangles)}")
@@ -115,6 +123,8 @@ class ReferenceData:
             "shadowed": (height, width),
             "unshadowed": (height, width),
         }
+        if self.visibility_noise is not None:
+            expected["visibility_noise"] = (height, width)
         for name, shape in expected.items():
             actual = getattr(self, name).shape
             if actual != shape:
@@ -155,6 +165,10 @@ class ReferenceData:
         ratio = np.zeros_like(self.unshadowed)
         np.divide(self.shadowed, self.unshadowed, out=ratio, where=lit)
         return lit & (ratio >= 0.5)
+
+    def light_shape(self) -> LightShape:
+        """The light's size as the reference rendered it (a point for older files)."""
+        return shape_from_dict(self.meta.get("light_shape"))
 
     def scene_surface(self) -> Surface:
         """The triangles' see-through materials (all opaque for a file without them)."""
@@ -215,6 +229,7 @@ class ReferenceData:
                     spot_size=np.array(self.spot_size, dtype=np.float64),
                     **self._camera_arrays(),
                     **self._surface_arrays(meta),
+                    **({} if self.visibility_noise is None else {"visibility_noise": self.visibility_noise}),
                     meta=np.array(json.dumps(meta, sort_keys=True)),
                 )
             os.replace(tmp, path)
@@ -251,6 +266,7 @@ class ReferenceData:
                     meta=meta,
                     spot_size=_stored_spot_size(npz, meta),
                     surface=_stored_surface(npz, meta),
+                    visibility_noise=npz["visibility_noise"] if "visibility_noise" in npz.files else None,
                     **_stored_camera(npz),
                 )
         except _UNREADABLE as exc:

@@ -63,6 +63,7 @@ from ..core.errors import (
     child_stderr_tail,
     report_error,
 )
+from ..core.light_shape import shape_from_dict
 from ..core.scene import CameraSpec, LightSpec, MeshSpec, SceneSpec, parse_size
 from ..render import blender_compat
 from ..rows import make_row
@@ -269,9 +270,10 @@ def light_reach(depsgraph, light_obj, visible: set[str]) -> float:
 
 
 def _apply_eevee_settings(scene, view_layer, light_obj, visible: set[str], engine: str,
-                          filepath: str, overrides) -> dict[str, Any]:
-    """The reference set-up for EEVEE (hard light, white diffuse, black world); returns what was set."""
-    from . import reference_materials
+                          filepath: str, overrides, hard: bool = False) -> dict[str, Any]:
+    """The reference set-up for EEVEE (the light's size as in the Cycles reference, white
+    diffuse, black world); returns what was set."""
+    from . import light_size, reference_materials
     from .capture import _black_world, set_pass_output
 
     s = overrides.set
@@ -306,13 +308,15 @@ def _apply_eevee_settings(scene, view_layer, light_obj, visible: set[str], engin
     reference_materials.apply(scene, view_layer, overrides)  # keeps each material's transparent shadows
 
     light = light_obj.data
-    s(light, "shadow_soft_size", 0.0)
+    if hard:
+        light_size.make_hard(light_obj, s)  # else the file's size, as Cycles renders it
     # use_shadow stays the file's, as in the Cycles reference: off, nothing blocks the light.
     s(light, "use_shadow_jitter", False, optional=True)
     s(light, "shadow_jitter", False, optional=True)  # an older name
     s(light, "shadow_filter_radius", 0.0, optional=True)
     s(light, "use_absolute_resolution", False, optional=True)
-    s(light, "use_soft_falloff", False, optional=True)
+    if hard:
+        s(light, "use_soft_falloff", False, optional=True)
     from .capture import evaluated_depsgraph
 
     reach = light_reach(evaluated_depsgraph(scene, view_layer), light_obj, visible)
@@ -353,8 +357,9 @@ def _diffuse(channels: dict[str, np.ndarray], layer: str, hit: np.ndarray) -> np
 
 def render_eevee(scene: "bpy.types.Scene", out_dir: Path, settings: Sequence[str] = SETTINGS, *,
                  light: "bpy.types.Object | str | None" = None, view_layer: str | None = None,
-                 frames: int = 1, progress: Progress | None = None) -> dict[str, Any]:
+                 frames: int = 1, progress: Progress | None = None, hard: bool = False) -> dict[str, Any]:
     """Render `scene` with EEVEE per setting into `out_dir`; the scene is left as it was.
+    The light keeps its size unless `hard` (as the Cycles reference, capture.capture).
 
     Order: one warm-up render (shader compilation, timed as `warmup_ms`), then per
     setting `frames` timed shadowed renders (median `render_ms`), then one
@@ -400,7 +405,8 @@ def render_eevee(scene: "bpy.types.Scene", out_dir: Path, settings: Sequence[str
     overrides = _Overrides()
     try:
         cap_in_file = float(light_obj.data.shadow_maximum_resolution)
-        used = _apply_eevee_settings(scene, layer, light_obj, visible, engine, str(tmpdir / "pass"), overrides)
+        used = _apply_eevee_settings(scene, layer, light_obj, visible, engine, str(tmpdir / "pass"), overrides,
+                                     hard)
         exr = tmpdir / "pass.exr"
         overrides.set(light_obj.data, "shadow_maximum_resolution", chosen[0].shadow_maximum_resolution)
         say(f"EEVEE warm-up render (shader compilation, {width}x{height})")
@@ -498,6 +504,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     parser.add_argument("--out", required=True, help="folder for eevee_<setting>.npz and eevee.json")
     parser.add_argument("--settings", default=",".join(SETTINGS), help="comma list of: " + ", ".join(KNOWN_SETTINGS))
     parser.add_argument("--frames", type=int, default=1, help="timed renders per setting (median)")
+    parser.add_argument("--hard", action="store_true", help="give the light no size (as compare --hard)")
     parser.add_argument("-v", "--verbose", action="store_true")
     args = parser.parse_args(argv)
     logging.basicConfig(level=logging.INFO if args.verbose else logging.WARNING,
@@ -523,7 +530,7 @@ def main(argv: Sequence[str] | None = None) -> int:
             scene = _open_blend(Path(args.blend), args.camera, args.light)
         try:
             summary = render_eevee(scene, Path(args.out), settings, light=args.light, frames=args.frames,
-                                   progress=say)
+                                   progress=say, hard=args.hard)
         finally:
             if built is not None:
                 remove_blender_scene(built)
@@ -634,13 +641,16 @@ def eevee_rows(source_args: list[str], reference: ReferenceData, preset_label: s
     if "--preset" in args and "--size" not in args:
         args += ["--size", f"{reference.resolution[0]}x{reference.resolution[1]}"]
     args += ["--settings", ",".join(names), "--frames", str(int(frames))]
+    shape = reference.light_shape()
+    if not shape.sized and shape_from_dict(reference.meta.get("light_shape_file")).sized:
+        args.append("--hard")  # the reference took the file's light size away: so does EEVEE
     child_dir = Path(out_dir) / "eevee" / preset_label
     summary = run_child(args, child_dir, progress=progress, timeout_s=timeout_s)
     if summary.get("emission") != reference.emission:
         raise ReferenceCaptureError(f"EEVEE measured a {summary.get('emission')} light but the reference has "
                                     f"a {reference.emission} light; the scenes differ")
 
-    light = LightSpec(reference.emission, reference.light_matrix)  # type: ignore[arg-type]
+    light = LightSpec(reference.emission, reference.light_matrix, shape=shape)  # type: ignore[arg-type]
     ref_lit = metrics.reference_visibility(reference.shadowed, reference.unshadowed)
     evaluable = metrics.evaluable_mask(reference.position, reference.normal, reference.hit, reference.unshadowed, light)
     width, height = reference.resolution
@@ -654,7 +664,10 @@ def eevee_rows(source_args: list[str], reference: ReferenceData, preset_label: s
             log.warning("EEVEE and Cycles disagree on the hit mask at %.2f %% of pixels: other camera or scene?",
                         100.0 - hit_agreement)
         est_lit = data["visibility"].astype(bool)
-        judged = metrics.judge(est_lit, reference.shadowed, reference.unshadowed, evaluable)
+        # A sized light's EEVEE shadows are soft: scored as fractions, like the reference.
+        estimate = metrics.reference_ratio(data["shadowed"], data["unshadowed"]) if light.sized else est_lit
+        judged = metrics.judge(estimate, reference.shadowed, reference.unshadowed, evaluable, sized=light.sized,
+                               noise=reference.visibility_noise)
         cap = _finite(entry["shadow_maximum_resolution"], "shadow_maximum_resolution")
         # No map resolution, passes, texels or pipeline stages: EEVEE's virtual shadow maps
         # have none of them (rows.Row); the setting and its finest texel say what was run.
@@ -669,6 +682,7 @@ def eevee_rows(source_args: list[str], reference: ReferenceData, preset_label: s
             hit_agreement_pct=hit_agreement,
             render_settings=summary["render_settings"],
             note=ROW_NOTE,
+            light_shape=shape.describe() if shape.sized else None,
             **judged.columns(),
         )
         if image_dir is not None:
