@@ -37,6 +37,7 @@ from .compare_props import (
     preset_info,
     selected_methods,
 )
+from .properties import SUPPORTED_LIGHT_TYPES
 from .events import redraw_3d_views  # the sidebar lives in the 3D views this redraws
 
 log = logging.getLogger(__name__)
@@ -58,6 +59,7 @@ class _Job:
     preset: str  # the preset name, or the label of the current scene
     camera_size: tuple[int, int]
     light_name: str | None
+    hard: bool  # the reference's light without its size (capture.capture)
     tasks: list[tuple[str, int]]  # (method, resolution) per row, in order
     options: compare.CompareOptions
     out_dir: Path
@@ -145,9 +147,9 @@ def _safe_label(name: str) -> str:
 
 
 def _scene_light(context: bpy.types.Context, scene: bpy.types.Scene) -> str | None:
-    """The active object when it is a point, spot or sun light of the scene (else capture picks the only one)."""
+    """The active object when it is a light OmniWarp shadows (else capture picks the only one)."""
     obj = getattr(context, "active_object", None)
-    if (obj is not None and obj.type == "LIGHT" and obj.data.type in {"POINT", "SPOT", "SUN"}
+    if (obj is not None and obj.type == "LIGHT" and obj.data.type in SUPPORTED_LIGHT_TYPES
             and obj.name in scene.objects):
         return obj.name
     return None
@@ -202,6 +204,7 @@ def start_job(context: bpy.types.Context, report_fn: Report) -> _Job | None:
         settings.active_result = 0
     job = _Job(scene_name=scene.name, scene_uid=scene.session_uid, source=settings.source, preset=preset,
                camera_size=(int(settings.camera_size[0]), int(settings.camera_size[1])), light_name=light_name,
+               hard=bool(settings.hard),
                tasks=[(m, r) for m in methods for r in resolutions], options=options, out_dir=out_dir,
                image_dir=out_dir / "images" if images else None, keep_rows=keep)
     _ROWS[scene.session_uid] = list(keep)
@@ -235,9 +238,9 @@ def _load_reference(job: _Job) -> None:
     from ..render.pipeline import ShadowPipeline
 
     if job.source == "PRESET":
-        reference = load_or_capture(job.preset, job.camera_size)
+        reference = load_or_capture(job.preset, job.camera_size, hard=job.hard)
     else:
-        reference = capture(_job_scene(job), light=job.light_name)
+        reference = capture(_job_scene(job), light=job.light_name, hard=job.hard)
     compare.light_from_reference(reference)  # an unsupported light fails here, before any GPU work
     ensure_gpu()
     job.pipeline = ShadowPipeline(BlenderGPUBackend())

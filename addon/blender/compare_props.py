@@ -240,6 +240,13 @@ class OMNIWARP_PG_comparison(bpy.types.PropertyGroup):
                     "does by default); off measures the unculled cost",
         default=True,
     )
+    hard: BoolProperty(
+        name="Hard Light",
+        description="Give the light no size in the Cycles reference (radius 0, a sun's angle 0, a tiny area "
+                    "light), as the shadow maps assume: the hard-shadow study. Off: the light as the file "
+                    "has it, with its penumbrae (a sized light renders 256 samples, slower)",
+        default=False,
+    )
     keep_previous: BoolProperty(
         name="Keep Previous",
         description="Add the new rows to the results instead of replacing them; the plot then shows "

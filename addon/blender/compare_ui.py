@@ -106,6 +106,7 @@ class OMNIWARP_PT_compare(bpy.types.Panel):
         row = layout.row()
         row.prop(settings, "frames")
         row.prop(settings, "cull")
+        row.prop(settings, "hard")
         layout.prop(settings, "keep_previous")
 
         row = layout.row()

@@ -29,12 +29,14 @@ from ..core.frames import POINT_PARAMETERIZATIONS, PROJECTIVE_PARAMETERIZATIONS
 from ..core.methods import PARAMETERIZATION_TEXT, WARP_TEXT
 from ..core.scene import PROJECTIVE_EMISSIONS, Emission, LightSpec, spot_emission
 from ..render import blender_compat
+from ..reference import light_size
 from ..render.pipeline import BiasSettings, ShadowSettings
 from . import events
 
 log = logging.getLogger(__name__)
 
-SUPPORTED_LIGHT_TYPES: tuple[str, ...] = ("POINT", "SPOT", "SUN")
+# An AREA light is one-sided: the hemispherical emission, with a size (issue 27).
+SUPPORTED_LIGHT_TYPES: tuple[str, ...] = ("POINT", "SPOT", "SUN", "AREA")
 
 # The parameterizations the exact pass (ShadowSettings.exact) takes: the footprint ones.
 EXACT_PARAMETERIZATIONS = ("dpsm", "cube", "ipsm")
@@ -274,7 +276,7 @@ class OMNIWARP_PG_light(bpy.types.PropertyGroup):
 
 
 def is_supported_light(light: bpy.types.Light | None) -> bool:
-    """True for the light types OmniWarp shadows: POINT, SPOT and SUN."""
+    """True for the light types OmniWarp shadows: POINT, SPOT, SUN and AREA."""
     return light is not None and getattr(light, "type", None) in SUPPORTED_LIGHT_TYPES
 
 
@@ -302,13 +304,16 @@ def is_narrow_spot(light: bpy.types.Light) -> bool:
 def effective_emission(light: bpy.types.Light) -> Emission:
     """'omni', 'hemi', 'spot' or 'sun' for a light, resolving AUTO by its type.
 
-    A SUN is always 'sun' (the emission choice does not apply). An explicit OMNI or
+    A SUN is always 'sun' and an AREA light 'hemi' (one-sided; the emission choice does
+    not apply to either). An explicit OMNI or
     HEMI gives the point-light treatment, even to a narrow spot. AUTO: a POINT is
     omni; a SPOT whose spot_size is at least 179° is hemi; a narrower SPOT is 'spot'
     (its own cone, shadowed with sm or psm).
     """
     if light.type == "SUN":
         return "sun"
+    if light.type == "AREA":
+        return "hemi"
     choice = light.omniwarp.emission
     if choice == "OMNI":
         return "omni"
@@ -404,8 +409,8 @@ def shadow_settings_for(light: bpy.types.Light) -> ShadowSettings:
 
 
 def light_spec_for(obj: bpy.types.Object) -> LightSpec:
-    """A `LightSpec` for an (evaluated) light object: its world matrix, effective emission
-    and, for a spot cone, its full cone angle."""
+    """A `LightSpec` for an (evaluated) light object: its world matrix, effective emission,
+    its size (reference/light_size.py) and, for a spot cone, its full cone angle."""
     light = obj.data
     if not isinstance(light, bpy.types.Light):
         raise TypeError(f"object {obj.name!r} is not a light")
@@ -414,7 +419,8 @@ def light_spec_for(obj: bpy.types.Object) -> LightSpec:
     # Only a spot cone has a cone angle; the other emissions keep LightSpec's default.
     cone = {"spot_size": float(light.spot_size)} if emission == "spot" else {}
     try:
-        return LightSpec(emission=emission, matrix_world=matrix, energy=float(light.energy), **cone)
+        return LightSpec(emission=emission, matrix_world=matrix, energy=float(light.energy),
+                         shape=light_size.light_shape(obj, matrix), **cone)
     except InputError as exc:
         raise InputError(f"light {obj.name!r}: {exc}") from None
 

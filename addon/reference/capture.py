@@ -156,14 +156,14 @@ def pick_view_layer(scene: "bpy.types.Scene", name: str | None = None) -> "bpy.t
 
 
 def _pick_light(scene: "bpy.types.Scene", visible: set[str], light: "bpy.types.Object | str | None"):
-    """The point, spot or sun light object to capture; the scene must hold exactly one unless named."""
+    """The point, spot, sun or area light object to capture; the scene must hold exactly one unless named."""
     import bpy
 
-    # The messages keep the phrase "point or spot light" that callers and tests match.
+    # The messages keep the phrase "spot, sun or area light" that callers and tests match.
     if light is not None:
         obj = bpy.data.objects.get(light) if isinstance(light, str) else light
         if obj is None or obj.type != "LIGHT" or obj.data.type not in _LIGHT_TYPES:
-            raise ReferenceCaptureError(f"{light!r} is not a point or spot light, or a sun")
+            raise ReferenceCaptureError(f"{light!r} is not a point, spot, sun or area light")
         if obj.name not in scene.objects:
             raise ReferenceCaptureError(f"light {obj.name!r} is not in scene {scene.name!r}")
         return obj
@@ -173,12 +173,12 @@ def _pick_light(scene: "bpy.types.Scene", visible: set[str], light: "bpy.types.O
     ]
     if not candidates:
         raise ReferenceCaptureError(
-            f"scene {scene.name!r} has no rendered point or spot light, or sun; the reference needs one"
+            f"scene {scene.name!r} has no rendered point, spot, sun or area light; the reference needs one"
         )
     if len(candidates) > 1:
         names = ", ".join(sorted(o.name for o in candidates))
         raise ReferenceCaptureError(
-            f"scene {scene.name!r} has several point/spot/sun lights ({names}); name the one to capture"
+            f"scene {scene.name!r} has several point, spot, sun or area lights ({names}); name the one to capture"
         )
     return candidates[0]
 

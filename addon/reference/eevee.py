@@ -368,18 +368,8 @@ def render_eevee(scene: "bpy.types.Scene", out_dir: Path, settings: Sequence[str
     """
     import bpy
 
-    from .capture import (
-        _channel,
-        _emission_of,
-        _Overrides,
-        _pick_light,
-        _remove_dir,
-        _render_visible_objects,
-        evaluated_depsgraph,
-        output_size,
-        pick_view_layer,
-        read_exr_channels,
-    )
+    from .capture import (_channel, _emission_of, _Overrides, _pick_light, _remove_dir, _render_visible_objects,
+                          evaluated_depsgraph, output_size, pick_view_layer, read_exr_channels)
 
     if frames < 1:
         raise InputError(f"frames must be at least 1, got {frames}")

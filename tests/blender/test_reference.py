@@ -423,22 +423,27 @@ def test_pixels_outside_the_spot_cone_are_not_evaluable(spot):
     assert (inside & ~ref.visibility()).sum() >= 10
 
 
-def test_soft_sun_is_captured_hard_with_a_warning(sun, caplog):
-    """A sun with a non-zero angle is not refused: the capture warns, renders it hard (the
-    same visibility as angle 0) and puts the angle back."""
+def test_soft_sun_keeps_its_angle_unless_hard(sun):
+    """A sun with a non-zero angle renders soft, as the artist renders it (issue 27): a
+    penumbra, its noise measured; `hard` renders it as angle 0 (the same visibility) and
+    either way the file's angle is put back."""
     _, hard = sun
     scene = build_blender_scene(sun_scene("soft_sun"))
     try:
         light = next(o for o in scene.objects if o.type == "LIGHT")
         light.data.angle = math.radians(10.0)
-        with caplog.at_level(logging.WARNING, logger="addon.reference.capture"):
-            ref = capture(scene, samples=1)
+        soft = capture(scene, soft_samples=16)
+        assert light.data.angle == pytest.approx(math.radians(10.0))
+        made_hard = capture(scene, hard=True)
         assert light.data.angle == pytest.approx(math.radians(10.0))
     finally:
         remove_blender_scene(scene)
-    assert any("angle" in r.getMessage() and "soft" in r.getMessage() for r in caplog.records)
-    assert ref.emission == "sun" and ref.meta["sun_angle_deg"] == pytest.approx(10.0, abs=1e-4)
-    assert np.array_equal(ref.visibility(), hard.visibility())
+    assert soft.emission == "sun" and soft.meta["sun_angle_deg"] == pytest.approx(10.0, abs=1e-4)
+    assert soft.light_shape().sized and soft.visibility_noise is not None
+    ratio = metrics.reference_ratio(soft.shadowed, soft.unshadowed)[soft.lit_domain()]
+    assert np.count_nonzero((ratio > 0.05) & (ratio < 0.95)) > 0
+    assert not made_hard.light_shape().sized and made_hard.visibility_noise is None
+    assert np.array_equal(made_hard.visibility(), hard.visibility())
 
 
 def test_blended_spot_is_captured_with_a_warning(spot, caplog):
@@ -577,10 +582,9 @@ def test_capture_errors_are_named():
     b.camera((0.0, -3.0, 3.0), (0.0, 0.0, 0.0))
     scene = build_blender_scene(b.finish())
     try:
-        light = next(o for o in scene.objects if o.type == "LIGHT")
-        light.data.type = "AREA"  # an area light is neither a point, a spot nor a sun
-        with pytest.raises(ReferenceCaptureError, match="point or spot light, or sun"):
-            capture(scene)
+        floor = next(o for o in scene.objects if o.type == "MESH")
+        with pytest.raises(ReferenceCaptureError, match="spot, sun or area light"):
+            capture(scene, light=floor.name)  # a mesh named as the light
     finally:
         remove_blender_scene(scene)
 

@@ -435,8 +435,25 @@ def test_is_supported_light(make_light) -> None:
     assert properties.is_supported_light(make_light("POINT"))
     assert properties.is_supported_light(make_light("SPOT"))
     assert properties.is_supported_light(make_light("SUN"))
-    assert not properties.is_supported_light(make_light("AREA"))
+    assert properties.is_supported_light(make_light("AREA"))
     assert not properties.is_supported_light(None)
+
+
+def test_an_area_light_is_a_sized_hemispherical_light(make_light) -> None:
+    """One-sided, so the hemispherical methods; its size scaled by the object (issue 27)."""
+    light = make_light("AREA")
+    light.shape, light.size, light.size_y = "RECTANGLE", 1.2, 0.8
+    assert properties.effective_emission(light) == "hemi"
+    assert _item_ids(light) == POINT_ITEMS
+    obj = bpy.data.objects.new("area_probe", light)
+    try:
+        obj.matrix_world = ((2.0, 0.0, 0.0, 0.0), (0.0, 1.0, 0.0, 0.0), (0.0, 0.0, 1.0, 3.0), (0.0, 0.0, 0.0, 1.0))
+        spec = properties.light_spec_for(obj)
+        assert spec.emission == "hemi" and spec.sized
+        assert spec.shape.outline == "rectangle"
+        assert spec.shape.size_x == pytest.approx(2.4) and spec.shape.size_y == pytest.approx(0.8)
+    finally:
+        bpy.data.objects.remove(obj)
 
 
 POINT_ITEMS = ["DPSM", "CUBE", "IPSM", "UNFOLD"]
@@ -647,7 +664,7 @@ def test_light_panel_poll(make_light) -> None:
     assert poll(SimpleNamespace(light=make_light("POINT")))
     assert poll(SimpleNamespace(light=make_light("SPOT")))
     assert poll(SimpleNamespace(light=make_light("SUN")))
-    assert not poll(SimpleNamespace(light=make_light("AREA")))
+    assert poll(SimpleNamespace(light=make_light("AREA")))  # a one-sided, sized hemispherical light
     assert not poll(SimpleNamespace(light=None))  # e.g. a mesh is active
     assert not poll(SimpleNamespace())
 
@@ -764,15 +781,17 @@ def test_viewport_panel_lists_enabled_lights(light_object) -> None:
     shown.data.omniwarp.warp = "NOTW"
     shown.data.omniwarp.resolution = 512
     light_object("omniwarp_test_hidden", enabled=False)
-    light_object("omniwarp_test_area", kind="AREA")  # enabled but unsupported
+    light_object("omniwarp_test_area", kind="AREA")  # enabled: a sized hemispherical light
     sun = light_object("omniwarp_test_sun", kind="SUN")
     sun.data.omniwarp.warp = "NOTW"  # stored, but psm takes no warp
-    assert [o.name for o in panels.enabled_light_objects(scene)] == ["omniwarp_test_shown", "omniwarp_test_sun"]
+    assert [o.name for o in panels.enabled_light_objects(scene)] == ["omniwarp_test_area", "omniwarp_test_shown",
+                                                                      "omniwarp_test_sun"]
     labels = draw_panel(panels.OMNIWARP_PT_viewport, SimpleNamespace(scene=scene)).labels()
-    assert "omniwarp_test_shown" in labels and "omniwarp_test_sun" in labels
+    assert "omniwarp_test_shown" in labels and "omniwarp_test_sun" in labels and "omniwarp_test_area" in labels
     assert "CUBE + NOTW, 512 px, omni" in labels
     assert "PSM, 1024 px, sun" in labels
-    assert not any("hidden" in text or "area" in text for text in labels)
+    assert any(text.endswith("px, hemi") for text in labels)  # the area light
+    assert not any("hidden" in text for text in labels)
     assert not any("No light" in text for text in labels)
 
 
