@@ -54,6 +54,42 @@ vec2 ow_projective_test(vec3 p, vec3 n)
   return vec2(visibility, 0.0);
 }
 
+#ifdef OW_SOFT
+// One light-centred direction d looked up in the layer that holds it, as the test below
+// reads its own: the map's distance from the light (1e30 where nothing was drawn, outside
+// the hemisphere, the drawn layers or the cleared box) and the light the veil lets
+// through to distance `depth` (lib/soft.glsl's taps).
+vec2 ow_point_tap(vec3 d, float depth)
+{
+  vec3 ld = ow_light_rot * d;
+  if (ow_hemi != 0 && ld.z >= 0.0) {
+    return vec2(1e30, 1.0);
+  }
+  int slot = ow_pick_slot(ow_param, ld);
+  vec4 tile = ow_layer_tile[slot];
+  if (tile.z < 0.5) {
+    return vec2(1e30, 1.0);
+  }
+  vec2 xy = ow_project(ow_layer_kind, ow_layer_rot[slot] * d);
+  float magnification;
+  vec2 uv = ow_map_forward(ow_warp_rows, ow_warp_cols, slot, ow_warp_size, ow_layer_crop[slot], xy,
+                           magnification);
+  int res = int(ow_resolution);
+  ivec2 texel = clamp(ivec2(floor(uv * ow_resolution)), ivec2(0), ivec2(res - 1));
+  vec4 box = ow_layer_box[slot];
+  if (any(lessThan(vec2(texel), box.xy)) || any(greaterThanEqual(vec2(texel), box.zw))) {
+    return vec2(1e30, 1.0);
+  }
+  float stored = texelFetch(ow_atlas, texel + ivec2(tile.xy), 0).r;
+  float light = 1.0;
+#ifdef OW_VEIL
+  light = ow_veil_light(texel + ivec2(tile.xy), (depth - ow_near) / (ow_far - ow_near));
+#endif
+  return vec2((stored >= 1.0) ? 1e30 : ow_near + stored * (ow_far - ow_near), light);
+}
+#include "lib/soft.glsl"
+#endif
+
 void main()
 {
   ivec2 pix = ivec2(gl_FragCoord.xy);
@@ -162,5 +198,9 @@ void main()
     float z = texelFetch(ow_edges, texel + ivec2(tile.xy), 0).r;
     visibility = 0.5 + 0.5 * z / float(ow_edge_radius + 1);
   }
+#ifdef OW_SOFT
+  // A sized light: the share of the light the receiver sees, around the hard answer.
+  visibility = ow_soft_visibility(p, n, bias, visibility);
+#endif
   ow_result = vec2(visibility, 0.0);
 }

@@ -1,12 +1,14 @@
 """Writes a .blend built the way artists build files, for host-time and error checks on a
 scene no preset resembles (issue 17): about 300k render triangles.
 
-    .venv/bin/python scripts/artist_scene.py OUT.blend [--scale N]
+    .venv/bin/python scripts/artist_scene.py OUT.blend [--scale N] [--sized]
 
 Modifiers (subdivision, array, bevel, solidify, mirror), collection instances, a text
 object and a bevelled curve, a point light and a 180 degree spot ("hemi"), and a camera
 with lens shift on a parented rig. `--scale` raises the statue's subdivision and
-multiplies the instanced trees (2: about 300k render triangles).
+multiplies the instanced trees (2: about 300k render triangles). `--sized` gives the lights
+the sizes artists give them (issue 27): the Lamp a 0.25 m radius, the Hemi 0.1 m, and adds
+a 1.2 x 0.8 m area light, "Softbox", over the statue.
 """
 from __future__ import annotations
 
@@ -40,7 +42,7 @@ def _mesh_object(name: str, maker, location=(0.0, 0.0, 0.0), collection=None, **
     return _link(obj, collection)
 
 
-def build(scale: int) -> None:
+def build(scale: int, sized: bool = False) -> None:
     import bmesh
     import bpy
 
@@ -123,15 +125,22 @@ def build(scale: int) -> None:
     point = bpy.data.objects.new("Lamp", bpy.data.lights.new("Lamp", "POINT"))
     point.location = (1.5, 1.0, 3.6)
     point.data.energy = 1500.0
-    point.data.shadow_soft_size = 0.0
+    point.data.shadow_soft_size = 0.25 if sized else 0.0
     _link(point)
     hemi = bpy.data.objects.new("Hemi", bpy.data.lights.new("Hemi", "SPOT"))
     hemi.location = (0.5, -5.5, 4.2)
     hemi.data.spot_size = math.pi
     hemi.data.spot_blend = 0.0
     hemi.data.energy = 1200.0
-    hemi.data.shadow_soft_size = 0.0
+    hemi.data.shadow_soft_size = 0.1 if sized else 0.0
     _link(hemi)
+    if sized:
+        box = bpy.data.lights.new("Softbox", "AREA")
+        box.shape, box.size, box.size_y, box.energy = "RECTANGLE", 1.2, 0.8, 800.0
+        softbox = bpy.data.objects.new("Softbox", box)
+        softbox.location = (-1.0, 2.0, 4.0)
+        softbox.rotation_euler = (math.radians(-25.0), math.radians(-15.0), 0.0)
+        _link(softbox)
 
     # A camera with lens shift on a parented, rotated rig.
     rig = _link(bpy.data.objects.new("Rig", None))
@@ -170,10 +179,11 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("out", type=Path)
     parser.add_argument("--scale", type=int, default=2)
+    parser.add_argument("--sized", action="store_true", help="lights with the sizes artists give them")
     args = parser.parse_args()
     import bpy
 
-    build(args.scale)
+    build(args.scale, args.sized)
     print(f"{args.out}: about {render_triangle_count()} triangles (viewport levels)")
     bpy.ops.wm.save_as_mainfile(filepath=str(args.out.resolve()))
 

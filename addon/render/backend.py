@@ -28,6 +28,7 @@ from .shaders import (
     alpha_of,
     exact_variant,
     program_variant,
+    soft_of,
     veil_of,
 )
 
@@ -250,11 +251,15 @@ class ShadowBackend(ABC):
 
     def _shadow_test_program(self, uniforms: UniformValues) -> tuple[ProgramInterface, dict[str, object]]:
         """The shadow test's variant for `uniforms` and the images it reads: the veil's when
-        this atlas drew see-through parts, none otherwise (the plain test, unchanged)."""
+        this atlas drew see-through parts, none otherwise (the plain test, unchanged); the
+        soft variant when the uniforms carry a sized light's points."""
         iface = program_variant(SHADOW_TEST_PROGRAM, uniforms)
-        if not self._veil_live:
-            return iface, {}
-        return veil_of(iface), self._veil_by_name()
+        images = {}
+        if self._veil_live:
+            iface, images = veil_of(iface), self._veil_by_name()
+        if int(uniforms.get("ow_soft_count", 0)) > 0:
+            iface = soft_of(iface)  # a sized light (lib/soft.glsl)
+        return iface, images
 
     def alpha_textures(self, key: str) -> dict[str, object]:
         """The alpha map a see-through part's programs sample (ALPHA_SAMPLERS); empty for

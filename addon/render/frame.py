@@ -20,6 +20,7 @@ from ..core.plan import Plan
 from ..core.scene import CameraSpec, LightSpec
 from ..core.warping import LayerMapping
 from .backend import AtlasLayout
+from .shaders import SOFT_MAX_POINTS, SOFT_MAX_SEARCH
 
 MIN_RESOLUTION = 16
 
@@ -74,6 +75,10 @@ class ShadowSettings:
     # dpsm, cube, ipsm: the irregular z-buffer over the (warped) map instead of its depths
     # (the `exact` method)
     exact: bool = False
+    # A sized light (core/light_shape.py): its points the soft filter reads per sample, and
+    # how many of them the blocker search follows (lib/soft.glsl); a hard light reads none.
+    light_samples: int = 32
+    search_samples: int = 8
 
     def __post_init__(self) -> None:
         known = POINT_PARAMETERIZATIONS + PROJECTIVE_PARAMETERIZATIONS
@@ -94,6 +99,10 @@ class ShadowSettings:
         if not isinstance(self.bias, BiasSettings):
             raise InputError(f"bias must be a BiasSettings, got {type(self.bias).__name__}")
         validate.finite_number("tessellation tolerance (texels)", self.tessellation_tolerance, 1e-3, 1e3)
+        for name, most in (("light_samples", SOFT_MAX_POINTS), ("search_samples", SOFT_MAX_SEARCH)):
+            value = getattr(self, name)
+            if not (isinstance(value, int) and 1 <= value <= most):
+                raise InputError(f"{name} {value!r} must be a whole number in [1, {most}]")
 
 
 def settings_for(method: str, resolution: int, **fields) -> ShadowSettings:

@@ -77,6 +77,7 @@ from .parameterizations import (
 )
 from .resident import ResidentScene
 from .shaders import PARAM_CODES, SLOTS
+from .soft import soft_uniforms
 from .unfold import edge_aa_parameters
 
 log = logging.getLogger(__name__)
@@ -362,6 +363,7 @@ class ShadowPipeline:
             "ow_edge_radius": int(edge_radius),
         }
         uniforms.update(parameterization(plan.parameterization).test_uniforms(plan))
+        uniforms.update(soft_uniforms(light, settings))
         return self.backend.shadow_test(uniforms)
 
 def _scatter_uniforms(light: LightSpec, plan: Plan, mappings: dict[int, LayerMapping], size: int, mode: int,

@@ -521,6 +521,34 @@ def alpha_of(base: ProgramInterface) -> ProgramInterface:
     return held
 
 
+# Soft shadows of a sized light (lib/soft.glsl, issue 27): the light's points a shadow test
+# reads (core/light_shape.stratified_points, at most SOFT_MAX_POINTS), and the steps of its
+# blocker search along each segment to the light.
+SOFT_DEFINE = "OW_SOFT"
+SOFT_MAX_POINTS = 64
+SOFT_MAX_SEARCH = 16
+SOFT_SEARCH_STEPS = 3
+SOFT_KINDS = {"sphere": 1, "area": 2}  # ow_soft_kind: how the points lie (lib/soft.glsl)
+SHARED_DEFINES.update({"OW_SOFT_MAX_POINTS": str(SOFT_MAX_POINTS), "OW_SOFT_SEARCH_STEPS": str(SOFT_SEARCH_STEPS)})
+SOFT_UNIFORMS = (Uniform("vec4", "ow_soft_points", SOFT_MAX_POINTS), Uniform("int", "ow_soft_count"),
+                 Uniform("vec4", "ow_soft_search_points", SOFT_MAX_SEARCH), Uniform("int", "ow_soft_search"),
+                 Uniform("int", "ow_soft_kind"))
+_SOFT_VARIANTS: dict[str, ProgramInterface] = {}  # shadow-test variant name -> its soft variant
+
+
+def soft_of(base: ProgramInterface) -> ProgramInterface:
+    """The point-light shadow test's variant for a sized light (lib/soft.glsl): its maps
+    filtered by the light's own points. Hard lights keep the plain test, unchanged."""
+    if base.fragment_file != SHADOW_TEST_PROGRAM.fragment_file:
+        raise BackendError(f"program {base.name!r} has no soft variant")
+    held = _SOFT_VARIANTS.get(base.name)
+    if held is None:
+        held = _SOFT_VARIANTS[base.name] = replace(
+            base, name=base.name + "_soft", defines={**base.defines, SOFT_DEFINE: "1"},
+            uniforms=base.uniforms + SOFT_UNIFORMS)
+    return held
+
+
 def veil_of(base: ProgramInterface) -> ProgramInterface:
     """The shadow test's variant that also reads the map's veil (lib/veil.glsl): for a
     frame that drew see-through parts. Other frames keep the plain test, unchanged."""
@@ -595,7 +623,9 @@ ALPHA_PROGRAMS = tuple(alpha_of(iface) for iface in _FOOTPRINTS) + tuple(
 GBUFFER_ALPHA_PROGRAM = alpha_of(GBUFFER_PROGRAM)
 VEIL_PROGRAMS = tuple(veil_of(iface) for iface in VARIANT_PROGRAMS
                       if iface.fragment_file == SHADOW_TEST_PROGRAM.fragment_file)
-PROGRAMS = (*VARIANT_PROGRAMS, *EXACT_PROGRAMS, *ALPHA_PROGRAMS, *VEIL_PROGRAMS, GBUFFER_ALPHA_PROGRAM, RAY_TABLE_PROGRAM, GBUFFER_PROGRAM, GBUFFER_SAMPLES_PROGRAM, PREVIEW_PROGRAM, OVERLAY_PROGRAM, EDGE_PROGRAM)
+SOFT_PROGRAMS = tuple(soft_of(iface) for iface in (*VARIANT_PROGRAMS, *VEIL_PROGRAMS)
+                      if iface.fragment_file == SHADOW_TEST_PROGRAM.fragment_file)
+PROGRAMS = (*VARIANT_PROGRAMS, *EXACT_PROGRAMS, *ALPHA_PROGRAMS, *VEIL_PROGRAMS, *SOFT_PROGRAMS, GBUFFER_ALPHA_PROGRAM, RAY_TABLE_PROGRAM, GBUFFER_PROGRAM, GBUFFER_SAMPLES_PROGRAM, PREVIEW_PROGRAM, OVERLAY_PROGRAM, EDGE_PROGRAM)
 COMPUTE_PROGRAMS = (SCATTER_PROGRAM, SAMPLE_STATS_PROGRAM, BARRIER_PROGRAM, ADVANCE_PROGRAM, *(_scatter_variant(mode, kind) for mode in SCATTER_MODES
                                                              for kind in (None, *FIXED_KIND_NAMES)),
                     *(_link_variant(kind) for kind in (None, *FIXED_KIND_NAMES)))

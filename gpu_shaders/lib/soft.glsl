@@ -1,0 +1,75 @@
+// Soft shadows of a sized light from a point light's maps (shaders.soft_of, issue 27):
+// percentage-closer soft shadows whose kernel is the light itself. Needs the shadow test's
+// ow_point_tap (shadow_test.frag), which looks one light-centred direction up in whichever
+// layer holds it, through the layer's projection, crop and warp, so a kernel crosses the
+// paraboloids' seam and the cube's edges, and keeps its world size through any warp. It
+// returns the map's distance along the direction (1e30 where nothing was drawn) and the
+// light the veil lets through to the given depth.
+//
+// The light's points ow_soft_points (core/light_shape.stratified_points, light frame) give
+// the kernel, and a pattern of fewer, ow_soft_search_points, the blocker search: the segment from the receiver p to light point q crosses the sphere of a
+// blocker's distance t from the light at x = p + s (q - p), s = 1 - t / |p|; the map is
+// read along x's direction and compared with the receiver's own plane along that ray, so
+// a tilted receiver does not shadow itself. First a blocker search along each segment at
+// a few distances, then, at the blockers' mean distance, one tap per light point: the
+// visibility is the share of taps the map finds lit.
+
+// A point of the light's pattern `local` (light frame) in light-centred world
+// coordinates: an area light's points lie in its frame; a sphere's disk of points faces
+// the receiver (its normal along p).
+vec3 ow_soft_point(vec3 local, vec3 p)
+{
+  if (ow_soft_kind == 2) {
+    return transpose(ow_light_rot) * local;
+  }
+  vec3 w = normalize(p);
+  vec3 a = normalize(cross(w, abs(w.z) < 0.9 ? vec3(0.0, 0.0, 1.0) : vec3(1.0, 0.0, 0.0)));
+  vec3 b = cross(w, a);
+  return local.x * a + local.y * b;
+}
+
+// The receiver's tangent plane (normal n, towards the light, through p) along the
+// light-centred direction d: its distance from the light, or `fallback` when d grazes it.
+float ow_plane_depth(vec3 n, vec3 p, vec3 d, float fallback)
+{
+  float dn = dot(n, d);
+  return (dn < -1e-4) ? dot(n, p) / dn : fallback;
+}
+
+// The soft visibility at p (normal n towards the light, bias in world units at the
+// receiver); `centre` is the hard test's visibility, kept where the search finds no blocker.
+float ow_soft_visibility(vec3 p, vec3 n, float bias, float centre)
+{
+  float dist = length(p);
+  float sum_t = 0.0;
+  int blockers = 0;
+  for (int j = 0; j < ow_soft_search; j++) {
+    vec3 q = ow_soft_point(ow_soft_search_points[j].xyz, p);
+    for (int k = 1; k <= OW_SOFT_SEARCH_STEPS; k++) {
+      // Points of the segment from the receiver towards the light point, denser near the
+      // receiver, where a penumbra's blockers matter most.
+      float f = pow(float(k) / float(OW_SOFT_SEARCH_STEPS + 1), 2.0);
+      vec3 d = normalize(p + f * (q - p));
+      float t_recv = ow_plane_depth(n, p, d, dist);
+      float t_map = ow_point_tap(d, t_recv).x;
+      if (t_map < t_recv - bias * (t_recv / dist)) {
+        sum_t += t_map;
+        blockers++;
+      }
+    }
+  }
+  if (blockers == 0) {
+    return centre;
+  }
+  float t_b = sum_t / float(blockers);
+  float s = clamp(1.0 - t_b / dist, 0.0, 1.0);
+  float lit = 0.0;
+  for (int j = 0; j < ow_soft_count; j++) {
+    vec3 d = normalize(p + s * (ow_soft_point(ow_soft_points[j].xyz, p) - p));
+    float t_recv = ow_plane_depth(n, p, d, dist);
+    float limit = t_recv - bias * (t_recv / dist);
+    vec2 tap = ow_point_tap(d, limit);
+    lit += (tap.x >= limit) ? tap.y : 0.0;
+  }
+  return lit / float(ow_soft_count);
+}

@@ -1,0 +1,115 @@
+"""The soft filter of a sized light (lib/soft.glsl, issue 27) against the numpy
+integration over the light (tests/support/soft_oracle.py): a box on a floor under a
+sphere light and under an area light, on the paraboloids and the cube, plain and warped.
+A hard light keeps the hard test."""
+from __future__ import annotations
+
+import dataclasses
+import functools
+
+import numpy as np
+import pytest
+
+from addon.core.light_shape import POINT
+from addon.core.scene import SceneBuilder, look_at
+from addon.render.frame import settings_for
+from addon.render.pipeline import ShadowPipeline
+from tests.support.oracle import view_samples
+from tests.support.soft_oracle import soft_visibility
+
+pytestmark = pytest.mark.gl
+
+SIZE = (96, 72)
+METHODS = ("dpsm", "dpsm+notw", "cube", "cube+notw")
+
+
+def _scene(light: str):
+    b = SceneBuilder(f"soft_{light}", SIZE)
+    b.plane("floor", (0.0, 0.0, 0.0), 8.0, 8.0)
+    b.box("box", (0.0, 0.0, 0.6), (1.2, 1.2, 1.2))
+    b.box("post", (1.6, -0.8, 0.9), (0.25, 0.25, 1.8))  # a contact shadow, like a chair leg
+    if light == "sphere":
+        # The light looks along +X: the paraboloids' seam is the vertical plane x = 0.3
+        # through it, which cuts the box's penumbra on the floor.
+        b.point_light((0.3, 0.2, 3.0), radius=0.45)
+        b._light = dataclasses.replace(b._light, matrix_world=look_at((0.3, 0.2, 3.0), (1.3, 0.2, 3.0)))
+    else:
+        b.area_light((0.3, 0.2, 3.2), (0.2, 0.0, 0.0), 1.4, 0.9)
+    b.camera((0.5, -6.0, 5.0), (0.3, 0.2, 0.3), fov_deg=55.0)
+    return b.finish()
+
+
+@functools.cache
+def _case(name: str):
+    scene = _scene(name)
+    samples, _, evaluable = view_samples(scene)
+    points = samples.positions[evaluable]
+    normals = samples.normals[evaluable]
+    truth = soft_visibility(scene.light, points, normals, scene.world_triangles(), n=256)
+    return name, scene, samples, evaluable, truth
+
+
+@pytest.fixture(params=["sphere", "area"])
+def case(request):
+    return _case(request.param)
+
+
+def _visibility(backend, scene, samples, method, light=None, **fields):
+    result = ShadowPipeline(backend).render(light or scene.light, scene.world_triangles(), samples,
+                                            settings_for(method, 512, **fields))
+    return result.visibility
+
+
+@pytest.mark.parametrize("method", METHODS)
+def test_the_filter_follows_the_light(gl_backend, case, method):
+    """The filtered maps' penumbra is within a few percent of the integral, and at most half
+    the error of the hard test of the same map."""
+    name, scene, samples, evaluable, truth = case
+    penumbra = (truth > 0.05) & (truth < 0.95)
+    assert penumbra.sum() > 200, name  # the scene has a wide penumbra to measure
+    soft = _visibility(gl_backend, scene, samples, method)[evaluable]
+    hard = _visibility(gl_backend, scene, samples, method, dataclasses.replace(scene.light, shape=POINT))[evaluable]
+    soft_err = float(np.abs(soft - truth).mean())
+    hard_err = float(np.abs(hard - truth).mean())
+    assert soft_err < 0.5 * hard_err, (name, method, soft_err, hard_err)
+    assert soft_err < 0.03, (name, method, soft_err)
+    assert float(np.abs(soft - truth)[penumbra].mean()) < 0.2, (name, method)
+
+
+def test_the_penumbra_does_not_change_with_the_map(gl_backend, case):
+    """The kernel is the light in world space: dual paraboloid (with its seam), cube and
+    their warps give one penumbra, up to the maps' own resolution."""
+    name, scene, samples, evaluable, truth = case
+    fields = {m: _visibility(gl_backend, scene, samples, m)[evaluable] for m in METHODS}
+    for method in METHODS[1:]:
+        assert float(np.abs(fields[method] - fields["dpsm"]).mean()) < 0.015, (name, method)
+
+
+def test_the_seam_keeps_the_penumbra(gl_backend):
+    """Pixels whose direction from the light lies within 15 degrees of the paraboloids' seam
+    err no more than the rest of the image (twice, plus a little, for their fewer pixels).
+    The sphere light's scene: an omnidirectional light's map has the seam."""
+    name, scene, samples, evaluable, truth = _case("sphere")
+    result = ShadowPipeline(gl_backend).render(scene.light, scene.world_triangles(), samples,
+                                               settings_for("dpsm+notw", 512))
+    axis = result.plan.drawn[0].rotation[2]  # the paraboloids' axis: the seam is across it
+    rel = samples.positions[evaluable] - scene.light.position
+    rel /= np.linalg.norm(rel, axis=1, keepdims=True)
+    near_seam = np.abs(rel @ axis) < np.sin(np.radians(15.0))
+    assert near_seam.sum() > 100 and ((truth > 0.05) & (truth < 0.95) & near_seam).sum() > 20
+    err = np.abs(result.visibility[evaluable] - truth)
+    assert err[near_seam].mean() <= 2.0 * err[~near_seam].mean() + 0.01
+
+
+def test_more_light_samples_do_not_move_the_answer_much(gl_backend, case):
+    """16 and 64 light points agree on average (the pattern is stratified), 64 no further
+    from the integral than 16, and a hard light is the plain test whatever the samples."""
+    name, scene, samples, evaluable, truth = case
+    few = _visibility(gl_backend, scene, samples, "dpsm+notw", light_samples=16)[evaluable]
+    many = _visibility(gl_backend, scene, samples, "dpsm+notw", light_samples=64)[evaluable]
+    assert float(np.abs(few - many).mean()) < 0.03
+    assert float(np.abs(many - truth).mean()) <= float(np.abs(few - truth).mean()) + 0.002
+    hard = dataclasses.replace(scene.light, shape=POINT)
+    a = _visibility(gl_backend, scene, samples, "dpsm+notw", hard, light_samples=16)
+    b = _visibility(gl_backend, scene, samples, "dpsm+notw", hard, light_samples=64)
+    assert np.array_equal(a, b) and set(np.unique(a)) <= {0.0, 1.0}
