@@ -36,6 +36,7 @@ from .render.pipeline import (
     count_statistics,
     settings_for,
 )
+from .render import soft
 from .render.resident import ResidentScene
 from .rows import Row, make_row, row_key
 
@@ -122,6 +123,7 @@ def _median_times(frames: Sequence[dict[str, float]]) -> dict[str, float]:
 
 # The one method that does not follow see-through materials: its host-built stream has no UVs.
 UNFOLD_ALPHA_NOTE = "unfold draws see-through materials opaque (its tessellated stream carries no UVs)"
+HARD_SIZED_NOTE = "the light has a size, but this method's shadows are hard (render/soft.py filters point lights' maps)"
 
 
 def scene_has_alpha(scene: ResidentScene) -> bool:
@@ -176,7 +178,7 @@ def run_row(pipeline: ShadowPipeline, ref: ReferenceData, preset: str, method: s
         warp=_warp_summary(last),
         cull=options.cull,
         light_shape=light.shape.describe() if light.sized else None,
-        note=UNFOLD_ALPHA_NOTE if settings.parameterization == "unfold" and scene_has_alpha(scene) else None,
+        note=_row_note(light, settings, scene),
     )
     if image_dir is not None:
         image_dir.mkdir(parents=True, exist_ok=True)
@@ -186,6 +188,16 @@ def run_row(pipeline: ShadowPipeline, ref: ReferenceData, preset: str, method: s
         row["mismatch_image"] = f"images/{stem}_mismatch.png"
         row["map_images"] = _write_map_images(image_dir, stem, last, counts)
     return row
+
+
+def _row_note(light: LightSpec, settings: ShadowSettings, scene: ResidentScene) -> str | None:
+    """What a row leaves out of the scene as the reference renders it, or None."""
+    notes = []
+    if settings.parameterization == "unfold" and scene_has_alpha(scene):
+        notes.append(UNFOLD_ALPHA_NOTE)
+    if light.sized and not soft.filters(light, settings):
+        notes.append(HARD_SIZED_NOTE)
+    return "; ".join(notes) or None
 
 
 def _list_columns(pipeline: ShadowPipeline, light: LightSpec, scene: ResidentScene, samples: ViewSamples,

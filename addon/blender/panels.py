@@ -6,6 +6,7 @@ import logging
 
 import bpy
 
+from ..reference import light_size
 from ..render import blender_compat
 from . import events
 from .properties import (
@@ -131,6 +132,13 @@ class OMNIWARP_PT_light(bpy.types.Panel):
         col.prop(props, "bias_slope")
         col.prop(props, "bias_normal")
 
+        # The soft filter reads the point lights' maps (render/soft.py): shown where it runs.
+        if light_size.has_size(light) and emission in ("omni", "hemi"):
+            box = layout.box()
+            box.label(text="Soft shadows (the light's size)")
+            col = box.column(align=True)
+            col.prop(props, "light_samples")
+            col.prop(props, "search_samples")
         layout.prop(props, "cull")
         draw_line_gaps(layout)
 

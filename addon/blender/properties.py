@@ -31,6 +31,7 @@ from ..core.scene import PROJECTIVE_EMISSIONS, Emission, LightSpec, spot_emissio
 from ..render import blender_compat
 from ..reference import light_size
 from ..render.pipeline import BiasSettings, ShadowSettings
+from ..render.shaders import SOFT_MAX_POINTS, SOFT_MAX_SEARCH
 from . import events
 
 log = logging.getLogger(__name__)
@@ -265,6 +266,26 @@ class OMNIWARP_PG_light(bpy.types.PropertyGroup):
         default=False,
         update=_request_update,
     )
+    light_samples: IntProperty(
+        name="Light Samples",
+        description="Soft shadows of a light with a size (radius, area light): points of the light each view "
+                    "sample looks up in the maps. More give smoother penumbrae; each costs one map read per "
+                    "pixel. Point, spot and area lights on dual paraboloid, cube, IPSM and sphere unfolding; "
+                    "ignored for a light of size 0",
+        default=32,
+        min=1,
+        max=SOFT_MAX_POINTS,
+        update=_request_update,
+    )
+    search_samples: IntProperty(
+        name="Search Samples",
+        description="Soft shadows: light points whose segments the blocker search follows, three map reads "
+                    "each per pixel. More find small blockers in a wide penumbra",
+        default=8,
+        min=1,
+        max=SOFT_MAX_SEARCH,
+        update=_request_update,
+    )
     cull: BoolProperty(
         name="Cull",
         description="Skip paraboloid sides and cube faces the view never touches, and objects that cannot "
@@ -405,6 +426,8 @@ def shadow_settings_for(light: bpy.types.Light) -> ShadowSettings:
         warp=effective_warp(light, parameterization),
         # The exact pass draws footprints: a spot or sun map (or unfold) keeps its own.
         exact=bool(props.exact) and parameterization in EXACT_PARAMETERIZATIONS,
+        light_samples=int(props.light_samples),
+        search_samples=int(props.search_samples),
     )
 
 

@@ -45,6 +45,16 @@ def light_shape(light_obj: Any, matrix_world: Any | None = None) -> LightShape:
     return POINT
 
 
+def has_size(light: Any) -> bool:
+    """True when a light datablock has a size (its object's scale aside), so its shadows
+    have penumbrae."""
+    if light.type in ("POINT", "SPOT"):
+        return float(light.shadow_soft_size) > 0.0
+    if light.type == "SUN":
+        return float(light.angle) > 0.0
+    return light.type == "AREA" and max(float(light.size), float(light.size_y)) > 0.0
+
+
 def make_hard(light_obj: Any, set_attr: Callable[..., None]) -> None:
     """Give the light no size for a render (`--hard`): radius 0, a sun's angle 0, an area
     light HARD_AREA_SIZE across; `set_attr(owner, name, value, optional=...)` remembers the

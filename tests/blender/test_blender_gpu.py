@@ -30,8 +30,9 @@ from tests.support.blender_gpu_worker import (  # noqa: E402
     PROJECTIVE_CASES,
     alpha_frames,
     boxed_scene,
-    one_texel_case,
     case_key,
+    one_texel_case,
+    soft_frames,
     weighted_samples,
 )
 from tests.gl.test_exact_pass import random_scene  # noqa: E402
@@ -114,6 +115,10 @@ def test_blender_backend_matches_moderngl(gl_backend, tmp_path, monkeypatch):
     for key, visibility in alpha.items():
         assert np.array_equal(visibility, theirs[key]), key
         assert ((visibility > 0.0) & (visibility < 1.0)).any(), key
+    # A sized light's soft filter: the same taps, the same shares of the light.
+    for key, visibility in soft_frames(pipeline).items():
+        assert np.allclose(visibility, theirs[key], atol=1e-6), key
+        assert ((visibility > 0.0) & (visibility < 1.0)).sum() > 100, key
     court = boxed_scene()
     court_samples, _, _ = view_samples(court)
     for param in BOXED_CASES:

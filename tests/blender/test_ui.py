@@ -749,6 +749,18 @@ def test_light_panel_names_a_bias_that_cannot_be_drawn(make_light, value: float)
         properties.shadow_settings_for(light)
 
 
+def test_light_panel_shows_the_soft_settings_of_a_sized_point_light(make_light) -> None:
+    light = make_light("POINT")
+    light.shadow_soft_size = 0.25
+    assert panels.OMNIWARP_PT_light and draw_panel(panels.OMNIWARP_PT_light, SimpleNamespace(light=light)).props()[-3:] \
+        == ["light_samples", "search_samples", "cull"]
+    light.omniwarp.light_samples, light.omniwarp.search_samples = 48, 4
+    settings = properties.shadow_settings_for(light)
+    assert (settings.light_samples, settings.search_samples) == (48, 4)
+    light.shadow_soft_size = 0.0  # hard: nothing to filter, nothing shown
+    assert "light_samples" not in draw_panel(panels.OMNIWARP_PT_light, SimpleNamespace(light=light)).props()
+
+
 def test_light_panel_draw_sun(make_light) -> None:
     sun = make_light("SUN")
     layout = draw_panel(panels.OMNIWARP_PT_light, SimpleNamespace(light=sun))

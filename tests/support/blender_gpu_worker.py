@@ -72,6 +72,22 @@ def alpha_frames(pipeline):
     return frames
 
 
+def soft_frames(pipeline):
+    """Visibility of the sized lights' scenes (tests/gl/test_soft_filter.py), by key."""
+    from addon.render.frame import settings_for
+    from tests.gl.test_soft_filter import _scene
+    from tests.support.oracle import view_samples
+
+    frames = {}
+    for name in ("sphere", "area"):
+        scene = _scene(name)
+        samples, _, _ = view_samples(scene)
+        for method in ("dpsm+notw", "cube"):
+            result = pipeline.render(scene.light, scene.world_triangles(), samples, settings_for(method, 256))
+            frames[f"soft_{name}_{method}_visibility"] = result.visibility
+    return frames
+
+
 def case_key(param: str, warp: str, aa: bool) -> str:
     return f"{param}_{warp}{'_aa' if aa else ''}"
 
@@ -137,6 +153,7 @@ def backends(out: str, reference: str | None = None) -> None:
     arrays["exact_one_texel_visibility"] = result.visibility
     arrays["exact_one_texel_rounds"] = np.array(result.exact_work["rounds"])
     arrays.update(alpha_frames(pipeline))
+    arrays.update(soft_frames(pipeline))
     court = boxed_scene()
     court_samples, _, _ = view_samples(court)
     for param in BOXED_CASES:
