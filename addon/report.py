@@ -34,6 +34,10 @@ def markdown_table(rows: Sequence[Row]) -> str:
     fractional = any("fractional_pixels" in r for r in rows)
     if fractional:
         head += " fractional px | fractional soft error % |"
+    # Sized lights: the light as the reference rendered it, and the reference's own noise.
+    sized = any("reference_noise_pct" in r for r in rows)
+    if sized:
+        head += " light | reference noise % |"
     lines = [head, "|" + "|".join(["---"] * (head.count("|") - 1)) + "|"]
     for r in rows:
         t = r["time_ms"]
@@ -46,6 +50,8 @@ def markdown_table(rows: Sequence[Row]) -> str:
                  _cell(r.get("max_count_after"), ".0f"), _cell(r.get("texel_utilization"), ".3f")]
         if fractional:
             cells += [_cell(r.get("fractional_pixels")), _cell(r.get("fractional_soft_error_pct"), ".3f")]
+        if sized:
+            cells += [_cell(r.get("light_shape", "hard")), _cell(r.get("reference_noise_pct"), ".3f")]
         lines.append("| " + " | ".join(cells) + " |")
     return "\n".join(lines) + "\n"
 
@@ -97,9 +103,13 @@ def write_markdown(rows: Sequence[dict], path: Path, stamp: str, command: str = 
         "- error % = mismatching evaluated pixels against the Cycles visibility; soft error % = mean "
         "|visibility - Cycles| (equal to error % for binary methods; antialiased rows differ); times on a "
         "software rasteriser mean little in absolute terms, compare them as ratios within this table",
-        *(["- fractional px: pixels Cycles lights through see-through surfaces (visibility in (0.02, 0.98)), "
-           "left out of error % and measured by their own soft error"]
+        *(["- fractional px: pixels Cycles lights through see-through surfaces or a sized light's penumbra "
+           "(visibility in (0.02, 0.98)); a hard light's error % leaves them out, a sized light's counts them "
+           "(the side of 0.5 each falls on); both are measured by their own soft error"]
           if any("fractional_pixels" in r for r in rows) else []),
+        *(["- light: a sized light's shape as the reference rendered it (docs/soft.md); reference noise % = the "
+           "Cycles reference's own noise in soft error %'s unit, measured from two halves of its samples"]
+          if any("reference_noise_pct" in r for r in rows) else []),
         *_scene_notes(rows),
         "",
         markdown_table(rows),

@@ -60,7 +60,7 @@ def _visibility(backend, scene, samples, method, light=None, **fields):
     return result.visibility
 
 
-@pytest.mark.parametrize("method", METHODS)
+@pytest.mark.parametrize("method", (*METHODS, "ipsm+notw", "unfold"))
 def test_the_filter_follows_the_light(gl_backend, case, method):
     """The filtered maps' penumbra is within a few percent of the integral, and at most half
     the error of the hard test of the same map."""
