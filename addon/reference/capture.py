@@ -46,8 +46,7 @@ from ..core.light_shape import POINT
 from ..core.metrics import reference_ratio
 from ..core.scene import orthonormalize, spot_emission
 from ..render import blender_compat
-from . import reference_materials
-from . import light_size
+from . import light_size, reference_materials
 from .data import ReferenceData
 from .reference_materials import AOV_NORMAL
 from .render_geometry import GEOMETRY_TYPES, render_triangles

@@ -10,6 +10,7 @@ import functools
 import numpy as np
 import pytest
 
+from addon.core.errors import InputError
 from addon.core.light_shape import POINT
 from addon.core.scene import SceneBuilder, look_at
 from addon.render.frame import settings_for
@@ -113,3 +114,10 @@ def test_more_light_samples_do_not_move_the_answer_much(gl_backend, case):
     a = _visibility(gl_backend, scene, samples, "dpsm+notw", hard, light_samples=16)
     b = _visibility(gl_backend, scene, samples, "dpsm+notw", hard, light_samples=64)
     assert np.array_equal(a, b) and set(np.unique(a)) <= {0.0, 1.0}
+
+
+@pytest.mark.parametrize("fields", [{"light_samples": 0}, {"light_samples": 65}, {"search_samples": 17},
+                                    {"light_samples": 2.5}])
+def test_bad_sample_counts_are_named(fields):
+    with pytest.raises(InputError, match="samples"):
+        settings_for("dpsm", 512, **fields)
