@@ -21,7 +21,7 @@ from collections.abc import Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 
-from distributed import Client, Future, LocalCluster
+from distributed import Client, Future, LocalCluster, get_worker
 
 from .compare import CompareOptions, Progress, check_some_fit
 from .core import interrupt
@@ -66,6 +66,7 @@ def _worker_pipeline() -> ShadowPipeline:
 def remote_job(job: Job, options: CompareOptions, cache_dir: str | None, send_reference: bool) -> RemoteResult:
     """`shots.run_job` on a worker: its images are written to a temporary folder there and
     sent back as bytes, since the worker may see another file system than the client."""
+    _drop_blender_paths()
     with tempfile.TemporaryDirectory(prefix="omniwarp_job_") as tmp, open(os.devnull, "w") as quiet:
         image_dir = Path(tmp) / "images" if options.write_images else None
         # The client shows progress per job; the worker's own row counter would only interleave.
@@ -76,7 +77,27 @@ def remote_job(job: Job, options: CompareOptions, cache_dir: str | None, send_re
     reference = None
     if send_reference and result.rendered is not None and result.rendered.is_file():
         reference = (result.rendered.name, result.rendered.read_bytes())
-    return RemoteResult(result.rows, result.skipped, images, reference, os.uname().nodename)
+    return RemoteResult(result.rows, result.skipped, images, reference, get_worker().address)
+
+
+def _drop_blender_paths() -> None:
+    """Before bpy is imported in a worker: drop the folders inside the bpy package from
+    sys.path. A local worker is spawned with the client's sys.path, to which the client's
+    own bpy added its scripts folders; `import bpy` would then find scripts/modules/bpy
+    (Blender's Python half, without `_bpy`) before the module itself."""
+    if "bpy" in sys.modules:
+        return
+    roots = [os.path.join(entry, "bpy") + os.sep for entry in sys.path if entry and _holds_bpy_module(entry)]
+    sys.path[:] = [entry for entry in sys.path if not any(entry.startswith(root) for root in roots)]
+
+
+def _holds_bpy_module(folder: str) -> bool:
+    """Whether `folder` holds the bpy extension module (bpy/__init__.so, not a .py package)."""
+    try:
+        return any(name.startswith("__init__.") and name.endswith((".so", ".pyd"))
+                   for name in os.listdir(os.path.join(folder, "bpy")))
+    except OSError:
+        return False
 
 
 def run_jobs(jobs: Sequence[Job], options: CompareOptions, image_dir: Path | None, *, workers: int | None = None,
@@ -114,6 +135,9 @@ def run_jobs(jobs: Sequence[Job], options: CompareOptions, image_dir: Path | Non
 
 def _connect(workers: int | None, scheduler: str | None, tmp: Path) -> tuple[LocalCluster | None, Client]:
     """A client of the cluster at `scheduler`, or of a new LocalCluster of `workers` processes."""
+    if not logging.getLogger("omniwarp").isEnabledFor(logging.INFO):
+        # Dask logs every worker's start and stop at INFO; without -v stderr keeps its progress lines.
+        logging.getLogger("distributed").setLevel(logging.ERROR)
     if scheduler is not None:
         try:
             return None, Client(scheduler, timeout=CONNECT_TIMEOUT_S)
@@ -202,9 +226,21 @@ def _cancel(client: Client, futures: list[Future]) -> None:
         log.info("cancelling the futures: %s", exc)
 
 
+def release_pipelines() -> None:
+    """On a worker: release its GL contexts before the process ends (run by the client)."""
+    while _PIPELINES:
+        _, pipeline = _PIPELINES.popitem()
+        pipeline.backend.release()
+
+
 def _close(client: Client | None, cluster: LocalCluster | None) -> None:
     """Close the client, then the local cluster and its worker processes (an external
-    cluster stays up: it is not ours)."""
+    cluster stays up: it is not ours, but its workers' GL contexts are released)."""
+    if client is not None:
+        try:
+            client.run(release_pipelines)
+        except (OSError, TimeoutError, RuntimeError) as exc:
+            log.info("releasing the workers' pipelines: %s", exc)
     for what, thing in (("client", client), ("cluster", cluster)):
         if thing is None:
             continue
