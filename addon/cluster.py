@@ -21,6 +21,7 @@ from collections.abc import Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 
+import dask
 from distributed import Client, Future, LocalCluster, get_worker
 
 from .compare import CompareOptions, Progress, check_some_fit
@@ -104,7 +105,8 @@ def run_jobs(jobs: Sequence[Job], options: CompareOptions, image_dir: Path | Non
              scheduler: str | None = None, cache_dir: str | None = None) -> list[Row]:
     """Every job on a Dask cluster: a LocalCluster of `workers` processes, or the one at
     `scheduler`. The rows come back in job order, as the serial run gives them."""
-    with interrupt.temporary_dir("omniwarp_dask_") as tmp:
+    # Dask's own scratch folders (the scheduler's, the nannies') go under ours too.
+    with interrupt.temporary_dir("omniwarp_dask_") as tmp, dask.config.set({"temporary-directory": str(tmp)}):
         cluster: LocalCluster | None = None
         client: Client | None = None
         futures: list[Future] = []
@@ -135,9 +137,12 @@ def run_jobs(jobs: Sequence[Job], options: CompareOptions, image_dir: Path | Non
 
 def _connect(workers: int | None, scheduler: str | None, tmp: Path) -> tuple[LocalCluster | None, Client]:
     """A client of the cluster at `scheduler`, or of a new LocalCluster of `workers` processes."""
-    if not logging.getLogger("omniwarp").isEnabledFor(logging.INFO):
-        # Dask logs every worker's start and stop at INFO; without -v stderr keeps its progress lines.
-        logging.getLogger("distributed").setLevel(logging.ERROR)
+    verbose = logging.getLogger("omniwarp").isEnabledFor(logging.INFO)
+    if not verbose:
+        # Dask logs every worker's start and stop at INFO, and a heartbeat cut short by the
+        # close as an error; without -v stderr keeps the run's own lines. A job's failure
+        # comes back through its future either way.
+        logging.getLogger("distributed").setLevel(logging.CRITICAL)
     if scheduler is not None:
         try:
             return None, Client(scheduler, timeout=CONNECT_TIMEOUT_S)
@@ -147,7 +152,8 @@ def _connect(workers: int | None, scheduler: str | None, tmp: Path) -> tuple[Loc
     # One thread per worker process: one GL context and one bpy each. Their temporaries
     # (Dask's spill folder, Blender's session folder) go under ours, so nothing stays behind.
     cluster = LocalCluster(n_workers=workers, threads_per_worker=1, processes=True, dashboard_address=None,
-                           local_directory=str(tmp), env={"TMPDIR": str(tmp)}, silence_logs=logging.ERROR)
+                           local_directory=str(tmp), env={"TMPDIR": str(tmp)},
+                           silence_logs=logging.INFO if verbose else logging.CRITICAL)
     return cluster, Client(cluster)
 
 
