@@ -33,7 +33,7 @@ from .shots import Job, run_job
 
 log = logging.getLogger(__name__)
 
-CONNECT_TIMEOUT_S = 30
+CONNECT_TIMEOUT_S = 10
 POLL_S = 0.1  # how often the client looks at its futures: short, so Ctrl-C is served at once
 # One pipeline per worker thread: a GL context is current in the thread that made it.
 _PIPELINES: dict[int, ShadowPipeline] = {}

@@ -17,7 +17,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 from .compare import CompareOptions, Progress, check_some_fit, measure_reference, rows_per_reference
-from .core.errors import InputError
+from .core.errors import InputError, OmniWarpError
 from .reference.capture import DEFAULT_SAMPLES
 from .reference.data import ReferenceData
 from .render.pipeline import ShadowPipeline
@@ -215,7 +215,13 @@ def run_job(job: Job, options: CompareOptions, pipeline: ShadowPipeline, image_d
     The serial path and the Dask workers (`cluster.py`) both call it. A .blend job's rows
     carry `frame`, `light` and `camera` (the values rendered, also where the file chose them)."""
     say = say or _say
-    ref, rendered = load_reference(job, cache_dir, say, check)
+    try:
+        ref, rendered = load_reference(job, cache_dir, say, check)
+    except OmniWarpError as exc:
+        if not job.tag:
+            raise
+        # One of many jobs: the line names the frame, light and camera at fault.
+        raise type(exc)(f"{job.describe()}: {exc}") from None
     rows, skipped = measure_reference(pipeline, ref, job.label, options, job.source(), image_dir, progress, job.tag)
     if job.blend is not None:
         shot = {"frame": job.frame if job.frame is not None else ref.meta.get("key_fields", {}).get("frame"),

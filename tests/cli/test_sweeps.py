@@ -21,7 +21,7 @@ pytest.importorskip("distributed", reason="the cluster runs need the dask extra 
 pytestmark = [pytest.mark.blender, pytest.mark.gl, pytest.mark.dask]
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "support"))
-from cli_run import REPO, SUPPORT, env_with, omniwarp, staging_left, stderr_lines  # noqa: E402
+from cli_run import REPO, SUPPORT, env_with, omniwarp, one_line, staging_left, stderr_lines  # noqa: E402
 
 SWEEP = ("--lights", "key,rim", "--frame-range", "1-24:8", "--methods", "dpsm,exact", "--resolutions", "256",
          "--repeats", "1")
@@ -193,3 +193,56 @@ def test_ctrl_c_on_a_cluster_run_exits_130_and_leaves_nothing(shot, tmp_path):
         time.sleep(0.1)
     assert not [pid for pid in workers if _alive(pid)]
     assert list(tmpdir.iterdir()) == [] and not (out / "results.json").exists() and staging_left(tmp_path) == []
+
+
+@pytest.mark.parametrize("where", [[], ["--workers", "2"]], ids=["serial", "workers"])
+def test_a_job_on_bad_input_ends_the_run_with_its_one_line(tmp_path, where):
+    """The key light is dark from frame 17 on: the file passes the checks at its current
+    frame, and the job of frame 17 refuses it. The run ends with exit 2 and that one line
+    (naming the job), and writes nothing."""
+    path = tmp_path / "dark.blend"
+    proc = subprocess.run([sys.executable, str(SUPPORT / "make_shot_blend.py"), str(path), "--dark-key-at", "17"],
+                          capture_output=True, text=True, timeout=300, cwd=REPO)
+    assert proc.returncode == 0, proc.stderr[-2000:]
+    out = tmp_path / "out"
+    proc = omniwarp("compare", "--blend", path, *SWEEP, *where, "--out", out,
+                    env=env_with(OMNIWARP_CACHE=tmp_path / "cache"))
+    assert proc.returncode == 2 and "Traceback" not in proc.stderr, proc.stderr[-3000:]
+    errors = [line for line in stderr_lines(proc.stderr) if line.startswith("omniwarp: error:")]
+    assert errors == stderr_lines(proc.stderr)[-1:]
+    assert "dark frame 17 light key" in errors[0] and "emits nothing" in errors[0], errors
+    assert not (out / "results.json").exists() and staging_left(tmp_path) == []
+
+
+@pytest.mark.parametrize("args, expected", [
+    (["--lights", "key,nosuch"], "--lights 'nosuch': no rendered point, spot or sun light of that name in shot.blend"),
+    (["--cameras", "side,nosuch"], "--cameras 'nosuch': no perspective or orthographic camera"),
+    (["--light", "key", "--lights", "rim"], "--light and --lights: give one of them"),
+    ([], "has several point/spot/sun lights (key, rim); name one with --light, or several with --lights"),
+    (["--frame-range", "9-1"], "bad --frame-range '9-1'"),
+], ids=["light", "camera", "light-and-lights", "several-lights", "frame-range"])
+def test_a_shot_s_names_are_checked_before_any_render(shot, tmp_path, args, expected):
+    cache = tmp_path / "cache"
+    line = one_line(omniwarp("compare", "--blend", shot, *args, "--out", tmp_path / "out",
+                             env=env_with(OMNIWARP_CACHE=cache)))
+    assert expected in line, line
+    assert not cache.exists() or list(cache.iterdir()) == []
+
+
+def test_no_scheduler_at_the_address_is_one_line(tmp_path):
+    line = one_line(omniwarp("compare", "--preset", "room_omni", "--scheduler", "tcp://127.0.0.1:1",
+                             "--out", tmp_path / "out"))
+    assert "--scheduler tcp://127.0.0.1:1: no Dask scheduler answered" in line and "dask scheduler" in line, line
+
+
+def test_lights_and_cameras_all(shot, tmp_path):
+    """`all` takes every rendered light and every camera: 2 x 2 jobs at one frame."""
+    out = tmp_path / "out"
+    proc = omniwarp("compare", "--blend", shot, "--lights", "all", "--cameras", "all", "--methods", "dpsm",
+                    "--resolutions", "256", "--repeats", "1", "--no-images", "--out", out,
+                    env=env_with(OMNIWARP_CACHE=tmp_path / "cache"))
+    assert proc.returncode == 0, proc.stderr[-3000:]
+    rows = json.loads((out / "results.json").read_text())
+    assert sorted((r["light"], r["camera"]) for r in rows) == sorted(
+        (light, camera) for light in ("key", "rim") for camera in ("shot_scene_camera", "side"))
+    assert {r["frame"] for r in rows} == {1}  # the file's current frame
