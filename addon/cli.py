@@ -257,18 +257,18 @@ def _blend_reference(args: argparse.Namespace, check: Callable[[str], None] | No
     return load
 
 
-def _repeats(args: argparse.Namespace) -> int:
-    """--repeats, or its deprecated alias --frames (one warning line, after its value is checked)."""
+def _repeats(args: argparse.Namespace) -> tuple[int, str]:
+    """--repeats, or its deprecated alias --frames, and the one warning line that alias
+    gets ("" for --repeats); the caller says it at the end of a run that succeeded."""
     if args.frames is not None and args.repeats is not None:
         raise InputError("--frames is the old name of --repeats: give --repeats only")
     option, value = ("--frames", args.frames) if args.frames is not None else ("--repeats", args.repeats)
     value = DEFAULT_REPEATS if value is None else value
     if not 1 <= value <= MAX_FRAMES:
         raise InputError(f"bad {option} {value}: use 1-{MAX_FRAMES}")
-    if option == "--frames":
-        _say("warning: --frames is deprecated: use --repeats (the timed repeats per row); "
-             "a shot's frames are --frame-range")
-    return value
+    warning = ("warning: --frames is deprecated: use --repeats (the timed repeats per row); "
+               "a shot's frames are --frame-range") if option == "--frames" else ""
+    return value, warning
 
 
 def _compare_jobs(args: argparse.Namespace, methods: Sequence[str]) -> list:
@@ -281,7 +281,8 @@ def _compare_jobs(args: argparse.Namespace, methods: Sequence[str]) -> list:
     if args.preset is not None:
         given = [name for name, value in shot_options.items() if value is not None]
         if given:
-            raise InputError(f"{', '.join(given)} apply to --blend only")
+            named = "--light and --camera" if set(given) <= {"--light", "--camera"} else " and ".join(given)
+            raise InputError(f"{named} apply to --blend only")
         size = parse_size(args.size)
         names = select_presets(args.preset)
         # Building a preset is cheap (no Blender): its light says which methods fit.
@@ -306,7 +307,7 @@ def cmd_compare(args: argparse.Namespace) -> int:
     # Everything the user typed is checked here, before any render or measurement.
     methods = method_registry.parse_methods(args.methods)
     resolutions = parse_resolutions(args.resolutions)
-    repeats = _repeats(args)
+    repeats, deprecated = _repeats(args)
     if args.workers is not None and not 1 <= args.workers <= MAX_WORKERS:
         raise InputError(f"bad --workers {args.workers}: use 1-{MAX_WORKERS}")
     out = check_output_dir(args.out)
@@ -334,11 +335,15 @@ def cmd_compare(args: argparse.Namespace) -> int:
         def measure(image_dir):
             return run_jobs(jobs, options, lambda: ShadowPipeline(ModernGLBackend()), image_dir, args.cache_dir)
     rows = run_compare(measure, options)
+    # A sweep's lines say the frame, light and camera where they vary; one job's stay as they were.
+    varying = [key for key in ("frame", "light", "camera") if len({str(row.get(key)) for row in rows}) > 1]
     for row in rows:
         passes = f"  passes {row['passes']}" if "passes" in row else ""
-        shot = "".join(f" {key} {row[key]}" for key in ("frame", "light", "camera") if key in row and args.blend)
+        shot = "".join(f" {key} {row[key]}" for key in varying if key in row)
         _result(args, f"{row['preset']:12s}{shot} {row_label(row):6s} {row.get('resolution', ''):>5}  "
                       f"error {row['error_pct']:6.3f} %  total {row['time_ms']['total']:8.1f} ms{passes}")
+    if deprecated:
+        _say(deprecated)  # after the run, like the line notes: a failed run shows its error line only
     _say_line_gaps()
     return 0
 

@@ -34,13 +34,12 @@ def test_name_lists():
             parse_names(bad, "--cameras")
 
 
-def test_frames_is_the_deprecated_repeats(capsys):
-    assert _repeats(argparse.Namespace(frames=None, repeats=None)) == 3
-    assert _repeats(argparse.Namespace(frames=None, repeats=5)) == 5
-    assert capsys.readouterr().err == ""
-    assert _repeats(argparse.Namespace(frames=2, repeats=None)) == 2
-    warning = capsys.readouterr().err.splitlines()
-    assert len(warning) == 1 and warning[0].startswith("warning: --frames is deprecated: use --repeats")
+def test_frames_is_the_deprecated_repeats():
+    assert _repeats(argparse.Namespace(frames=None, repeats=None)) == (3, "")
+    assert _repeats(argparse.Namespace(frames=None, repeats=5)) == (5, "")
+    value, warning = _repeats(argparse.Namespace(frames=2, repeats=None))
+    assert value == 2 and warning.startswith("warning: --frames is deprecated: use --repeats")
+    assert "\n" not in warning
     with pytest.raises(InputError, match="give --repeats only"):
         _repeats(argparse.Namespace(frames=2, repeats=2))
 

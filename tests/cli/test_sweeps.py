@@ -239,10 +239,16 @@ def test_lights_and_cameras_all(shot, tmp_path):
     """`all` takes every rendered light and every camera: 2 x 2 jobs at one frame."""
     out = tmp_path / "out"
     proc = omniwarp("compare", "--blend", shot, "--lights", "all", "--cameras", "all", "--methods", "dpsm",
-                    "--resolutions", "256", "--repeats", "1", "--no-images", "--out", out,
+                    "--resolutions", "256", "--frames", "1", "--no-images", "--out", out,
                     env=env_with(OMNIWARP_CACHE=tmp_path / "cache"))
     assert proc.returncode == 0, proc.stderr[-3000:]
+    # --frames is the deprecated --repeats: one warning line, and it still counts the repeats.
+    assert len([line for line in proc.stderr.splitlines() if "--frames is deprecated" in line]) == 1
     rows = json.loads((out / "results.json").read_text())
     assert sorted((r["light"], r["camera"]) for r in rows) == sorted(
         (light, camera) for light in ("key", "rim") for camera in ("shot_scene_camera", "side"))
     assert {r["frame"] for r in rows} == {1}  # the file's current frame
+    assert all(r["frames"] == 1 for r in rows)
+    # The result lines say the light and camera, which vary; the frame does not.
+    assert all(" light " in line and " camera " in line and " frame " not in line
+               for line in proc.stdout.splitlines()), proc.stdout
