@@ -40,12 +40,46 @@ def _compare(blend: Path, frames: str, out: Path, cache: Path, extra: list[str])
     return seconds, json.loads((out / "results.json").read_text()), proc.stderr
 
 
+def markdown(result: dict) -> list[str]:
+    """bench.md's lines from bench.json's measurements."""
+    job, runs = result["job"], result["runs"]
+    per_worker = runs[0]["jobs_per_minute"] / runs[0]["workers"]
+    return [
+        "# A sweep's job at 1920x1080, and jobs per minute on local Dask workers",
+        "",
+        f"- measured: {result['measured']}, by `{result['command']}`",
+        f"- renderer: {job['renderer']}; Cycles on the CPU (2 cores, shared)",
+        f"- job: one frame of tests/support/make_shot_blend.py at {result['size']}, the key light; its Cycles "
+        "reference (2 renders, 1 sample, from an empty cache) and the rows dpsm and exact at 1024 (1 repeat)",
+        "",
+        "| one job, serially | seconds |",
+        "|---|---|",
+        f"| whole command (start, Blender load, reference, rows, outputs) | {job['wall_s']:.1f} |",
+        f"| Cycles reference (2 renders) | {job['cycles_reference_s']:.1f} |",
+        *(f"| row {method} @1024 (median frame) | {ms / 1000:.2f} |" for method, ms in job["rows_ms"].items()),
+        "",
+        "| local workers | jobs | seconds, command start to end | jobs per minute |",
+        "|---|---|---|---|",
+        *(f"| {r['workers']} | {r['jobs']} | {r['wall_s']:.1f} | {r['jobs_per_minute']:.2f} |" for r in runs),
+        "",
+        f"A {SHOT_FRAMES}-frame shot with {SHOT_LIGHTS} lights is {result['shot_jobs']} jobs. At the rate of one "
+        f"worker alone on this machine ({per_worker:.2f} jobs per minute), an hour takes "
+        f"{result['workers_for_an_hour']} such workers, each on a machine like this one.",
+        "",
+    ]
+
+
 def main() -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--out", default="docs/sweeps")
     parser.add_argument("--jobs", type=int, default=6, help="jobs (frames) per cluster run")
     parser.add_argument("--workers", default="1,2")
+    parser.add_argument("--rewrite", action="store_true", help="write OUT/bench.md again from OUT/bench.json")
     args = parser.parse_args()
+    if args.rewrite:
+        result = json.loads((Path(args.out) / "bench.json").read_text())
+        (Path(args.out) / "bench.md").write_text("\n".join(markdown(result)), encoding="utf-8")
+        return 0
     counts = [int(v) for v in args.workers.split(",")]
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
@@ -66,7 +100,6 @@ def main() -> int:
             seconds, rows, _ = _compare(blend, frames, tmp / f"w{n}", tmp / f"cache_w{n}", ["--workers", str(n)])
             runs.append({"workers": n, "jobs": args.jobs, "rows": len(rows), "wall_s": round(seconds, 1),
                          "jobs_per_minute": round(60.0 * args.jobs / seconds, 2)})
-    best = max(runs, key=lambda r: r["jobs_per_minute"] / r["workers"])
     per_worker = runs[0]["jobs_per_minute"] / runs[0]["workers"]
     shot_jobs = SHOT_FRAMES * SHOT_LIGHTS
     needed = -(-shot_jobs // int(60 * per_worker))  # ceil(750 / jobs one worker does in an hour)
@@ -75,29 +108,7 @@ def main() -> int:
               "runs": runs, "shot_jobs": shot_jobs, "workers_for_an_hour": needed, "command":
               "python scripts/sweep_bench.py " + " ".join(sys.argv[1:])}
     (out / "bench.json").write_text(json.dumps(result, indent=1) + "\n", encoding="utf-8")
-    lines = [
-        "# A sweep's job at 1920x1080, and jobs per minute on local Dask workers",
-        "",
-        f"- measured: {stamp}, by `{result['command']}`",
-        f"- renderer: {job['renderer']}; Cycles on the CPU",
-        f"- job: one frame of tests/support/make_shot_blend.py at {SIZE}, the key light; its Cycles "
-        "reference (2 renders, 1 sample, from an empty cache) and the rows dpsm and exact at 1024 (1 repeat)",
-        "",
-        "| one job, serially | seconds |",
-        "|---|---|",
-        f"| whole command (start, Blender load, reference, rows, outputs) | {job['wall_s']:.1f} |",
-        f"| Cycles reference (2 renders) | {cycles:.1f} |",
-        *(f"| row {method} @1024 (median frame) | {ms / 1000:.2f} |" for method, ms in job["rows_ms"].items()),
-        "",
-        "| local workers | jobs | seconds, command start to end | jobs per minute |",
-        "|---|---|---|---|",
-        *(f"| {r['workers']} | {r['jobs']} | {r['wall_s']:.1f} | {r['jobs_per_minute']:.2f} |" for r in runs),
-        "",
-        f"A {SHOT_FRAMES}-frame shot with {SHOT_LIGHTS} lights is {shot_jobs} jobs. At the 1-worker rate "
-        f"({per_worker:.2f} jobs per minute), an hour takes {needed} workers like this machine "
-        f"(best measured rate per worker: {best['workers']} worker(s)).",
-        "",
-    ]
+    lines = markdown(result)
     (out / "bench.md").write_text("\n".join(lines), encoding="utf-8")
     print("\n".join(lines))
     return 0
