@@ -5,7 +5,7 @@ import logging
 from collections.abc import Sequence
 from pathlib import Path
 
-from .rows import Row, row_label
+from .rows import SHOT_FIELDS, Row, row_label
 
 log = logging.getLogger(__name__)
 
@@ -25,7 +25,7 @@ def _cell(value: object, spec: str = "") -> str:
     return "" if value is None else format(value, spec)
 
 
-SHOT_COLUMNS = ("frame", "light", "camera")  # a .blend job's; a preset's rows have none
+SHOT_COLUMNS = SHOT_FIELDS  # a .blend job's; a preset's rows have none
 
 
 def _shot_columns(rows: Sequence[Row]) -> list[str]:
@@ -112,7 +112,7 @@ def write_markdown(rows: Sequence[dict], path: Path, stamp: str, command: str = 
         *([f"- command: `{command}`"] if command else []),
         f"- renderer: {', '.join(renderers)}",
         f"- backend: {', '.join(backends)}",
-        f"- camera size: {', '.join(sizes)}; times are medians of {rows[0]['frames'] if rows else 0} frames "
+        f"- camera size: {', '.join(sizes)}; times are medians of {rows[0]['frames'] if rows else 0} timed repeats "
         "after one warm-up frame",
         "- error % = mismatching evaluated pixels against the Cycles visibility; soft error % = mean "
         "|visibility - Cycles| (equal to error % for binary methods; antialiased rows differ); times on a "

@@ -21,7 +21,7 @@ from .core.errors import InputError, OmniWarpError
 from .reference.capture import DEFAULT_SAMPLES
 from .reference.data import ReferenceData
 from .render.pipeline import ShadowPipeline
-from .rows import Row
+from .rows import Row, with_shot
 
 log = logging.getLogger(__name__)
 
@@ -224,10 +224,9 @@ def run_job(job: Job, options: CompareOptions, pipeline: ShadowPipeline, image_d
         raise type(exc)(f"{job.describe()}: {exc}") from None
     rows, skipped = measure_reference(pipeline, ref, job.label, options, job.source(), image_dir, progress, job.tag)
     if job.blend is not None:
-        shot = {"frame": job.frame if job.frame is not None else ref.meta.get("key_fields", {}).get("frame"),
-                "light": ref.meta.get("light"), "camera": ref.meta.get("camera")}
+        frame = job.frame if job.frame is not None else ref.meta.get("key_fields", {}).get("frame")
         for row in rows:
-            row.update({key: value for key, value in shot.items() if value is not None})
+            with_shot(row, frame=frame, light=ref.meta.get("light"), camera=ref.meta.get("camera"))
     return JobResult(rows, skipped, _cache_file(job, ref, cache_dir) if rendered else None)
 
 
