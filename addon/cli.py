@@ -2,8 +2,10 @@
 
     omniwarp presets
     omniwarp reference --preset SEL [--size WxH] [--refresh]
-    omniwarp compare --preset SEL | --blend FILE [--light NAME] [--camera NAME]
-                     [--methods m1,m2] [--resolutions 512,1024] [--no-cull | --cull-both] [--out DIR]
+    omniwarp compare --preset SEL | --blend FILE [--light NAME | --lights all|L1,L2]
+                     [--camera NAME | --cameras all|C1,C2] [--frame-range A-B[:STEP]]
+                     [--methods m1,m2] [--resolutions 512,1024] [--no-cull | --cull-both] [--repeats N]
+                     [--workers N | --scheduler ADDRESS] [--cache-dir DIR] [--out DIR]
     omniwarp preview --preset NAME | --blend FILE [--light NAME] [--method M] [--resolution R] [--out DIR]
 
 The method names and what each fits come from `core/methods.py`.
@@ -17,6 +19,8 @@ progress, Blender's own log and errors go to stderr.
 from __future__ import annotations
 
 import argparse
+import dataclasses
+import importlib.util
 import json
 import logging
 import os
@@ -50,9 +54,11 @@ from .rows import row_label
 log = logging.getLogger("omniwarp")
 
 PROGRAM = "omniwarp"
-MAX_FRAMES = 1000
+MAX_FRAMES = 1000  # timing repeats per row
+DEFAULT_REPEATS = 3
 MAX_SAMPLES = 64
 MAX_SOFT_SAMPLES = 4096
+MAX_WORKERS = 256
 
 
 class _Parser(argparse.ArgumentParser):
@@ -91,6 +97,12 @@ def _parser() -> argparse.ArgumentParser:
     source.add_argument("--blend", help="a saved .blend file (its scene camera and one point/spot light)")
     cmp_.add_argument("--light", help="with --blend: the light object to use")
     cmp_.add_argument("--camera", help="with --blend: the camera object to use")
+    cmp_.add_argument("--lights", help="with --blend: 'all' (every rendered point, spot or sun light) or L1,L2: "
+                                       "one job per light")
+    cmp_.add_argument("--cameras", help="with --blend: 'all' or C1,C2: one job per camera")
+    cmp_.add_argument("--frame-range", metavar="A-B[:STEP]",
+                      help="with --blend: the frames A, A+STEP, ... B of the file's animation, one job each "
+                           "(default: the file's current frame)")
     cmp_.add_argument("--methods", default=",".join(method_registry.DEFAULT_METHODS),
                       help=f"comma list of methods: {method_registry.help_list()} "
                            f"(default {','.join(method_registry.DEFAULT_METHODS)})")
@@ -101,8 +113,16 @@ def _parser() -> argparse.ArgumentParser:
                          help="measure every row with and without culling, in the same run")
     cmp_.add_argument("--out", default="out/compare", help="output folder (default out/compare)")
     cmp_.add_argument("--size", default="640x480", help="camera size WxH for presets (default 640x480)")
-    cmp_.add_argument("--frames", type=int, default=3,
-                      help=f"timed frames per row after one warm-up, 1-{MAX_FRAMES} (default 3)")
+    cmp_.add_argument("--repeats", type=int, default=None,
+                      help=f"timed repeats per row after one warm-up, 1-{MAX_FRAMES} (default {DEFAULT_REPEATS})")
+    cmp_.add_argument("--frames", type=int, default=None, help="deprecated: the old name of --repeats")
+    where = cmp_.add_mutually_exclusive_group()
+    where.add_argument("--workers", type=int, help="run the jobs on a local Dask cluster of N worker processes "
+                                                   "(one thread, one GL context and one bpy each)")
+    where.add_argument("--scheduler", metavar="ADDRESS",
+                       help="run the jobs on the Dask cluster at ADDRESS, e.g. tcp://10.0.0.5:8786 (docs/sweeps.md)")
+    cmp_.add_argument("--cache-dir", help="the Cycles reference cache folder (default $OMNIWARP_CACHE or .cache/); "
+                                          "with --scheduler, a folder every worker shares")
     cmp_.add_argument("--no-images", action="store_true",
                       help="skip the mismatch images (and remove the images/ of an earlier run)")
     _add_light_size_options(cmp_)
@@ -262,44 +282,94 @@ def _blend_reference(args: argparse.Namespace, check: Callable[[str], None] | No
     return load
 
 
+def _repeats(args: argparse.Namespace) -> tuple[int, str]:
+    """--repeats, or its deprecated alias --frames, and the one warning line that alias
+    gets ("" for --repeats); the caller says it at the end of a run that succeeded."""
+    if args.frames is not None and args.repeats is not None:
+        raise InputError("--frames is the old name of --repeats: give --repeats only")
+    option, value = ("--frames", args.frames) if args.frames is not None else ("--repeats", args.repeats)
+    value = DEFAULT_REPEATS if value is None else value
+    if not 1 <= value <= MAX_FRAMES:
+        raise InputError(f"bad {option} {value}: use 1-{MAX_FRAMES}")
+    warning = ("warning: --frames is deprecated: use --repeats (the timed repeats per row); "
+               "a shot's frames are --frame-range") if option == "--frames" else ""
+    return value, warning
+
+
+def _compare_jobs(args: argparse.Namespace, methods: Sequence[str]) -> list:
+    """The run's jobs, one per (scene, frame, light, camera), their names checked now."""
+    from .compare import check_methods_fit
+    from .shots import blend_jobs, parse_frame_range, parse_names, preset_jobs
+
+    shot_options = {"--light": args.light, "--camera": args.camera, "--lights": args.lights,
+                    "--cameras": args.cameras, "--frame-range": args.frame_range}
+    if args.preset is not None:
+        given = [name for name, value in shot_options.items() if value is not None]
+        if given:
+            named = "--light and --camera" if set(given) <= {"--light", "--camera"} else " and ".join(given)
+            raise InputError(f"{named} apply to --blend only")
+        size = parse_size(args.size)
+        names = select_presets(args.preset)
+        # Building a preset is cheap (no Blender): its light says which methods fit.
+        check_methods_fit(methods, {name: build_preset(name, size).light.emission for name in names})
+        return preset_jobs(names, size)
+    for one, several in (("--light", "--lights"), ("--camera", "--cameras")):
+        if shot_options[one] is not None and shot_options[several] is not None:
+            raise InputError(f"{one} and {several}: give one of them")
+    frames = parse_frame_range(args.frame_range)
+    lights = parse_names(args.lights, "--lights") or ([args.light] if args.light else None)
+    cameras = parse_names(args.cameras, "--cameras") or ([args.camera] if args.camera else None)
+    from .reference.blend_file import check_blend_file
+
+    path = check_blend_file(args.blend)
+    _need_bpy("--blend")
+    return blend_jobs(path, frames, lights, cameras, lambda emissions: check_methods_fit(methods, emissions))
+
+
 def cmd_compare(args: argparse.Namespace) -> int:
-    from .compare import CompareOptions, check_methods_fit, parse_resolutions, run_compare
-    from .render.moderngl_backend import ModernGLBackend
-    from .render.pipeline import ShadowPipeline
+    from .compare import CompareOptions, parse_resolutions, run_compare
 
     # Everything the user typed is checked here, before any render or measurement.
     methods = method_registry.parse_methods(args.methods)
     resolutions = parse_resolutions(args.resolutions)
-    if not 1 <= args.frames <= MAX_FRAMES:
-        raise InputError(f"bad --frames {args.frames}: use 1-{MAX_FRAMES}")
-    if args.preset is not None and (args.light or args.camera):
-        raise InputError("--light and --camera apply to --blend only")
+    repeats, deprecated = _repeats(args)
+    if args.workers is not None and not 1 <= args.workers <= MAX_WORKERS:
+        raise InputError(f"bad --workers {args.workers}: use 1-{MAX_WORKERS}")
     out = check_output_dir(args.out)
-    if args.preset is not None:
-        size = parse_size(args.size)
-        from .reference.cache import load_or_capture
+    if args.cache_dir is not None:
+        from .reference.cache import check_cache_dir
 
-        names = select_presets(args.preset)
-        # Building a preset is cheap (no Blender): its light says which methods fit.
-        check_methods_fit(methods, {name: build_preset(name, size).light.emission for name in names})
-        size_options = _light_size(args)
-        references = {name: (lambda n=name: load_or_capture(n, size, log_progress=_say, **size_options))
-                      for name in names}
-        sources = {name: ["--preset", name, "--size", f"{size[0]}x{size[1]}"] for name in names}
-    else:
-        stem = Path(args.blend).stem
-        references = {stem: _blend_reference(args, check=lambda emission: check_methods_fit(methods, {stem: emission}))}
-        sources = {stem: ["--blend", str(Path(args.blend).resolve())]
-                   + (["--light", args.light] if args.light else [])
-                   + (["--camera", args.camera] if args.camera else [])}
-    options = CompareOptions(methods, resolutions, cull=not args.no_cull, cull_both=args.cull_both, frames=args.frames,
+        check_cache_dir(Path(args.cache_dir))
+    size_options = _light_size(args)  # checked before the scenes are opened
+    jobs = [dataclasses.replace(job, **size_options) for job in _compare_jobs(args, methods)]
+    options = CompareOptions(methods, resolutions, cull=not args.no_cull, cull_both=args.cull_both, frames=repeats,
                              out_dir=out, write_images=not args.no_images,
                              command="omniwarp " + " ".join(args.argv))
-    rows = run_compare(references, options, lambda: ShadowPipeline(ModernGLBackend()), sources)
+    if args.workers is not None or args.scheduler is not None:
+        if importlib.util.find_spec("distributed") is None:
+            raise InputError("--workers and --scheduler need Dask (pip install 'omniwarp-shadows[dask]')")
+        from . import cluster  # Dask is imported here only
+
+        def measure(image_dir):
+            return cluster.run_jobs(jobs, options, image_dir, workers=args.workers, scheduler=args.scheduler,
+                                    cache_dir=args.cache_dir)
+    else:
+        from .render.moderngl_backend import ModernGLBackend
+        from .render.pipeline import ShadowPipeline
+        from .shots import run_jobs
+
+        def measure(image_dir):
+            return run_jobs(jobs, options, lambda: ShadowPipeline(ModernGLBackend()), image_dir, args.cache_dir)
+    rows = run_compare(measure, options)
+    # A sweep's lines say the frame, light and camera where they vary; one job's stay as they were.
+    varying = [key for key in ("frame", "light", "camera") if len({str(row.get(key)) for row in rows}) > 1]
     for row in rows:
         passes = f"  passes {row['passes']}" if "passes" in row else ""
-        _result(args, f"{row['preset']:12s} {row_label(row):6s} {row.get('resolution', ''):>5}  "
+        shot = "".join(f" {key} {row[key]}" for key in varying if key in row)
+        _result(args, f"{row['preset']:12s}{shot} {row_label(row):6s} {row.get('resolution', ''):>5}  "
                       f"error {row['error_pct']:6.3f} %  total {row['time_ms']['total']:8.1f} ms{passes}")
+    if deprecated:
+        _say(deprecated)  # after the run, like the line notes: a failed run shows its error line only
     _say_line_gaps()
     return 0
 

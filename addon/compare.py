@@ -139,8 +139,10 @@ def resident_scene(ref: ReferenceData) -> ResidentScene:
 
 
 def run_row(pipeline: ShadowPipeline, ref: ReferenceData, preset: str, method: str, resolution: int,
-            options: CompareOptions, image_dir: Path | None, scene: ResidentScene | None = None) -> Row:
-    """Measure one (preset, method, resolution) row; `scene` is `resident_scene(ref)`, made here when not given."""
+            options: CompareOptions, image_dir: Path | None, scene: ResidentScene | None = None,
+            tag: str = "") -> Row:
+    """Measure one (preset, method, resolution) row; `scene` is `resident_scene(ref)`, made here when not given.
+    `tag` (a job's frame, light and camera) goes into the image names."""
     light = light_from_reference(ref)
     samples = samples_from_reference(ref)
     settings = settings_for(method, resolution, cull=options.cull)
@@ -182,7 +184,7 @@ def run_row(pipeline: ShadowPipeline, ref: ReferenceData, preset: str, method: s
     )
     if image_dir is not None:
         image_dir.mkdir(parents=True, exist_ok=True)
-        stem = f"{preset}_{method}_{resolution}{'' if options.cull else '_nocull'}"
+        stem = f"{preset}{'_' + tag if tag else ''}_{method}_{resolution}{'' if options.cull else '_nocull'}"
         img = metrics.mismatch_image(ref.shadowed, est_lit, ref_lit, evaluable)
         _write_png(image_dir / f"{stem}_mismatch.png", img)
         row["mismatch_image"] = f"images/{stem}_mismatch.png"
@@ -288,14 +290,15 @@ def _cull_variants(options: CompareOptions) -> list[CompareOptions]:
     return [replace(options, cull=True, cull_both=False), replace(options, cull=False, cull_both=False)]
 
 
-def _eevee_rows(source: list[str], ref: ReferenceData, preset: str, out: Path, image_dir: Path | None,
-                options: CompareOptions) -> list[Row]:
+def _eevee_rows(source: list[str], ref: ReferenceData, preset: str, image_dir: Path | None,
+                options: CompareOptions, tag: str = "") -> list[Row]:
     import tempfile
 
     from .reference.eevee import eevee_rows
 
     with tempfile.TemporaryDirectory(prefix="omniwarp_eevee_") as tmp:
-        return eevee_rows(source, ref, preset, Path(tmp), image_dir, frames=max(1, options.frames))
+        return eevee_rows(source, ref, preset, Path(tmp), image_dir, frames=max(1, options.frames),
+                          image_stem=f"{preset}_{tag}" if tag else None)
 
 
 def check_rows(rows: Sequence[Row]) -> None:
@@ -316,81 +319,87 @@ def check_methods_fit(methods: Sequence[str], emissions: dict[str, str]) -> None
                      f"{method_registry.fits_text('omni')}; {method_registry.fits_text('sun')}")
 
 
-def run_compare(references: dict[str, Callable[[], ReferenceData]], options: CompareOptions,
-                pipeline_factory: Callable[[], ShadowPipeline],
-                sources: dict[str, list[str]] | None = None) -> list[dict]:
-    """Measure every preset x method x resolution and write the outputs.
+def run_compare(measure: Callable[[Path | None], list[Row]], options: CompareOptions) -> list[dict]:
+    """Measure the rows with `measure(image_dir)` and write the outputs.
 
-    `sources` gives, per reference, the child-process arguments (`--preset NAME --size WxH`
-    or `--blend FILE ...`) that the external `eevee` rows rebuild the scene from.
-    Everything is written into a staging folder beside `options.out_dir` and moved into
-    place at the end (`core/outputs.py`): a failed or interrupted run leaves the earlier
-    results as they were, and a finished one leaves no image of an earlier run.
+    `measure` runs every job (`shots.run_jobs`, or `cluster.run_jobs` on Dask) and returns
+    the rows in job order, with the mismatch images written under `image_dir` (None with
+    --no-images). Everything is written into a staging folder beside `options.out_dir` and
+    moved into place at the end (`core/outputs.py`): a failed or interrupted run leaves the
+    earlier results as they were, and a finished one leaves no image of an earlier run.
     """
     # A run without matplotlib draws no plot: an earlier run's plot must not stay beside it.
-    with StagedOutput(options.out_dir, replaces=("images", "error_vs_time.png")) as stage:
-        rows = _measure(references, options, pipeline_factory, sources, stage.path)
+    with StagedOutput(options.out_dir, replaces=("images", "error_vs_time.png", "error_vs_frame.png")) as stage:
+        rows = measure(stage.path / "images" if options.write_images else None)
+        check_rows(rows)
         stamp = _dt.datetime.now(_dt.timezone.utc).strftime("%Y-%m-%d %H:%M UTC")
         (stage.path / "results.json").write_text(json.dumps(rows, indent=1), encoding="utf-8")
-        from .report import write_markdown, write_plot
+        from .report import write_frame_plot, write_markdown, write_plot
 
         write_markdown(rows, stage.path / "report.md", stamp, options.command)
-        plotted = write_plot(rows, stage.path / "error_vs_time.png")
+        plotted = [name for name, write in (("error_vs_time.png", write_plot), ("error_vs_frame.png", write_frame_plot))
+                   if write(rows, stage.path / name)]
         stage.commit()
     out = stage.target
-    written = [out / "results.json", out / "report.md"] + ([out / "error_vs_time.png"] if plotted else [])
+    written = [out / "results.json", out / "report.md"] + [out / name for name in plotted]
     print(f"wrote {len(rows)} rows to {', '.join(str(p) for p in written)}", file=sys.stderr)
     return rows
 
 
-def _measure(references: dict[str, Callable[[], ReferenceData]], options: CompareOptions,
-             pipeline_factory: Callable[[], ShadowPipeline], sources: dict[str, list[str]] | None,
-             out: Path) -> list[dict]:
-    """Every row of `run_compare`, with the mismatch images written under `out/images`."""
-    image_dir = out / "images" if options.write_images else None
-    pipeline_methods = [m for m in options.methods if method_registry.method(m).pipeline]
-    external = [m for m in options.methods if method_registry.method(m).external]
-    if external and not sources:
-        raise InputError("the eevee rows need to know how to rebuild the scene (no source given)")
+def rows_per_reference(options: CompareOptions) -> int:
+    """How many rows one reference gives at most (every method fitting): for the progress count."""
     variants = len(_cull_variants(options))
-    progress = Progress(len(references) * (len(pipeline_methods) * len(options.resolutions) * variants + len(external)))
-    rows: list[dict] = []
+    return sum(1 if method_registry.method(m).external else len(options.resolutions) * variants
+               for m in options.methods)
+
+
+def measure_reference(pipeline: ShadowPipeline, ref: ReferenceData, preset: str, options: CompareOptions,
+                      source: list[str] | None, image_dir: Path | None, progress: Progress,
+                      tag: str = "") -> tuple[list[Row], list[str]]:
+    """The rows of one reference (every requested method that fits its light, at every
+    resolution) and the skipped `preset method` entries. `source` gives the child-process
+    arguments (`--preset NAME --size WxH` or `--blend FILE ...`) that the external `eevee`
+    rows rebuild the scene from; `tag` tells the images of one job from another's."""
+    external = [m for m in options.methods if method_registry.method(m).external]
+    if external and not source:
+        raise InputError("the eevee rows need to know how to rebuild the scene (no source given)")
+    rows: list[Row] = []
     skipped: list[str] = []
-    pipeline = pipeline_factory()
+    variants = _cull_variants(options)
+    scene = resident_scene(ref)  # uploaded by the first row, kept by the rest
     try:
-        for preset, load in references.items():
-            ref = load()
-            scene = resident_scene(ref)  # uploaded by the first row, kept by the rest
-            first = len(rows)
-            for method in options.methods:
-                entry = method_registry.method(method)
-                if not entry.fits(ref.emission):
-                    # e.g. `--preset all --methods dpsm,psm`: each light gets the methods it fits.
-                    skipped.append(f"{preset} {method}")
-                    print(f"skipped {preset} {method}: it does not fit a {ref.emission} light "
-                          f"({method_registry.fits_text(ref.emission)})", file=sys.stderr)
-                    progress.done += 1 if entry.external else len(options.resolutions) * variants
-                    continue
-                if entry.external:
-                    progress.step(f"{preset} {method} (EEVEE renders in a child process)")
-                    rows += _eevee_rows(sources[preset], ref, preset, out, image_dir, options)
+        for method in options.methods:
+            entry = method_registry.method(method)
+            if not entry.fits(ref.emission):
+                # e.g. `--preset all --methods dpsm,psm`: each light gets the methods it fits.
+                skipped.append(f"{preset} {method}")
+                print(f"skipped {preset} {method}: it does not fit a {ref.emission} light "
+                      f"({method_registry.fits_text(ref.emission)})", file=sys.stderr)
+                progress.done += 1 if entry.external else len(options.resolutions) * len(variants)
+                continue
+            if entry.external:
+                progress.step(f"{preset} {method} (EEVEE renders in a child process)")
+                rows += _eevee_rows(source, ref, preset, image_dir, options, tag)
+                progress.advance()
+                continue
+            for resolution in options.resolutions:
+                for variant in variants:
+                    progress.step(f"{preset} {method} @ {resolution}{'' if variant.cull else ' (no cull)'}")
+                    rows.append(run_row(pipeline, ref, preset, method, resolution, variant, image_dir, scene, tag))
                     progress.advance()
-                    continue
-                for resolution in options.resolutions:
-                    for variant in _cull_variants(options):
-                        progress.step(f"{preset} {method} @ {resolution}{'' if variant.cull else ' (no cull)'}")
-                        rows.append(run_row(pipeline, ref, preset, method, resolution, variant, image_dir, scene))
-                        progress.advance()
-            pipeline.backend.release_scene(scene)
-            # What the comparison cannot follow in this scene (shadow_rule.unfollowed), on every row.
-            for row in rows[first:]:
-                if ref.meta.get("notes"):
-                    row["scene_notes"] = list(ref.meta["notes"])
     finally:
-        pipeline.backend.release()
-    if not rows and skipped:
-        presets = ", ".join(sorted({entry.split()[0] for entry in skipped}))
-        raise InputError(f"no requested method fits the light of {presets}; {method_registry.fits_text('omni')}; "
-                         f"{method_registry.fits_text('sun')}")
-    check_rows(rows)
-    return rows
+        pipeline.backend.release_scene(scene)
+    # What the comparison cannot follow in this scene (shadow_rule.unfollowed), on every row.
+    for row in rows:
+        if ref.meta.get("notes"):
+            row["scene_notes"] = list(ref.meta["notes"])
+    return rows, skipped
+
+
+def check_some_fit(rows: Sequence[Row], skipped: Sequence[str]) -> None:
+    """InputError when a run measured nothing because no requested method fits any light."""
+    if rows or not skipped:
+        return
+    presets = ", ".join(sorted({entry.split()[0] for entry in skipped}))
+    raise InputError(f"no requested method fits the light of {presets}; {method_registry.fits_text('omni')}; "
+                     f"{method_registry.fits_text('sun')}")

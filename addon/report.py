@@ -5,7 +5,7 @@ import logging
 from collections.abc import Sequence
 from pathlib import Path
 
-from .rows import Row, row_label
+from .rows import SHOT_FIELDS, Row, row_label
 
 log = logging.getLogger(__name__)
 
@@ -25,9 +25,29 @@ def _cell(value: object, spec: str = "") -> str:
     return "" if value is None else format(value, spec)
 
 
+SHOT_COLUMNS = SHOT_FIELDS  # a .blend job's; a preset's rows have none
+
+
+def _shot_columns(rows: Sequence[Row]) -> list[str]:
+    """The shot columns some row has: a sweep's table shows them after the preset."""
+    return [key for key in SHOT_COLUMNS if any(key in r for r in rows)]
+
+
+def grouped(rows: Sequence[Row]) -> list[Row]:
+    """The rows grouped by scene, frame, light and camera; within a group as measured."""
+    def key(r: Row) -> tuple:
+        return (r["preset"], *((r.get(k) is not None, r.get(k) or 0 if k == "frame" else r.get(k) or "")
+                               for k in SHOT_COLUMNS))
+
+    return sorted(rows, key=key)
+
+
 def markdown_table(rows: Sequence[Row]) -> str:
-    """One line per row: the fields a reader compares; `res` is the map's side only."""
-    head = ("| preset | method | res | error % | false shadow % | false lit % | soft error % | evaluated px | total ms | "
+    """One line per row: the fields a reader compares; `res` is the map's side only. A
+    sweep's rows are grouped by frame and light, with their columns after the preset."""
+    shot = _shot_columns(rows)
+    rows = grouped(rows) if shot else rows
+    head = ("| preset |" + "".join(f" {key} |" for key in shot) + " method | res | error % | false shadow % | false lit % | soft error % | evaluated px | total ms | "
             "prepare ms | analysis ms | maps ms | test ms | passes | triangles | tess. added | texels | "
             "max count before | max count after | texel use |")
     # Scenes with see-through materials: the fractional pixels and their soft error.
@@ -41,7 +61,7 @@ def markdown_table(rows: Sequence[Row]) -> str:
     lines = [head, "|" + "|".join(["---"] * (head.count("|") - 1)) + "|"]
     for r in rows:
         t = r["time_ms"]
-        cells = [r["preset"], row_label(r), _cell(r.get("resolution")), f"{r['error_pct']:.3f}",
+        cells = [r["preset"], *(_cell(r.get(key)) for key in shot), row_label(r), _cell(r.get("resolution")), f"{r['error_pct']:.3f}",
                  f"{r['false_shadow_pct']:.3f}", f"{r['false_lit_pct']:.3f}",
                  f"{r.get('soft_error_pct', r['error_pct']):.3f}", str(r["evaluated_pixels"]), f"{t['total']:.1f}",
                  *(_cell(t.get(stage), ".1f") for stage in ("prepare", "analysis", "shadow_maps", "shadow_test")),
@@ -98,7 +118,7 @@ def write_markdown(rows: Sequence[dict], path: Path, stamp: str, command: str = 
         *([f"- command: `{command}`"] if command else []),
         f"- renderer: {', '.join(renderers)}",
         f"- backend: {', '.join(backends)}",
-        f"- camera size: {', '.join(sizes)}; times are medians of {rows[0]['frames'] if rows else 0} frames "
+        f"- camera size: {', '.join(sizes)}; times are medians of {rows[0]['frames'] if rows else 0} timed repeats "
         "after one warm-up frame",
         "- error % = mismatching evaluated pixels against the Cycles visibility; soft error % = mean "
         "|visibility - Cycles| (equal to error % for binary methods; antialiased rows differ); times on a "
@@ -176,6 +196,44 @@ def write_plot(rows: Sequence[dict], path: Path) -> bool:
     ax.grid(True, which="both", alpha=0.3)
     # Outside the axes: with many methods an inside legend hides the points.
     ax.legend(fontsize=7, loc="upper left", bbox_to_anchor=(1.01, 1.0), ncol=1 if len(presets) * len(methods) <= 24 else 2)
+    fig.tight_layout()
+    fig.savefig(path)
+    plt.close(fig)
+    return True
+
+
+def write_frame_plot(rows: Sequence[dict], path: Path) -> bool:
+    """A shot's error % against frame, one line per light and method (as labelled, with
+    its resolution). Drawn only for rows of two frames or more; False otherwise, or
+    where matplotlib is missing."""
+    framed = [r for r in rows if "frame" in r]
+    if len({r["frame"] for r in framed}) < 2:
+        return False
+    try:
+        import matplotlib
+    except ImportError:
+        log.warning("matplotlib is not installed: %s not drawn (the table and results.json are)", path.name)
+        return False
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    lines: dict[tuple, list[tuple[int, float]]] = {}
+    for r in framed:
+        res = f" @{r['resolution']}" if "resolution" in r else ""
+        name = (r["preset"], r.get("light", ""), r.get("camera", ""), row_label(r) + res)
+        lines.setdefault(name, []).append((r["frame"], r["error_pct"]))
+    several = {k: len({name[k] for name in lines}) > 1 for k in range(3)}
+    fig, ax = plt.subplots(figsize=(11, 6.0), dpi=110)
+    for name, points in sorted(lines.items()):
+        points.sort()
+        label = " / ".join(part for k, part in enumerate(name) if part and (k == 3 or several[k]))
+        ax.plot([f for f, _ in points], [e for _, e in points], marker="o", markersize=3, linewidth=1, label=label)
+    ax.set_xlabel("frame")
+    ax.set_ylabel("error % of evaluated pixels vs Cycles")
+    ax.set_title("Shadow error over the shot (one line per light and method)")
+    ax.grid(True, alpha=0.3)
+    ax.legend(fontsize=7, loc="upper left", bbox_to_anchor=(1.01, 1.0), ncol=1 if len(lines) <= 24 else 2)
     fig.tight_layout()
     fig.savefig(path)
     plt.close(fig)

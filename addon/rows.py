@@ -30,8 +30,12 @@ class Row(TypedDict, total=False):
     time_ms: dict[str, float]  # medians per stage; "total" always
     renderer: str
     backend: str
-    frames: int
+    frames: int  # timed repeats (--repeats), not a shot's frames
     camera_size: list[int]
+    # a .blend's job (shots.Job): the frame of its animation, its light and camera objects
+    frame: int
+    light: str
+    camera: str
     # the shadow-map methods
     resolution: int  # side of each map, texels
     passes: int
@@ -107,9 +111,23 @@ def row_label(row: Row) -> str:
     return row["method"] + ("" if row.get("cull", True) else " (no cull)")
 
 
+SHOT_FIELDS = ("frame", "light", "camera")
+
+
 def row_key(row: Row) -> tuple:
-    """What tells two rows of one run apart: scene, method as labelled, map resolution."""
-    return row["preset"], row_label(row), row.get("resolution")
+    """What tells two rows of one run apart: scene, method as labelled, map resolution, and
+    a sweep's frame, light and camera where the row has them (a preset's key stays short)."""
+    return (row["preset"], row_label(row), row.get("resolution"),
+            *((key, row[key]) for key in SHOT_FIELDS if key in row))
+
+
+def with_shot(row: Row, **shot: Any) -> Row:
+    """The row with a job's `frame`, `light` and `camera` (those given and not None)."""
+    unknown = set(shot) - set(SHOT_FIELDS)
+    if unknown:
+        raise KeyError(f"not a shot column: {', '.join(sorted(unknown))}")
+    row.update({key: value for key, value in shot.items() if value is not None})  # type: ignore[typeddict-item]
+    return row
 
 
 def flatten_row(row: dict) -> dict:

@@ -18,7 +18,7 @@ import time
 from pathlib import Path
 
 REPO = Path(__file__).resolve().parents[1]
-SMALL = ["--size", "160x120", "--frames", "1", "--no-images", "--resolutions", "512"]
+SMALL = ["--size", "160x120", "--repeats", "1", "--no-images", "--resolutions", "512"]
 
 
 def _env(root: Path) -> dict[str, str]:

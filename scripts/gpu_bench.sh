@@ -50,5 +50,5 @@ if ! "$PY" -c "import numpy, moderngl" 2>/dev/null; then
 fi
 echo "gpu_bench: $("$PY" --version) from $PY, references in $OMNIWARP_CACHE" >&2
 "$PY" -m addon compare --preset "$PRESETS" --methods "$METHODS" --resolutions "$RESOLUTIONS" \
-    --size "$SIZE" --frames "$FRAMES" --no-images --out "$OUT"
+    --size "$SIZE" --repeats "$FRAMES" --no-images --out "$OUT"
 echo "gpu_bench: table in $OUT/report.md" >&2

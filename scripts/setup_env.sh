@@ -4,7 +4,7 @@
 #   bash scripts/setup_env.sh [LINE]      LINE: 5.2 (default), 4.5 or 4.2
 #
 #   line  venv            Python  packages
-#   5.2   .venv           3.13    -e .[blender,dev]      (bpy 5.2.3)
+#   5.2   .venv           3.13    -e .[blender,dask,dev] (bpy 5.2.3, Dask for the cluster tests)
 #   4.5   .venv-bpy4.5    3.11    -e .[blender45,dev]    (bpy 4.5.15)
 #   4.2   .venv-bpy4.2    3.11    -e .[blender42,dev]    (bpy 4.2.23)
 #
@@ -38,7 +38,7 @@ say() { printf 'setup_env: %s\n' "$*" >&2; }
 die() { printf 'setup_env: error: %s\n' "$*" >&2; exit 1; }
 
 case "$LINE" in
-    5.2) VENV="$REPO_ROOT/.venv";         PY_WANT="3.13"; EXTRA="blender";     PY_OVERRIDE="${OMNIWARP_PYTHON:-}" ;;
+    5.2) VENV="$REPO_ROOT/.venv";         PY_WANT="3.13"; EXTRA="blender,dask"; PY_OVERRIDE="${OMNIWARP_PYTHON:-}" ;;
     4.5) VENV="$REPO_ROOT/.venv-bpy4.5";  PY_WANT="3.11"; EXTRA="blender45"; PY_OVERRIDE="${OMNIWARP_PYTHON311:-}" ;;
     4.2) VENV="$REPO_ROOT/.venv-bpy4.2";  PY_WANT="3.11"; EXTRA="blender42"; PY_OVERRIDE="${OMNIWARP_PYTHON311:-}" ;;
     *) die "unknown Blender line '$LINE'; tested lines: 5.2 4.5 4.2" ;;

@@ -462,8 +462,9 @@ def render_eevee(scene: "bpy.types.Scene", out_dir: Path, settings: Sequence[str
     return summary
 
 
-def _open_blend(path: Path, camera: str | None, light: str | None):
-    """Load a .blend (never saved back) and return its active scene."""
+def _open_blend(path: Path, camera: str | None, light: str | None, frame: int | None = None):
+    """Load a .blend (never saved back) and return its active scene, at `frame` when given
+    (set and evaluated as Blender renders it, like the reference's)."""
     import bpy
 
     from .blend_file import open_blend
@@ -477,6 +478,8 @@ def _open_blend(path: Path, camera: str | None, light: str | None):
         scene.camera = cam
     if light and bpy.data.objects.get(light) is None:
         raise InputError(f"--light {light!r}: no object of that name in {path.name}")
+    if frame is not None:
+        scene.frame_set(frame)
     return scene
 
 
@@ -490,6 +493,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     source.add_argument("--scene-spec", help="a SceneSpec written by save_scene_spec")
     parser.add_argument("--light", help="with --blend: the light object")
     parser.add_argument("--camera", help="with --blend: the camera object")
+    parser.add_argument("--frame", type=int, help="with --blend: the frame of its animation to render")
     parser.add_argument("--size", default="640x480", help="with --preset: camera size WxH")
     parser.add_argument("--out", required=True, help="folder for eevee_<setting>.npz and eevee.json")
     parser.add_argument("--settings", default=",".join(SETTINGS), help="comma list of: " + ", ".join(KNOWN_SETTINGS))
@@ -504,8 +508,8 @@ def main(argv: Sequence[str] | None = None) -> int:
         print(PROGRESS_PREFIX + message, flush=True)
 
     try:
-        if (args.light or args.camera) and not args.blend:
-            raise InputError("--light and --camera apply to --blend only")
+        if (args.light or args.camera or args.frame is not None) and not args.blend:
+            raise InputError("--light, --camera and --frame apply to --blend only")
         settings = parse_settings(args.settings)
         from .blender_scene import build_blender_scene, remove_blender_scene
 
@@ -517,7 +521,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         elif args.scene_spec:
             built = scene = build_blender_scene(load_scene_spec(args.scene_spec))
         else:
-            scene = _open_blend(Path(args.blend), args.camera, args.light)
+            scene = _open_blend(Path(args.blend), args.camera, args.light, args.frame)
         try:
             summary = render_eevee(scene, Path(args.out), settings, light=args.light, frames=args.frames,
                                    progress=say, hard=args.hard)
@@ -616,13 +620,15 @@ def _finite(value: float, what: str) -> float:
 
 def eevee_rows(source_args: list[str], reference: ReferenceData, preset_label: str, out_dir: Path,
                image_dir: Path | None, settings: Sequence[str] = SETTINGS, *, frames: int = 1,
-               progress: Progress | None = None, timeout_s: float | None = DEFAULT_TIMEOUT_S) -> list[dict]:
+               progress: Progress | None = None, timeout_s: float | None = DEFAULT_TIMEOUT_S,
+               image_stem: str | None = None) -> list[dict]:
     """Rows of the `eevee` method, one per setting, measured against `reference`.
 
     `source_args` names the scene for the child: `["--preset", NAME]` (the camera
     size is taken from the reference), `["--blend", FILE, "--light", NAME]` or
     `["--scene-spec", FILE]`. The child's files go to `out_dir/eevee/<preset_label>/`.
-    With `image_dir`, a mismatch image `<preset>_eevee_<setting>_mismatch.png` is written.
+    With `image_dir`, a mismatch image `<preset>_eevee_<setting>_mismatch.png` is written
+    (`<image_stem>_eevee_...` when given: a shot's job adds its frame, light and camera).
     """
     names = parse_settings(settings)
     if reference.emission not in TILEMAPS:
@@ -634,7 +640,7 @@ def eevee_rows(source_args: list[str], reference: ReferenceData, preset_label: s
     shape = reference.light_shape()
     if not shape.sized and shape_from_dict(reference.meta.get("light_shape_file")).sized:
         args.append("--hard")  # the reference took the file's light size away: so does EEVEE
-    child_dir = Path(out_dir) / "eevee" / preset_label
+    child_dir = Path(out_dir) / "eevee" / (image_stem or preset_label)
     summary = run_child(args, child_dir, progress=progress, timeout_s=timeout_s)
     if summary.get("emission") != reference.emission:
         raise ReferenceCaptureError(f"EEVEE measured a {summary.get('emission')} light but the reference has "
@@ -677,7 +683,7 @@ def eevee_rows(source_args: list[str], reference: ReferenceData, preset_label: s
         )
         if image_dir is not None:
             image_dir.mkdir(parents=True, exist_ok=True)
-            stem = f"{preset_label}_eevee_{name}"
+            stem = f"{image_stem or preset_label}_eevee_{name}"
             img = metrics.mismatch_image(reference.shadowed, est_lit, ref_lit, evaluable)
             import matplotlib.image as mpimg  # lazy: matplotlib is slow to import
 
