@@ -97,7 +97,7 @@ def _parser() -> argparse.ArgumentParser:
     source.add_argument("--blend", help="a saved .blend file (its scene camera and one point/spot light)")
     cmp_.add_argument("--light", help="with --blend: the light object to use")
     cmp_.add_argument("--camera", help="with --blend: the camera object to use")
-    cmp_.add_argument("--lights", help="with --blend: 'all' (every rendered point, spot or sun light) or L1,L2: "
+    cmp_.add_argument("--lights", help="with --blend: 'all' (every rendered point, spot, sun or area light) or L1,L2: "
                                        "one job per light")
     cmp_.add_argument("--cameras", help="with --blend: 'all' or C1,C2: one job per camera")
     cmp_.add_argument("--frame-range", metavar="A-B[:STEP]",

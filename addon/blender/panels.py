@@ -181,7 +181,7 @@ class OMNIWARP_PT_viewport(bpy.types.Panel):
         lights = enabled_light_objects(scene)
         if not lights:
             box.label(text="No light has OmniWarp enabled", icon="INFO")
-            box.label(text="Enable it in a point, spot or sun light's properties")
+            box.label(text="Enable it in a point, spot, sun or area light's properties")
             return
         box.label(text=f"Previewed lights ({len(lights)})")
         for obj in lights:

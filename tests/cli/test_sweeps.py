@@ -215,10 +215,10 @@ def test_a_job_on_bad_input_ends_the_run_with_its_one_line(tmp_path, where):
 
 
 @pytest.mark.parametrize("args, expected", [
-    (["--lights", "key,nosuch"], "--lights 'nosuch': no rendered point, spot or sun light of that name in shot.blend"),
+    (["--lights", "key,nosuch"], "--lights 'nosuch': no rendered point, spot, sun or area light of that name in shot.blend"),
     (["--cameras", "side,nosuch"], "--cameras 'nosuch': no perspective or orthographic camera"),
     (["--light", "key", "--lights", "rim"], "--light and --lights: give one of them"),
-    ([], "has several point/spot/sun lights (key, rim); name one with --light, or several with --lights"),
+    ([], "has several point, spot, sun or area lights (key, rim); name one with --light, or several with --lights"),
     (["--frame-range", "9-1"], "bad --frame-range '9-1'"),
 ], ids=["light", "camera", "light-and-lights", "several-lights", "frame-range"])
 def test_a_shot_s_names_are_checked_before_any_render(shot, tmp_path, args, expected):
