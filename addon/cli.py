@@ -260,21 +260,10 @@ def _blend_reference(args: argparse.Namespace, check: Callable[[str], None] | No
     _need_bpy("--blend")
 
     def load():
-        import bpy
-
         from .reference.blend_cache import load_or_capture_blend
-        from .reference.blend_file import open_blend
+        from .reference.blend_file import open_scene
 
-        # Loading replaces bpy's in-memory data only; nothing is ever saved back.
-        open_blend(path)
-        scene = bpy.context.scene
-        if args.camera:
-            cam = bpy.data.objects.get(args.camera)
-            if cam is None or cam.type != "CAMERA":
-                raise InputError(f"--camera {args.camera!r}: no camera object of that name in {path.name}")
-            scene.camera = cam
-        if args.light and (bpy.data.objects.get(args.light) is None):
-            raise InputError(f"--light {args.light!r}: no object of that name in {path.name}")
+        scene = open_scene(path, args.camera, args.light)
         return load_or_capture_blend(path, scene, args.light, samples=getattr(args, "samples", DEFAULT_SAMPLES),
                                      refresh=getattr(args, "refresh", False), progress=_say, check=check,
                                      **size_options)

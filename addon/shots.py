@@ -189,23 +189,11 @@ def load_reference(job: Job, cache_dir: str | None, say: Say,
         ref = load_or_capture(job.preset, job.size, cache_dir=cache_dir, log_progress=noting, hard=job.hard,
                               soft_samples=job.soft_samples)
         return ref, bool(rendered)
-    import bpy
-
     from .reference.blend_cache import load_or_capture_blend
-    from .reference.blend_file import check_blend_file, open_blend
+    from .reference.blend_file import check_blend_file, open_scene
 
     path = check_blend_file(job.blend)  # on a worker: the file must be readable at the same path
-    open_blend(path)
-    scene = bpy.context.scene
-    if job.camera:
-        cam = bpy.data.objects.get(job.camera)
-        if cam is None or cam.type != "CAMERA":
-            raise InputError(f"--camera {job.camera!r}: no camera object of that name in {path.name}")
-        scene.camera = cam
-    if job.light and bpy.data.objects.get(job.light) is None:
-        raise InputError(f"--light {job.light!r}: no object of that name in {path.name}")
-    if job.frame is not None:
-        scene.frame_set(job.frame)
+    scene = open_scene(path, job.camera, job.light, job.frame)
     ref = load_or_capture_blend(path, scene, job.light, samples=DEFAULT_SAMPLES, cache_dir=cache_dir,
                                 progress=noting, check=check, hard=job.hard, soft_samples=job.soft_samples)
     return ref, bool(rendered)

@@ -66,3 +66,23 @@ def open_blend(path: str | os.PathLike, option: str = "--blend") -> None:
         reason = " ".join(str(exc).replace("Error:", " ").split()).split(": ")[-1]
         raise InputError(f"{option} {path}: Blender cannot load it ({reason}); "
                          "the file is damaged or truncated, save it again from Blender") from None
+
+
+def open_scene(path: Path, camera: str | None = None, light: str | None = None, frame: int | None = None):
+    """Load a .blend (never saved back) and return its active scene: with `camera` as its
+    camera, `light` checked to exist, at `frame` when given (set and evaluated as Blender
+    renders it). The one way compare, the sweeps' jobs and the EEVEE child open a file."""
+    import bpy
+
+    open_blend(path)
+    scene = bpy.context.scene
+    if camera:
+        cam = bpy.data.objects.get(camera)
+        if cam is None or cam.type != "CAMERA":
+            raise InputError(f"--camera {camera!r}: no camera object of that name in {path.name}")
+        scene.camera = cam
+    if light and bpy.data.objects.get(light) is None:
+        raise InputError(f"--light {light!r}: no object of that name in {path.name}")
+    if frame is not None:
+        scene.frame_set(frame)
+    return scene

@@ -67,6 +67,7 @@ from ..core.light_shape import shape_from_dict
 from ..core.scene import CameraSpec, LightSpec, MeshSpec, SceneSpec, parse_size
 from ..render import blender_compat
 from ..rows import make_row
+from .blend_file import open_scene
 from .data import ReferenceData
 
 if TYPE_CHECKING:  # pragma: no cover - typing only
@@ -462,27 +463,6 @@ def render_eevee(scene: "bpy.types.Scene", out_dir: Path, settings: Sequence[str
     return summary
 
 
-def _open_blend(path: Path, camera: str | None, light: str | None, frame: int | None = None):
-    """Load a .blend (never saved back) and return its active scene, at `frame` when given
-    (set and evaluated as Blender renders it, like the reference's)."""
-    import bpy
-
-    from .blend_file import open_blend
-
-    open_blend(path)
-    scene = bpy.context.scene
-    if camera:
-        cam = bpy.data.objects.get(camera)
-        if cam is None or cam.type != "CAMERA":
-            raise InputError(f"--camera {camera!r}: no camera object of that name in {path.name}")
-        scene.camera = cam
-    if light and bpy.data.objects.get(light) is None:
-        raise InputError(f"--light {light!r}: no object of that name in {path.name}")
-    if frame is not None:
-        scene.frame_set(frame)
-    return scene
-
-
 def main(argv: Sequence[str] | None = None) -> int:
     """Entry of the EEVEE child process: exit 0 done, 2 with one line (any OmniWarpError), 1 a bug."""
     parser = argparse.ArgumentParser(prog="python -m addon.reference.eevee",
@@ -521,7 +501,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         elif args.scene_spec:
             built = scene = build_blender_scene(load_scene_spec(args.scene_spec))
         else:
-            scene = _open_blend(Path(args.blend), args.camera, args.light, args.frame)
+            scene = open_scene(Path(args.blend), args.camera, args.light, args.frame)
         try:
             summary = render_eevee(scene, Path(args.out), settings, light=args.light, frames=args.frames,
                                    progress=say, hard=args.hard)

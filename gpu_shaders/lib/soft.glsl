@@ -14,18 +14,17 @@
 // a few distances, then, at the blockers' mean distance, one tap per light point: the
 // visibility is the share of taps the map finds lit.
 
-// A point of the light's pattern `local` (light frame) in light-centred world
-// coordinates: an area light's points lie in its frame; a sphere's disk of points faces
-// the receiver (its normal along p).
-vec3 ow_soft_point(vec3 local, vec3 p)
+// The frame the light's pattern lies in, light-centred world coordinates: an area light's
+// own; for a sphere, the disk of its radius that faces the receiver p (its normal along p),
+// made once per receiver.
+mat3 ow_soft_frame(vec3 p)
 {
   if (ow_soft_kind == 2) {
-    return transpose(ow_light_rot) * local;
+    return transpose(ow_light_rot);
   }
   vec3 w = normalize(p);
   vec3 a = normalize(cross(w, abs(w.z) < 0.9 ? vec3(0.0, 0.0, 1.0) : vec3(1.0, 0.0, 0.0)));
-  vec3 b = cross(w, a);
-  return local.x * a + local.y * b;
+  return mat3(a, cross(w, a), w);
 }
 
 // The receiver's tangent plane (normal n, towards the light, through p) along the
@@ -41,10 +40,11 @@ float ow_plane_depth(vec3 n, vec3 p, vec3 d, float fallback)
 float ow_soft_visibility(vec3 p, vec3 n, float bias, float centre)
 {
   float dist = length(p);
+  mat3 frame = ow_soft_frame(p);
   float sum_t = 0.0;
   int blockers = 0;
   for (int j = 0; j < ow_soft_search; j++) {
-    vec3 q = ow_soft_point(ow_soft_search_points[j].xyz, p);
+    vec3 q = frame * ow_soft_search_points[j].xyz;
     for (int k = 1; k <= OW_SOFT_SEARCH_STEPS; k++) {
       // Points of the segment from the receiver towards the light point, denser near the
       // receiver, where a penumbra's blockers matter most.
@@ -65,7 +65,7 @@ float ow_soft_visibility(vec3 p, vec3 n, float bias, float centre)
   float s = clamp(1.0 - t_b / dist, 0.0, 1.0);
   float lit = 0.0;
   for (int j = 0; j < ow_soft_count; j++) {
-    vec3 d = normalize(p + s * (ow_soft_point(ow_soft_points[j].xyz, p) - p));
+    vec3 d = normalize(p + s * (frame * ow_soft_points[j].xyz - p));
     float t_recv = ow_plane_depth(n, p, d, dist);
     float limit = t_recv - bias * (t_recv / dist);
     vec2 tap = ow_point_tap(d, limit);
