@@ -123,7 +123,8 @@ def _median_times(frames: Sequence[dict[str, float]]) -> dict[str, float]:
 
 # The one method that does not follow see-through materials: its host-built stream has no UVs.
 UNFOLD_ALPHA_NOTE = "unfold draws see-through materials opaque (its tessellated stream carries no UVs)"
-HARD_SIZED_NOTE = "the light has a size, but this method's shadows are hard (render/soft.py filters point lights' maps)"
+HARD_SIZED_NOTE = ("the light has a size, but this method's shadows are hard (render/soft.py softens "
+                   "sphere and area lights on point lights' maps)")
 
 
 def scene_has_alpha(scene: ResidentScene) -> bool:
@@ -197,7 +198,7 @@ def _row_note(light: LightSpec, settings: ShadowSettings, scene: ResidentScene) 
     notes = []
     if settings.parameterization == "unfold" and scene_has_alpha(scene):
         notes.append(UNFOLD_ALPHA_NOTE)
-    if light.sized and not soft.filters(light, settings):
+    if light.sized and not soft.soft_shadowed(light, settings):
         notes.append(HARD_SIZED_NOTE)
     return "; ".join(notes) or None
 

@@ -39,6 +39,77 @@ void ow_see_through(float alpha, float depth)
 }
 #endif
 
+#ifdef OW_EXACT_SOFT
+#include "lib/exact_soft.glsl"
+
+// A sized light (lib/exact_soft.glsl): the light points of sample p (light-centred, at
+// texel `at` of the sample texture, `rows` its height) whose segment this triangle
+// crosses, more than ow_exact_eps of its length from p, set their bits in p's words.
+void ow_exact_soft_mark(vec3 p, ivec2 at, int rows)
+{
+  precise float h = dot(v_plane.xyz, p - v_edge_at0);  // p's height over the triangle's plane
+  if (h == 0.0) {
+    return;  // on the plane: the receiver itself
+  }
+  float centre_h = -dot(v_plane.xyz, v_edge_at0);  // the light centre's
+  if (centre_h * h > 0.0 && abs(centre_h) >= ow_exact_reach) {
+    return;  // the whole light on the sample's side of the plane
+  }
+  // The cone from p around the light misses the triangle's bounding sphere.
+  float dist = length(p);
+  vec3 to_bound = v_bound.xyz - p;
+  float bound_dist = length(to_bound);
+  if (bound_dist > v_bound.w && dist > ow_exact_reach) {
+    float angle = acos(clamp(dot(to_bound, -p) / (bound_dist * dist), -1.0, 1.0));
+    if (angle > asin(ow_exact_reach / dist) + asin(v_bound.w / bound_dist) + 1e-4) {
+      return;
+    }
+    if (bound_dist - v_bound.w > dist + ow_exact_reach) {
+      return;  // beyond the light
+    }
+  }
+  // Edge planes through p, each edge's vertices in one order for every triangle that has
+  // it: neighbours get the same normal negated, and no segment passes between them. The
+  // segment crosses the triangle when it lies on the inner side of all three, that side
+  // being the one of det(v0 - p, v1 - p, v2 - p), whose sign is -sign(h).
+  float side = (h > 0.0) ? -1.0 : 1.0;
+  precise vec3 e0 = cross(v_edge_at0 - p, v_edge_hi0.xyz - p);
+  precise vec3 e1 = cross(v_edge_at1 - p, v_edge_hi1.xyz - p);
+  precise vec3 e2 = cross(v_edge_at2 - p, v_edge_hi2.xyz - p);
+  e0 *= v_edge_hi0.w * side;
+  e1 *= v_edge_hi1.w * side;
+  e2 *= v_edge_hi2.w * side;
+  OwLightView view = ow_light_view(p);
+  uint word = 0u;
+  for (int k = 0; k < ow_exact_points; k++) {
+    vec3 seg = ow_light_segment(p, view, k);
+    if (dot(e0, seg) >= 0.0 && dot(e1, seg) >= 0.0 && dot(e2, seg) >= 0.0) {
+      float f = -h / dot(v_plane.xyz, seg);  // where the plane cuts the segment
+      if (f > ow_exact_eps && f < 1.0) {
+#ifdef OW_ALPHA
+        // A see-through crossing blocks the points whose fixed threshold its alpha passes:
+        // a share alpha of them (thresholds a permutation of the points, so not the spatial
+        // pattern); several such crossings are taken as one of their largest alpha.
+        float alpha = ow_alpha_along(p + f * seg);
+        float threshold = (float((k * 37 + 11) % ow_exact_points) + 0.5) / float(ow_exact_points);
+        if (alpha >= OW_OPAQUE_ALPHA || (alpha > OW_CLEAR_ALPHA && alpha > threshold)) {
+          word |= 1u << uint(k & 31);
+        }
+#else
+        word |= 1u << uint(k & 31);
+#endif
+      }
+    }
+    if ((k & 31) == 31 || k == ow_exact_points - 1) {
+      if (word != 0u) {
+        imageAtomicOr(ow_hits, at + ivec2(0, (k >> 5) * rows), word);
+      }
+      word = 0u;
+    }
+  }
+}
+#endif
+
 #ifdef OW_EXACT
 // The irregular z-buffer (shaders.exact_variant): this fragment's texel holds a list of
 // view samples (ow_counts: head, ow_next: links; sample index + 1, 0 ends it). A sample
@@ -59,6 +130,11 @@ void ow_exact_walk()
     int index = int(node) - 1;
     ivec2 at = ivec2(index % width, index / width);
     vec3 p = texelFetch(ow_positions, at, 0).xyz;  // light-centred
+#ifdef OW_EXACT_SOFT
+    ow_exact_soft_mark(p, at, textureSize(ow_positions, 0).y);
+    node = imageLoad(ow_next, at).x;
+    continue;
+#endif
     float s = dot(v_plane.xyz, p);
     precise float side0 = dot(p - v_edge_at0, v_edge0);
     precise float side1 = dot(p - v_edge_at1, v_edge1);

@@ -15,6 +15,9 @@
 #include "lib/projection.glsl"
 #include "lib/mapping.glsl"
 #include "lib/footprint.glsl"
+#ifdef OW_EXACT_SOFT
+#include "lib/soft_footprint.glsl"
+#endif
 
 // Vertex `index`, light-centred: its double-single parts (texels 2i and 2i + 1) minus the
 // light's in the object's frame, hi from hi and lo from lo, before the object's matrix
@@ -82,6 +85,19 @@ void main()
   ow_relative_edge(v1, v2, n1, v_edge_at1);
   ow_relative_edge(v2, v0, n2, v_edge_at2);
 #endif
+#ifdef OW_EXACT_SOFT
+  // A sized light's walk tests each edge from the sample: the edge's other vertex, and in
+  // w -1 where ow_relative_edge swapped the pair (lo = v_edge_at, hi = this).
+  v_edge_hi0 = (v_edge_at0 == v0) ? vec4(v1, 1.0) : vec4(v0, -1.0);
+  v_edge_hi1 = (v_edge_at1 == v1) ? vec4(v2, 1.0) : vec4(v1, -1.0);
+  v_edge_hi2 = (v_edge_at2 == v2) ? vec4(v0, 1.0) : vec4(v2, -1.0);
+  vec3 centre = (v0 + v1 + v2) / 3.0;
+  v_bound = vec4(centre, max(max(length(v0 - centre), length(v1 - centre)), length(v2 - centre)) * 1.0001);
+  // Seen edge-on from the light's centre, a triangle still shadows from its other points.
+  if (length(cross(v1 - v0, v2 - v0)) > 0.0 && orientation == 0.0) {
+    orientation = 1.0;
+  }
+#endif
   v_edge0 = n0 * orientation;
   v_edge1 = n1 * orientation;
   v_edge2 = n2 * orientation;
@@ -110,8 +126,12 @@ void main()
   vec3 l0 = ow_layer_rot * v0;
   vec3 l1 = ow_layer_rot * v1;
   vec3 l2 = ow_layer_rot * v2;
+#ifdef OW_EXACT_SOFT
+  vec4 box = ow_soft_box(l0, l1, l2, OW_KIND(ow_layer_kind), ow_exact_reach);
+#else
   vec4 box = (OW_KIND(ow_layer_kind) == OW_KIND_PARABOLOID) ? ow_paraboloid_box(l0, l1, l2)
                                                           : ow_cube_box(l0, l1, l2, ow_clip_near);
+#endif
   if (box.x > box.y) {
     gl_Position = parked;  // behind the layer's half-space, or beside the cube face
     return;

@@ -90,6 +90,36 @@ vec2 ow_point_tap(vec3 d, float depth)
 #include "lib/soft.glsl"
 #endif
 
+#ifdef OW_EXACT_SOFT
+#include "lib/exact_soft.glsl"
+
+// The exact pass's answer for a sized light: the weighted share of the light points it left
+// unmarked in this sample's words (n towards the light); the plain share where no point
+// weighs (a receiver grazed by the whole light).
+float ow_exact_soft_share(vec3 p, vec3 n, ivec2 pix)
+{
+  int rows = textureSize(ow_positions, 0).y;
+  OwLightView view = ow_light_view(p);
+  float lit = 0.0;
+  float total = 0.0;
+  int open = 0;
+  uint word = 0u;
+  for (int k = 0; k < ow_exact_points; k++) {
+    if ((k & 31) == 0) {
+      word = imageLoad(ow_hits, pix + ivec2(0, (k >> 5) * rows)).x;
+    }
+    float weight = ow_light_weight(ow_light_segment(p, view, k), n);
+    bool blocked = ((word >> uint(k & 31)) & 1u) != 0u;
+    total += weight;
+    if (!blocked) {
+      lit += weight;
+      open++;
+    }
+  }
+  return (total > 0.0) ? lit / total : float(open) / float(ow_exact_points);
+}
+#endif
+
 void main()
 {
   ivec2 pix = ivec2(gl_FragCoord.xy);
@@ -175,6 +205,9 @@ void main()
   vec4 box = ow_layer_box[slot];  // texels (x0, y0, x1, y1) cleared and drawn this frame
   if (any(lessThan(vec2(texel), box.xy)) || any(greaterThanEqual(vec2(texel), box.zw))) {
     ow_result = vec2(1.0, 0.0);  // outside: empty, as a cleared texel would be (lit)
+#ifdef OW_EXACT_SOFT
+    ow_result.x = ow_exact_soft_share(p, n, pix);
+#endif
     return;
   }
   float stored = texelFetch(ow_atlas, texel + ivec2(tile.xy), 0).r;
@@ -201,6 +234,10 @@ void main()
 #ifdef OW_SOFT
   // A sized light: the share of the light the receiver sees, around the hard answer.
   visibility = ow_soft_visibility(p, n, bias, visibility);
+#endif
+#ifdef OW_EXACT_SOFT
+  // The exact pass of a sized light (its atlas holds no depth, so the test above lit it).
+  visibility *= ow_exact_soft_share(p, n, pix);
 #endif
   ow_result = vec2(visibility, 0.0);
 }

@@ -16,6 +16,7 @@ import numpy as np
 from ..core.errors import BackendError
 from .shaders import (
     ALPHA_SAMPLERS,
+    EXACT_SOFT_KEY,
     FOOTPRINT_PROGRAM,
     FOOTPRINT_VERTICES,
     SHADOW_TEST_PROGRAM,
@@ -26,6 +27,7 @@ from .shaders import (
     WORK_FRAGMENTS,
     ProgramInterface,
     alpha_of,
+    exact_soft_of,
     exact_variant,
     program_variant,
     soft_of,
@@ -259,6 +261,11 @@ class ShadowBackend(ABC):
             iface, images = veil_of(iface), self._veil_by_name()
         if int(uniforms.get("ow_soft_count", 0)) > 0:
             iface = soft_of(iface)  # a sized light (lib/soft.glsl)
+        if int(uniforms.get(EXACT_SOFT_KEY, 0)) > 0:
+            if self._links is None:
+                raise BackendError("the exact soft shadow test needs the exact pass's marks (link_samples)")
+            # A sized light's exact pass: the test weighs the light points it left unmarked.
+            iface, images = exact_soft_of(iface), {"ow_hits": self._links[2]}
         return iface, images
 
     def alpha_textures(self, key: str) -> dict[str, object]:
@@ -396,22 +403,31 @@ class ShadowBackend(ABC):
         """
 
     @abstractmethod
-    def link_samples(self, size: int, tiles: int, uniforms: UniformValues) -> None:
+    def link_samples(self, size: int, tiles: int, uniforms: UniformValues, hit_words: int = 1) -> None:
         """Link every uploaded sample into the list of the map texel it falls in, through the
         full warp (shaders.link_variant, the scatter's uniforms with ow_count_size = the map
         resolution): the irregular z-buffer's lists, kept on the GPU. A heads strip like
-        scatter_counts' (0: empty, else sample index + 1) and one next-link per sample."""
+        scatter_counts' (0: empty, else sample index + 1) and one next-link per sample; the
+        marks get `hit_words` words a sample (a sized light's bits, soft.hit_words), word w
+        of the sample at (x, y) at (x, y + w * H)."""
 
     def read_hits(self) -> tuple[np.ndarray, dict[str, int]]:
-        """The exact pass's marks since the last `link_samples`: (H, W) uint32, non-zero
-        where a triangle crossed the sample's segment to the light (row 0 at the bottom);
+        """The exact pass's marks since the last `link_samples`: (words * H, W) uint32, non-zero
+        where a triangle crossed the sample's segment to the light (row 0 at the bottom; a
+        sized light's bit k of word k // 32 for its point k);
         and its work as `exact_round` folded it, round by round: `cut`, the walks that
         stopped at their round's bound and went on in the next; `rounds`, the rounds after
         the first; and on a measurement frame (shaders.EXACT_COUNT_KEY) `entries` and
         `fragments` walked, and `moved`, the entries the later rounds walked."""
         if self._links is None:
             raise BackendError("read_hits called before link_samples")
-        return self._read_hit_words(), dict(self._exact_work)
+        return self._read_hit_words(), self.exact_work()
+
+    def exact_work(self) -> dict[str, int]:
+        """The exact pass's work since the last `link_samples`, as `read_hits` gives it."""
+        if self._links is None:
+            raise BackendError("exact_work called before link_samples")
+        return dict(self._exact_work)
 
     def exact_round(self) -> int:
         """Fold the exact pass's counters since the last call into the frame's work, zero

@@ -469,7 +469,7 @@ class BlenderGPUBackend(ShadowBackend):
         # read() then waits for the GPU.
         return read_uint(target).astype(np.float32)
 
-    def link_samples(self, size: int, tiles: int, uniforms: UniformValues) -> None:
+    def link_samples(self, size: int, tiles: int, uniforms: UniformValues, hit_words: int = 1) -> None:
         import gpu
 
         if self._sample_size is None:
@@ -477,11 +477,12 @@ class BlenderGPUBackend(ShadowBackend):
         width, height = self._sample_size
         held = self._links
         if (held is None or (held[0].width, held[0].height) != (size * tiles, size)
-                or (held[1].width, held[1].height) != (width, height)):
+                or (held[1].width, held[1].height) != (width, height)
+                or (held[2].width, held[2].height) != (width, height * hit_words)):
             # heads, links, the exact pass's marks and its work (shaders.EXACT_IMAGES)
             self._links = (empty_texture((size * tiles, size), "R32UI"),
                            empty_texture((width, height), "R32UI"),
-                           empty_texture((width, height), "R32UI"),
+                           empty_texture((width, height * hit_words), "R32UI"),
                            empty_texture((WORK_TEXELS, 1), "R32UI"))
         heads, links = self._links[:2]
         for texture in self._links:

@@ -6,6 +6,7 @@ options; `ViewSamples` are the camera's per-pixel receivers; `PreparedGeometry` 
 """
 from __future__ import annotations
 
+import math
 from collections.abc import Callable
 from dataclasses import dataclass, field
 from typing import Any
@@ -20,7 +21,7 @@ from ..core.plan import Plan
 from ..core.scene import CameraSpec, LightSpec
 from ..core.warping import LayerMapping
 from .backend import AtlasLayout
-from .shaders import SOFT_MAX_POINTS, SOFT_MAX_SEARCH
+from .shaders import EXACT_SOFT_MAX_POINTS, SOFT_MAX_POINTS, SOFT_MAX_SEARCH
 
 MIN_RESOLUTION = 16
 
@@ -79,6 +80,9 @@ class ShadowSettings:
     # how many of them the blocker search follows (lib/soft.glsl); a hard light reads none.
     light_samples: int = 32
     search_samples: int = 8
+    # The exact pass of a sized light: its points per view sample (lib/exact_soft.glsl), a
+    # square, one point per cell of a square grid.
+    exact_samples: int = 64
 
     def __post_init__(self) -> None:
         known = POINT_PARAMETERIZATIONS + PROJECTIVE_PARAMETERIZATIONS
@@ -103,6 +107,11 @@ class ShadowSettings:
             value = getattr(self, name)
             if not (isinstance(value, int) and 1 <= value <= most):
                 raise InputError(f"{name} {value!r} must be a whole number in [1, {most}]")
+        samples = self.exact_samples
+        if not (isinstance(samples, int) and 1 <= samples <= EXACT_SOFT_MAX_POINTS
+                and math.isqrt(samples) ** 2 == samples):
+            raise InputError(f"exact_samples {samples!r} must be a square number (4, 16, 64, ...) "
+                             f"in [1, {EXACT_SOFT_MAX_POINTS}]")
 
 
 def settings_for(method: str, resolution: int, **fields) -> ShadowSettings:

@@ -418,22 +418,24 @@ class ModernGLBackend(ShadowBackend):
         return counts.astype(np.float32)
 
     @_current
-    def link_samples(self, size: int, tiles: int, uniforms: UniformValues) -> None:
+    def link_samples(self, size: int, tiles: int, uniforms: UniformValues, hit_words: int = 1) -> None:
         if self._sample_size is None:
             raise BackendError("link_samples called before upload_samples")
         width, height = self._sample_size
-        if self._links is None or self._links[0].size != (size * tiles, size) or self._links[1].size != (width, height):
+        if (self._links is None or self._links[0].size != (size * tiles, size) or self._links[1].size != (width, height)
+                or self._links[2].size != (width, height * hit_words)):
             self._free_links()
             # heads, links, the exact pass's marks and its work (shaders.EXACT_IMAGES)
             self._links = (self.ctx.texture((size * tiles, size), 1, dtype="u4"),
                            self.ctx.texture((width, height), 1, dtype="u4"),
-                           self.ctx.texture((width, height), 1, dtype="u4"),
+                           self.ctx.texture((width, height * hit_words), 1, dtype="u4"),
                            self.ctx.texture((WORK_TEXELS, 1), 1, dtype="u4"))
             # Zeroed through framebuffers (an integer clear per attachment, on the GPU),
             # not written from the host: about 3x faster on llvmpipe (see _new_veil).
             heads, links, hits, work = self._links
             self._link_fbos = (self.ctx.framebuffer(color_attachments=[heads]),
-                               self.ctx.framebuffer(color_attachments=[links, hits]),
+                               self.ctx.framebuffer(color_attachments=[links]),
+                               self.ctx.framebuffer(color_attachments=[hits]),  # a sized light's are taller
                                self.ctx.framebuffer(color_attachments=[work]))
         heads, links, hits, work = self._links
         for fbo in self._link_fbos:
@@ -471,7 +473,7 @@ class ModernGLBackend(ShadowBackend):
         self.ctx.memory_barrier()
         work = self._links[3]
         words = np.frombuffer(work.read(), dtype="u4").copy()
-        self._link_fbos[2].clear(0.0, 0.0, 0.0, 0.0)  # the work image's own framebuffer
+        self._link_fbos[3].clear(0.0, 0.0, 0.0, 0.0)  # the work image's own framebuffer
         return words
 
     @_current

@@ -41,6 +41,7 @@ from .backend import AtlasLayout, FootprintDraw, ShadowBackend
 from .frame import PreparedGeometry, ShadowSettings
 from .resident import CHUNK_TRIANGLES, ResidentScene
 from .shaders import EXACT_COUNT_KEY, EXACT_MAX_WALK, FOOTPRINT_VERTICES, MAX_POINT_SIZE, REGION_PLANES, SLOTS
+from .soft import exact_soft_uniforms
 from .unfold import VERTEX_FLOATS, edge_aa_parameters, prepare_unfold
 
 log = logging.getLogger(__name__)
@@ -110,6 +111,13 @@ class Parameterization:
             return 0  # nothing to draw (no blockers): the cleared atlas is the map
         res = inputs.settings.resolution
         exact = inputs.settings.exact
+        soft = exact_soft_uniforms(inputs.light, inputs.settings) if exact else {}
+        reach = float(soft.get("ow_exact_reach", 0.0))
+        region = inputs.region
+        if reach > 0.0:
+            # A sized light's occluders lie within its reach of the hull of its centre and
+            # the view: each plane of the region moves out by it.
+            region = {**region, "ow_region_slack": float(region.get("ow_region_slack", 0.0)) + reach}
         # Per object, the chunks' light-centred spheres, the same on every layer.
         spheres = {draw.key: _chunk_spheres(inputs.scene.objects[draw.key], inputs.light) for draw in inputs.draws}
         passes = []  # (tile, draws, uniforms, scissor) per drawn layer
@@ -117,16 +125,16 @@ class Parameterization:
             tile = inputs.tile_of_slot[layer.slot]
             mapping = inputs.mappings.get(layer.slot, LayerMapping.identity())
             uniforms = {**layer_uniforms(layer, inputs.geometry, res, inputs.layout.origin(tile), mapping,
-                                         inputs.warp_size), **inputs.region}
+                                         inputs.warp_size), **region}
             if exact:
                 # The irregular z-buffer: the tile's lists are strip tile `tile` (link_lists).
                 uniforms.update({"ow_exact_tile": tile, "ow_exact_eps": EXACT_EPS, "ow_exact_bound": EXACT_MAX_WALK,
-                                 EXACT_COUNT_KEY: int(inputs.count_work)})
+                                 EXACT_COUNT_KEY: int(inputs.count_work), **soft})
             elif mapping.warp is not None:
                 backend.build_ray_table(tile, uniforms)
             stretch = map_stretch(mapping)
             draws = [run for draw in inputs.draws
-                     for run in footprint_ranges(draw, spheres[draw.key], layer, stretch, res, inputs.region)]
+                     for run in footprint_ranges(draw, spheres[draw.key], layer, stretch, res, region, reach)]
             scissor = inputs.boxes.get(layer.slot)
             backend.draw_footprints(tile, draws, uniforms, scissor=scissor, exact=exact)
             passes.append((tile, draws, uniforms, scissor))
@@ -353,16 +361,19 @@ def _chunk_texels(centres: np.ndarray, radii: np.ndarray, edges: np.ndarray, lay
     return res * stretch * per_radian * angle + 2.0 * FOOTPRINT_DILATE_TEXELS + 2.0
 
 
-def _chunks_outside(centres: np.ndarray, radii: np.ndarray, layer: Layer, region: dict) -> np.ndarray:
+def _chunks_outside(centres: np.ndarray, radii: np.ndarray, layer: Layer | None, region: dict) -> np.ndarray:
     """(C,) chunks no triangle of which the footprint pass would draw on this layer: wholly
     behind the paraboloid's hemisphere or beside the cube face, or beyond a plane of the
-    occluder region (the same tests the vertex stage makes per triangle)."""
-    local = centres @ layer.rotation.T
-    x, y, z = local[:, 0], local[:, 1], local[:, 2]
-    outside = z < -radii
-    if layer.kind == projection.CUBE:
-        for side in (x - z, -x - z, y - z, -y - z):
-            outside |= side / np.sqrt(2.0) > radii
+    occluder region (the same tests the vertex stage makes per triangle); with no layer,
+    only the region's test."""
+    outside = np.zeros(len(radii), dtype=bool)
+    if layer is not None:
+        local = centres @ layer.rotation.T
+        x, y, z = local[:, 0], local[:, 1], local[:, 2]
+        outside |= z < -radii
+        if layer.kind == projection.CUBE:
+            for side in (x - z, -x - z, y - z, -y - z):
+                outside |= side / np.sqrt(2.0) > radii
     count = int(region.get("ow_region_count", 0))
     if count:
         planes = np.asarray(region["ow_region_planes"], dtype=np.float64)[:count]
@@ -414,18 +425,26 @@ def _runs(kinds: np.ndarray) -> list[tuple[int, int, int]]:
 
 
 def footprint_ranges(draw: FootprintDraw, spheres: tuple[np.ndarray, np.ndarray, np.ndarray] | None,
-                     layer: Layer, stretch: float, res: int, region: dict | None = None) -> list[FootprintDraw]:
+                     layer: Layer, stretch: float, res: int, region: dict | None = None,
+                     reach: float = 0.0) -> list[FootprintDraw]:
     """One object's draw on one layer, by chunks of CHUNK_TRIANGLES: chunks that cannot
     reach the layer are left out; chunks whose footprint bound fits MAX_POINT_SIZE draw
     one point sprite a triangle instead of a six-vertex quad. `spheres` are the object's
     `_chunk_spheres` (None: draw it whole as quads), `stretch` the layer's `map_stretch`.
+    With a sized light's `reach` (the exact soft pass) footprints grow past a point sprite
+    and past the layer's own half-space, so every chunk draws quads and only the region
+    (already widened by the reach) leaves chunks out.
     Host work per chunk, not per triangle; the vertex stage still culls each triangle."""
     if spheres is None or not len(spheres[1]):
         return [draw]
     centres, radii, edges = spheres
-    small = _chunk_texels(centres, radii, edges, layer, stretch, res) <= MAX_POINT_SIZE
-    kinds = np.where(small, POINTS, QUADS)
-    kinds[_chunks_outside(centres, radii, layer, region or {})] = SKIP
+    if reach > 0.0:
+        kinds = np.full(len(radii), QUADS)
+        kinds[_chunks_outside(centres, radii, None, region or {})] = SKIP
+    else:
+        small = _chunk_texels(centres, radii, edges, layer, stretch, res) <= MAX_POINT_SIZE
+        kinds = np.where(small, POINTS, QUADS)
+        kinds[_chunks_outside(centres, radii, layer, region or {})] = SKIP
     total = draw.first + draw.count
     out = []
     for a, b, kind in _runs(kinds):

@@ -77,7 +77,7 @@ from .parameterizations import (
 )
 from .resident import ResidentScene
 from .shaders import PARAM_CODES, SLOTS
-from .soft import soft_uniforms
+from .soft import exact_soft, hit_words, soft_uniforms
 from .unfold import edge_aa_parameters
 
 log = logging.getLogger(__name__)
@@ -151,12 +151,14 @@ class ShadowPipeline:
         strip = self.backend.scatter_counts(size, max(len(slots), 1), uniforms)
         return {slot: strip[:, tile * size:(tile + 1) * size].copy() for tile, slot in enumerate(slots)}
 
-    def link_lists(self, light: LightSpec, plan: Plan, mappings: dict[int, LayerMapping], size: int) -> None:
+    def link_lists(self, light: LightSpec, plan: Plan, mappings: dict[int, LayerMapping], size: int,
+                   words: int = 1) -> None:
         """Link the uploaded samples into per-texel lists through the full mapping of each
         drawn layer, at `size` texels a side (the irregular z-buffer's lists; the backend
-        keeps them, `read_links` reads them back). The warp tables must be uploaded."""
+        keeps them, `read_links` reads them back), with `words` words of marks a sample
+        (soft.hit_words). The warp tables must be uploaded."""
         uniforms = _scatter_uniforms(light, plan, mappings, size, 2, False)
-        self.backend.link_samples(size, max(len(plan.drawn), 1), uniforms)
+        self.backend.link_samples(size, max(len(plan.drawn), 1), uniforms, hit_words=words)
 
     def _analyse(self, light: LightSpec, settings: ShadowSettings, plan: Plan) -> tuple[dict, dict]:
         """DV crop and warp construction for every drawn layer (Algorithm 3, steps 2-7).
@@ -263,7 +265,7 @@ class ShadowPipeline:
         # Texels outside a layer's box are neither cleared nor drawn (map-space culling).
         backend.begin_atlas(layout, {tile_of_slot[slot]: box for slot, box in boxes.items()})
         if settings.exact:
-            self.link_lists(light, plan, mappings, res)  # the irregular z-buffer's lists
+            self.link_lists(light, plan, mappings, res, hit_words(light, settings))  # the irregular z-buffer's lists
         edge_radius = scheme.draw(backend, inputs)
         backend.finish()
         t5 = time.perf_counter()
@@ -281,8 +283,11 @@ class ShadowPipeline:
         if settings.exact:
             # The atlas holds no depth (every texel empty), so the test lit every tested
             # sample; the exact pass's marks shadow the ones a triangle crosses.
-            hits, exact_work = backend.read_hits()
-            result[..., 0] *= hits_visibility(hits)  # opaque crossings and see-through ones
+            if exact_soft(light, settings):
+                exact_work = backend.exact_work()  # the test weighed a sized light's marks itself
+            else:
+                hits, exact_work = backend.read_hits()
+                result[..., 0] *= hits_visibility(hits)  # opaque crossings and see-through ones
         visibility = result[..., 0][::-1].copy()
         flags = result[..., 1][::-1].astype(np.int8)
         return FrameResult(visibility, flags, timings, plan, geometry, layout,

@@ -483,9 +483,53 @@ def exact_variant(uniforms: dict, points: bool = False, see_through: bool = Fals
     """The footprint pass of the irregular z-buffer (issue 19): each fragment walks its
     texel's list of samples (link_variant) and marks those whose segment to the light the
     triangle crosses, instead of storing a depth; `see_through` for an object with alpha,
-    and the counting variant when uniforms[EXACT_COUNT_KEY] is set."""
+    the counting variant when uniforms[EXACT_COUNT_KEY] is set, and the sized light's
+    (exact_soft_of) when uniforms[EXACT_SOFT_KEY] counts its points."""
     base = program_variant(FOOTPRINT_PROGRAM, uniforms, points)
-    return exact_of(alpha_of(base) if see_through else base, bool(uniforms.get(EXACT_COUNT_KEY, 0)))
+    held = exact_of(alpha_of(base) if see_through else base, bool(uniforms.get(EXACT_COUNT_KEY, 0)))
+    if int(uniforms.get(EXACT_SOFT_KEY, 0)) > 0:
+        if points:
+            raise BackendError("the exact pass of a sized light draws quads: its footprints grow past a point sprite")
+        held = exact_soft_of(held)
+    return held
+
+
+# Exact soft shadows of a sized light (lib/exact_soft.glsl, issue 27): the exact pass marks,
+# per view sample, which of the light's N points each triangle blocks, in N bits of the
+# sample's words (EXACT_SOFT_WORDS texels of the hits image, rows apart), and the shadow
+# test weighs the points left. N is a square (one point per cell of a square grid).
+EXACT_SOFT_DEFINE = "OW_EXACT_SOFT"
+EXACT_SOFT_MAX_POINTS = 256
+EXACT_SOFT_WORDS = EXACT_SOFT_MAX_POINTS // 32
+EXACT_SOFT_KEY = "ow_exact_points"  # the uniforms' key: a sized light's point count (0: hard)
+SHARED_DEFINES.update({"OW_EXACT_SOFT_MAX_POINTS": str(EXACT_SOFT_MAX_POINTS)})
+EXACT_SOFT_UNIFORMS = (Uniform("vec4", "ow_exact_light"), Uniform("float", "ow_exact_reach"),
+                       Uniform("mat3", "ow_exact_frame"), Uniform("int", EXACT_SOFT_KEY))
+_EXACT_SOFT_VARIANTS: dict[str, ProgramInterface] = {}  # program name -> its exact soft variant
+
+
+def exact_soft_of(base: ProgramInterface) -> ProgramInterface:
+    """The exact pass's or the shadow test's variant for a sized light: the footprints grown
+    to the light's reach and N light points marked per sample, or the marks weighed into
+    the sample's visibility. Hard lights keep the plain programs, unchanged."""
+    footprint_pass = base.fragment_file == FOOTPRINT_PROGRAM.fragment_file
+    if not (footprint_pass and EXACT_DEFINE in base.defines) and base.fragment_file != SHADOW_TEST_PROGRAM.fragment_file:
+        raise BackendError(f"program {base.name!r} has no exact soft variant")
+    held = _EXACT_SOFT_VARIANTS.get(base.name)
+    if held is None:
+        defines = {**base.defines, EXACT_SOFT_DEFINE: "1"}
+        if footprint_pass:
+            # The walk tests each triangle's edges from the sample: their vertices in one
+            # order whichever triangle asks (hi, and the swap in w), and a bounding sphere.
+            varyings = base.varyings + tuple(Varying("vec4", f"v_edge_hi{i}", flat=True) for i in range(3)) + (
+                Varying("vec4", "v_bound", flat=True),)
+            images = base.images
+        else:
+            varyings, images = base.varyings, (("r32ui", "ow_hits"),)
+        held = _EXACT_SOFT_VARIANTS[base.name] = replace(
+            base, name=base.name + "_soft", defines=defines, uniforms=base.uniforms + EXACT_SOFT_UNIFORMS,
+            varyings=varyings, images=images, samplers=base.samplers)
+    return held
 
 
 ALPHA_DEFINE = "OW_ALPHA"
@@ -625,7 +669,10 @@ VEIL_PROGRAMS = tuple(veil_of(iface) for iface in VARIANT_PROGRAMS
                       if iface.fragment_file == SHADOW_TEST_PROGRAM.fragment_file)
 SOFT_PROGRAMS = tuple(soft_of(iface) for iface in (*VARIANT_PROGRAMS, *VEIL_PROGRAMS)
                       if iface.fragment_file == SHADOW_TEST_PROGRAM.fragment_file)
-PROGRAMS = (*VARIANT_PROGRAMS, *EXACT_PROGRAMS, *ALPHA_PROGRAMS, *VEIL_PROGRAMS, *SOFT_PROGRAMS, GBUFFER_ALPHA_PROGRAM, RAY_TABLE_PROGRAM, GBUFFER_PROGRAM, GBUFFER_SAMPLES_PROGRAM, PREVIEW_PROGRAM, OVERLAY_PROGRAM, EDGE_PROGRAM)
+EXACT_SOFT_PROGRAMS = tuple(exact_soft_of(iface) for iface in (*EXACT_PROGRAMS, *ALPHA_PROGRAMS, *VARIANT_PROGRAMS)
+                            if (EXACT_DEFINE in iface.defines and POINTS_DEFINE not in iface.defines)
+                            or iface.fragment_file == SHADOW_TEST_PROGRAM.fragment_file)
+PROGRAMS = (*VARIANT_PROGRAMS, *EXACT_PROGRAMS, *ALPHA_PROGRAMS, *VEIL_PROGRAMS, *SOFT_PROGRAMS, *EXACT_SOFT_PROGRAMS, GBUFFER_ALPHA_PROGRAM, RAY_TABLE_PROGRAM, GBUFFER_PROGRAM, GBUFFER_SAMPLES_PROGRAM, PREVIEW_PROGRAM, OVERLAY_PROGRAM, EDGE_PROGRAM)
 COMPUTE_PROGRAMS = (SCATTER_PROGRAM, SAMPLE_STATS_PROGRAM, BARRIER_PROGRAM, ADVANCE_PROGRAM, *(_scatter_variant(mode, kind) for mode in SCATTER_MODES
                                                              for kind in (None, *FIXED_KIND_NAMES)),
                     *(_link_variant(kind) for kind in (None, *FIXED_KIND_NAMES)))

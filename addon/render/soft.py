@@ -1,15 +1,21 @@
-"""The soft filter's uniforms for a sized light (lib/soft.glsl, issue 27): one place that
-turns a light's shape and the frame's settings into what the shadow test reads."""
+"""What the shadow test and the exact pass read for a sized light (issue 27): one place that
+turns a light's shape and the frame's settings into the soft filter's uniforms
+(lib/soft.glsl) or the exact soft pass's (lib/exact_soft.glsl)."""
 from __future__ import annotations
 
 import functools
+import math
 
 import numpy as np
 
 from ..core.light_shape import Area, LightShape, Sphere, stratified_points
 from ..core.scene import LightSpec
 from .frame import ShadowSettings
-from .shaders import SOFT_KINDS, SOFT_MAX_POINTS, SOFT_MAX_SEARCH
+from .shaders import EXACT_SOFT_KEY, SOFT_KINDS, SOFT_MAX_POINTS, SOFT_MAX_SEARCH
+
+# The exact soft pass's light kinds (ow_exact_light.x) and area outlines (.w).
+EXACT_KINDS = {"sphere": 1, "area": 2}
+EXACT_OUTLINES = {"rectangle": 0, "ellipse": 1}
 
 
 @functools.lru_cache(maxsize=32)
@@ -21,19 +27,68 @@ def _points(shape: LightShape, count: int, size: int) -> np.ndarray:
     return out
 
 
+def _soft_shape(light: LightSpec) -> bool:
+    """A sized sphere or area light on a point light's maps: the shapes both soft paths take."""
+    return light.sized and isinstance(light.shape, (Sphere, Area)) and light.is_point
+
+
 def filters(light: LightSpec, settings: ShadowSettings) -> bool:
     """True when the frame's maps are filtered by the light's size: a sized sphere or area
-    light on a point-light parameterization's depth test (the exact pass and the spot and
-    sun maps are not filtered yet)."""
-    return (light.sized and isinstance(light.shape, (Sphere, Area)) and light.is_point
-            and not settings.exact)
+    light on a point-light parameterization's depth test (the exact pass samples the light
+    itself, `exact_soft`; the spot and sun maps are not filtered yet)."""
+    return _soft_shape(light) and not settings.exact
+
+
+def exact_soft(light: LightSpec, settings: ShadowSettings) -> bool:
+    """True when the exact pass samples the light per view sample: a sized sphere or area
+    light of omni or hemi emission on the exact pass over a point light's maps."""
+    return _soft_shape(light) and settings.exact
+
+
+def light_reach(shape: LightShape) -> float:
+    """The radius of the sphere about the light's centre that holds the whole light."""
+    if isinstance(shape, Sphere):
+        return float(shape.radius)
+    if isinstance(shape, Area):
+        if shape.outline == "ellipse":
+            return 0.5 * max(shape.size_x, shape.size_y)
+        return 0.5 * math.hypot(shape.size_x, shape.size_y)
+    return 0.0
+
+
+def soft_shadowed(light: LightSpec, settings: ShadowSettings) -> bool:
+    """True when the frame's shadows follow the light's size (the filter or the exact pass)."""
+    return filters(light, settings) or exact_soft(light, settings)
 
 
 def soft_uniforms(light: LightSpec, settings: ShadowSettings) -> dict:
-    """The shadow test's soft uniforms; ow_soft_count 0 (the hard test) when not `filters`."""
+    """The shadow test's soft uniforms: the filter's, or the exact pass's weighing of its
+    marks; ow_soft_count 0 and no exact points (the hard test) for a hard light."""
+    if exact_soft(light, settings):
+        return {"ow_soft_count": 0, **exact_soft_uniforms(light, settings)}
     if not filters(light, settings):
         return {"ow_soft_count": 0}
     count, search = settings.light_samples, settings.search_samples
     return {"ow_soft_points": _points(light.shape, count, SOFT_MAX_POINTS), "ow_soft_count": count,
             "ow_soft_search_points": _points(light.shape, search, SOFT_MAX_SEARCH), "ow_soft_search": search,
             "ow_soft_kind": SOFT_KINDS[light.shape.kind]}
+
+
+def exact_soft_uniforms(light: LightSpec, settings: ShadowSettings) -> dict:
+    """The exact soft pass's uniforms (footprint pass and shadow test alike), or
+    {EXACT_SOFT_KEY: 0} (the hard pass) when `exact_soft` does not hold."""
+    if not exact_soft(light, settings):
+        return {EXACT_SOFT_KEY: 0}
+    shape = light.shape
+    if isinstance(shape, Sphere):
+        described = (EXACT_KINDS["sphere"], shape.radius, 0.0, 0.0)
+    else:
+        described = (EXACT_KINDS["area"], shape.size_x, shape.size_y, EXACT_OUTLINES[shape.outline])
+    return {"ow_exact_light": np.array(described, dtype=np.float64), "ow_exact_reach": light_reach(shape),
+            "ow_exact_frame": light.rotation, EXACT_SOFT_KEY: int(settings.exact_samples)}
+
+
+def hit_words(light: LightSpec, settings: ShadowSettings) -> int:
+    """32-bit words the exact pass keeps per view sample: one (the hard pass's mark), or one
+    bit per light point of a sized light."""
+    return -(-int(settings.exact_samples) // 32) if exact_soft(light, settings) else 1
