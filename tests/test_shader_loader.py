@@ -10,6 +10,7 @@ from pathlib import Path
 import pytest
 
 from addon.core.errors import BackendError
+from addon.render import moderngl_glsl as G
 from addon.render import shaders as S
 
 
@@ -48,8 +49,8 @@ def test_include_cycle_and_missing_file_are_named(tmp_path):
 
 def test_stage_headers_declare_the_interface():
     iface = S.DEPTH_PROGRAM
-    vertex = S.glsl_header(iface, "vertex")
-    fragment = S.glsl_header(iface, "fragment")
+    vertex = G.glsl_header(iface, "vertex")
+    fragment = G.glsl_header(iface, "fragment")
     for header in (vertex, fragment):
         assert header.startswith(f"#version {S.GLSL_VERSION}\n")
         assert header.endswith("#line 1\n")  # compiler line numbers point into the body
@@ -59,13 +60,13 @@ def test_stage_headers_declare_the_interface():
     assert "out vec2 v_map_xy;" in vertex and "in vec2 v_map_xy;" in fragment
     assert "layout(location = 0) in vec3 ow_position;" in vertex
     assert "layout(location = 0) out float ow_depth;" in fragment
-    assert "uniform mat3 ow_layer_rot[6];" in S.glsl_header(S.SHADOW_TEST_PROGRAM, "fragment")
+    assert "uniform mat3 ow_layer_rot[6];" in G.glsl_header(S.SHADOW_TEST_PROGRAM, "fragment")
     with pytest.raises(BackendError, match="stage"):
-        S.glsl_header(iface, "geometry")
+        G.glsl_header(iface, "geometry")
 
 
 def test_compute_header_declares_work_group_and_images():
-    header = S.compute_header(S.SCATTER_PROGRAM)
+    header = G.compute_header(S.SCATTER_PROGRAM)
     assert f"layout(local_size_x = {S.SCATTER_PROGRAM.local_size}) in;" in header
     assert "layout(r32ui, binding = 0) uniform uimage2D ow_counts;" in header
     assert "uniform int ow_slot_tile[6];" in header
@@ -92,17 +93,18 @@ def _strip_block(text: str, define: str) -> str:
 
 @pytest.mark.parametrize("iface", S.PROGRAMS, ids=lambda i: i.name)
 def test_every_program_loads_and_uses_only_declared_names(iface):
-    vertex, fragment = S.moderngl_sources(iface)
+    vertex, fragment = G.moderngl_sources(iface)
     body = S.load_source(iface.fragment_file) + S.load_source(iface.vertex_file)
     # The exact pass's and the see-through code are compiled only into their own variants
-    # (shaders.exact_of, shaders.alpha_of, shaders.veil_of, shaders.soft_of).
-    for define in (S.EXACT_DEFINE, S.ALPHA_DEFINE, S.VEIL_DEFINE, S.SOFT_DEFINE):
+    # (shaders.exact_of, shaders.alpha_of, shaders.veil_of, shaders.soft_of, shaders.exact_soft_of).
+    for define in (S.EXACT_DEFINE, S.ALPHA_DEFINE, S.VEIL_DEFINE, S.SOFT_DEFINE, S.EXACT_SOFT_DEFINE):
         if define not in iface.defines:
             body = _strip_block(body, define)
     declared = {u.name for u in iface.uniforms} | set(iface.samplers) | {name for _, name in iface.images}
     used = set(re.findall(r"\b(ow_[a-z_0-9]+)\b", body))
     # Every ow_ name a body reads is either declared here or defined in the GLSL itself.
-    types = r"void|float|vec[234]|mat[234]|int|bool|ivec[234]|struct|OwBlend|const int|const float|const vec4"
+    types = (r"void|float|vec[234]|mat[234]|int|bool|ivec[234]|struct|OwBlend|OwLightView|const int|const float"
+             r"|const vec4")
     defined = set(re.findall(rf"\b(?:{types})\s+(ow_[a-z_0-9]+)", body))
     missing = used - declared - defined - {n for _, n in iface.vertex_in} - {n for _, n in iface.fragment_out}
     assert not missing, f"{iface.name} reads undeclared {sorted(missing)}"
@@ -111,6 +113,6 @@ def test_every_program_loads_and_uses_only_declared_names(iface):
 
 @pytest.mark.parametrize("iface", S.COMPUTE_PROGRAMS, ids=lambda i: i.name)
 def test_every_compute_program_loads(iface):
-    source = S.moderngl_compute_source(iface)
+    source = G.moderngl_compute_source(iface)
     assert source.startswith("#version")
     assert "void main()" in source and "#include" not in source

@@ -23,6 +23,7 @@ from .backend import (
     corner_indices,
     pack_warp_table,
 )
+from .moderngl_glsl import moderngl_compute_source, moderngl_sources
 from .shaders import (
     ADVANCE_PROGRAM,
     ALPHA_SAMPLERS,
@@ -36,9 +37,7 @@ from .shaders import (
     WORK_TEXELS,
     ComputeInterface,
     ProgramInterface,
-    moderngl_compute_source,
     link_variant,
-    moderngl_sources,
     program_variant,
     scatter_variant,
 )

@@ -9,7 +9,8 @@ import numpy as np
 import pytest
 
 from addon.core.alpha import EXTENSIONS, INTERPOLATIONS, TRANSFER_SIZE, AlphaMap
-from addon.render.shaders import SHADER_DIR, ProgramInterface, Uniform, moderngl_sources
+from addon.render.moderngl_glsl import moderngl_sources
+from addon.render.shaders import SHADER_DIR, ProgramInterface, Uniform
 
 pytestmark = pytest.mark.gl
 

@@ -11,7 +11,8 @@ import numpy as np
 import pytest
 
 from addon.core import footprint as fp
-from addon.render.shaders import SHADER_DIR, SHARED_DEFINES, ProgramInterface, Uniform, moderngl_sources
+from addon.render.moderngl_glsl import moderngl_sources
+from addon.render.shaders import SHADER_DIR, SHARED_DEFINES, ProgramInterface, Uniform
 from tests.core.test_footprint import KINDS, _random_rotation, _triangle
 from tests.gl.test_glsl_oracle import _evaluate
 

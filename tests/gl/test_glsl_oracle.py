@@ -9,7 +9,8 @@ import numpy as np
 import pytest
 
 from addon.core import frames, projection
-from addon.render.shaders import ProgramInterface, Uniform, moderngl_sources
+from addon.render.moderngl_glsl import moderngl_sources
+from addon.render.shaders import ProgramInterface, Uniform
 
 pytestmark = pytest.mark.gl
 

@@ -13,6 +13,7 @@ from addon.core.errors import BackendError
 from addon.core.scene import SceneBuilder
 from addon.render.moderngl_backend import ModernGLBackend
 from addon.render.pipeline import ShadowPipeline, ShadowSettings
+from addon.render.moderngl_glsl import glsl_header
 from addon.render.shaders import (
     COMPUTE_PROGRAMS,
     DEPTH_PLAIN_PROGRAM,
@@ -24,7 +25,6 @@ from addon.render.shaders import (
     SHADOW_TEST_PLAIN_PROGRAM,
     SHADOW_TEST_PROGRAM,
     VARIANT_PROGRAMS,
-    glsl_header,
     program_variant,
     scatter_variant,
 )

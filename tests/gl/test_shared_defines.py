@@ -7,14 +7,8 @@ import numpy as np
 import pytest
 
 from addon.core import footprint, projection
-from addon.render.shaders import (
-    PARAM_CODES,
-    SHADER_DIR,
-    SHARED_DEFINES,
-    SLOTS,
-    ComputeInterface,
-    moderngl_compute_source,
-)
+from addon.render.moderngl_glsl import moderngl_compute_source
+from addon.render.shaders import PARAM_CODES, SHADER_DIR, SHARED_DEFINES, SLOTS, ComputeInterface
 
 pytestmark = pytest.mark.gl
 

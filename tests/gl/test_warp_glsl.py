@@ -8,7 +8,8 @@ from addon.core import warping as W
 from addon.core.scene import SceneBuilder
 from addon.render.backend import pack_warp_table
 from addon.render.pipeline import ShadowPipeline, ShadowSettings, ViewSamples
-from addon.render.shaders import SHADER_DIR, ProgramInterface, Uniform, moderngl_sources
+from addon.render.moderngl_glsl import moderngl_sources
+from addon.render.shaders import SHADER_DIR, ProgramInterface, Uniform
 
 pytestmark = pytest.mark.gl
 
