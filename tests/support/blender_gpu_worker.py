@@ -73,7 +73,8 @@ def alpha_frames(pipeline):
 
 
 def soft_frames(pipeline):
-    """Visibility of the sized lights' scenes (tests/gl/test_soft_filter.py), by key."""
+    """Visibility of the sized lights' scenes (tests/gl/test_soft_filter.py), by key: the
+    soft filter, and the exact pass's samples of the light."""
     from addon.render.frame import settings_for
     from tests.gl.test_soft_filter import _scene
     from tests.support.oracle import view_samples
@@ -82,7 +83,7 @@ def soft_frames(pipeline):
     for name in ("sphere", "area"):
         scene = _scene(name)
         samples, _, _ = view_samples(scene)
-        for method in ("dpsm+notw", "cube"):
+        for method in ("dpsm+notw", "cube", "exact"):
             result = pipeline.render(scene.light, scene.world_triangles(), samples, settings_for(method, 256))
             frames[f"soft_{name}_{method}_visibility"] = result.visibility
     return frames

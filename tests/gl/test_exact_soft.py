@@ -1,0 +1,113 @@
+"""The exact pass of a sized light (lib/exact_soft.glsl, issue 27) against the numpy
+integration over the same light points (tests/support/soft_oracle.py): the scenes of the
+soft filter's test (a box and a post on a floor, a sphere light whose paraboloid seam cuts
+the penumbra, and an area light), on the warped dual paraboloid (`exact`), the plain one,
+and the cube. With the same N points the two agree to float32 rounding, for any N; with
+more points both converge."""
+from __future__ import annotations
+
+import dataclasses
+
+import numpy as np
+import pytest
+
+from addon.core.alpha import AlphaMap
+from addon.core.errors import InputError
+from addon.core.light_shape import POINT
+from addon.core.scene import SceneBuilder
+from addon.render.frame import ShadowSettings, settings_for
+from addon.render.pipeline import ShadowPipeline
+from addon.render.resident import ResidentScene
+from tests.gl.test_alpha_pass import _card
+from tests.gl.test_soft_filter import _case
+from tests.support.oracle import view_samples
+from tests.support.soft_oracle import soft_visibility
+
+pytestmark = pytest.mark.gl
+
+
+def _exact(backend, scene, samples, n: int, parameterization: str = "dpsm", warp: str = "notw", light=None,
+           resolution: int = 256, **kwargs):
+    settings = ShadowSettings(parameterization, resolution, warp=warp, exact=True, exact_samples=n)
+    return ShadowPipeline(backend).render(light or scene.light, scene.world_triangles(), samples, settings,
+                                          **kwargs)
+
+
+@pytest.mark.parametrize("name", ["sphere", "area"])
+@pytest.mark.parametrize("param,warp", [("dpsm", "notw"), ("dpsm", "none"), ("cube", "none"), ("cube", "notw")])
+def test_exact_soft_equals_the_integral_over_its_points(gl_backend, name, param, warp):
+    """Every pixel's share of the light equals the oracle's over the same 64 points: the grown
+    footprints leave no segment untested, on either side of the seam and through the warp."""
+    _, scene, samples, evaluable, _ = _case(name)
+    ours = _exact(gl_backend, scene, samples, 64, param, warp).visibility[evaluable]
+    truth = soft_visibility(scene.light, samples.positions[evaluable], samples.normals[evaluable],
+                            scene.world_triangles(), n=64)
+    penumbra = (truth > 0.02) & (truth < 0.98)
+    assert penumbra.sum() > 300, name  # a wide penumbra is measured
+    diff = np.abs(ours - truth)
+    # float32 against float64: a segment within rounding of an edge may fall either way.
+    assert float(diff.mean()) < 1e-4, (name, param, warp, float(diff.mean()))
+    assert float((diff > 1.5 / 64).mean()) < 1e-3, (name, param, warp)
+
+
+def test_exact_soft_converges_with_its_points(gl_backend):
+    """The same equality at 16 points, and 256 points come nearer to a 1024-point integral
+    than 16 do (the bits of all 256 points, in 8 words, are read)."""
+    _, scene, samples, evaluable, _ = _case("sphere")
+    points, normals = samples.positions[evaluable], samples.normals[evaluable]
+    tris = scene.world_triangles()
+    few = _exact(gl_backend, scene, samples, 16).visibility[evaluable]
+    assert float(np.abs(few - soft_visibility(scene.light, points, normals, tris, n=16)).mean()) < 1e-4
+    many = _exact(gl_backend, scene, samples, 256).visibility[evaluable]
+    fine = soft_visibility(scene.light, points, normals, tris, n=1024)
+    assert float(np.abs(many - fine).mean()) < 0.5 * float(np.abs(few - fine).mean())
+
+
+def test_a_hard_light_keeps_the_hard_pass(gl_backend):
+    """Size 0 gives the hard exact pass's binary answer, whatever exact_samples says."""
+    _, scene, samples, evaluable, _ = _case("sphere")
+    hard_light = dataclasses.replace(scene.light, shape=POINT)
+    hard = _exact(gl_backend, scene, samples, 64, light=hard_light).visibility
+    plain = ShadowPipeline(gl_backend).render(hard_light, scene.world_triangles(), samples,
+                                              settings_for("exact", 256)).visibility
+    assert np.array_equal(hard, plain)
+    assert set(np.unique(hard[evaluable])) <= {0.0, 1.0}
+
+
+def test_the_light_points_are_a_square(gl_backend):
+    for bad in (0, 32, 300, 64.0):
+        with pytest.raises(InputError, match="exact_samples"):
+            ShadowSettings("dpsm", 256, exact=True, exact_samples=bad)
+
+
+def test_rounds_finish_a_sized_lights_lists(gl_backend, monkeypatch):
+    """With a first walk bound of one entry the lists take several rounds, and the shares
+    are those of one round."""
+    from addon.render import parameterizations
+
+    _, scene, samples, _, _ = _case("area")
+    once = _exact(gl_backend, scene, samples, 16, "dpsm", "none", resolution=64, count_work=True)
+    monkeypatch.setattr(parameterizations, "EXACT_MAX_WALK", 1)
+    rounds = _exact(gl_backend, scene, samples, 16, "dpsm", "none", resolution=64, count_work=True)
+    assert once.exact_work["rounds"] == 0 and rounds.exact_work["rounds"] >= 2, rounds.exact_work
+    assert np.array_equal(rounds.visibility, once.visibility)
+
+
+def test_a_curtain_lets_its_share_of_the_light_through(gl_backend):
+    """A card of alpha 0.4 under a small sphere light: where the card hides the whole light,
+    the points whose fixed thresholds the alpha passes are blocked, 40 % of them."""
+    b = SceneBuilder("soft_curtain", (128, 96))
+    b.plane("floor", (0.0, 0.0, 0.0), 10.0, 10.0)
+    _card(b, "curtain", (0.0, 0.0, 1.0), 3.0, AlphaMap.constant("curtain", 0.4))
+    b.point_light((0.0, 0.0, 4.0), radius=0.1)
+    b.camera((0.0, -6.0, 0.6), (0.0, 0.0, 0.0), fov_deg=30.0)  # under the card, from the side
+    scene = b.finish()
+    samples, _, evaluable = view_samples(scene)
+    resident = ResidentScene.of_triangles(scene.world_triangles(), surface=scene.surface())
+    ours = ShadowPipeline(gl_backend).render(scene.light, resident, samples,
+                                             ShadowSettings("dpsm", 256, warp="notw", exact=True)).visibility
+    gl_backend.release_scene(resident)
+    xy = samples.positions[..., :2]
+    under = evaluable & (np.abs(xy).max(axis=-1) < 0.8) & (samples.positions[..., 2] < 0.01)
+    assert under.sum() > 100
+    assert np.allclose(ours[under], 0.6, atol=0.05), (float(ours[under].min()), float(ours[under].max()))
