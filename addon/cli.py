@@ -49,6 +49,8 @@ from .core.presets import available_presets, build_preset, select_presets
 from .core.scene import parse_size
 # capture.py imports bpy only inside functions: this import needs no Blender.
 from .reference.capture import DEFAULT_SAMPLES, SOFT_SAMPLES
+from .render.frame import EXACT_SAMPLES, check_exact_samples
+from .render.shaders import EXACT_SOFT_MAX_POINTS
 from .rows import row_label
 
 log = logging.getLogger("omniwarp")
@@ -111,6 +113,9 @@ def _parser() -> argparse.ArgumentParser:
     culling.add_argument("--no-cull", action="store_true", help="draw every layer and triangle (measure culling)")
     culling.add_argument("--cull-both", action="store_true",
                          help="measure every row with and without culling, in the same run")
+    cmp_.add_argument("--exact-samples", type=int, default=EXACT_SAMPLES,
+                      help=f"a sized light's points per view sample in the exact method, a square number up to "
+                           f"{EXACT_SOFT_MAX_POINTS} (default {EXACT_SAMPLES})")
     cmp_.add_argument("--out", default="out/compare", help="output folder (default out/compare)")
     cmp_.add_argument("--size", default="640x480", help="camera size WxH for presets (default 640x480)")
     cmp_.add_argument("--repeats", type=int, default=None,
@@ -330,9 +335,10 @@ def cmd_compare(args: argparse.Namespace) -> int:
 
         check_cache_dir(Path(args.cache_dir))
     size_options = _light_size(args)  # checked before the scenes are opened
+    check_exact_samples(args.exact_samples, "bad --exact-samples")
     jobs = [dataclasses.replace(job, **size_options) for job in _compare_jobs(args, methods)]
     options = CompareOptions(methods, resolutions, cull=not args.no_cull, cull_both=args.cull_both, frames=repeats,
-                             out_dir=out, write_images=not args.no_images,
+                             exact_samples=args.exact_samples, out_dir=out, write_images=not args.no_images,
                              command="omniwarp " + " ".join(args.argv))
     if args.workers is not None or args.scheduler is not None:
         if importlib.util.find_spec("distributed") is None:

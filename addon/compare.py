@@ -26,6 +26,7 @@ from .core.outputs import StagedOutput
 from .core.scene import POINT_EMISSIONS, PROJECTIVE_EMISSIONS, CameraSpec, LightSpec
 from .reference.data import ReferenceData
 from .render.blender_draw import pool_image
+from .render.frame import EXACT_SAMPLES
 from .render.pipeline import (
     MAX_RESOLUTION,
     MIN_RESOLUTION,
@@ -53,6 +54,7 @@ class CompareOptions:
     cull: bool = True
     cull_both: bool = False  # measure every pipeline row with and without culling, in one run
     frames: int = 3  # timed frames per row, after one warm-up frame
+    exact_samples: int = EXACT_SAMPLES  # a sized light's points per view sample in `exact` (--exact-samples)
     out_dir: Path = Path("out/compare")
     write_images: bool = True
     command: str = ""  # the command line, recorded in report.md for provenance
@@ -146,7 +148,7 @@ def run_row(pipeline: ShadowPipeline, ref: ReferenceData, preset: str, method: s
     `tag` (a job's frame, light and camera) goes into the image names."""
     light = light_from_reference(ref)
     samples = samples_from_reference(ref)
-    settings = settings_for(method, resolution, cull=options.cull)
+    settings = settings_for(method, resolution, cull=options.cull, exact_samples=options.exact_samples)
     scene = scene if scene is not None else resident_scene(ref)
     pipeline.render(light, scene, samples, settings)  # warm-up: shader compile, allocation, upload
     count = max(1, options.frames)
@@ -181,6 +183,7 @@ def run_row(pipeline: ShadowPipeline, ref: ReferenceData, preset: str, method: s
         warp=_warp_summary(last),
         cull=options.cull,
         light_shape=light.shape.describe() if light.sized else None,
+        light_points=soft.light_points(light, settings),
         note=_row_note(light, settings, scene),
     )
     if image_dir is not None:

@@ -49,6 +49,7 @@ class Row(TypedDict, total=False):
     # its error_pct counts the penumbra's pixels too (metrics.judge)
     light_shape: str
     reference_noise_pct: float
+    light_points: int  # the light's points a sample's shadow follows: the filter's taps or exact's
     triangles_drawn: int
     scene_triangles: int
     texels: int

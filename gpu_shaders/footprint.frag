@@ -47,6 +47,12 @@ void ow_see_through(float alpha, float depth)
 // crosses, more than ow_exact_eps of its length from p, set their bits in p's words.
 void ow_exact_soft_mark(vec3 p, ivec2 at, int rows)
 {
+  // Farther from the triangle's image than the light's angle from it: nothing to shadow.
+  vec3 dir = p * inversesqrt(max(dot(p, p), 1e-30));
+  float reach_sin = v_cull0.w;
+  if (dot(dir, v_cull0.xyz) < -reach_sin || dot(dir, v_cull1.xyz) < -reach_sin || dot(dir, v_cull2.xyz) < -reach_sin) {
+    return;
+  }
   precise float h = dot(v_plane.xyz, p - v_edge_at0);  // p's height over the triangle's plane
   if (h == 0.0) {
     return;  // on the plane: the receiver itself
@@ -54,19 +60,6 @@ void ow_exact_soft_mark(vec3 p, ivec2 at, int rows)
   float centre_h = -dot(v_plane.xyz, v_edge_at0);  // the light centre's
   if (centre_h * h > 0.0 && abs(centre_h) >= ow_exact_reach) {
     return;  // the whole light on the sample's side of the plane
-  }
-  // The cone from p around the light misses the triangle's bounding sphere.
-  float dist = length(p);
-  vec3 to_bound = v_bound.xyz - p;
-  float bound_dist = length(to_bound);
-  if (bound_dist > v_bound.w && dist > ow_exact_reach) {
-    float angle = acos(clamp(dot(to_bound, -p) / (bound_dist * dist), -1.0, 1.0));
-    if (angle > asin(ow_exact_reach / dist) + asin(v_bound.w / bound_dist) + 1e-4) {
-      return;
-    }
-    if (bound_dist - v_bound.w > dist + ow_exact_reach) {
-      return;  // beyond the light
-    }
   }
   // Edge planes through p, each edge's vertices in one order for every triangle that has
   // it: neighbours get the same normal negated, and no segment passes between them. The
@@ -79,6 +72,24 @@ void ow_exact_soft_mark(vec3 p, ivec2 at, int rows)
   e0 *= v_edge_hi0.w * side;
   e1 *= v_edge_hi1.w * side;
   e2 *= v_edge_hi2.w * side;
+  // The light's sphere (centre -p from p) against the wedge of the three planes: wholly
+  // outside one of them, no segment crosses; wholly inside all three and wholly beyond the
+  // triangle's plane, every segment does (an umbra: all points marked at once).
+  vec3 reach = vec3(length(e0), length(e1), length(e2)) * ow_exact_reach;
+  vec3 centre_side = vec3(dot(e0, -p), dot(e1, -p), dot(e2, -p));
+  if (any(lessThan(centre_side, -reach))) {
+    return;
+  }
+  if (all(greaterThan(centre_side, reach)) && centre_h * h < 0.0 && abs(centre_h) > ow_exact_reach
+      && abs(h) > ow_exact_eps * (abs(h) + abs(centre_h) + ow_exact_reach)) {
+#ifndef OW_ALPHA
+    for (int w = 0; w * 32 < ow_exact_points; w++) {
+      int left = ow_exact_points - 32 * w;
+      imageAtomicOr(ow_hits, at + ivec2(0, w * rows), (left >= 32) ? 0xFFFFFFFFu : ((1u << uint(left)) - 1u));
+    }
+    return;
+#endif
+  }
   OwLightView view = ow_light_view(p);
   uint word = 0u;
   for (int k = 0; k < ow_exact_points; k++) {

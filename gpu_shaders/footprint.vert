@@ -91,8 +91,17 @@ void main()
   v_edge_hi0 = (v_edge_at0 == v0) ? vec4(v1, 1.0) : vec4(v0, -1.0);
   v_edge_hi1 = (v_edge_at1 == v1) ? vec4(v2, 1.0) : vec4(v1, -1.0);
   v_edge_hi2 = (v_edge_at2 == v2) ? vec4(v0, 1.0) : vec4(v2, -1.0);
-  vec3 centre = (v0 + v1 + v2) / 3.0;
-  v_bound = vec4(centre, max(max(length(v0 - centre), length(v1 - centre)), length(v2 - centre)) * 1.0001);
+  // The samples a triangle may shadow lie within `soft_grow` of its image from the light's
+  // centre (lib/soft_footprint.glsl): the walk leaves out those farther than that from
+  // one of its edges' great circles (v_cull: unit normals inwards, w the angle's sine).
+  float soft_grow = ow_soft_grow(ow_origin_distance(v0, v1, v2), ow_exact_reach);
+  float reach_sin = (soft_grow < 1.5707963267948966) ? sin(soft_grow) : 2.0;
+  vec3 c0 = n0 * orientation;
+  vec3 c1 = n1 * orientation;
+  vec3 c2 = n2 * orientation;
+  v_cull0 = vec4(c0 / max(length(c0), 1e-30), reach_sin);
+  v_cull1 = vec4(c1 / max(length(c1), 1e-30), reach_sin);
+  v_cull2 = vec4(c2 / max(length(c2), 1e-30), reach_sin);
   // Seen edge-on from the light's centre, a triangle still shadows from its other points.
   if (length(cross(v1 - v0, v2 - v0)) > 0.0 && orientation == 0.0) {
     orientation = 1.0;
@@ -127,7 +136,7 @@ void main()
   vec3 l1 = ow_layer_rot * v1;
   vec3 l2 = ow_layer_rot * v2;
 #ifdef OW_EXACT_SOFT
-  vec4 box = ow_soft_box(l0, l1, l2, OW_KIND(ow_layer_kind), ow_exact_reach);
+  vec4 box = ow_soft_box(l0, l1, l2, OW_KIND(ow_layer_kind), soft_grow);
 #else
   vec4 box = (OW_KIND(ow_layer_kind) == OW_KIND_PARABOLOID) ? ow_paraboloid_box(l0, l1, l2)
                                                           : ow_cube_box(l0, l1, l2, ow_clip_near);

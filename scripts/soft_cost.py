@@ -1,13 +1,15 @@
 """The cost of soft shadows against the hard version of each method, in one run (issue 27).
 
-    .venv/bin/python scripts/soft_cost.py REFERENCE.npz [--methods dpsm,dpsm+notw,...]
+    .venv/bin/python scripts/soft_cost.py REFERENCE.npz [--methods dpsm,dpsm+notw,exact,...]
                                           [--resolution 1024] [--frames 5] [--light-samples 16,32,64]
+                                          [--exact-samples 16,64,256]
 
 REFERENCE is a cached sized-light reference (`omniwarp reference --blend F --light L`
 writes it under .cache/reference/). Per method it renders the light hard (its size
-taken away) and sized with each light-sample count, alternating frame by frame, and
-prints a markdown table: median total and shadow-test time, their ratio to hard, and the
-error against the reference. The moderngl backend, this machine.
+taken away) and sized with each light-sample count (the filter's taps, or for `exact` its
+points per view sample), alternating frame by frame, and prints a markdown table: median
+total, maps and shadow-test time, their ratio to hard, and the error against the
+reference. The moderngl backend, this machine.
 """
 from __future__ import annotations
 
@@ -36,6 +38,7 @@ def main() -> int:
     parser.add_argument("--resolution", type=int, default=1024)
     parser.add_argument("--frames", type=int, default=5)
     parser.add_argument("--light-samples", default="16,32,64")
+    parser.add_argument("--exact-samples", default="16,64,256")
     args = parser.parse_args()
     ref = ReferenceData.load(args.reference)
     sized = light_from_reference(ref)
@@ -48,17 +51,21 @@ def main() -> int:
     scene = resident_scene(ref)
     evaluable = metrics.evaluable_mask(ref.position, ref.normal, ref.hit, ref.unshadowed, sized)
     counts = [int(v) for v in args.light_samples.split(",")]
+    exact_counts = [int(v) for v in args.exact_samples.split(",")]
     print(f"- measured: {datetime.datetime.now(datetime.timezone.utc):%Y-%m-%d %H:%M} UTC, "
           f"{pipeline.backend.renderer()}")
     print(f"- reference: {ref.meta.get('blend', ref.meta.get('preset'))}, light {ref.meta.get('light')} "
           f"({sized.shape.describe()}), {ref.resolution[0]}x{ref.resolution[1]}, {ref.meta.get('samples')} samples")
     print(f"- maps at {args.resolution}; medians of {args.frames} frames after a warm-up, the variants "
           "alternating frame by frame\n")
-    print("| method | light | light samples | total ms | test ms | total / hard | test / hard | error % | soft error % |")
-    print("|---|---|---|---|---|---|---|---|---|")
+    print("| method | light | light samples | total ms | maps ms | test ms | total / hard | maps / hard | test / hard "
+          "| error % | soft error % |")
+    print("|---|---|---|---|---|---|---|---|---|---|---|")
     for method in args.methods.split(","):
-        variants = [("hard", hard, 1)] + [("sized", sized, n) for n in counts]
-        settings = [settings_for(method, args.resolution, light_samples=n) for _, _, n in variants]
+        exact = settings_for(method, args.resolution).exact
+        variants = [("hard", hard, 1)] + [("sized", sized, n) for n in (exact_counts if exact else counts)]
+        key = "exact_samples" if exact else "light_samples"
+        settings = [settings_for(method, args.resolution, **{key: n}) for _, _, n in variants]
         for (_, light, _), s in zip(variants, settings):
             pipeline.render(light, scene, samples, s)  # warm-up: compile, allocate
         times: list[list[dict]] = [[] for _ in variants]
@@ -67,15 +74,14 @@ def main() -> int:
             for i, ((_, light, _), s) in enumerate(zip(variants, settings)):
                 last[i] = pipeline.render(light, scene, samples, s)
                 times[i].append(last[i].time_ms)
-        base_total = statistics.median(t["total"] for t in times[0])
-        base_test = statistics.median(t["shadow_test"] for t in times[0])
+        stages = ("total", "shadow_maps", "shadow_test")
+        base = [statistics.median(t[stage] for t in times[0]) for stage in stages]
         for (kind, _, n), frames, result in zip(variants, times, last):
-            total = statistics.median(t["total"] for t in frames)
-            test = statistics.median(t["shadow_test"] for t in frames)
+            ms = [statistics.median(t[stage] for t in frames) for stage in stages]
             judged = metrics.judge(result.visibility, ref.shadowed, ref.unshadowed, evaluable, sized=True)
-            print(f"| {method} | {kind} | {n if kind == 'sized' else ''} | {total:.1f} | {test:.1f} | "
-                  f"{total / base_total:.2f} | {test / base_test:.2f} | {judged.figure.error_pct:.3f} | "
-                  f"{judged.soft_error_pct:.3f} |", flush=True)
+            ratios = " | ".join(f"{a / b:.2f}" for a, b in zip(ms, base))
+            print(f"| {method} | {kind} | {n if kind == 'sized' else ''} | {ms[0]:.1f} | {ms[1]:.1f} | {ms[2]:.1f} | "
+                  f"{ratios} | {judged.figure.error_pct:.3f} | {judged.soft_error_pct:.3f} |", flush=True)
     pipeline.backend.release()
     return 0
 

@@ -137,8 +137,11 @@ class OMNIWARP_PT_light(bpy.types.Panel):
             box = layout.box()
             box.label(text="Soft shadows (the light's size)")
             col = box.column(align=True)
-            col.prop(props, "light_samples")
-            col.prop(props, "search_samples")
+            if props.exact and parameterization in EXACT_PARAMETERIZATIONS:
+                col.prop(props, "exact_samples")  # the exact pass samples the light itself
+            else:
+                col.prop(props, "light_samples")
+                col.prop(props, "search_samples")
         layout.prop(props, "cull")
         draw_line_gaps(layout)
 

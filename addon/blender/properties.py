@@ -30,6 +30,7 @@ from ..core.methods import PARAMETERIZATION_TEXT, WARP_TEXT
 from ..core.scene import PROJECTIVE_EMISSIONS, Emission, LightSpec, spot_emission
 from ..render import blender_compat
 from ..reference import light_size
+from ..render.frame import EXACT_SAMPLES
 from ..render.pipeline import BiasSettings, ShadowSettings
 from ..render.shaders import SOFT_MAX_POINTS, SOFT_MAX_SEARCH
 from . import events
@@ -172,6 +173,9 @@ def _parameterization_read(self: bpy.types.PropertyGroup, value: int, is_set: bo
 _PARAMETERIZATION_EXTRA: dict = {"get_transform": _parameterization_read} if _HAS_GET_TRANSFORM else {}
 
 
+# The exact pass's choices of a sized light's points (squares: ShadowSettings.exact_samples).
+EXACT_SAMPLE_ITEMS = tuple((str(n), str(n), f"{n} points of the light per view sample") for n in (16, 64, 144, 256))
+
 class OMNIWARP_PG_light(bpy.types.PropertyGroup):
     """OmniWarp shadow settings of one light (`light.omniwarp`)."""
 
@@ -284,6 +288,15 @@ class OMNIWARP_PG_light(bpy.types.PropertyGroup):
         default=8,
         min=1,
         max=SOFT_MAX_SEARCH,
+        update=_request_update,
+    )
+    exact_samples: EnumProperty(
+        name="Exact Samples",
+        description="Soft shadows of the exact method: points of the light each view sample tests every "
+                    "triangle against (one per cell of a square grid on the light). More follow Cycles more "
+                    "closely; the exact pass's cost grows with them where a triangle can shadow part of the light",
+        items=EXACT_SAMPLE_ITEMS,
+        default=str(EXACT_SAMPLES),
         update=_request_update,
     )
     cull: BoolProperty(
@@ -428,6 +441,7 @@ def shadow_settings_for(light: bpy.types.Light) -> ShadowSettings:
         exact=bool(props.exact) and parameterization in EXACT_PARAMETERIZATIONS,
         light_samples=int(props.light_samples),
         search_samples=int(props.search_samples),
+        exact_samples=int(props.exact_samples),
     )
 
 

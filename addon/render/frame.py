@@ -24,6 +24,8 @@ from .backend import AtlasLayout
 from .shaders import EXACT_SOFT_MAX_POINTS, SOFT_MAX_POINTS, SOFT_MAX_SEARCH
 
 MIN_RESOLUTION = 16
+# The exact pass's points of a sized light per view sample, by default (ShadowSettings).
+EXACT_SAMPLES = 64
 
 
 MAX_RESOLUTION = 4096
@@ -82,7 +84,7 @@ class ShadowSettings:
     search_samples: int = 8
     # The exact pass of a sized light: its points per view sample (lib/exact_soft.glsl), a
     # square, one point per cell of a square grid.
-    exact_samples: int = 64
+    exact_samples: int = EXACT_SAMPLES
 
     def __post_init__(self) -> None:
         known = POINT_PARAMETERIZATIONS + PROJECTIVE_PARAMETERIZATIONS
@@ -107,11 +109,17 @@ class ShadowSettings:
             value = getattr(self, name)
             if not (isinstance(value, int) and 1 <= value <= most):
                 raise InputError(f"{name} {value!r} must be a whole number in [1, {most}]")
-        samples = self.exact_samples
-        if not (isinstance(samples, int) and 1 <= samples <= EXACT_SOFT_MAX_POINTS
-                and math.isqrt(samples) ** 2 == samples):
-            raise InputError(f"exact_samples {samples!r} must be a square number (4, 16, 64, ...) "
-                             f"in [1, {EXACT_SOFT_MAX_POINTS}]")
+        check_exact_samples(self.exact_samples)
+
+
+def check_exact_samples(samples: object, name: str = "exact_samples") -> int:
+    """A sized light's points per view sample in the exact pass: a square number (one point a
+    cell of a square grid, so the pattern stays even) in [1, EXACT_SOFT_MAX_POINTS]."""
+    if not (isinstance(samples, int) and 1 <= samples <= EXACT_SOFT_MAX_POINTS
+            and math.isqrt(samples) ** 2 == samples):
+        raise InputError(f"{name} {samples!r}: must be a square number (4, 16, 64, ...) "
+                         f"in [1, {EXACT_SOFT_MAX_POINTS}]")
+    return samples
 
 
 def settings_for(method: str, resolution: int, **fields) -> ShadowSettings:

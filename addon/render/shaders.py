@@ -520,9 +520,10 @@ def exact_soft_of(base: ProgramInterface) -> ProgramInterface:
         defines = {**base.defines, EXACT_SOFT_DEFINE: "1"}
         if footprint_pass:
             # The walk tests each triangle's edges from the sample: their vertices in one
-            # order whichever triangle asks (hi, and the swap in w), and a bounding sphere.
-            varyings = base.varyings + tuple(Varying("vec4", f"v_edge_hi{i}", flat=True) for i in range(3)) + (
-                Varying("vec4", "v_bound", flat=True),)
+            # order whichever triangle asks (hi, and the swap in w); and first the sample's
+            # angle from the triangle's edges (v_cull).
+            varyings = base.varyings + tuple(Varying("vec4", f"v_edge_hi{i}", flat=True) for i in range(3)) + tuple(
+                Varying("vec4", f"v_cull{i}", flat=True) for i in range(3))
             images = base.images
         else:
             varyings, images = base.varyings, (("r32ui", "ow_hits"),)

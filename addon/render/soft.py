@@ -61,6 +61,14 @@ def soft_shadowed(light: LightSpec, settings: ShadowSettings) -> bool:
     return filters(light, settings) or exact_soft(light, settings)
 
 
+def light_points(light: LightSpec, settings: ShadowSettings) -> int | None:
+    """The light's points a view sample's soft shadow follows (the filter's taps, or the
+    exact pass's points), or None where the frame's shadows are hard."""
+    if exact_soft(light, settings):
+        return int(settings.exact_samples)
+    return int(settings.light_samples) if filters(light, settings) else None
+
+
 def soft_uniforms(light: LightSpec, settings: ShadowSettings) -> dict:
     """The shadow test's soft uniforms: the filter's, or the exact pass's weighing of its
     marks; ow_soft_count 0 and no exact points (the hard test) for a hard light."""

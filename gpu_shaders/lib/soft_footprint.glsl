@@ -108,13 +108,18 @@ vec4 ow_cap_cube_box(vec3 axis, float spread)
 // The grown footprint's box in the layer (projection coordinates): the cap around the
 // triangle's directions widened by the light's angle; on a paraboloid, a triangle wholly in
 // front also keeps within that angle of its own box (the map's scale is at most 1 there).
-vec4 ow_soft_box(vec3 l0, vec3 l1, vec3 l2, int kind, float reach)
+// The angle the light's reach subtends from a triangle d_min from its centre, a little
+// over for float32 rounding; above pi / 2 (the whole sphere) when d_min <= 1.5 R.
+float ow_soft_grow(float d_min, float reach)
 {
-  float d_min = ow_origin_distance(l0, l1, l2);
-  if (!(d_min > 1.5 * reach)) {
+  return (d_min > 1.5 * reach) ? asin(reach / d_min) + 1e-4 : 4.0;
+}
+
+vec4 ow_soft_box(vec3 l0, vec3 l1, vec3 l2, int kind, float grow)
+{
+  if (grow > 1.5707963267948966) {
     return OW_WHOLE_BOX;
   }
-  float grow = asin(reach / d_min) + 1e-4;  // a little over, for float32 rounding
   vec3 n0 = normalize(l0);
   vec3 n1 = normalize(l1);
   vec3 n2 = normalize(l2);
