@@ -26,6 +26,7 @@ from the light is formed in float64 on the host.
 """
 from __future__ import annotations
 
+import dataclasses
 import logging
 import math
 import time
@@ -77,7 +78,7 @@ from .parameterizations import (
 )
 from .resident import ResidentScene
 from .shaders import PARAM_CODES, SLOTS
-from .soft import exact_soft, hit_words, soft_uniforms
+from .soft import exact_soft, hit_words, list_resolution, soft_uniforms
 from .unfold import edge_aa_parameters
 
 log = logging.getLogger(__name__)
@@ -217,6 +218,8 @@ class ShadowPipeline:
                 settings: ShadowSettings, keep_atlas: bool, scene_ms: float = 0.0,
                 count_work: bool = False) -> FrameResult:
         backend = self.backend
+        # A sized light's exact pass lists its samples coarser (soft.list_resolution).
+        settings = dataclasses.replace(settings, resolution=list_resolution(light, settings))
         timings: dict[str, float] = {}
         t0 = time.perf_counter()
         self._upload_samples(light, samples)
@@ -456,7 +459,8 @@ def count_statistics(pipeline: ShadowPipeline, light: LightSpec, settings: Shado
     must still be bound, which holds right after `render`. Spot and sun maps count
     in numpy and need `samples` (G-buffer samples are read back for it).
     """
-    res = settings.resolution
+    # The frame's own resolution: a sized light's exact pass lists coarser (soft.list_resolution).
+    res = result.layout.resolution if result.layout is not None else settings.resolution
     if result.plan.projective is not None:
         if samples is None:
             raise InputError("count statistics of a spot or sun map need the view samples")

@@ -10,9 +10,12 @@ import numpy as np
 
 from ..core.light_shape import Area, LightShape, Sphere, stratified_points
 from ..core.scene import LightSpec
-from .frame import ShadowSettings
+from .frame import MIN_RESOLUTION, ShadowSettings
 from .shaders import EXACT_SOFT_KEY, SOFT_KINDS, SOFT_MAX_POINTS, SOFT_MAX_SEARCH
 
+# The exact soft pass lists its samples at 1 / EXACT_SOFT_LIST_SHARE of the map resolution
+# (list_resolution).
+EXACT_SOFT_LIST_SHARE = 4
 # The exact soft pass's light kinds (ow_exact_light.x) and area outlines (.w).
 EXACT_KINDS = {"sphere": 1, "area": 2}
 EXACT_OUTLINES = {"rectangle": 0, "ellipse": 1}
@@ -94,6 +97,17 @@ def exact_soft_uniforms(light: LightSpec, settings: ShadowSettings) -> dict:
         described = (EXACT_KINDS["area"], shape.size_x, shape.size_y, EXACT_OUTLINES[shape.outline])
     return {"ow_exact_light": np.array(described, dtype=np.float64), "ow_exact_reach": light_reach(shape),
             "ow_exact_frame": light.rotation, EXACT_SOFT_KEY: int(settings.exact_samples)}
+
+
+def list_resolution(light: LightSpec, settings: ShadowSettings) -> int:
+    """The resolution a frame's maps and lists run at: the settings', but a quarter of it
+    (at least MIN_RESOLUTION) for the exact pass of a sized light. Its footprints grow by the
+    light's angle, so a texel-fine list grid gives each triangle many fragments over few
+    samples; coarser lists hold more samples each, so the same entries are walked by
+    fewer fragments. The exact pass's answer does not depend on it."""
+    if not exact_soft(light, settings):
+        return settings.resolution
+    return max(MIN_RESOLUTION, min(settings.resolution, settings.resolution // EXACT_SOFT_LIST_SHARE))
 
 
 def hit_words(light: LightSpec, settings: ShadowSettings) -> int:
