@@ -96,8 +96,92 @@ void ow_exact_walk()
 }
 #endif
 
+#ifdef OW_EXACT
+#ifndef OW_FIXED_KIND
+// The exact pass over a spot's or sun's map (issue 27). Whether this triangle blocks the
+// light of sample p (light-centred); `sides` are p's sides of the three edge planes,
+// positive inside (footprint.vert: planes through a spot, or containing a sun's direction).
+// A spot is a point light: the plane must cut the segment from the light to p, more than
+// ow_exact_eps of its length before p, as in ow_exact_walk. A sun shines along
+// ow_light_axis from infinitely far: the ray from p towards it, p - t axis, meets the plane
+// at t = h / (n . axis) (h: p's height over the plane, from a point of it), which must lie
+// upstream by more than ow_exact_eps |p|, the same share of p's distance from the origin,
+// which is what float32 rounds p to.
+bool ow_projective_blocks(vec3 p, out vec3 sides)
+{
+  precise float side0 = dot(p - v_edge_at0, v_edge0);
+  precise float side1 = dot(p - v_edge_at1, v_edge1);
+  precise float side2 = dot(p - v_edge_at2, v_edge2);
+  sides = vec3(side0, side1, side2);
+  if (!(side0 >= 0.0 && side1 >= 0.0 && side2 >= 0.0)) {
+    return false;
+  }
+  precise float h = dot(v_plane.xyz, p - v_edge_at0);
+  if (ow_sun != 0) {
+    float q = dot(v_plane.xyz, ow_light_axis);
+    return q != 0.0 && h / q > ow_exact_eps * length(p);
+  }
+  float s = dot(v_plane.xyz, p);
+  return s != 0.0 && v_plane.w / s > 0.0 && h / s > ow_exact_eps;
+}
+
+// Mark sample `at` as crossed by this triangle: opaque, or the optical depth of a
+// see-through crossing (core/alpha.py), its UV from the barycentrics, which the edge sides
+// are proportional to (side i to the weight of the vertex opposite edge i).
+void ow_exact_mark(ivec2 at, vec3 sides)
+{
+#ifdef OW_ALPHA
+  vec3 w = sides.yzx / (sides.x + sides.y + sides.z);
+  float alpha = ow_alpha_at(w.x * v_uv01.xy + w.y * v_uv01.zw + w.z * v_uv2);
+  if (alpha >= OW_OPAQUE_ALPHA) {
+    imageAtomicOr(ow_hits, at, OW_HIT_OPAQUE);
+  } else if (alpha > OW_CLEAR_ALPHA) {
+    imageAtomicAdd(ow_hits, at, uint(-log(1.0 - alpha) * OW_OPTICAL_SCALE + 0.5));
+  }
+#else
+  imageAtomicOr(ow_hits, at, OW_HIT_OPAQUE);
+#endif
+}
+
+// This texel's list walked, as ow_exact_walk walks it (the bound, the rounds, the counting
+// variant), testing each sample with ow_projective_blocks.
+void ow_exact_walk_projective()
+{
+  ivec2 texel = ivec2(gl_FragCoord.xy - ow_tile_origin);
+  int res = int(ow_resolution);
+  uint node = imageLoad(ow_counts, texel + ivec2(ow_exact_tile * res, 0)).x;
+  int width = textureSize(ow_positions, 0).x;
+  int step = 0;
+  for (; step < ow_exact_bound && node != 0u; step++) {
+    int index = int(node) - 1;
+    ivec2 at = ivec2(index % width, index / width);
+    vec3 sides;
+    if (ow_projective_blocks(texelFetch(ow_positions, at, 0).xyz, sides)) {
+      ow_exact_mark(at, sides);
+    }
+    node = imageLoad(ow_next, at).x;
+  }
+  if (node != 0u) {
+    imageAtomicAdd(ow_work, ivec2(OW_WORK_CUT, 0), 1u);
+  }
+#ifdef OW_EXACT_COUNT
+  imageAtomicAdd(ow_work, ivec2(OW_WORK_ENTRIES, 0), uint(step));
+  imageAtomicAdd(ow_work, ivec2(OW_WORK_FRAGMENTS, 0), 1u);
+#endif
+}
+#endif
+#endif
+
 void main()
 {
+#ifdef OW_EXACT
+#ifndef OW_FIXED_KIND
+  if (ow_projective != 0) {
+    ow_exact_walk_projective();
+    discard;
+  }
+#endif
+#endif
 #ifdef OW_EXACT
   ow_exact_walk();
   discard;

@@ -205,6 +205,9 @@ FOOTPRINT_PROGRAM = ProgramInterface(
         Uniform("int", "ow_projective"),
         Uniform("int", "ow_map_inverted"),
         Uniform("mat4", "ow_map_matrix"),
+        # The exact pass over a sun's map: its edge planes contain the light's direction.
+        Uniform("int", "ow_sun"),
+        Uniform("vec3", "ow_light_axis"),
     ),
     samplers=_WARP_SAMPLERS + ("ow_vertices", "ow_ray_table"),
     varyings=(
@@ -283,6 +286,9 @@ SCATTER_PROGRAM = ComputeInterface(
         Uniform("int", "ow_scatter_mode"),
         Uniform("int", "ow_count_size"),
         Uniform("int", "ow_weighted"),
+        # A spot's or sun's map (the exact pass's lists): the samples go through its matrix.
+        Uniform("int", "ow_projective"),
+        Uniform("mat4", "ow_map_matrix"),
     ),
     samplers=("ow_positions",) + _WARP_SAMPLERS,
     images=(("r32ui", "ow_counts"),),

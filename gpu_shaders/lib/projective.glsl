@@ -30,3 +30,56 @@ float ow_projective_footprint(mat4 m, vec3 p, float resolution)
   float small = max(a * d - b * b, 0.0) / max(large, 1e-30);
   return 1.0 / (resolution * sqrt(max(small, 1e-30)));
 }
+
+// A conservative box (u0, u1, v0, v1) in uv of a triangle's image in a projective map, for
+// the exact pass's footprints: the part of the triangle in front of the map (clip w >=
+// w_min, Sutherland-Hodgman in clip space, where the map is linear) and the box of its
+// projected corners. A projective map takes the clipped triangle to the polygon of those
+// corners, so the box is the image's own; a parallel (sun) map has w = 1 everywhere and
+// clips nothing. Empty (u0 > u1) when no part is in front.
+vec4 ow_projective_box(mat4 m, vec3 v0, vec3 v1, vec3 v2, float w_min)
+{
+  vec4 c[3] = vec4[3](m * vec4(v0, 1.0), m * vec4(v1, 1.0), m * vec4(v2, 1.0));
+  vec4 box = vec4(1e30, -1e30, 1e30, -1e30);
+  for (int i = 0; i < 3; i++) {
+    vec4 a = c[i];
+    vec4 b = c[(i + 1) % 3];
+    bool a_in = a.w >= w_min;
+    if (a_in) {
+      vec2 xy = a.xy / a.w;
+      box = vec4(min(box.x, xy.x), max(box.y, xy.x), min(box.z, xy.y), max(box.w, xy.y));
+    }
+    if (a_in != (b.w >= w_min)) {
+      vec2 xy = mix(a.xy, b.xy, (w_min - a.w) / (b.w - a.w)) / w_min;  // the crossing, at w = w_min
+      box = vec4(min(box.x, xy.x), max(box.y, xy.x), min(box.z, xy.y), max(box.w, xy.y));
+    }
+  }
+  return (box.x > box.y) ? box : box * 0.5 + 0.5;
+}
+
+// The exact pass's edge plane of a parallel (sun) light travelling along `axis`, through
+// the edge (a, b) and containing the light's direction: the limit of a point light's plane
+// through the light and the edge as the light recedes along -axis. A normal axis x (b - a)
+// and a point `at` of the edge, so that a sample p's side is dot(p - at, normal); the
+// vertices are taken in one order whichever triangle asks (as the point lights' relative
+// edges in lib/footprint.glsl), so neighbours sharing the edge split the samples without a gap.
+void ow_parallel_edge(vec3 axis, vec3 a, vec3 b, out vec3 normal, out vec3 at)
+{
+  bool swap = a.x > b.x || (a.x == b.x && (a.y > b.y || (a.y == b.y && a.z > b.z)));
+  vec3 lo = swap ? b : a;
+  vec3 hi = swap ? a : b;
+  precise vec3 n = cross(axis, hi - lo);
+  normal = swap ? -n : n;
+  at = lo;
+}
+
+// The sign a sun light's edge sides take inside the triangle: that of axis . ((v1 - v0) x
+// (v2 - v0)), the limit of a point light's det(v0, v1, v2); 0 for a triangle seen edge-on
+// from the sun (within OW_EDGE_ON, as a point light's edge planes in lib/footprint.glsl), which covers
+// no ray.
+float ow_parallel_orientation(vec3 axis, vec3 v0, vec3 v1, vec3 v2)
+{
+  vec3 normal = cross(v1 - v0, v2 - v0);
+  float c = dot(axis, normal);
+  return (abs(c) > OW_EDGE_ON * length(normal)) ? sign(c) : 0.0;
+}
