@@ -125,6 +125,18 @@ bool ow_projective_blocks(vec3 p, out vec3 sides)
   return s != 0.0 && v_plane.w / s > 0.0 && h / s > ow_exact_eps;
 }
 
+// Sample p (light-centred, n its normal) lifted off its own surface towards the light, by
+// ow_exact_offset of its distance from the origin. float32 rounds p by about 1e-7 of that
+// distance, so on a surface edge-on to the light p would lie on either side of its own
+// plane, and of its neighbours' edge planes, by chance (sun_field's first hay bale is
+// turned to the sun's azimuth: its faces are parallel to the light, and half their samples
+// were shadowed by the box itself). Cycles starts its shadow rays on the lit side too.
+vec3 ow_exact_lift(vec3 p, vec3 n)
+{
+  vec3 to_light = (ow_sun != 0) ? -ow_light_axis : -p;
+  return p + ((dot(n, to_light) < 0.0) ? -n : n) * (ow_exact_offset * length(p));
+}
+
 // Mark sample `at` as crossed by this triangle: opaque, or the optical depth of a
 // see-through crossing (core/alpha.py), its UV from the barycentrics, which the edge sides
 // are proportional to (side i to the weight of the vertex opposite edge i).
@@ -155,8 +167,9 @@ void ow_exact_walk_projective()
   for (; step < ow_exact_bound && node != 0u; step++) {
     int index = int(node) - 1;
     ivec2 at = ivec2(index % width, index / width);
+    vec3 p = ow_exact_lift(texelFetch(ow_positions, at, 0).xyz, texelFetch(ow_normals, at, 0).xyz);
     vec3 sides;
-    if (ow_projective_blocks(texelFetch(ow_positions, at, 0).xyz, sides)) {
+    if (ow_projective_blocks(p, sides)) {
       ow_exact_mark(at, sides);
     }
     node = imageLoad(ow_next, at).x;

@@ -48,6 +48,13 @@ log = logging.getLogger(__name__)
 # The exact pass leaves out an occluder within this share of the segment's length from the
 # sample: the receiver's own surface, and its coplanar neighbours, in float32 rounding.
 EXACT_EPS = 1e-4
+# The exact pass over a spot's or sun's map lifts each sample off its own surface, towards
+# the light, by this share of its distance from the light-centred origin (footprint.frag's
+# ow_exact_lift): about three times float32's rounding of the sample (6e-8), far below a
+# pixel. On sun_field 5e-8 still left 333 samples of a face parallel to the sun shadowed by
+# their own box, 1e-7 to 2e-7 none; from 5e-7 on, the lift moves shadow edges on the
+# ground past Cycles' samples (1 pixel at 5e-7, 5 at 1e-6, 59 at 1e-5).
+EXACT_LIFT = 2e-7
 # Rounds of the exact pass after the first (_finish_lists): the bound doubles each round, so
 # 16 of them walk lists of up to 4096 * 2^17 entries, far more than any frame's samples.
 EXACT_MAX_ROUNDS = 16
@@ -261,7 +268,8 @@ class Projective(Parameterization):
         sun = light.emission == "sun"
         uniforms = {**uniforms, "ow_exact_tile": 0, "ow_exact_eps": EXACT_EPS, "ow_exact_bound": EXACT_MAX_WALK,
                     EXACT_COUNT_KEY: int(inputs.count_work), "ow_sun": int(sun), "ow_light_axis": light.axis,
-                    "ow_clip_near": 0.0 if sun else inputs.geometry.far * CLIP_NEAR_RELATIVE}
+                    "ow_clip_near": 0.0 if sun else inputs.geometry.far * CLIP_NEAR_RELATIVE,
+                    "ow_exact_offset": EXACT_LIFT}
         if not inputs.draws:
             return
         backend.draw_footprints(0, inputs.draws, uniforms, exact=True)
