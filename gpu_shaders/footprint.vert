@@ -75,10 +75,13 @@ float ow_sun_edges(vec3 v0, vec3 v1, vec3 v2)
   return orientation;
 }
 
-// The exact pass over a spot's or sun's map: the quad over the box of the triangle's image
-// (its part in front of the map), dilated by `ow_dilate` texels, so that every texel whose
+// The exact pass over a spot's or sun's map: a conservative cover of the triangle's image
+// (its part in front of the map), grown by `ow_dilate` texels, so that every texel whose
 // square meets the image gets a fragment; the rasterised triangle itself would miss the
-// texels whose centres lie outside it. `corner` as the layers' quads.
+// texels whose centres lie outside it. The image's own triangle with its edges moved out
+// where the triangle lies wholly in front and that is smaller (about half the fragments
+// of a box on a plain mesh), else the quad over the image's box; `corner` as the layers'
+// quads.
 vec4 ow_projective_quad(vec3 v0, vec3 v1, vec3 v2, int corner)
 {
   vec4 box = ow_projective_box(ow_map_matrix, v0, v1, v2, ow_clip_near);
@@ -86,6 +89,15 @@ vec4 ow_projective_quad(vec3 v0, vec3 v1, vec3 v2, int corner)
   box += vec4(-grow, grow, -grow, grow);
   if (box.x > box.y || box.x > 1.0 || box.y < 0.0 || box.z > 1.0 || box.w < 0.0) {
     return vec4(2.0, 2.0, 2.0, 1.0);  // behind the map or beside it: nothing drawn
+  }
+  vec4 c0 = ow_map_matrix * vec4(v0, 1.0);
+  vec4 c1 = ow_map_matrix * vec4(v1, 1.0);
+  vec4 c2 = ow_map_matrix * vec4(v2, 1.0);
+  vec2 corner_uv;
+  if (min(min(c0.w, c1.w), c2.w) >= ow_clip_near
+      && ow_dilated_triangle(c0.xy / c0.w * 0.5 + 0.5, c1.xy / c1.w * 0.5 + 0.5, c2.xy / c2.w * 0.5 + 0.5, grow,
+                             corner, (box.y - box.x) * (box.w - box.z), corner_uv)) {
+    return vec4(corner_uv * 2.0 - 1.0, 0.0, 1.0);
   }
   box = clamp(box, 0.0, 1.0);
   vec2 uv = vec2(((corner & 1) != 0) ? box.y : box.x, ((corner & 2) != 0) ? box.w : box.z);

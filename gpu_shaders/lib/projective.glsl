@@ -83,3 +83,36 @@ float ow_parallel_orientation(vec3 axis, vec3 v0, vec3 v1, vec3 v2)
   float c = dot(axis, normal);
   return (abs(c) > OW_EDGE_ON * length(normal)) ? sign(c) : 0.0;
 }
+
+// A tighter conservative cover than the box for a triangle wholly in front of a projective
+// map, whose image is the triangle of its projected corners a, b, c (uv): each edge's line
+// moved outward by the support of a square of half-side `grow` (|n.x| + |n.y|) grow, so
+// every texel whose square, grown by the same slack as the box's, meets the image has its
+// centre inside; `corner` 0-2 of the moved lines' triangle (3 repeats 2, as the quad's
+// corners of the projective depth pass). False where that triangle is not smaller than
+// `box_area`: a sliver's moved corners run far out along its sharp angles.
+bool ow_dilated_triangle(vec2 a, vec2 b, vec2 c, float grow, int corner, float box_area, out vec2 uv)
+{
+  uv = vec2(0.0);
+  vec2 p[3] = vec2[3](a, b, c);
+  float turn = sign((b.x - a.x) * (c.y - a.y) - (b.y - a.y) * (c.x - a.x));
+  vec3 line[3];  // outward unit normal n and offset d: n . x <= d inside
+  for (int i = 0; i < 3; i++) {
+    vec2 e = p[(i + 1) % 3] - p[i];
+    vec2 n = turn * vec2(e.y, -e.x) / max(length(e), 1e-30);
+    line[i] = vec3(n, dot(n, p[i]) + grow * (abs(n.x) + abs(n.y)));
+  }
+  vec2 q[3];
+  for (int k = 0; k < 3; k++) {
+    vec3 l0 = line[(k + 2) % 3];  // the edge into corner k, then the one out of it
+    vec3 l1 = line[k];
+    float det = l0.x * l1.y - l0.y * l1.x;
+    q[k] = vec2(l0.z * l1.y - l0.y * l1.z, l0.x * l1.z - l0.z * l1.x) / det;
+  }
+  float area = 0.5 * abs((q[1].x - q[0].x) * (q[2].y - q[0].y) - (q[1].y - q[0].y) * (q[2].x - q[0].x));
+  if (turn == 0.0 || !(area < box_area)) {
+    return false;  // no area (seen edge-on), a sliver, or not finite
+  }
+  uv = q[min(corner, 2)];
+  return true;
+}
