@@ -126,7 +126,7 @@ bool ow_projective_blocks(vec3 p, out vec3 sides)
 }
 
 // Sample p (light-centred, n its normal) lifted off its own surface towards the light, by
-// ow_exact_offset of its distance from the origin. float32 rounds p by about 1e-7 of that
+// ow_exact_lift_share of its distance from the origin. float32 rounds p by about 1e-7 of that
 // distance, so on a surface edge-on to the light p would lie on either side of its own
 // plane, and of its neighbours' edge planes, by chance (sun_field's first hay bale is
 // turned to the sun's azimuth: its faces are parallel to the light, and half their samples
@@ -134,7 +134,7 @@ bool ow_projective_blocks(vec3 p, out vec3 sides)
 vec3 ow_exact_lift(vec3 p, vec3 n)
 {
   vec3 to_light = (ow_sun != 0) ? -ow_light_axis : -p;
-  return p + ((dot(n, to_light) < 0.0) ? -n : n) * (ow_exact_offset * length(p));
+  return p + ((dot(n, to_light) < 0.0) ? -n : n) * (ow_exact_lift_share * length(p));
 }
 
 // Mark sample `at` as crossed by this triangle: opaque, or the optical depth of a

@@ -258,18 +258,18 @@ class Projective(Parameterization):
 
     @staticmethod
     def _draw_exact(backend: ShadowBackend, inputs: DrawInputs, uniforms: dict) -> None:
-        """The irregular z-buffer over the map (issue 27): every triangle over the box of its
-        image, walking the lists of the map's texels (tile 0, linked through the map's
-        matrix). A spot's triangle is clipped to the map's front, w >= CLIP_NEAR_RELATIVE * far
-        (the map's w is the depth along the spot's axis); a sun's map has w = 1 and clips
-        nothing. The footprints are quads: a box's size in texels has no bound here that
-        would fit a point sprite."""
+        """The irregular z-buffer over the map (issue 27): every triangle over a conservative
+        cover of its image (footprint.vert's ow_projective_quad), walking the lists of the
+        map's texels (tile 0, linked through the map's matrix). A spot's triangle is clipped
+        to the map's front, w >= CLIP_NEAR_RELATIVE * far (the map's w is the depth along the
+        spot's axis); a sun's map has w = 1 and clips nothing. The covers are quads: their
+        size in texels has no bound here that would fit a point sprite."""
         light = inputs.light
         sun = light.emission == "sun"
         uniforms = {**uniforms, "ow_exact_tile": 0, "ow_exact_eps": EXACT_EPS, "ow_exact_bound": EXACT_MAX_WALK,
                     EXACT_COUNT_KEY: int(inputs.count_work), "ow_sun": int(sun), "ow_light_axis": light.axis,
                     "ow_clip_near": 0.0 if sun else inputs.geometry.far * CLIP_NEAR_RELATIVE,
-                    "ow_exact_offset": EXACT_LIFT}
+                    "ow_exact_lift_share": EXACT_LIFT}
         if not inputs.draws:
             return
         backend.draw_footprints(0, inputs.draws, uniforms, exact=True)

@@ -209,7 +209,7 @@ FOOTPRINT_PROGRAM = ProgramInterface(
         # direction, and the samples are lifted off their surfaces by a share of their distance.
         Uniform("int", "ow_sun"),
         Uniform("vec3", "ow_light_axis"),
-        Uniform("float", "ow_exact_offset"),
+        Uniform("float", "ow_exact_lift_share"),
     ),
     samplers=_WARP_SAMPLERS + ("ow_vertices", "ow_ray_table"),
     varyings=(

@@ -194,3 +194,19 @@ def test_a_face_parallel_to_the_sun_is_not_shadowed_by_its_own_box(gl_backend, m
     unlifted = pipe.render(scene.light, scene.world_triangles(), samples, settings).visibility[face]
     assert (lifted > 0.5).all(), int((lifted < 0.5).sum())
     assert (unlifted < 0.5).sum() > 0.05 * face.sum(), int((unlifted < 0.5).sum())
+
+
+def test_a_sized_spot_keeps_hard_exact_shadows_and_its_row_says_so():
+    """Soft shadows filter the point lights' maps only: a spot with a radius gets the hard
+    exact pass, and the compare row carries the note of the methods whose shadows stay hard."""
+    from addon.compare import HARD_SIZED_NOTE, _row_note
+    from addon.core.light_shape import Sphere
+    from addon.render import soft
+    from addon.render.pipeline import settings_for
+
+    light = LightSpec("spot", look_at((0.0, 0.0, 5.0), (0.0, 0.0, 0.0)), spot_size=1.0, shape=Sphere(0.3))
+    settings = settings_for("exact", 256, light.emission)
+    assert light.sized and settings.exact and not soft.filters(light, settings)
+    assert soft.soft_uniforms(light, settings) == {"ow_soft_count": 0}
+    scene = ResidentScene.of_triangles(np.array([[[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0]]]))
+    assert _row_note(light, settings, scene) == HARD_SIZED_NOTE
