@@ -148,7 +148,7 @@ def run_row(pipeline: ShadowPipeline, ref: ReferenceData, preset: str, method: s
     `tag` (a job's frame, light and camera) goes into the image names."""
     light = light_from_reference(ref)
     samples = samples_from_reference(ref)
-    settings = settings_for(method, resolution, cull=options.cull, exact_samples=options.exact_samples)
+    settings = settings_for(method, resolution, light.emission, cull=options.cull, exact_samples=options.exact_samples)
     scene = scene if scene is not None else resident_scene(ref)
     pipeline.render(light, scene, samples, settings)  # warm-up: shader compile, allocation, upload
     count = max(1, options.frames)

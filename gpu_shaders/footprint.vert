@@ -15,6 +15,7 @@
 #include "lib/projection.glsl"
 #include "lib/mapping.glsl"
 #include "lib/footprint.glsl"
+#include "lib/projective.glsl"
 #ifdef OW_EXACT_SOFT
 #include "lib/soft_footprint.glsl"
 #endif
@@ -59,6 +60,54 @@ bool ow_outside_region(vec3 v0, vec3 v1, vec3 v2)
   }
   return false;
 }
+
+#ifdef OW_EXACT
+#ifndef OW_FIXED_KIND
+// The exact pass over a sun's map: the edge planes that contain the light's direction
+// (lib/projective.glsl) in place of the planes through the light; returns the orientation.
+float ow_sun_edges(vec3 v0, vec3 v1, vec3 v2)
+{
+  float orientation = ow_parallel_orientation(ow_light_axis, v0, v1, v2);
+  vec3 n0, n1, n2;
+  ow_parallel_edge(ow_light_axis, v0, v1, n0, v_edge_at0);
+  ow_parallel_edge(ow_light_axis, v1, v2, n1, v_edge_at1);
+  ow_parallel_edge(ow_light_axis, v2, v0, n2, v_edge_at2);
+  v_edge0 = n0 * orientation;
+  v_edge1 = n1 * orientation;
+  v_edge2 = n2 * orientation;
+  return orientation;
+}
+
+// The exact pass over a spot's or sun's map: a conservative cover of the triangle's image
+// (its part in front of the map), grown by `ow_dilate` texels, so that every texel whose
+// square meets the image gets a fragment; the rasterised triangle itself would miss the
+// texels whose centres lie outside it. The image's own triangle with its edges moved out
+// where the triangle lies wholly in front and that is smaller (about half the fragments
+// of a box on a plain mesh), else the quad over the image's box; `corner` as the layers'
+// quads.
+vec4 ow_projective_quad(vec3 v0, vec3 v1, vec3 v2, int corner)
+{
+  vec4 box = ow_projective_box(ow_map_matrix, v0, v1, v2, ow_clip_near);
+  float grow = ow_dilate / ow_resolution;
+  box += vec4(-grow, grow, -grow, grow);
+  if (box.x > box.y || box.x > 1.0 || box.y < 0.0 || box.z > 1.0 || box.w < 0.0) {
+    return vec4(2.0, 2.0, 2.0, 1.0);  // behind the map or beside it: nothing drawn
+  }
+  vec4 c0 = ow_map_matrix * vec4(v0, 1.0);
+  vec4 c1 = ow_map_matrix * vec4(v1, 1.0);
+  vec4 c2 = ow_map_matrix * vec4(v2, 1.0);
+  vec2 corner_uv;
+  if (min(min(c0.w, c1.w), c2.w) >= ow_clip_near
+      && ow_dilated_triangle(c0.xy / c0.w * 0.5 + 0.5, c1.xy / c1.w * 0.5 + 0.5, c2.xy / c2.w * 0.5 + 0.5, grow,
+                             corner, (box.y - box.x) * (box.w - box.z), corner_uv)) {
+    return vec4(corner_uv * 2.0 - 1.0, 0.0, 1.0);
+  }
+  box = clamp(box, 0.0, 1.0);
+  vec2 uv = vec2(((corner & 1) != 0) ? box.y : box.x, ((corner & 2) != 0) ? box.w : box.z);
+  return vec4(uv * 2.0 - 1.0, 0.0, 1.0);
+}
+#endif
+#endif
 
 // The quad's corner (bit 0: high x, bit 1: high y) of each of the six vertices.
 const int OW_QUAD_CORNER[OW_FOOTPRINT_VERTICES] = int[OW_FOOTPRINT_VERTICES](0, 1, 2, 2, 1, 3);
@@ -110,6 +159,13 @@ void main()
   v_edge0 = n0 * orientation;
   v_edge1 = n1 * orientation;
   v_edge2 = n2 * orientation;
+#ifdef OW_EXACT
+#ifndef OW_FIXED_KIND
+  if (ow_projective != 0 && ow_sun != 0) {
+    orientation = ow_sun_edges(v0, v1, v2);
+  }
+#endif
+#endif
 #ifdef OW_ALPHA
   vec2 uv0 = ow_pull_uv(base);
   vec2 uv1 = ow_pull_uv(base + 1);
@@ -123,6 +179,14 @@ void main()
     gl_Position = parked;
     return;
   }
+#ifdef OW_EXACT
+#ifndef OW_FIXED_KIND
+  if (ow_projective != 0) {
+    gl_Position = ow_projective_quad(v0, v1, v2, corner);
+    return;
+  }
+#endif
+#endif
 #ifndef OW_FIXED_KIND
   if (ow_projective != 0) {
     // Spot or sun map: the triangle itself, projected linearly (exact); the quad's

@@ -12,12 +12,35 @@
 #include "lib/projection.glsl"
 #include "lib/layers.glsl"
 #include "lib/mapping.glsl"
+#include "lib/projective.glsl"
 
 #ifdef OW_SCATTER_MODE
 #define OW_MODE OW_SCATTER_MODE
 #else
 #define OW_MODE ow_scatter_mode
 #endif
+
+// Sample `index` (of the `size` sample texture; `pw` its position and weight) goes to the
+// texel of tile `tile` that holds its map position `uv`.
+void ow_scatter_to(int index, ivec2 size, vec4 pw, int tile, vec2 uv)
+{
+  // Points outside [0, 1)^2, or NaN, are dropped, as in warping.scatter_counts (the
+  // numpy oracle); written so that a NaN fails the test instead of reaching floor().
+  if (!(all(greaterThanEqual(uv, vec2(0.0))) && all(lessThan(uv, vec2(1.0))))) {
+    return;
+  }
+  ivec2 texel = min(ivec2(floor(uv * float(ow_count_size))), ivec2(ow_count_size - 1));
+#ifdef OW_LINK
+  // The irregular z-buffer's lists (shaders.link_variant): the sample goes to the front of
+  // its texel's list. A texel of ow_counts holds the list's head (0: empty, else sample
+  // index + 1), ow_next the rest, so the list lengths are the counts of mode 2.
+  uint previous = imageAtomicExchange(ow_counts, texel + ivec2(tile * ow_count_size, 0), uint(index + 1));
+  imageStore(ow_next, ivec2(index % size.x, index / size.x), uvec4(previous));
+#else
+  uint amount = ow_weighted != 0 ? uint(pw.w + 0.5) : 1u;
+  imageAtomicAdd(ow_counts, texel + ivec2(tile * ow_count_size, 0), amount);
+#endif
+}
 
 void main()
 {
@@ -27,6 +50,18 @@ void main()
     return;
   }
   vec4 pw = texelFetch(ow_positions, ivec2(index % size.x, index / size.x), 0);
+#ifndef OW_FIXED_KIND
+  if (ow_projective != 0) {
+    // A spot's or sun's map: its one layer, through the matrix the shadow test projects
+    // with (lib/projective.glsl); a sample behind the map goes nowhere.
+    float w;
+    vec2 uv = ow_projective_uvz(ow_map_matrix, pw.xyz, w).xy;
+    if (pw.w >= 0.5 && w > 0.0) {
+      ow_scatter_to(index, size, pw, 0, uv);
+    }
+    return;
+  }
+#endif
   float dist = length(pw.xyz);
   if (pw.w < 0.5 || !(dist > 0.0)) {
     return;
@@ -51,20 +86,5 @@ void main()
     float magnification;
     uv = ow_map_forward(ow_warp_rows, ow_warp_cols, slot, ow_warp_size, crop, xy, magnification);
   }
-  // Points outside [0, 1)^2, or NaN, are dropped, as in warping.scatter_counts (the
-  // numpy oracle); written so that a NaN fails the test instead of reaching floor().
-  if (!(all(greaterThanEqual(uv, vec2(0.0))) && all(lessThan(uv, vec2(1.0))))) {
-    return;
-  }
-  ivec2 texel = min(ivec2(floor(uv * float(ow_count_size))), ivec2(ow_count_size - 1));
-#ifdef OW_LINK
-  // The irregular z-buffer's lists (shaders.link_variant): the sample goes to the front of
-  // its texel's list. A texel of ow_counts holds the list's head (0: empty, else sample
-  // index + 1), ow_next the rest, so the list lengths are the counts of mode 2.
-  uint previous = imageAtomicExchange(ow_counts, texel + ivec2(tile * ow_count_size, 0), uint(index + 1));
-  imageStore(ow_next, ivec2(index % size.x, index / size.x), uvec4(previous));
-#else
-  uint amount = ow_weighted != 0 ? uint(pw.w + 0.5) : 1u;
-  imageAtomicAdd(ow_counts, texel + ivec2(tile * ow_count_size, 0), amount);
-#endif
+  ow_scatter_to(index, size, pw, tile, uv);
 }

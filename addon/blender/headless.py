@@ -45,7 +45,7 @@ def default_settings(method: str | None, emission: str, resolution: int) -> Shad
     for the emission when None), with its cut and edge AA; an InputError if it does not fit."""
     name = method or method_registry.default_method(emission)
     method_registry.check_fits(name, emission, pipeline_only=True)
-    return settings_for(name, resolution)
+    return settings_for(name, resolution, emission)
 
 
 def _load_scene(args: argparse.Namespace, reference: ReferenceData):

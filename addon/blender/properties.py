@@ -40,8 +40,9 @@ log = logging.getLogger(__name__)
 # An AREA light is one-sided: the hemispherical emission, with a size (issue 27).
 SUPPORTED_LIGHT_TYPES: tuple[str, ...] = ("POINT", "SPOT", "SUN", "AREA")
 
-# The parameterizations the exact pass (ShadowSettings.exact) takes: the footprint ones.
-EXACT_PARAMETERIZATIONS = ("dpsm", "cube", "ipsm")
+# The parameterizations the exact pass (ShadowSettings.exact) takes (the light panel greys
+# the setting elsewhere).
+EXACT_PARAMETERIZATIONS = frames.EXACT_PARAMETERIZATIONS
 
 RESOLUTION_MIN = 256
 RESOLUTION_MAX = 4096
@@ -264,9 +265,10 @@ class OMNIWARP_PG_light(bpy.types.PropertyGroup):
         name="Exact",
         description="Exact hard shadows: the view samples are kept in per-texel lists of the map and every "
                     "triangle is tested against them (an irregular z-buffer), so the shadow edges follow the "
-                    "pixels, not the texels. Dual paraboloid, cube and IPSM. Cost: a list pass over the view "
+                    "pixels, not the texels. Dual paraboloid, cube and IPSM, and the plain map (SM) of a spot "
+                    "or sun. Cost: a list pass over the view "
                     "samples, and each triangle walks the lists of the texels it covers (about 1-2x the warped "
-                    "map's time)",
+                    "map's time; about 2x a spot's or sun's plain map)",
         default=False,
         update=_request_update,
     )
@@ -437,7 +439,7 @@ def shadow_settings_for(light: bpy.types.Light) -> ShadowSettings:
         bias=bias,
         cull=bool(props.cull),
         warp=effective_warp(light, parameterization),
-        # The exact pass draws footprints: a spot or sun map (or unfold) keeps its own.
+        # The exact pass draws footprints: PSM and unfold keep their own maps.
         exact=bool(props.exact) and parameterization in EXACT_PARAMETERIZATIONS,
         light_samples=int(props.light_samples),
         search_samples=int(props.search_samples),

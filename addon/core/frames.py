@@ -105,6 +105,18 @@ def takes_warp(parameterization: str) -> bool:
     return parameterization in WARPABLE_PARAMETERIZATIONS
 
 
+# The parameterizations the exact pass (the irregular z-buffer) runs over: the ones whose
+# triangles are drawn over conservative footprints in the resident pass. unfold draws a
+# tessellated host stream, and PSM's post-perspective map would only move texels that
+# the exact pass does not need; spot and sun lights take their plain map (sm).
+EXACT_PARAMETERIZATIONS = ("dpsm", "cube", "ipsm", "sm")
+
+
+def takes_exact(parameterization: str) -> bool:
+    """True for the parameterizations the exact pass runs over."""
+    return parameterization in EXACT_PARAMETERIZATIONS
+
+
 def projective_layer(parameterization: Parameterization) -> Layer:
     """The one layer of a spot or sun map; its matrix lives in the plan, not in the frame."""
     return Layer(0, PROJECTIVE, parameterization, np.eye(3))

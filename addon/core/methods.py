@@ -9,6 +9,12 @@ A method is a parameterization, a warp and two options (IPSM's skewed cut, unfol
 edge-distance antialiasing), or an *external* method that is measured outside the
 pipeline (`eevee`: Blender's own shadows, rendered in a child process). The lights
 a pipeline method fits follow from `frames.parameterizations_for`.
+
+A method may take another parameterization for spot and sun lights (`projective`):
+`exact` is the irregular z-buffer over the NoTW-warped dual paraboloid for point
+lights and over the light's own plain map (`sm`) for spot cones and suns, one row
+named `exact` either way. `Method.parameterization_for` and `Method.warp_for` say what
+it draws for an emission; every consumer asks them.
 """
 from __future__ import annotations
 
@@ -16,7 +22,7 @@ import logging
 from dataclasses import dataclass
 
 from .errors import InputError
-from .frames import parameterizations_for
+from .frames import parameterizations_for, takes_warp
 from .scene import POINT_EMISSIONS, PROJECTIVE_EMISSIONS
 
 log = logging.getLogger(__name__)
@@ -63,11 +69,25 @@ class Method:
     description: str  # one line, for help texts and tooltips
     external: bool = False  # measured outside the pipeline (no ShadowSettings)
     exact: bool = False  # the irregular z-buffer over the map instead of its depths
+    # The parameterization it draws for spot and sun lights, where that is not
+    # `parameterization` (exact: the sm map); None: the same for every light.
+    projective: str | None = None
 
     @property
     def pipeline(self) -> bool:
         """True when `ShadowPipeline` draws it."""
         return not self.external
+
+    def parameterization_for(self, emission: str) -> str | None:
+        """The parameterization it draws for a light of this emission (None when external)."""
+        if self.projective is not None and emission in PROJECTIVE_EMISSIONS:
+            return self.projective
+        return self.parameterization
+
+    def warp_for(self, emission: str) -> str:
+        """Its warp for a light of this emission: none where that parameterization takes none."""
+        parameterization = self.parameterization_for(emission)
+        return self.warp if parameterization is not None and takes_warp(parameterization) else "none"
 
     def fits(self, emission: str) -> bool:
         """True when the method can shadow a light of this emission."""
@@ -75,9 +95,13 @@ class Method:
 
 
 def _pipeline(name: str, parameterization: str, description: str, warp: str = "none", cut: bool = False,
-              edge_aa: bool = False, exact: bool = False) -> Method:
-    emissions = tuple(e for e in EMISSIONS if parameterization in parameterizations_for(e))
-    return Method(name, parameterization, warp, cut, edge_aa, emissions, description, exact=exact)
+              edge_aa: bool = False, exact: bool = False, projective: str | None = None) -> Method:
+    def drawn(emission: str) -> str:
+        return projective if projective is not None and emission in PROJECTIVE_EMISSIONS else parameterization
+
+    emissions = tuple(e for e in EMISSIONS if drawn(e) in parameterizations_for(e))
+    return Method(name, parameterization, warp, cut, edge_aa, emissions, description, exact=exact,
+                  projective=projective)
 
 
 _ENTRIES: tuple[Method, ...] = (
@@ -96,9 +120,10 @@ _ENTRIES: tuple[Method, ...] = (
     _pipeline("unfold", "unfold", "dual sphere-unfolding (both halves in one pass)"),
     _pipeline("unfold+aa", "unfold", "dual sphere-unfolding with the paper's edge-distance antialiasing",
               edge_aa=True),
-    _pipeline("exact", "dpsm", "exact hard shadows: an irregular z-buffer over the NoTW-warped dual paraboloid "
-                               "(the view samples in per-texel lists, each triangle tested against them)",
-              warp="notw", exact=True),
+    _pipeline("exact", "dpsm", "exact hard shadows: an irregular z-buffer (the view samples in per-texel lists, "
+                               "each triangle tested against them) over the NoTW-warped dual paraboloid, or over "
+                               "a spot's or sun's own map",
+              warp="notw", exact=True, projective="sm"),
     _pipeline("sm", "sm", "one uniform shadow map (spot and sun lights)"),
     _pipeline("psm", "psm", "a perspective shadow map in the camera's post-perspective space (spot and sun lights)"),
     # Blender's own shadows, rendered by EEVEE in a child process at the light's default and a
@@ -186,12 +211,14 @@ def default_method(emission: str) -> str:
 
 def label_for(parameterization: str, warp: str = "none", cut: bool = False, edge_aa: bool = False,
               exact: bool = False) -> str:
-    """The method name of these settings; settings no entry has (e.g. a light's ipsm + RTW)
-    get the same 'parameterization+warp' form."""
+    """The method name of these settings, for any light the method fits (sm with exact is
+    `exact`); settings no entry has (e.g. a light's ipsm + RTW) get the same
+    'parameterization+warp' form."""
     for name, entry in METHODS.items():
-        if ((entry.parameterization, entry.warp, entry.cut, entry.edge_aa, entry.exact)
-                == (parameterization, warp, cut, edge_aa, exact)):
-            return name
+        for emission in entry.emissions:
+            if ((entry.parameterization_for(emission), entry.warp_for(emission), entry.cut, entry.edge_aa,
+                 entry.exact) == (parameterization, warp, cut, edge_aa, exact)):
+                return name
     return "+".join([parameterization] + ([warp] if warp != "none" else []) + (["cut"] if cut else [])
                     + (["aa"] if edge_aa else []) + (["exact"] if exact else []))
 

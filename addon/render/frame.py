@@ -75,8 +75,8 @@ class ShadowSettings:
     analysis_size: int | None = None  # count-map side A; None = analysis_size_for(resolution)
     cut: bool = False  # ipsm only: skewed axis and a crop fitted to the frustum (thesis 4.1.4)
     edge_aa: bool = False  # unfold only: the paper's edge-distance antialiasing (edge_aa_parameters)
-    # dpsm, cube, ipsm: the irregular z-buffer over the (warped) map instead of its depths
-    # (the `exact` method)
+    # dpsm, cube, ipsm, sm (frames.EXACT_PARAMETERIZATIONS): the irregular z-buffer over
+    # the (warped) map instead of its depths (the `exact` method)
     exact: bool = False
     # A sized light (core/light_shape.py): its points the soft filter reads per sample, and
     # how many of them the blocker search follows (lib/soft.glsl); a hard light reads none.
@@ -95,9 +95,9 @@ class ShadowSettings:
                              f"{', '.join(frames.WARPABLE_PARAMETERIZATIONS)}")
         if self.edge_aa and self.parameterization != "unfold":
             raise InputError("edge-distance antialiasing is the unfold method's option (unfold+aa)")
-        if self.exact and self.parameterization not in ("dpsm", "cube", "ipsm"):
-            raise InputError(f"the exact (irregular z-buffer) pass draws footprints: dpsm, cube or ipsm, "
-                             f"not {self.parameterization}")
+        if self.exact and not frames.takes_exact(self.parameterization):
+            raise InputError(f"the exact (irregular z-buffer) pass draws footprints: "
+                             f"{', '.join(frames.EXACT_PARAMETERIZATIONS)}, not {self.parameterization}")
         if self.warp not in WARP_KINDS:
             raise InputError(f"unknown warp {self.warp!r}; use one of {', '.join(WARP_KINDS)}")
         if not (MIN_RESOLUTION <= int(self.resolution) <= MAX_RESOLUTION):
@@ -122,16 +122,19 @@ def check_exact_samples(samples: object, name: str = "exact_samples") -> int:
     return samples
 
 
-def settings_for(method: str, resolution: int, **fields) -> ShadowSettings:
-    """The `ShadowSettings` of a registered pipeline method (`core/methods.py`) at `resolution`.
+def settings_for(method: str, resolution: int, emission: str = "omni", **fields) -> ShadowSettings:
+    """The `ShadowSettings` of a registered pipeline method (`core/methods.py`) at `resolution`,
+    for a light of `emission` (a method may draw another parameterization for spot and
+    sun lights: `Method.parameterization_for`).
 
     `fields` sets the other settings (cull, bias, ...); the method's own ones
-    (parameterization, warp, cut, edge_aa) come from its registry entry only.
+    (parameterization, warp, cut, edge_aa, exact) come from its registry entry only.
     """
     entry = method_registry.method(method)
-    if entry.parameterization is None:
+    parameterization = entry.parameterization_for(emission)
+    if parameterization is None:
         raise InputError(f"{method} is measured outside the pipeline; it has no shadow-map settings")
-    return ShadowSettings(entry.parameterization, resolution, warp=entry.warp, cut=entry.cut,
+    return ShadowSettings(parameterization, resolution, warp=entry.warp_for(emission), cut=entry.cut,
                           edge_aa=entry.edge_aa, exact=entry.exact, **fields)
 
 

@@ -49,6 +49,13 @@ log = logging.getLogger(__name__)
 # The exact pass leaves out an occluder within this share of the segment's length from the
 # sample: the receiver's own surface, and its coplanar neighbours, in float32 rounding.
 EXACT_EPS = 1e-4
+# The exact pass over a spot's or sun's map lifts each sample off its own surface, towards
+# the light, by this share of its distance from the light-centred origin (footprint.frag's
+# ow_exact_lift): about three times float32's rounding of the sample (6e-8), far below a
+# pixel. On sun_field 5e-8 still left 333 samples of a face parallel to the sun shadowed by
+# their own box, 1e-7 to 2e-7 none; from 5e-7 on, the lift moves shadow edges on the
+# ground past Cycles' samples (1 pixel at 5e-7, 5 at 1e-6, 59 at 1e-5).
+EXACT_LIFT = 2e-7
 # Rounds of the exact pass after the first (_finish_lists): the bound doubles each round, so
 # 16 of them walk lists of up to 4096 * 2^17 entries, far more than any frame's samples.
 EXACT_MAX_ROUNDS = 16
@@ -251,8 +258,30 @@ class Projective(Parameterization):
         uniforms = {**layer_uniforms(plan.drawn[0], inputs.geometry, inputs.settings.resolution,
                                      inputs.layout.origin(0), LayerMapping.identity(), 0),
                     **inputs.region, **self.test_uniforms(plan)}
+        if inputs.settings.exact:
+            self._draw_exact(backend, inputs, uniforms)
+            return 0
         backend.draw_footprints(0, inputs.draws, uniforms)
         return 0
+
+    @staticmethod
+    def _draw_exact(backend: ShadowBackend, inputs: DrawInputs, uniforms: dict) -> None:
+        """The irregular z-buffer over the map (issue 27): every triangle over a conservative
+        cover of its image (footprint.vert's ow_projective_quad), walking the lists of the
+        map's texels (tile 0, linked through the map's matrix). A spot's triangle is clipped
+        to the map's front, w >= CLIP_NEAR_RELATIVE * far (the map's w is the depth along the
+        spot's axis); a sun's map has w = 1 and clips nothing. The covers are quads: their
+        size in texels has no bound here that would fit a point sprite."""
+        light = inputs.light
+        sun = light.emission == "sun"
+        uniforms = {**uniforms, "ow_exact_tile": 0, "ow_exact_eps": EXACT_EPS, "ow_exact_bound": EXACT_MAX_WALK,
+                    EXACT_COUNT_KEY: int(inputs.count_work), "ow_sun": int(sun), "ow_light_axis": light.axis,
+                    "ow_clip_near": 0.0 if sun else inputs.geometry.far * CLIP_NEAR_RELATIVE,
+                    "ow_exact_lift_share": EXACT_LIFT}
+        if not inputs.draws:
+            return
+        backend.draw_footprints(0, inputs.draws, uniforms, exact=True)
+        _finish_lists(backend, inputs.layout, [(0, inputs.draws, uniforms, None)])
 
     def test_uniforms(self, plan: Plan) -> dict:
         return {"ow_projective": 1, "ow_map_inverted": int(plan.projective.inverted),

@@ -382,6 +382,7 @@ def _scatter_uniforms(light: LightSpec, plan: Plan, mappings: dict[int, LayerMap
     tiles = np.full(SLOTS, -1, dtype=np.int64)
     tiles[slots] = np.arange(len(slots))
     warp_size = max((m.warp.size for m in mappings.values() if m.warp is not None), default=0)
+    projective = plan.projective
     return {
         "ow_light_rot": light.rotation.T,
         "ow_layer_rot": rotations,
@@ -394,6 +395,9 @@ def _scatter_uniforms(light: LightSpec, plan: Plan, mappings: dict[int, LayerMap
         "ow_scatter_mode": mode,
         "ow_count_size": size,
         "ow_weighted": int(weighted),
+        # A spot's or sun's one map: the samples through its matrix (scatter.comp).
+        "ow_projective": int(projective is not None),
+        "ow_map_matrix": projective.matrix if projective is not None else np.eye(4),
     }
 
 

@@ -205,6 +205,11 @@ FOOTPRINT_PROGRAM = ProgramInterface(
         Uniform("int", "ow_projective"),
         Uniform("int", "ow_map_inverted"),
         Uniform("mat4", "ow_map_matrix"),
+        # The exact pass over a spot's or sun's map: a sun's edge planes contain its light's
+        # direction, and the samples are lifted off their surfaces by a share of their distance.
+        Uniform("int", "ow_sun"),
+        Uniform("vec3", "ow_light_axis"),
+        Uniform("float", "ow_exact_lift_share"),
     ),
     samplers=_WARP_SAMPLERS + ("ow_vertices", "ow_ray_table"),
     varyings=(
@@ -283,6 +288,9 @@ SCATTER_PROGRAM = ComputeInterface(
         Uniform("int", "ow_scatter_mode"),
         Uniform("int", "ow_count_size"),
         Uniform("int", "ow_weighted"),
+        # A spot's or sun's map (the exact pass's lists): the samples go through its matrix.
+        Uniform("int", "ow_projective"),
+        Uniform("mat4", "ow_map_matrix"),
     ),
     samplers=("ow_positions",) + _WARP_SAMPLERS,
     images=(("r32ui", "ow_counts"),),
@@ -471,7 +479,7 @@ def exact_of(base: ProgramInterface, count: bool = False) -> ProgramInterface:
             defines[EXACT_COUNT_DEFINE] = "1"
         held = _EXACT_VARIANTS[base.name, count] = replace(
             base, name=base.name + ("_exact_count" if count else "_exact"), defines=defines,
-            samplers=base.samplers + ("ow_positions",),
+            samplers=base.samplers + ("ow_positions", "ow_normals"),
             uniforms=base.uniforms + (Uniform("int", "ow_exact_tile"), Uniform("float", "ow_exact_eps"),
                                       Uniform("int", "ow_exact_bound")),
             images=EXACT_IMAGES,

@@ -28,6 +28,7 @@ from tests.support.blender_gpu_worker import (  # noqa: E402
     EXACT_CASES,
     POINT_CASES,
     PROJECTIVE_CASES,
+    PROJECTIVE_EXACT_CASES,
     alpha_frames,
     boxed_scene,
     case_key,
@@ -134,6 +135,13 @@ def test_blender_backend_matches_moderngl(gl_backend, tmp_path, monkeypatch):
                                keep_atlas=True)
         assert np.array_equal(ours.visibility, theirs[f"{light}_{method}_visibility"]), (light, method)
         assert np.allclose(ours.atlas, theirs[f"{light}_{method}_atlas"], atol=1e-6), (light, method)
+    for light in PROJECTIVE_EXACT_CASES:  # the exact pass over a spot's and a sun's own map
+        street = _street(light)
+        street_samples, _, _ = view_samples(street)
+        ours = pipeline.render(street.light, street.world_triangles(), street_samples,
+                               ShadowSettings("sm", 128, exact=True))
+        assert np.array_equal(ours.visibility, theirs[f"exact_{light}_visibility"]), light
+        assert (ours.visibility < 0.5).any(), light
     # Point sprites: Blender draws them on OpenGL (this machine), and stores what moderngl stores.
     assert bool(theirs["point_sprites"])
     cloud, cloud_samples = point_cloud()

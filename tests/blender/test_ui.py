@@ -18,6 +18,7 @@ import pytest
 bpy = pytest.importorskip("bpy")
 
 from addon.blender import events, panels, properties, registration  # noqa: E402
+from addon.core import methods as method_registry  # noqa: E402
 from addon.core.errors import InputError  # noqa: E402
 from addon.render.pipeline import BiasSettings, ShadowSettings  # noqa: E402
 
@@ -851,11 +852,18 @@ def test_unregister_removes_pointers(no_runtime) -> None:
         bpy.data.lights.remove(light)
 
 
-def test_exact_is_kept_from_projective_maps(make_light) -> None:
-    """A spot narrower than 179 degrees gets a projective map, which draws no footprints: its
-    stored exact choice is kept but not used."""
-    light = make_light("SPOT", 45.0)
+@pytest.mark.parametrize("kind,spot_deg", [("SPOT", 45.0), ("SUN", None)])
+def test_exact_runs_over_a_spot_or_sun_map_and_is_kept_from_psm(make_light, kind, spot_deg) -> None:
+    """A spot narrower than 179 degrees, or a sun, gets a projective map: its plain map (SM)
+    takes the exact pass (the `exact` method), PSM does not, which keeps the stored choice
+    but does not use it."""
+    light = make_light(kind, spot_deg)
     light.omniwarp.exact = True
+    light.omniwarp.parameterization = "SM"
     settings = properties.shadow_settings_for(light)
-    assert settings.parameterization in ("sm", "psm") and settings.exact is False
+    assert (settings.parameterization, settings.exact) == ("sm", True)
+    assert method_registry.label_for(settings.parameterization, settings.warp, exact=settings.exact) == "exact"
+    light.omniwarp.parameterization = "PSM"
+    settings = properties.shadow_settings_for(light)
+    assert (settings.parameterization, settings.exact) == ("psm", False)
     assert light.omniwarp.exact is True

@@ -155,18 +155,20 @@ def test_help_names_every_method(command, capsys):
 
 
 def test_every_pipeline_method_builds_its_settings():
-    """settings_for carries the entry's parameterization, warp, cut, edge AA and exact pass;
-    the external methods have none."""
+    """settings_for carries the entry's parameterization and warp for each light it fits (exact:
+    sm for spot and sun lights), its cut, edge AA and exact pass; the external methods have none."""
     from addon.core.errors import InputError
     from addon.render.pipeline import settings_for
 
     for name in method_registry.pipeline_methods():
         entry = method_registry.method(name)
-        settings = settings_for(name, 256, cull=False)
-        assert (settings.parameterization, settings.warp, settings.cut, settings.edge_aa, settings.exact,
-                settings.cull) == (entry.parameterization, entry.warp, entry.cut, entry.edge_aa, entry.exact, False)
-        assert method_registry.label_for(settings.parameterization, settings.warp, settings.cut,
-                                         settings.edge_aa, settings.exact) == name
+        for emission in entry.emissions:
+            settings = settings_for(name, 256, emission, cull=False)
+            assert (settings.parameterization, settings.warp, settings.cut, settings.edge_aa, settings.exact,
+                    settings.cull) == (entry.parameterization_for(emission), entry.warp_for(emission), entry.cut,
+                                       entry.edge_aa, entry.exact, False)
+            assert method_registry.label_for(settings.parameterization, settings.warp, settings.cut,
+                                             settings.edge_aa, settings.exact) == name
     for name in method_registry.external_methods():
         with pytest.raises(InputError):
             settings_for(name, 256)

@@ -20,6 +20,8 @@ CASES = (("dpsm", "none", False), ("cube", "none", False), ("dpsm", "notw", Fals
          ("unfold", "none", False), ("unfold", "none", True))
 # Spot and sun maps on the small street of tests/gl/test_projective.py.
 PROJECTIVE_CASES = (("spot", "sm"), ("spot", "psm"), ("sun", "psm"))
+# The exact pass over those lights' own maps (sm), on the same street.
+PROJECTIVE_EXACT_CASES = ("spot", "sun")
 # Culled plain layers with readable boxes (scissored clears and draws): the courtyard
 # preset at test size, light outside the view, after an ipsm frame fills the atlas.
 BOXED_CASES = ("dpsm", "cube")
@@ -127,6 +129,12 @@ def backends(out: str, reference: str | None = None) -> None:
                                  keep_atlas=True)
         arrays[f"{light}_{method}_visibility"] = result.visibility
         arrays[f"{light}_{method}_atlas"] = result.atlas
+    for light in PROJECTIVE_EXACT_CASES:
+        street = _street(light)
+        street_samples, _, _ = view_samples(street)
+        result = pipeline.render(street.light, street.world_triangles(), street_samples,
+                                 ShadowSettings("sm", 128, exact=True))
+        arrays[f"exact_{light}_visibility"] = result.visibility
     result = pipeline.render(scene.light, scene.world_triangles(), weighted_samples(samples),
                              ShadowSettings("dpsm", 256, warp="notw"), keep_atlas=True)
     arrays["weighted_visibility"] = result.visibility
