@@ -116,3 +116,9 @@ def test_every_compute_program_loads(iface):
     source = G.moderngl_compute_source(iface)
     assert source.startswith("#version")
     assert "void main()" in source and "#include" not in source
+
+
+def test_every_program_has_its_own_name():
+    """Backends cache compiled programs by name: two variants of one name would share one."""
+    names = [iface.name for iface in (*S.PROGRAMS, *S.COMPUTE_PROGRAMS)]
+    assert len(set(names)) == len(names), sorted(n for n in set(names) if names.count(n) > 1)

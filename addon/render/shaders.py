@@ -535,8 +535,9 @@ def exact_soft_of(base: ProgramInterface) -> ProgramInterface:
             images = base.images
         else:
             varyings, images = base.varyings, (("r32ui", "ow_hits"),)
+        # Its own name: backends cache programs by name, and soft_of's shadow test is "_soft".
         held = _EXACT_SOFT_VARIANTS[base.name] = replace(
-            base, name=base.name + "_soft", defines=defines, uniforms=base.uniforms + EXACT_SOFT_UNIFORMS,
+            base, name=base.name + ("_soft" if footprint_pass else "_exact_soft"), defines=defines, uniforms=base.uniforms + EXACT_SOFT_UNIFORMS,
             varyings=varyings, images=images, samplers=base.samplers)
     return held
 
