@@ -91,31 +91,42 @@ void ow_exact_soft_mark(vec3 p, ivec2 at, int rows)
 #endif
   }
   OwLightView view = ow_light_view(p);
-  uint word = 0u;
-  for (int k = 0; k < ow_exact_points; k++) {
-    vec3 seg = ow_light_segment(p, view, k);
-    if (dot(e0, seg) >= 0.0 && dot(e1, seg) >= 0.0 && dot(e2, seg) >= 0.0) {
-      float f = -h / dot(v_plane.xyz, seg);  // where the plane cuts the segment
-      if (f > ow_exact_eps && f < 1.0) {
+  for (int w = 0; w * 32 < ow_exact_points; w++) {
+    int count = min(32, ow_exact_points - 32 * w);
+    uint all_points = (count == 32) ? 0xFFFFFFFFu : ((1u << uint(count)) - 1u);
+    ivec2 word_at = at + ivec2(0, w * rows);
+    // Points other triangles blocked already need no test (a stale read only tests more).
+    uint blocked = imageLoad(ow_hits, word_at).x;
+    if ((blocked & all_points) == all_points) {
+      continue;
+    }
+    uint word = 0u;
+    for (int j = 0; j < count; j++) {
+      if (((blocked >> uint(j)) & 1u) != 0u) {
+        continue;
+      }
+      int k = 32 * w + j;
+      vec3 seg = ow_light_segment(p, view, k);
+      if (dot(e0, seg) >= 0.0 && dot(e1, seg) >= 0.0 && dot(e2, seg) >= 0.0) {
+        float f = -h / dot(v_plane.xyz, seg);  // where the plane cuts the segment
+        if (f > ow_exact_eps && f < 1.0) {
 #ifdef OW_ALPHA
-        // A see-through crossing blocks the points whose fixed threshold its alpha passes:
-        // a share alpha of them (thresholds a permutation of the points, so not the spatial
-        // pattern); several such crossings are taken as one of their largest alpha.
-        float alpha = ow_alpha_along(p + f * seg);
-        float threshold = (float((k * 37 + 11) % ow_exact_points) + 0.5) / float(ow_exact_points);
-        if (alpha >= OW_OPAQUE_ALPHA || (alpha > OW_CLEAR_ALPHA && alpha > threshold)) {
-          word |= 1u << uint(k & 31);
-        }
+          // A see-through crossing blocks the points whose fixed threshold its alpha passes:
+          // a share alpha of them (thresholds a permutation of the points, so not the
+          // spatial pattern); several such crossings count as the one of largest alpha.
+          float alpha = ow_alpha_along(p + f * seg);
+          float threshold = (float((k * 37 + 11) % ow_exact_points) + 0.5) / float(ow_exact_points);
+          if (alpha >= OW_OPAQUE_ALPHA || (alpha > OW_CLEAR_ALPHA && alpha > threshold)) {
+            word |= 1u << uint(j);
+          }
 #else
-        word |= 1u << uint(k & 31);
+          word |= 1u << uint(j);
 #endif
+        }
       }
     }
-    if ((k & 31) == 31 || k == ow_exact_points - 1) {
-      if (word != 0u) {
-        imageAtomicOr(ow_hits, at + ivec2(0, (k >> 5) * rows), word);
-      }
-      word = 0u;
+    if (word != 0u) {
+      imageAtomicOr(ow_hits, word_at, word);
     }
   }
 }
