@@ -51,7 +51,8 @@ def test_frames_is_the_deprecated_repeats():
     (["--frames", "0"], "bad --frames 0"),
     (["--workers", "0"], "bad --workers 0"),
     (["--workers", "2", "--scheduler", "tcp://127.0.0.1:1"], "not allowed with argument"),
-], ids=["frame-range", "lights", "repeats", "frames", "workers", "workers-and-scheduler"])
+    (["--exact-samples", "32"], "bad --exact-samples 32: must be a square number"),
+], ids=["frame-range", "lights", "repeats", "frames", "workers", "workers-and-scheduler", "exact-samples"])
 def test_sweep_options_refused_on_a_preset(tmp_path, args, expected):
     line = one_line(omniwarp("compare", "--preset", "room_omni", *args, "--out", tmp_path / "out"))
     assert expected in line, line
