@@ -90,7 +90,21 @@ void ow_exact_soft_mark(vec3 p, ivec2 at, int rows)
     return;
 #endif
   }
+  // Each point's segment against the edge planes and the triangle's plane, as affine
+  // functions of its pattern entry (lib/exact_soft.glsl): for a sphere, seg = t d with
+  // d = sin_t (c a + s b) + cos_t w, so e . seg has the sign of sin_t (c e.a + s e.b) +
+  // cos_t e.w; for an area light, seg = F (x, y, 0) - p, so e . seg = x e.F0 + y e.F1 - e.p.
   OwLightView view = ow_light_view(p);
+  bool sphere = int(ow_exact_light.x) == 1;
+  mat3 edges = transpose(mat3(e0, e1, e2));  // rows: the three edge normals
+  vec3 n = v_plane.xyz;
+  vec3 along0 = sphere ? view.a : ow_exact_frame[0];
+  vec3 along1 = sphere ? view.b : ow_exact_frame[1];
+  vec3 along2 = sphere ? view.w : p;
+  vec3 side0 = edges * along0;  // each edge's dot product with the three axes
+  vec3 side1 = edges * along1;
+  vec3 side2 = edges * along2;
+  vec3 height = vec3(dot(n, along0), dot(n, along1), dot(n, along2));
   for (int w = 0; w * 32 < ow_exact_points; w++) {
     int count = min(32, ow_exact_points - 32 * w);
     uint all_points = (count == 32) ? 0xFFFFFFFFu : ((1u << uint(count)) - 1u);
@@ -106,15 +120,25 @@ void ow_exact_soft_mark(vec3 p, ivec2 at, int rows)
         continue;
       }
       int k = 32 * w + j;
-      vec3 seg = ow_light_segment(p, view, k);
-      if (dot(e0, seg) >= 0.0 && dot(e1, seg) >= 0.0 && dot(e2, seg) >= 0.0) {
-        float f = -h / dot(v_plane.xyz, seg);  // where the plane cuts the segment
+      vec4 pattern = ow_exact_pattern[k];
+      vec3 weights;  // the segment (or its direction) in the axes along0..2
+      vec2 polar = vec2(1.0, 0.0);
+      if (sphere) {
+        polar = ow_cap_polar(view, pattern);
+        weights = vec3(polar.y * pattern.y, polar.y * pattern.z, polar.x);
+      } else {
+        weights = vec3(pattern.x, pattern.y, -1.0);
+      }
+      vec3 sides = weights.x * side0 + weights.y * side1 + weights.z * side2;
+      if (all(greaterThanEqual(sides, vec3(0.0)))) {
+        float along = dot(weights, height);  // n . seg, over t for a sphere
+        float f = -h / (sphere ? along * ow_cap_distance(view, polar) : along);  // where the plane cuts it
         if (f > ow_exact_eps && f < 1.0) {
 #ifdef OW_ALPHA
           // A see-through crossing blocks the points whose fixed threshold its alpha passes:
           // a share alpha of them (thresholds a permutation of the points, so not the
           // spatial pattern); several such crossings count as the one of largest alpha.
-          float alpha = ow_alpha_along(p + f * seg);
+          float alpha = ow_alpha_along(p + f * ow_light_segment(p, view, k));
           float threshold = (float((k * 37 + 11) % ow_exact_points) + 0.5) / float(ow_exact_points);
           if (alpha >= OW_OPAQUE_ALPHA || (alpha > OW_CLEAR_ALPHA && alpha > threshold)) {
             word |= 1u << uint(j);

@@ -512,7 +512,8 @@ EXACT_SOFT_WORDS = EXACT_SOFT_MAX_POINTS // 32
 EXACT_SOFT_KEY = "ow_exact_points"  # the uniforms' key: a sized light's point count (0: hard)
 SHARED_DEFINES.update({"OW_EXACT_SOFT_MAX_POINTS": str(EXACT_SOFT_MAX_POINTS)})
 EXACT_SOFT_UNIFORMS = (Uniform("vec4", "ow_exact_light"), Uniform("float", "ow_exact_reach"),
-                       Uniform("mat3", "ow_exact_frame"), Uniform("int", EXACT_SOFT_KEY))
+                       Uniform("mat3", "ow_exact_frame"), Uniform("int", EXACT_SOFT_KEY),
+                       Uniform("vec4", "ow_exact_pattern", EXACT_SOFT_MAX_POINTS))
 _EXACT_SOFT_VARIANTS: dict[str, ProgramInterface] = {}  # program name -> its exact soft variant
 
 

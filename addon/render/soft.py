@@ -8,10 +8,10 @@ import math
 
 import numpy as np
 
-from ..core.light_shape import Area, LightShape, Sphere, stratified_points
+from ..core.light_shape import Area, LightShape, Sphere, stratified_points, stratified_unit_square
 from ..core.scene import LightSpec
 from .frame import MIN_RESOLUTION, ShadowSettings
-from .shaders import EXACT_SOFT_KEY, SOFT_KINDS, SOFT_MAX_POINTS, SOFT_MAX_SEARCH
+from .shaders import EXACT_SOFT_KEY, EXACT_SOFT_MAX_POINTS, SOFT_KINDS, SOFT_MAX_POINTS, SOFT_MAX_SEARCH
 
 # The exact soft pass lists its samples at 1 / EXACT_SOFT_LIST_SHARE of the map resolution
 # (list_resolution).
@@ -95,8 +95,26 @@ def exact_soft_uniforms(light: LightSpec, settings: ShadowSettings) -> dict:
         described = (EXACT_KINDS["sphere"], shape.radius, 0.0, 0.0)
     else:
         described = (EXACT_KINDS["area"], shape.size_x, shape.size_y, EXACT_OUTLINES[shape.outline])
+    count = int(settings.exact_samples)
     return {"ow_exact_light": np.array(described, dtype=np.float64), "ow_exact_reach": light_reach(shape),
-            "ow_exact_frame": light.rotation, EXACT_SOFT_KEY: int(settings.exact_samples)}
+            "ow_exact_frame": light.rotation, EXACT_SOFT_KEY: count,
+            "ow_exact_pattern": _exact_pattern(shape, count)}
+
+
+@functools.lru_cache(maxsize=32)
+def _exact_pattern(shape: LightShape, count: int) -> np.ndarray:
+    """The exact pass's table of `count` light points (lib/exact_soft.glsl), zero-padded to
+    EXACT_SOFT_MAX_POINTS: a sphere's (u, cos phi, sin phi, 0) on its cap, an area light's
+    (x, y, 0, 0) in its frame (light_shape.stratified_points)."""
+    out = np.zeros((EXACT_SOFT_MAX_POINTS, 4))
+    if isinstance(shape, Sphere):
+        uv = stratified_unit_square(count)
+        phi = 2.0 * math.pi * uv[:, 1]
+        out[:count, :3] = np.column_stack([uv[:, 0], np.cos(phi), np.sin(phi)])
+    else:
+        out[:count, :2] = stratified_points(shape, count)[:, :2]
+    out.setflags(write=False)
+    return out
 
 
 def list_resolution(light: LightSpec, settings: ShadowSettings) -> int:

@@ -9,35 +9,10 @@
 // - an area light (2; size .y by .z, outline .w: 0 rectangle, 1 ellipse, in the light's
 //   frame ow_exact_frame): uniform over its surface, weighted by both cosines over the
 //   squared distance.
-// Points k < ow_exact_points come from one cell each of a square grid (shaders: N is a
-// square), jittered by the R2 sequence, as core/light_shape.stratified_unit_square.
-
-const float OW_R2 = 1.32471795724474602596;
-
-// Point k of n in [0, 1)^2: one per cell of a cols x rows grid, cols = ceil(sqrt(n)).
-vec2 ow_stratified(int k, int n)
-{
-  int cols = int(sqrt(float(n)));
-  if (cols * cols < n) {
-    cols += 1;
-  }
-  int rows = (n + cols - 1) / cols;
-  vec2 jitter = fract(vec2(0.5) + float(k) * vec2(1.0 / OW_R2, 1.0 / (OW_R2 * OW_R2)));
-  return (vec2(float(k % cols), float(k / cols)) + jitter) / vec2(float(cols), float(rows));
-}
-
-// Shirley and Chiu's concentric map of [0, 1)^2 onto the unit disk (light_shape.unit_disk).
-vec2 ow_concentric(vec2 uv)
-{
-  vec2 a = 2.0 * uv - 1.0;
-  if (a.x == 0.0 && a.y == 0.0) {
-    return vec2(0.0);
-  }
-  const float quarter = 0.78539816339744830962;
-  float r = (abs(a.x) > abs(a.y)) ? a.x : a.y;
-  float phi = (abs(a.x) > abs(a.y)) ? quarter * (a.y / a.x) : 2.0 * quarter - quarter * (a.x / a.y);
-  return r * vec2(cos(phi), sin(phi));
-}
+// Point k < ow_exact_points comes from the host's table ow_exact_pattern (render/soft.py,
+// core/light_shape's fixed stratified pattern): for a sphere (u, cos phi, sin phi), the cap
+// point of polar share u and azimuth phi; for an area light (x, y), its place in the light's
+// frame, sizes included.
 
 // What a sample needs to place its light points: a sphere's cap frame (towards the light,
 // two axes across it) and the cap's extent; an area light needs nothing per sample.
@@ -62,24 +37,31 @@ OwLightView ow_light_view(vec3 p)
   return view;
 }
 
+// The cap's polar angle of pattern entry `pattern` as seen from the sample: cos and sin.
+vec2 ow_cap_polar(OwLightView view, vec4 pattern)
+{
+  float cos_t = 1.0 - pattern.x * view.one_minus_cos;
+  return vec2(cos_t, sqrt(max(1.0 - cos_t * cos_t, 0.0)));
+}
+
+// The distance from the sample to the sphere's near side along a cap direction.
+float ow_cap_distance(OwLightView view, vec2 polar)
+{
+  float r = ow_exact_light.y;
+  float off = view.dist * polar.y;
+  return view.dist * polar.x - sqrt(max(r * r - off * off, 0.0));
+}
+
 // The segment from p to light point k (p + segment lies on the light).
 vec3 ow_light_segment(vec3 p, OwLightView view, int k)
 {
-  vec2 uv = ow_stratified(k, ow_exact_points);
+  vec4 pattern = ow_exact_pattern[k];
   if (int(ow_exact_light.x) == 1) {
-    float cos_t = 1.0 - uv.x * view.one_minus_cos;
-    float sin_t = sqrt(max(1.0 - cos_t * cos_t, 0.0));
-    float phi = 6.28318530717958647692 * uv.y;
-    vec3 d = sin_t * (cos(phi) * view.a + sin(phi) * view.b) + cos_t * view.w;
-    // The near side of the sphere along d: dist cos_t - sqrt(r^2 - (dist sin_t)^2).
-    float r = ow_exact_light.y;
-    float off = view.dist * sin_t;
-    float t = view.dist * cos_t - sqrt(max(r * r - off * off, 0.0));
-    return t * d;
+    vec2 polar = ow_cap_polar(view, pattern);
+    vec3 d = polar.y * (pattern.y * view.a + pattern.z * view.b) + polar.x * view.w;
+    return ow_cap_distance(view, polar) * d;
   }
-  vec2 xy = (ow_exact_light.w > 0.5) ? 0.5 * ow_concentric(uv) : uv - 0.5;
-  vec3 q = ow_exact_frame * vec3(xy * ow_exact_light.yz, 0.0);
-  return q - p;
+  return ow_exact_frame * vec3(pattern.xy, 0.0) - p;
 }
 
 // The weight of light point k's segment at a receiver of normal n (towards the light).
