@@ -36,7 +36,9 @@ def _scene_lights(scene, depsgraph, reference: ReferenceData, light_name: str | 
     chosen = [entry for entry in properties.enabled_lights(scene, depsgraph) if not light_name or entry[0] == light_name]
     if chosen:
         return chosen
-    light = LightSpec(reference.emission, reference.light_matrix, spot_size=reference.spot_size)  # type: ignore[arg-type]
+    # With the size the reference rendered it at: a sized preset's light keeps its penumbrae.
+    light = LightSpec(reference.emission, reference.light_matrix, spot_size=reference.spot_size,  # type: ignore[arg-type]
+                      shape=reference.light_shape())
     return [(reference.meta.get("light", "light"), light, default)]
 
 

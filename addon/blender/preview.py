@@ -173,7 +173,9 @@ def _report(reference: ReferenceData, per_light, gbuffer, gbuffer_ms: float, ren
     evaluable = metrics.evaluable_mask(reference.position, reference.normal, reference.hit, reference.unshadowed, light)
     # The preview's own G-buffer must see the same surfaces as Cycles to be compared.
     agree = gbuffer.hit == reference.hit
-    figure = metrics.judge(result.visibility, reference.shadowed, reference.unshadowed, evaluable & agree).figure
+    judged = metrics.judge(result.visibility, reference.shadowed, reference.unshadowed, evaluable & agree,
+                           sized=light.sized, noise=reference.visibility_noise)
+    figure = judged.figure
     lights = []
     for name, light, settings, result, stats, _ in per_light:
         lights.append({
@@ -191,6 +193,9 @@ def _report(reference: ReferenceData, per_light, gbuffer, gbuffer_ms: float, ren
         "error_pct": figure.error_pct, "false_shadow_pct": figure.false_shadow_pct,
         "false_lit_pct": figure.false_lit_pct, "evaluated_pixels": figure.evaluated_pixels,
         "gbuffer_hit_agreement": float(agree.mean()),
+        # Mean |visibility - reference| in %, and a sized light's own noise (docs/soft.md).
+        **{key: value for key, value in judged.columns().items()
+           if key in ("soft_error_pct", "reference_noise_pct") and value is not None},
         "time_ms": {"gbuffer": gbuffer_ms, **{k: sum(entry["time_ms"][k] for entry in lights)
                                               for k in ("total", "prepare", "analysis", "shadow_maps", "shadow_test")}},
         "lights": lights, "renderer": renderer, "backend": "blender-gpu", "camera_size": list(reference.resolution),

@@ -222,6 +222,19 @@ def test_preview_command_writes_images_and_error(gl_backend, tmp_path, monkeypat
     assert overlay[..., :3].std() > 0.05
 
 
+def test_preview_keeps_a_sized_lights_penumbrae(tmp_path, monkeypatch, capsys):
+    """A sized preset's light is previewed with its size: `exact` gives its shares of the
+    light, and the report scores them against the sized reference, with its noise."""
+    monkeypatch.setenv("OMNIWARP_CACHE", str(tmp_path / "cache"))
+    out = tmp_path / "preview"
+    assert main(["preview", "--preset", "soft_room", "--size", "96x72", "--method", "exact", "--resolution", "256",
+                 "--out", str(out)]) == 0, capsys.readouterr().err
+    report = json.loads((out / "preview.json").read_text())
+    assert report["reference_noise_pct"] > 0.0  # the reference is the sized one
+    # A hard preview of this light errs by about 3 % in the penumbrae.
+    assert report["soft_error_pct"] < 2.0 * report["reference_noise_pct"] + 0.5, report
+
+
 def test_preview_bad_input(tmp_path, capsys):
     assert main(["preview", "--preset", "nope", "--out", str(tmp_path)]) == 2
     assert "unknown preset 'nope'" in capsys.readouterr().err
