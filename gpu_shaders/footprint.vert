@@ -137,9 +137,9 @@ void main()
 #ifdef OW_EXACT_SOFT
   // A sized light's walk tests each edge from the sample: the edge's other vertex, and in
   // w -1 where ow_relative_edge swapped the pair (lo = v_edge_at, hi = this).
-  v_edge_hi0 = (v_edge_at0 == v0) ? vec4(v1, 1.0) : vec4(v0, -1.0);
-  v_edge_hi1 = (v_edge_at1 == v1) ? vec4(v2, 1.0) : vec4(v1, -1.0);
-  v_edge_hi2 = (v_edge_at2 == v2) ? vec4(v0, 1.0) : vec4(v2, -1.0);
+  v_edge_hi0 = ow_edge_swapped(v0, v1) ? vec4(v0, -1.0) : vec4(v1, 1.0);
+  v_edge_hi1 = ow_edge_swapped(v1, v2) ? vec4(v1, -1.0) : vec4(v2, 1.0);
+  v_edge_hi2 = ow_edge_swapped(v2, v0) ? vec4(v2, -1.0) : vec4(v0, 1.0);
   // The samples a triangle may shadow lie within `soft_grow` of its image from the light's
   // centre (lib/soft_footprint.glsl): the walk leaves out those farther than that from
   // one of its edges' great circles (v_cull: unit normals inwards, w the angle's sine).

@@ -10,6 +10,7 @@
 // footprint depth pass (footprint.vert) does.
 
 #include "lib/warp.glsl"
+#include "lib/edges.glsl"
 
 const vec4 OW_EMPTY_BOX = vec4(1.0, -1.0, 1.0, -1.0);
 // A triangle is seen edge-on when its plane passes within max(OW_EDGE_ON |v0|, distance)
@@ -44,7 +45,7 @@ float ow_edge_planes(vec3 v0, vec3 v1, vec3 v2, float distance, out vec3 n0, out
 // a gap.
 void ow_relative_edge(vec3 a, vec3 b, out vec3 normal, out vec3 at)
 {
-  bool swap = a.x > b.x || (a.x == b.x && (a.y > b.y || (a.y == b.y && a.z > b.z)));
+  bool swap = ow_edge_swapped(a, b);
   vec3 lo = swap ? b : a;
   vec3 hi = swap ? a : b;
   precise vec3 n = cross(lo, hi - lo);

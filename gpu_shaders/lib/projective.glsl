@@ -1,6 +1,7 @@
 // Projective (spot and sun) maps: one 4x4 matrix from light-centred world space to the
 // map's clip space, uv = ndc.xy * 0.5 + 0.5, z01 = ndc.z * 0.5 + 0.5. Mirrors
 // addon/core/perspective.py (project, texel_footprint).
+#include "lib/edges.glsl"
 
 // uv and z01 of a light-centred point; `w` <= 0 means the point is behind the map.
 vec3 ow_projective_uvz(mat4 m, vec3 p, out float w)
@@ -65,7 +66,7 @@ vec4 ow_projective_box(mat4 m, vec3 v0, vec3 v1, vec3 v2, float w_min)
 // edges in lib/footprint.glsl), so neighbours sharing the edge split the samples without a gap.
 void ow_parallel_edge(vec3 axis, vec3 a, vec3 b, out vec3 normal, out vec3 at)
 {
-  bool swap = a.x > b.x || (a.x == b.x && (a.y > b.y || (a.y == b.y && a.z > b.z)));
+  bool swap = ow_edge_swapped(a, b);
   vec3 lo = swap ? b : a;
   vec3 hi = swap ? a : b;
   precise vec3 n = cross(axis, hi - lo);

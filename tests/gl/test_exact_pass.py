@@ -114,10 +114,8 @@ def test_work_counts_follow_the_lists(gl_backend):
     assert work["cut"] == 0
 
 
-def random_scene(seed: int) -> SceneSpec:
-    """A floor, a back wall and random blockers of several sizes around an omni or hemi
-    light, seen by a camera from outside (the light in view or not)."""
-    rng = np.random.default_rng(seed)
+def random_blockers(rng: np.random.Generator) -> list[MeshSpec]:
+    """A floor, a back wall and 20-60 random triangles of several sizes over the floor."""
     quad = np.array([[-6.0, -6.0, 0.0], [6.0, -6.0, 0.0], [6.0, 6.0, 0.0], [-6.0, 6.0, 0.0]])
     wall = quad[:, [0, 2, 1]] + np.array([0.0, 6.0, 6.0])
     meshes = [MeshSpec("floor", quad, np.array([[0, 1, 2], [0, 2, 3]])),
@@ -126,6 +124,14 @@ def random_scene(seed: int) -> SceneSpec:
     centres = rng.uniform([-4.0, -4.0, 0.3], [4.0, 4.0, 4.0], (count, 3))
     corners = centres[:, None, :] + rng.normal(size=(count, 3, 3)) * rng.uniform(0.05, 1.0, (count, 1, 1))
     meshes.append(MeshSpec("blockers", corners.reshape(-1, 3), np.arange(3 * count).reshape(-1, 3)))
+    return meshes
+
+
+def random_scene(seed: int) -> SceneSpec:
+    """Random blockers (random_blockers) around an omni or hemi light, seen by a camera
+    from outside (the light in view or not)."""
+    rng = np.random.default_rng(seed)
+    meshes = random_blockers(rng)
     light = np.eye(4)
     light[:3, 3] = rng.uniform([-2.0, -2.0, 3.0], [2.0, 2.0, 6.0])
     eye, target = rng.uniform([-9.0, -12.0, 3.0], [9.0, -7.0, 9.0]), rng.uniform([-2.0, -1.0, 0.0], [2.0, 3.0, 2.0])

@@ -9,9 +9,10 @@ import numpy as np
 import pytest
 
 from addon.core.presets import build_preset
-from addon.core.scene import CameraSpec, LightSpec, MeshSpec, SceneSpec, look_at
+from addon.core.scene import CameraSpec, LightSpec, SceneSpec, look_at
 from addon.render.pipeline import ShadowPipeline, ShadowSettings, projective_counts
 from addon.render.resident import ResidentScene
+from tests.gl.test_exact_pass import random_blockers
 from tests.gl.test_izb_lists import _walk
 from tests.support.oracle import transmittance, view_samples
 
@@ -89,14 +90,7 @@ def random_scene(seed: int) -> SceneSpec:
     """A floor, a back wall and random blockers of several sizes under a spot aimed at the
     floor (even seeds) or a sun from a random direction above, seen by a camera from outside."""
     rng = np.random.default_rng(seed)
-    quad = np.array([[-6.0, -6.0, 0.0], [6.0, -6.0, 0.0], [6.0, 6.0, 0.0], [-6.0, 6.0, 0.0]])
-    wall = quad[:, [0, 2, 1]] + np.array([0.0, 6.0, 6.0])
-    meshes = [MeshSpec("floor", quad, np.array([[0, 1, 2], [0, 2, 3]])),
-              MeshSpec("wall", wall, np.array([[0, 1, 2], [0, 2, 3]]))]
-    count = int(rng.integers(20, 60))
-    centres = rng.uniform([-4.0, -4.0, 0.3], [4.0, 4.0, 4.0], (count, 3))
-    corners = centres[:, None, :] + rng.normal(size=(count, 3, 3)) * rng.uniform(0.05, 1.0, (count, 1, 1))
-    meshes.append(MeshSpec("blockers", corners.reshape(-1, 3), np.arange(3 * count).reshape(-1, 3)))
+    meshes = random_blockers(rng)
     if seed % 2 == 0:
         position = rng.uniform([-3.0, -3.0, 6.0], [3.0, 3.0, 9.0])
         light = LightSpec("spot", look_at(position, rng.uniform([-1.0, -1.0, 0.0], [1.0, 1.0, 0.0])),
