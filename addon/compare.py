@@ -126,7 +126,7 @@ def _median_times(frames: Sequence[dict[str, float]]) -> dict[str, float]:
 # The one method that does not follow see-through materials: its host-built stream has no UVs.
 UNFOLD_ALPHA_NOTE = "unfold draws see-through materials opaque (its tessellated stream carries no UVs)"
 HARD_SIZED_NOTE = ("the light has a size, but this method's shadows are hard (render/soft.py softens "
-                   "sphere and area lights on point lights' maps)")
+                   "the sphere, area and sun shapes on their lights' maps)")
 
 
 def scene_has_alpha(scene: ResidentScene) -> bool:

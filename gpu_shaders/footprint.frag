@@ -42,12 +42,59 @@ void ow_see_through(float alpha, float depth)
 #ifdef OW_EXACT_SOFT
 #include "lib/exact_soft.glsl"
 
+// Whether the light as a whole decides triangle (plane v_plane, edge planes e0..e2 through
+// p, inner sides positive) for sample p at height h over its plane: -1 when no point of the
+// light can be blocked, 1 when every point is (an umbra), 0 when each point is to be tested.
+// A sphere or area light is held by the sphere of radius ow_exact_reach about the light
+// centre (-p from p); a sun's directions by the cone of half angle ow_exact_light.y about
+// the frame's +Z.
+int ow_exact_soft_whole(vec3 p, float h, vec3 e0, vec3 e1, vec3 e2)
+{
+  vec3 lengths = vec3(length(e0), length(e1), length(e2));
+  if (int(ow_exact_light.x) == 3) {
+    // A ray p + t l crosses the plane at t = -h / (n . l) > 0. Within the cone, n . l keeps
+    // the sign of n . c where |n . c| exceeds the half angle's sine.
+    vec3 c = ow_exact_frame[2];
+    float nc = dot(v_plane.xyz, c);
+    float sin_half = ow_exact_light.z;
+    if (h * nc >= 0.0 && abs(nc) > sin_half) {
+      return -1;  // every direction leaves the plane on the sample's side
+    }
+    vec3 toward = vec3(dot(e0, c), dot(e1, c), dot(e2, c));
+    if (any(lessThan(toward, -lengths * sin_half))) {
+      return -1;  // the cone wholly outside one edge plane
+    }
+    // Inside all three, wholly crossing the plane, and |t| >= |h| > eps |p| for every ray.
+    bool umbra = all(greaterThan(toward, lengths * sin_half)) && h * nc < 0.0 && abs(nc) > sin_half
+                 && abs(h) > ow_exact_eps * length(p);
+    return umbra ? 1 : 0;
+  }
+  float centre_h = -dot(v_plane.xyz, v_edge_at0);  // the light centre's height
+  if (centre_h * h > 0.0 && abs(centre_h) >= ow_exact_reach) {
+    return -1;  // the whole light on the sample's side of the plane
+  }
+  // The light's sphere (centre -p from p) against the wedge of the three planes: wholly
+  // outside one of them, no segment crosses; wholly inside all three and wholly beyond the
+  // triangle's plane, every segment does.
+  vec3 reach = lengths * ow_exact_reach;
+  vec3 centre_side = vec3(dot(e0, -p), dot(e1, -p), dot(e2, -p));
+  if (any(lessThan(centre_side, -reach))) {
+    return -1;
+  }
+  bool umbra = all(greaterThan(centre_side, reach)) && centre_h * h < 0.0 && abs(centre_h) > ow_exact_reach
+               && abs(h) > ow_exact_eps * (abs(h) + abs(centre_h) + ow_exact_reach);
+  return umbra ? 1 : 0;
+}
+
 // A sized light (lib/exact_soft.glsl): the light points of sample p (light-centred, at
 // texel `at` of the sample texture, `rows` its height) whose segment this triangle
-// crosses, more than ow_exact_eps of its length from p, set their bits in p's words.
+// crosses, more than ow_exact_eps of its length from p, set their bits in p's words. A
+// sun's rays go on forever: they must cross more than ow_exact_eps |p| from p, as the hard
+// sun's do (ow_projective_blocks).
 void ow_exact_soft_mark(vec3 p, ivec2 at, int rows)
 {
-  // Farther from the triangle's image than the light's angle from it: nothing to shadow.
+  // Farther from the triangle's image than the light's angle from it: nothing to shadow
+  // (a sun's v_cull never culls).
   vec3 dir = p * inversesqrt(max(dot(p, p), 1e-30));
   float reach_sin = v_cull0.w;
   if (dot(dir, v_cull0.xyz) < -reach_sin || dot(dir, v_cull1.xyz) < -reach_sin || dot(dir, v_cull2.xyz) < -reach_sin) {
@@ -56,10 +103,6 @@ void ow_exact_soft_mark(vec3 p, ivec2 at, int rows)
   precise float h = dot(v_plane.xyz, p - v_edge_at0);  // p's height over the triangle's plane
   if (h == 0.0) {
     return;  // on the plane: the receiver itself
-  }
-  float centre_h = -dot(v_plane.xyz, v_edge_at0);  // the light centre's
-  if (centre_h * h > 0.0 && abs(centre_h) >= ow_exact_reach) {
-    return;  // the whole light on the sample's side of the plane
   }
   // Edge planes through p, each edge's vertices in one order for every triangle that has
   // it: neighbours get the same normal negated, and no segment passes between them. The
@@ -72,16 +115,11 @@ void ow_exact_soft_mark(vec3 p, ivec2 at, int rows)
   e0 *= v_edge_hi0.w * side;
   e1 *= v_edge_hi1.w * side;
   e2 *= v_edge_hi2.w * side;
-  // The light's sphere (centre -p from p) against the wedge of the three planes: wholly
-  // outside one of them, no segment crosses; wholly inside all three and wholly beyond the
-  // triangle's plane, every segment does (an umbra: all points marked at once).
-  vec3 reach = vec3(length(e0), length(e1), length(e2)) * ow_exact_reach;
-  vec3 centre_side = vec3(dot(e0, -p), dot(e1, -p), dot(e2, -p));
-  if (any(lessThan(centre_side, -reach))) {
+  int whole = ow_exact_soft_whole(p, h, e0, e1, e2);
+  if (whole < 0) {
     return;
   }
-  if (all(greaterThan(centre_side, reach)) && centre_h * h < 0.0 && abs(centre_h) > ow_exact_reach
-      && abs(h) > ow_exact_eps * (abs(h) + abs(centre_h) + ow_exact_reach)) {
+  if (whole > 0) {
 #ifndef OW_ALPHA
     for (int w = 0; w * 32 < ow_exact_points; w++) {
       int left = ow_exact_points - 32 * w;
@@ -93,14 +131,17 @@ void ow_exact_soft_mark(vec3 p, ivec2 at, int rows)
   // Each point's segment against the edge planes and the triangle's plane, as affine
   // functions of its pattern entry (lib/exact_soft.glsl): for a sphere, seg = t d with
   // d = sin_t (c a + s b) + cos_t w, so e . seg has the sign of sin_t (c e.a + s e.b) +
-  // cos_t e.w; for an area light, seg = F (x, y, 0) - p, so e . seg = x e.F0 + y e.F1 - e.p.
+  // cos_t e.w; for an area light, seg = F (x, y, 0) - p, so e . seg = x e.F0 + y e.F1 - e.p;
+  // for a sun, the direction F (x, y, z), so e . l = x e.F0 + y e.F1 + z e.F2.
   OwLightView view = ow_light_view(p);
   bool sphere = int(ow_exact_light.x) == 1;
+  bool sun = int(ow_exact_light.x) == 3;
+  float sun_min = ow_exact_eps * length(p);  // a sun's ray must cross beyond this
   mat3 edges = transpose(mat3(e0, e1, e2));  // rows: the three edge normals
   vec3 n = v_plane.xyz;
   vec3 along0 = sphere ? view.a : ow_exact_frame[0];
   vec3 along1 = sphere ? view.b : ow_exact_frame[1];
-  vec3 along2 = sphere ? view.w : p;
+  vec3 along2 = sphere ? view.w : (sun ? ow_exact_frame[2] : p);
   vec3 side0 = edges * along0;  // each edge's dot product with the three axes
   vec3 side1 = edges * along1;
   vec3 side2 = edges * along2;
@@ -127,13 +168,13 @@ void ow_exact_soft_mark(vec3 p, ivec2 at, int rows)
         polar = ow_cap_polar(view, pattern);
         weights = vec3(polar.y * pattern.y, polar.y * pattern.z, polar.x);
       } else {
-        weights = vec3(pattern.x, pattern.y, -1.0);
+        weights = sun ? pattern.xyz : vec3(pattern.x, pattern.y, -1.0);
       }
       vec3 sides = weights.x * side0 + weights.y * side1 + weights.z * side2;
       if (all(greaterThanEqual(sides, vec3(0.0)))) {
         float along = dot(weights, height);  // n . seg, over t for a sphere
         float f = -h / (sphere ? along * ow_cap_distance(view, polar) : along);  // where the plane cuts it
-        if (f > ow_exact_eps && f < 1.0) {
+        if (sun ? (f > sun_min) : (f > ow_exact_eps && f < 1.0)) {
 #ifdef OW_ALPHA
           // A see-through crossing blocks the points whose fixed threshold its alpha passes:
           // a share alpha of them (thresholds a permutation of the points, so not the

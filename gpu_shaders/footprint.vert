@@ -106,6 +106,23 @@ vec4 ow_projective_quad(vec3 v0, vec3 v1, vec3 v2, int corner)
   vec2 uv = vec2(((corner & 1) != 0) ? box.y : box.x, ((corner & 2) != 0) ? box.w : box.z);
   return vec4(uv * 2.0 - 1.0, 0.0, 1.0);
 }
+
+#ifdef OW_EXACT_SOFT
+// The exact pass of a sized spot or sun over its map: the quad over the triangle's grown
+// footprint (lib/soft_footprint.glsl's ow_soft_projective_box), grown by `ow_dilate` texels.
+vec4 ow_soft_projective_quad(vec3 v0, vec3 v1, vec3 v2, int corner, float grow)
+{
+  vec4 box = ow_soft_projective_box(ow_map_matrix, v0, v1, v2, grow);
+  float dilate = ow_dilate / ow_resolution;
+  box += vec4(-dilate, dilate, -dilate, dilate);
+  if (!(box.x <= box.y) || box.x > 1.0 || box.y < 0.0 || box.z > 1.0 || box.w < 0.0) {
+    return vec4(2.0, 2.0, 2.0, 1.0);  // beside the map (or not finite): nothing drawn
+  }
+  box = clamp(box, 0.0, 1.0);
+  vec2 uv = vec2(((corner & 1) != 0) ? box.y : box.x, ((corner & 2) != 0) ? box.w : box.z);
+  return vec4(uv * 2.0 - 1.0, 0.0, 1.0);
+}
+#endif
 #endif
 #endif
 
@@ -143,8 +160,10 @@ void main()
   // The samples a triangle may shadow lie within `soft_grow` of its image from the light's
   // centre (lib/soft_footprint.glsl): the walk leaves out those farther than that from
   // one of its edges' great circles (v_cull: unit normals inwards, w the angle's sine).
+  // A sun's rays come from no centre: its walk takes no such cut (reach_sin 2).
+  bool soft_sun = int(ow_exact_light.x) == 3;
   float soft_grow = ow_soft_grow(ow_origin_distance(v0, v1, v2), ow_exact_reach);
-  float reach_sin = (soft_grow < 1.5707963267948966) ? sin(soft_grow) : 2.0;
+  float reach_sin = (soft_grow < 1.5707963267948966 && !soft_sun) ? sin(soft_grow) : 2.0;
   vec3 c0 = n0 * orientation;
   vec3 c1 = n1 * orientation;
   vec3 c2 = n2 * orientation;
@@ -161,9 +180,11 @@ void main()
   v_edge2 = n2 * orientation;
 #ifdef OW_EXACT
 #ifndef OW_FIXED_KIND
+#ifndef OW_EXACT_SOFT
   if (ow_projective != 0 && ow_sun != 0) {
-    orientation = ow_sun_edges(v0, v1, v2);
+    orientation = ow_sun_edges(v0, v1, v2);  // a sized sun's walk tests edges from the sample
   }
+#endif
 #endif
 #endif
 #ifdef OW_ALPHA
@@ -182,7 +203,11 @@ void main()
 #ifdef OW_EXACT
 #ifndef OW_FIXED_KIND
   if (ow_projective != 0) {
+#ifdef OW_EXACT_SOFT
+    gl_Position = ow_soft_projective_quad(v0, v1, v2, corner, soft_grow);
+#else
     gl_Position = ow_projective_quad(v0, v1, v2, corner);
+#endif
     return;
   }
 #endif

@@ -14,6 +14,49 @@
 #include "lib/veil.glsl"
 #endif
 
+#ifdef OW_SOFT
+#include "lib/soft_map.glsl"
+
+// One light-centred direction d looked up in the layer that holds it, as the test below
+// reads its own: the map's distance from the light (1e30 where nothing was drawn, outside
+// the hemisphere, the drawn layers or the cleared box) and the light the veil lets
+// through to distance `depth` (lib/soft.glsl's taps).
+vec2 ow_point_tap(vec3 d, float depth)
+{
+#ifndef OW_FIXED_KIND
+  if (ow_projective != 0) {
+    return ow_spot_tap(d, depth);  // a spot's map (lib/soft_map.glsl)
+  }
+#endif
+  vec3 ld = ow_light_rot * d;
+  if (ow_hemi != 0 && ld.z >= 0.0) {
+    return vec2(1e30, 1.0);
+  }
+  int slot = ow_pick_slot(ow_param, ld);
+  vec4 tile = ow_layer_tile[slot];
+  if (tile.z < 0.5) {
+    return vec2(1e30, 1.0);
+  }
+  vec2 xy = ow_project(ow_layer_kind, ow_layer_rot[slot] * d);
+  float magnification;
+  vec2 uv = ow_map_forward(ow_warp_rows, ow_warp_cols, slot, ow_warp_size, ow_layer_crop[slot], xy,
+                           magnification);
+  int res = int(ow_resolution);
+  ivec2 texel = clamp(ivec2(floor(uv * ow_resolution)), ivec2(0), ivec2(res - 1));
+  vec4 box = ow_layer_box[slot];
+  if (any(lessThan(vec2(texel), box.xy)) || any(greaterThanEqual(vec2(texel), box.zw))) {
+    return vec2(1e30, 1.0);
+  }
+  float stored = texelFetch(ow_atlas, texel + ivec2(tile.xy), 0).r;
+  float light = 1.0;
+#ifdef OW_VEIL
+  light = ow_veil_light(texel + ivec2(tile.xy), (depth - ow_near) / (ow_far - ow_near));
+#endif
+  return vec2((stored >= 1.0) ? 1e30 : ow_near + stored * (ow_far - ow_near), light);
+}
+#include "lib/soft.glsl"
+#endif
+
 // Spot and sun maps (sm, psm). Same bias rule as the point-light maps, in world
 // space: a normal offset and a move towards the light, in texel footprints; then the
 // constant depth offset of the map (perspective.py).
@@ -51,44 +94,16 @@ vec2 ow_projective_test(vec3 p, vec3 n)
     visibility *= ow_veil_light(texel + ivec2(ow_layer_tile[0].xy), z01 - ow_depth_offset);
   }
 #endif
+#ifdef OW_SOFT
+  // A sized spot or sun: the share of the light the receiver sees (lib/soft.glsl), with the
+  // hard test's offsets as one world bias at the receiver.
+  float bias = footprint * (ow_bias_const + ow_bias_normal + ow_bias_slope * min(tan_i, 20.0));
+  visibility = (ow_sun != 0) ? ow_sun_soft_visibility(p, n, bias, visibility)
+                             : ow_soft_visibility(p, n, bias, visibility);
+#endif
   return vec2(visibility, 0.0);
 }
 
-#ifdef OW_SOFT
-// One light-centred direction d looked up in the layer that holds it, as the test below
-// reads its own: the map's distance from the light (1e30 where nothing was drawn, outside
-// the hemisphere, the drawn layers or the cleared box) and the light the veil lets
-// through to distance `depth` (lib/soft.glsl's taps).
-vec2 ow_point_tap(vec3 d, float depth)
-{
-  vec3 ld = ow_light_rot * d;
-  if (ow_hemi != 0 && ld.z >= 0.0) {
-    return vec2(1e30, 1.0);
-  }
-  int slot = ow_pick_slot(ow_param, ld);
-  vec4 tile = ow_layer_tile[slot];
-  if (tile.z < 0.5) {
-    return vec2(1e30, 1.0);
-  }
-  vec2 xy = ow_project(ow_layer_kind, ow_layer_rot[slot] * d);
-  float magnification;
-  vec2 uv = ow_map_forward(ow_warp_rows, ow_warp_cols, slot, ow_warp_size, ow_layer_crop[slot], xy,
-                           magnification);
-  int res = int(ow_resolution);
-  ivec2 texel = clamp(ivec2(floor(uv * ow_resolution)), ivec2(0), ivec2(res - 1));
-  vec4 box = ow_layer_box[slot];
-  if (any(lessThan(vec2(texel), box.xy)) || any(greaterThanEqual(vec2(texel), box.zw))) {
-    return vec2(1e30, 1.0);
-  }
-  float stored = texelFetch(ow_atlas, texel + ivec2(tile.xy), 0).r;
-  float light = 1.0;
-#ifdef OW_VEIL
-  light = ow_veil_light(texel + ivec2(tile.xy), (depth - ow_near) / (ow_far - ow_near));
-#endif
-  return vec2((stored >= 1.0) ? 1e30 : ow_near + stored * (ow_far - ow_near), light);
-}
-#include "lib/soft.glsl"
-#endif
 
 #ifdef OW_EXACT_SOFT
 #include "lib/exact_soft.glsl"
@@ -134,6 +149,13 @@ void main()
 #ifndef OW_FIXED_KIND
   if (ow_projective != 0) {
     ow_result = ow_projective_test(p, n);
+#ifdef OW_EXACT_SOFT
+    // A sized spot's or sun's exact pass: its marks weighed, the normal towards the light.
+    if (ow_result.y == 0.0) {
+      vec3 to_light = (ow_sun != 0) ? -ow_light_axis : -p;
+      ow_result.x *= ow_exact_soft_share(p, (dot(n, to_light) < 0.0) ? -n : n, pix);
+    }
+#endif
     return;
   }
 #endif

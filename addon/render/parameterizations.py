@@ -40,8 +40,8 @@ from ..core.warping import LayerMapping, max_shear
 from .backend import AtlasLayout, FootprintDraw, ShadowBackend
 from .frame import PreparedGeometry, ShadowSettings
 from .resident import CHUNK_TRIANGLES, ResidentScene
-from .shaders import EXACT_COUNT_KEY, EXACT_MAX_WALK, FOOTPRINT_VERTICES, MAX_POINT_SIZE, REGION_PLANES, SLOTS
-from .soft import exact_soft_uniforms
+from .shaders import EXACT_COUNT_KEY, EXACT_MAX_WALK, EXACT_SOFT_KEY, FOOTPRINT_VERTICES, MAX_POINT_SIZE, REGION_PLANES, SLOTS
+from .soft import exact_soft_uniforms, light_reach
 from .unfold import VERTEX_FLOATS, edge_aa_parameters, prepare_unfold
 
 log = logging.getLogger(__name__)
@@ -274,10 +274,17 @@ class Projective(Parameterization):
         size in texels has no bound here that would fit a point sprite."""
         light = inputs.light
         sun = light.emission == "sun"
+        soft = exact_soft_uniforms(light, inputs.settings)
         uniforms = {**uniforms, "ow_exact_tile": 0, "ow_exact_eps": EXACT_EPS, "ow_exact_bound": EXACT_MAX_WALK,
                     EXACT_COUNT_KEY: int(inputs.count_work), "ow_sun": int(sun), "ow_light_axis": light.axis,
                     "ow_clip_near": 0.0 if sun else inputs.geometry.far * CLIP_NEAR_RELATIVE,
-                    "ow_exact_lift_share": EXACT_LIFT}
+                    "ow_exact_lift_share": EXACT_LIFT, **soft}
+        if int(soft.get(EXACT_SOFT_KEY, 0)) > 0:
+            # A sized light's occluders lie farther out: a spot's within its sphere's radius of
+            # the region, a sun's within the tangent of its half angle times the region's
+            # depth (plan_projective's hull reaches that far upstream of the view).
+            uniforms["ow_region_slack"] = float(uniforms.get("ow_region_slack", 0.0)) + _projective_slack(
+                light, inputs.scene)
         if not inputs.draws:
             return
         backend.draw_footprints(0, inputs.draws, uniforms, exact=True)
@@ -286,6 +293,17 @@ class Projective(Parameterization):
     def test_uniforms(self, plan: Plan) -> dict:
         return {"ow_projective": 1, "ow_map_inverted": int(plan.projective.inverted),
                 "ow_map_matrix": plan.projective.matrix, "ow_depth_offset": plan.projective.depth_offset}
+
+
+def _projective_slack(light: LightSpec, scene: ResidentScene) -> float:
+    """How far a sized spot's or sun's occluders may lie outside the hard light's occluder
+    region: the sphere's radius, or for a sun the tangent of its half angle times the
+    region's reach upstream (plan_projective: twice the scene's diagonal, plus one)."""
+    if light.emission != "sun":
+        return light_reach(light.shape)
+    bounds = scene.bounds()
+    diagonal = float(np.linalg.norm(bounds[1] - bounds[0])) if bounds is not None else 0.0
+    return math.tan(0.5 * light.shape.angle) * (2.0 * diagonal + 1.0)
 
 
 PARAMETERIZATIONS: dict[str, Parameterization] = {

@@ -583,7 +583,7 @@ SOFT_DEFINE = "OW_SOFT"
 SOFT_MAX_POINTS = 64
 SOFT_MAX_SEARCH = 16
 SOFT_SEARCH_STEPS = 3
-SOFT_KINDS = {"sphere": 1, "area": 2}  # ow_soft_kind: how the points lie (lib/soft.glsl)
+SOFT_KINDS = {"sphere": 1, "area": 2, "sun_disk": 3}  # ow_soft_kind: how the points lie (lib/soft.glsl)
 SHARED_DEFINES.update({"OW_SOFT_MAX_POINTS": str(SOFT_MAX_POINTS), "OW_SOFT_SEARCH_STEPS": str(SOFT_SEARCH_STEPS)})
 SOFT_UNIFORMS = (Uniform("vec4", "ow_soft_points", SOFT_MAX_POINTS), Uniform("int", "ow_soft_count"),
                  Uniform("vec4", "ow_soft_search_points", SOFT_MAX_SEARCH), Uniform("int", "ow_soft_search"),
@@ -592,8 +592,9 @@ _SOFT_VARIANTS: dict[str, ProgramInterface] = {}  # shadow-test variant name -> 
 
 
 def soft_of(base: ProgramInterface) -> ProgramInterface:
-    """The point-light shadow test's variant for a sized light (lib/soft.glsl): its maps
-    filtered by the light's own points. Hard lights keep the plain test, unchanged."""
+    """The shadow test's variant for a sized light (lib/soft.glsl): its maps (a point
+    light's, a spot's or a sun's) filtered by the light's own points. Hard lights keep the
+    plain test, unchanged."""
     if base.fragment_file != SHADOW_TEST_PROGRAM.fragment_file:
         raise BackendError(f"program {base.name!r} has no soft variant")
     held = _SOFT_VARIANTS.get(base.name)

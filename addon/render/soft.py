@@ -8,7 +8,7 @@ import math
 
 import numpy as np
 
-from ..core.light_shape import Area, LightShape, Sphere, stratified_points, stratified_unit_square
+from ..core.light_shape import Area, LightShape, Sphere, SunDisk, stratified_points, stratified_unit_square
 from ..core.scene import LightSpec
 from .frame import MIN_RESOLUTION, ShadowSettings
 from .shaders import EXACT_SOFT_KEY, EXACT_SOFT_MAX_POINTS, SOFT_KINDS, SOFT_MAX_POINTS, SOFT_MAX_SEARCH
@@ -17,7 +17,7 @@ from .shaders import EXACT_SOFT_KEY, EXACT_SOFT_MAX_POINTS, SOFT_KINDS, SOFT_MAX
 # (list_resolution).
 EXACT_SOFT_LIST_SHARE = 4
 # The exact soft pass's light kinds (ow_exact_light.x) and area outlines (.w).
-EXACT_KINDS = {"sphere": 1, "area": 2}
+EXACT_KINDS = {"sphere": 1, "area": 2, "sun_disk": 3}
 EXACT_OUTLINES = {"rectangle": 0, "ellipse": 1}
 
 
@@ -30,26 +30,37 @@ def _points(shape: LightShape, count: int, size: int) -> np.ndarray:
     return out
 
 
-def _soft_shape(light: LightSpec) -> bool:
-    """A sized sphere or area light on a point light's maps: the shapes both soft paths take."""
+def _point_soft(light: LightSpec) -> bool:
+    """A sized sphere or area light of omni or hemi emission: on a point light's maps."""
     return light.sized and isinstance(light.shape, (Sphere, Area)) and light.is_point
 
 
+def _projective_soft(light: LightSpec) -> bool:
+    """A sized spot (its sphere) or sun (its disk): on the light's own projective map."""
+    return light.sized and ((light.emission == "spot" and isinstance(light.shape, Sphere))
+                            or (light.emission == "sun" and isinstance(light.shape, SunDisk)))
+
+
+def _soft_shape(light: LightSpec) -> bool:
+    """A sized light whose shadows both soft paths follow: every light type with a size."""
+    return _point_soft(light) or _projective_soft(light)
+
+
 def filters(light: LightSpec, settings: ShadowSettings) -> bool:
-    """True when the frame's maps are filtered by the light's size: a sized sphere or area
-    light on a point-light parameterization's depth test (the exact pass samples the light
-    itself, `exact_soft`; the spot and sun maps are not filtered yet)."""
+    """True when the frame's maps are filtered by the light's size: a sized light on any
+    map's depth test (the exact pass samples the light itself, `exact_soft`)."""
     return _soft_shape(light) and not settings.exact
 
 
 def exact_soft(light: LightSpec, settings: ShadowSettings) -> bool:
-    """True when the exact pass samples the light per view sample: a sized sphere or area
-    light of omni or hemi emission on the exact pass over a point light's maps."""
+    """True when the exact pass samples the light per view sample: a sized light of any
+    type on the exact pass over its maps (a point light's, a spot's or a sun's)."""
     return _soft_shape(light) and settings.exact
 
 
 def light_reach(shape: LightShape) -> float:
-    """The radius of the sphere about the light's centre that holds the whole light."""
+    """The radius of the sphere about the light's centre that holds the whole light (0 for
+    a sun: its disk is a cone of directions, not a place)."""
     if isinstance(shape, Sphere):
         return float(shape.radius)
     if isinstance(shape, Area):
@@ -93,6 +104,9 @@ def exact_soft_uniforms(light: LightSpec, settings: ShadowSettings) -> dict:
     shape = light.shape
     if isinstance(shape, Sphere):
         described = (EXACT_KINDS["sphere"], shape.radius, 0.0, 0.0)
+    elif isinstance(shape, SunDisk):
+        half = 0.5 * shape.angle
+        described = (EXACT_KINDS["sun_disk"], half, math.sin(half), math.tan(half))
     else:
         described = (EXACT_KINDS["area"], shape.size_x, shape.size_y, EXACT_OUTLINES[shape.outline])
     count = int(settings.exact_samples)
@@ -105,12 +119,15 @@ def exact_soft_uniforms(light: LightSpec, settings: ShadowSettings) -> dict:
 def _exact_pattern(shape: LightShape, count: int) -> np.ndarray:
     """The exact pass's table of `count` light points (lib/exact_soft.glsl), zero-padded to
     EXACT_SOFT_MAX_POINTS: a sphere's (u, cos phi, sin phi, 0) on its cap, an area light's
-    (x, y, 0, 0) in its frame (light_shape.stratified_points)."""
+    (x, y, 0, 0) in its frame, a sun's unit direction towards it (x, y, z, 0) in its frame
+    (light_shape.stratified_points)."""
     out = np.zeros((EXACT_SOFT_MAX_POINTS, 4))
     if isinstance(shape, Sphere):
         uv = stratified_unit_square(count)
         phi = 2.0 * math.pi * uv[:, 1]
         out[:count, :3] = np.column_stack([uv[:, 0], np.cos(phi), np.sin(phi)])
+    elif isinstance(shape, SunDisk):
+        out[:count, :3] = stratified_points(shape, count)
     else:
         out[:count, :2] = stratified_points(shape, count)[:, :2]
     out.setflags(write=False)

@@ -8,11 +8,14 @@
 //   angle, each point weighted by the cosine at the receiver;
 // - an area light (2; size .y by .z, outline .w: 0 rectangle, 1 ellipse, in the light's
 //   frame ow_exact_frame): uniform over its surface, weighted by both cosines over the
-//   squared distance.
+//   squared distance;
+// - a sun's disk (3; half angle .y, its sine .z and tangent .w): directions towards it
+//   (the frame's +Z) within the half angle, uniform in solid angle, each weighted by the
+//   cosine at the receiver. Its "segment" is the unit direction: the ray goes on forever.
 // Point k < ow_exact_points comes from the host's table ow_exact_pattern (render/soft.py,
 // core/light_shape's fixed stratified pattern): for a sphere (u, cos phi, sin phi), the cap
 // point of polar share u and azimuth phi; for an area light (x, y), its place in the light's
-// frame, sizes included.
+// frame, sizes included; for a sun (x, y, z), the direction in the light's frame.
 
 // What a sample needs to place its light points: a sphere's cap frame (towards the light,
 // two axes across it) and the cap's extent; an area light needs nothing per sample.
@@ -52,10 +55,13 @@ float ow_cap_distance(OwLightView view, vec2 polar)
   return view.dist * polar.x - sqrt(max(r * r - off * off, 0.0));
 }
 
-// The segment from p to light point k (p + segment lies on the light).
+// The segment from p to light point k (p + segment lies on the light); a sun's direction.
 vec3 ow_light_segment(vec3 p, OwLightView view, int k)
 {
   vec4 pattern = ow_exact_pattern[k];
+  if (int(ow_exact_light.x) == 3) {
+    return ow_exact_frame * pattern.xyz;
+  }
   if (int(ow_exact_light.x) == 1) {
     vec2 polar = ow_cap_polar(view, pattern);
     vec3 d = polar.y * (pattern.y * view.a + pattern.z * view.b) + polar.x * view.w;
@@ -72,7 +78,7 @@ float ow_light_weight(vec3 segment, vec3 n)
     return 0.0;
   }
   float cos_r = max(dot(segment, n), 0.0) / len;
-  if (int(ow_exact_light.x) == 1) {
+  if (int(ow_exact_light.x) != 2) {
     return cos_r;
   }
   // An area light emits along its -Z: the segment from the receiver meets it from below.

@@ -1,4 +1,4 @@
-// Soft shadows of a sized light from a point light's maps (shaders.soft_of, issue 27):
+// Soft shadows of a sized light from its maps (shaders.soft_of, issue 27):
 // percentage-closer soft shadows whose kernel is the light itself. Needs the shadow test's
 // ow_point_tap (shadow_test.frag), which looks one light-centred direction up in whichever
 // layer holds it, through the layer's projection, crop and warp, so a kernel crosses the
@@ -16,10 +16,10 @@
 
 // The frame the light's pattern lies in, light-centred world coordinates: an area light's
 // own; for a sphere, the disk of its radius that faces the receiver p (its normal along p),
-// made once per receiver.
+// made once per receiver; a sun's own (its points are directions).
 mat3 ow_soft_frame(vec3 p)
 {
-  if (ow_soft_kind == 2) {
+  if (ow_soft_kind != 1) {
     return transpose(ow_light_rot);
   }
   vec3 w = normalize(p);
@@ -70,6 +70,75 @@ float ow_soft_visibility(vec3 p, vec3 n, float bias, float centre)
     float limit = t_recv - bias * (t_recv / dist);
     vec2 tap = ow_point_tap(d, limit);
     lit += (tap.x >= limit) ? tap.y : 0.0;
+  }
+  return lit / float(ow_soft_count);
+}
+
+// A sun's soft visibility at p (normal n towards the sun, bias in world units). Its points
+// are directions l towards it (the frame's +Z is -ow_light_axis); the ray p + u l meets a
+// blocker's depth, an axial distance D upstream of p, at u = D / (l . c). The blocker search
+// follows each search direction through the map (its texels hold the nearest surface along
+// the sun's rays) and puts each blocker it finds back on its ray; the filter then reads the
+// map where each light direction's ray reaches their mean depth, and compares with the
+// receiver's own plane along the sun's ray through that point.
+float ow_sun_soft_visibility(vec3 p, vec3 n, float bias, float centre)
+{
+  vec3 c = -ow_light_axis;  // towards the sun
+  mat3 frame = ow_soft_frame(p);
+  float nc = dot(n, c);
+  // How far upstream the map reaches from p (its z01 = 0 plane, along c).
+  float top = max(-ow_map_line_depth(p, ow_light_axis, -ow_depth_offset), 0.0);
+  float sum_d = 0.0;
+  int blockers = 0;
+  for (int j = 0; j < ow_soft_search; j++) {
+    vec3 l = frame * ow_soft_search_points[j].xyz;
+    float lc = max(dot(l, c), 1e-3);
+    for (int k = 1; k <= OW_SOFT_SEARCH_STEPS; k++) {
+      float f = pow(float(k) / float(OW_SOFT_SEARCH_STEPS + 1), 2.0);
+      vec3 x = p + (f * top / lc) * l;
+      ivec2 texel;
+      float z01;
+      if (!ow_map_texel(x, texel, z01)) {
+        continue;
+      }
+      float stored = texelFetch(ow_atlas, texel, 0).r;
+      if (stored >= 1.0) {
+        continue;
+      }
+      // The blocker on the sun's ray through x, and the receiver's plane on that ray.
+      float s_b = ow_map_line_depth(x, ow_light_axis, stored);
+      float s_r = (abs(nc) > 1e-4) ? dot(n, p - x) / -nc : 0.0;
+      if (s_b < s_r - bias) {
+        sum_d += dot(x + s_b * ow_light_axis - p, c);
+        blockers++;
+      }
+    }
+  }
+  if (blockers == 0) {
+    return centre;
+  }
+  float depth = max(sum_d / float(blockers), 0.0);
+  float lit = 0.0;
+  for (int j = 0; j < ow_soft_count; j++) {
+    vec3 l = frame * ow_soft_points[j].xyz;
+    vec3 x = p + (depth / max(dot(l, c), 1e-3)) * l;
+    ivec2 texel;
+    float z01;
+    if (!ow_map_texel(x, texel, z01)) {
+      lit += 1.0;
+      continue;
+    }
+    float stored = texelFetch(ow_atlas, texel, 0).r;
+    float s_r = (abs(nc) > 1e-4) ? dot(n, p - x) / -nc : 0.0;
+    float light = 1.0;
+    vec3 y = x + (s_r - bias) * ow_light_axis;  // the receiver's plane, less the bias
+    float w;
+    vec3 uvz = ow_projective_uvz(ow_map_matrix, y, w);
+    float y01 = (ow_map_inverted != 0) ? 1.0 - uvz.z : uvz.z;
+#ifdef OW_VEIL
+    light = ow_veil_light(texel, y01 - ow_depth_offset);
+#endif
+    lit += (stored >= 1.0 || y01 - ow_depth_offset <= stored) ? light : 0.0;
   }
   return lit / float(ow_soft_count);
 }

@@ -115,22 +115,34 @@ float ow_soft_grow(float d_min, float reach)
   return (d_min > 1.5 * reach) ? asin(reach / d_min) + 1e-4 : 4.0;
 }
 
+// The cap (unit axis, half angle) that holds the directions of a triangle's corners from
+// the light, and so of the whole triangle; false where no cap of less than a hemisphere
+// does (the triangle surrounds the light, or spans half its sky).
+bool ow_direction_cap(vec3 l0, vec3 l1, vec3 l2, out vec3 axis, out float spread)
+{
+  vec3 n0 = normalize(l0);
+  vec3 n1 = normalize(l1);
+  vec3 n2 = normalize(l2);
+  vec3 sum = n0 + n1 + n2;
+  axis = vec3(0.0, 0.0, 1.0);
+  spread = 4.0;
+  if (length(sum) < 1e-3) {
+    return false;
+  }
+  axis = normalize(sum);
+  spread = acos(clamp(min(min(dot(axis, n0), dot(axis, n1)), dot(axis, n2)), -1.0, 1.0));
+  return spread < 1.5707963267948966;
+}
+
 vec4 ow_soft_box(vec3 l0, vec3 l1, vec3 l2, int kind, float grow)
 {
   if (grow > 1.5707963267948966) {
     return OW_WHOLE_BOX;
   }
-  vec3 n0 = normalize(l0);
-  vec3 n1 = normalize(l1);
-  vec3 n2 = normalize(l2);
-  vec3 sum = n0 + n1 + n2;
-  if (length(sum) < 1e-3) {
-    return OW_WHOLE_BOX;  // the triangle surrounds the light
-  }
-  vec3 axis = normalize(sum);
-  float spread = acos(clamp(min(min(dot(axis, n0), dot(axis, n1)), dot(axis, n2)), -1.0, 1.0));
-  if (spread >= 1.5707963267948966) {
-    return OW_WHOLE_BOX;  // no cap of at most a hemisphere holds it
+  vec3 axis;
+  float spread;
+  if (!ow_direction_cap(l0, l1, l2, axis, spread)) {
+    return OW_WHOLE_BOX;
   }
   spread += grow;
   if (kind != OW_KIND_PARABOLOID) {
@@ -142,4 +154,71 @@ vec4 ow_soft_box(vec3 l0, vec3 l1, vec3 l2, int kind, float grow)
     box = vec4(max(box.x, own.x), min(box.y, own.y), max(box.z, own.z), min(box.w, own.w));
   }
   return box;
+}
+
+// A spot's map (lib/projective.glsl): clip x = r_x . d and w = r_w . d for a light-centred
+// direction d (its rows have no translation). Over the cap of directions (unit axis a,
+// half angle s), x / w = k reaches its extremes where the plane (r_x - k r_w) . d = 0 is
+// tangent to the cone: ((r_x - k r_w) . a)^2 = sin^2 s |r_x - k r_w|^2, a quadratic in k
+// whose leading term is (r_w . a)^2 - sin^2 s |r_w|^2, positive exactly when the whole cap
+// lies in front of the map's eye plane. The box in uv (u0, u1, v0, v1); the whole map when
+// the cap reaches behind that plane.
+vec2 ow_cone_ratio_range(vec3 r, vec3 rw, vec3 axis, float s2, float lead)
+{
+  float ra = dot(r, axis);
+  float wa = dot(rw, axis);
+  float b = -2.0 * (ra * wa - s2 * dot(r, rw));
+  float c = ra * ra - s2 * dot(r, r);
+  float root = sqrt(max(b * b - 4.0 * lead * c, 0.0));
+  return vec2(-b - root, -b + root) / (2.0 * lead);
+}
+
+vec4 ow_projective_cap_box(mat4 m, vec3 axis, float spread)
+{
+  const vec4 whole = vec4(0.0, 1.0, 0.0, 1.0);
+  if (spread >= 1.5707963267948966) {
+    return whole;
+  }
+  vec3 rx = vec3(m[0][0], m[1][0], m[2][0]);
+  vec3 ry = vec3(m[0][1], m[1][1], m[2][1]);
+  vec3 rw = vec3(m[0][3], m[1][3], m[2][3]);
+  float sin_s = sin(spread);
+  float s2 = sin_s * sin_s;
+  float wa = dot(rw, axis);
+  float lead = wa * wa - s2 * dot(rw, rw);
+  if (!(wa > 0.0) || !(lead > 1e-6 * dot(rw, rw))) {
+    return whole;
+  }
+  vec2 kx = ow_cone_ratio_range(rx, rw, axis, s2, lead);
+  vec2 ky = ow_cone_ratio_range(ry, rw, axis, s2, lead);
+  return vec4(kx, ky) * 0.5 + 0.5;
+}
+
+// The grown footprint of a triangle in a spot's or sun's map (uv box, unclamped), for the
+// exact pass of its sized light:
+// - a spot's sphere: the cap of the triangle's directions widened by `grow`, the angle the
+//   light subtends from it (ow_soft_grow), through the map's perspective;
+// - a sun's disk: a ray from a receiver p towards the sun crosses the triangle at x, so p
+//   lies downstream of x by at most the map's far depth less the triangle's nearest, and
+//   aside by that times the tangent of the half angle (ow_exact_light.w): the triangle's
+//   own box grown by it, through the map's scale across the light.
+vec4 ow_soft_projective_box(mat4 m, vec3 v0, vec3 v1, vec3 v2, float grow)
+{
+  if (int(ow_exact_light.x) == 3) {
+    vec4 box = ow_projective_box(m, v0, v1, v2, 0.0);
+    float z_min = min(min((m * vec4(v0, 1.0)).z, (m * vec4(v1, 1.0)).z), (m * vec4(v2, 1.0)).z);
+    vec3 rx = vec3(m[0][0], m[1][0], m[2][0]);
+    vec3 ry = vec3(m[0][1], m[1][1], m[2][1]);
+    vec3 rz = vec3(m[0][2], m[1][2], m[2][2]);
+    // Receivers lie in the map's depth range (z <= 1, in clip units of length 1 / |r_z|).
+    float aside = max(1.0 - z_min, 0.0) / max(length(rz), 1e-30) * ow_exact_light.w * 1.001;
+    vec2 g = 0.5 * aside * vec2(length(rx), length(ry));
+    return box + vec4(-g.x, g.x, -g.y, g.y);
+  }
+  vec3 axis;
+  float spread;
+  if (grow > 1.5707963267948966 || !ow_direction_cap(v0, v1, v2, axis, spread)) {
+    return vec4(0.0, 1.0, 0.0, 1.0);
+  }
+  return ow_projective_cap_box(m, axis, spread + grow);
 }

@@ -5,6 +5,8 @@ segment to the spot, or its ray towards the sun. That is the ray caster's answer
 whatever the map's resolution."""
 from __future__ import annotations
 
+import dataclasses
+
 import numpy as np
 import pytest
 
@@ -190,17 +192,27 @@ def test_a_face_parallel_to_the_sun_is_not_shadowed_by_its_own_box(gl_backend, m
     assert (unlifted < 0.5).sum() > 0.05 * face.sum(), int((unlifted < 0.5).sum())
 
 
-def test_a_sized_spot_keeps_hard_exact_shadows_and_its_row_says_so():
-    """Soft shadows filter the point lights' maps only: a spot with a radius gets the hard
-    exact pass, and the compare row carries the note of the methods whose shadows stay hard."""
-    from addon.compare import HARD_SIZED_NOTE, _row_note
-    from addon.core.light_shape import Sphere
+def test_sized_spots_and_suns_take_the_soft_paths_and_their_rows_no_note():
+    """Every light type with a size is softened: a spot's sphere and a sun's disk take the
+    exact pass's light points over their sm map, and the filter on sm and psm; no row of
+    theirs carries the note of hard shadows. A hard spot keeps the hard pass."""
+    from addon.compare import _row_note
+    from addon.core.light_shape import POINT, Sphere, SunDisk
     from addon.render import soft
     from addon.render.pipeline import settings_for
+    from addon.render.shaders import EXACT_SOFT_KEY
 
-    light = LightSpec("spot", look_at((0.0, 0.0, 5.0), (0.0, 0.0, 0.0)), spot_size=1.0, shape=Sphere(0.3))
-    settings = settings_for("exact", 256, light.emission)
-    assert light.sized and settings.exact and not soft.filters(light, settings)
-    assert soft.soft_uniforms(light, settings) == {"ow_soft_count": 0}
     scene = ResidentScene.of_triangles(np.array([[[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0]]]))
-    assert _row_note(light, settings, scene) == HARD_SIZED_NOTE
+    spot = LightSpec("spot", look_at((0.0, 0.0, 5.0), (0.0, 0.0, 0.0)), spot_size=1.0, shape=Sphere(0.3))
+    sun = LightSpec("sun", look_at((0.0, 0.0, 5.0), (0.0, 0.0, 0.0)), shape=SunDisk(0.1))
+    for light in (spot, sun):
+        exact = settings_for("exact", 256, light.emission)
+        assert soft.exact_soft(light, exact) and soft.soft_uniforms(light, exact)[EXACT_SOFT_KEY] == 64
+        assert soft.list_resolution(light, exact) == 64 and soft.hit_words(light, exact) == 2
+        for method in ("sm", "psm"):
+            filtered = settings_for(method, 256, light.emission)
+            assert soft.filters(light, filtered) and soft.soft_uniforms(light, filtered)["ow_soft_count"] > 0
+            assert _row_note(light, filtered, scene) is None
+        assert _row_note(light, exact, scene) is None
+    hard = dataclasses.replace(spot, shape=POINT)
+    assert soft.exact_soft_uniforms(hard, settings_for("exact", 256, "spot")) == {EXACT_SOFT_KEY: 0}

@@ -2,7 +2,7 @@
 integration over the same light points (tests/support/soft_oracle.py): the scenes of the
 soft filter's test (a box and a post on a floor, a sphere light whose paraboloid seam cuts
 the penumbra, and an area light), on the warped dual paraboloid (`exact`), the plain one,
-and the cube. With the same N points the two agree to float32 rounding, for any N; with
+and the cube; a sized spot and a sun's disk over their own map. With the same N points the two agree to float32 rounding, for any N; with
 more points both converge."""
 from __future__ import annotations
 
@@ -48,6 +48,24 @@ def test_exact_soft_equals_the_integral_over_its_points(gl_backend, name, param,
     # float32 against float64: a segment within rounding of an edge may fall either way.
     assert float(diff.mean()) < 1e-4, (name, param, warp, float(diff.mean()))
     assert float((diff > 1.5 / 64).mean()) < 1e-3, (name, param, warp)
+
+
+@pytest.mark.parametrize("name", ["spot", "sun"])
+def test_exact_soft_over_a_spot_or_sun_map(gl_backend, name):
+    """A sized spot's sphere and a sun's disk, over their own sm map: every pixel's share
+    equals the oracle's over the same 64 points, whatever the map's resolution (the grown
+    footprints cover every segment: a spot's through the map's perspective, a sun's by the
+    depth its rays travel)."""
+    _, scene, samples, evaluable, _ = _case(name)
+    truth = soft_visibility(scene.light, samples.positions[evaluable], samples.normals[evaluable],
+                            scene.world_triangles(), n=64)
+    assert ((truth > 0.02) & (truth < 0.98)).sum() > 100, name
+    for resolution in (64, 512):
+        ours = _exact(gl_backend, scene, samples, 64, "sm", "none", resolution=resolution)
+        diff = np.abs(ours.visibility[evaluable] - truth)
+        assert float(diff.mean()) < 1e-4, (name, resolution, float(diff.mean()))
+        assert float((diff > 1.5 / 64).mean()) < 1e-3, (name, resolution)
+        assert ours.plan.parameterization == "sm"
 
 
 def test_exact_soft_converges_with_its_points(gl_backend):

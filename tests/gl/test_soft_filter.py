@@ -1,7 +1,8 @@
 """The soft filter of a sized light (lib/soft.glsl, issue 27) against the numpy
 integration over the light (tests/support/soft_oracle.py): a box on a floor under a
-sphere light and under an area light, on the paraboloids and the cube, plain and warped.
-A hard light keeps the hard test."""
+sphere light and under an area light, on the paraboloids and the cube, plain and warped;
+under a sized spot and a sun's disk, on their own maps (sm, psm). A hard light keeps the
+hard test."""
 from __future__ import annotations
 
 import dataclasses
@@ -34,6 +35,10 @@ def _scene(light: str):
         # through it, which cuts the box's penumbra on the floor.
         b.point_light((0.3, 0.2, 3.0), radius=0.45)
         b._light = dataclasses.replace(b._light, matrix_world=look_at((0.3, 0.2, 3.0), (1.3, 0.2, 3.0)))
+    elif light == "spot":
+        b.spot_light((0.3, 0.2, 3.0), (0.3, 0.1, 0.0), 120.0, radius=0.45)
+    elif light == "sun":
+        b.sun_light((0.4, 0.3, -1.0), angle_deg=30.0)
     else:
         b.area_light((0.3, 0.2, 3.2), (0.2, 0.0, 0.0), 1.4, 0.9)
     b.camera((0.5, -6.0, 5.0), (0.3, 0.2, 0.3), fov_deg=55.0)
@@ -75,6 +80,23 @@ def test_the_filter_follows_the_light(gl_backend, case, method):
     assert soft_err < 0.5 * hard_err, (name, method, soft_err, hard_err)
     assert soft_err < 0.03, (name, method, soft_err)
     assert float(np.abs(soft - truth)[penumbra].mean()) < 0.2, (name, method)
+
+
+@pytest.mark.parametrize("name", ["spot", "sun"])
+@pytest.mark.parametrize("method", ["sm", "psm"])
+def test_a_spot_or_sun_map_follows_the_light(gl_backend, name, method):
+    """A sized spot's sphere and a sun's disk through their own maps: as the point lights'
+    filter does, at most half the hard test's error, and the penumbra a few percent off."""
+    name, scene, samples, evaluable, truth = _case(name)
+    penumbra = (truth > 0.05) & (truth < 0.95)
+    assert penumbra.sum() > 100, name
+    soft = _visibility(gl_backend, scene, samples, method)[evaluable]
+    hard = _visibility(gl_backend, scene, samples, method, dataclasses.replace(scene.light, shape=POINT))[evaluable]
+    soft_err = float(np.abs(soft - truth).mean())
+    hard_err = float(np.abs(hard - truth).mean())
+    assert soft_err < 0.5 * hard_err, (name, method, soft_err, hard_err)
+    assert float(np.abs(soft - truth)[penumbra].mean()) < 0.12, (name, method)
+    assert ((soft > 0.0) & (soft < 1.0)).sum() > 0.5 * penumbra.sum(), (name, method)
 
 
 def test_the_penumbra_does_not_change_with_the_map(gl_backend, case):

@@ -76,17 +76,20 @@ def alpha_frames(pipeline):
 
 def soft_frames(pipeline):
     """Visibility of the sized lights' scenes (tests/gl/test_soft_filter.py), by key: the
-    soft filter, and the exact pass's samples of the light."""
+    soft filter, and the exact pass's samples of the light; a spot's and a sun's over
+    their own map."""
     from addon.render.frame import settings_for
     from tests.gl.test_soft_filter import _scene
     from tests.support.oracle import view_samples
 
     frames = {}
-    for name in ("sphere", "area"):
+    for name in ("sphere", "area", "spot", "sun"):
         scene = _scene(name)
         samples, _, _ = view_samples(scene)
-        for method in ("dpsm+notw", "cube", "exact"):
-            result = pipeline.render(scene.light, scene.world_triangles(), samples, settings_for(method, 256))
+        methods = ("sm", "psm", "exact") if name in ("spot", "sun") else ("dpsm+notw", "cube", "exact")
+        for method in methods:
+            result = pipeline.render(scene.light, scene.world_triangles(), samples,
+                                     settings_for(method, 256, scene.light.emission))
             frames[f"soft_{name}_{method}_visibility"] = result.visibility
     return frames
 

@@ -2,14 +2,15 @@
 the soft filter and of the sized Cycles reference (issue 27). A point sees the share of
 the light's power that reaches it unblocked, cosine-weighted at its own surface: over the
 sphere's visible cap (uniform radiance, so uniform in solid angle) or over an area light's
-surface (Lambertian: cosine at the emitter over the squared distance)."""
+surface (Lambertian: cosine at the emitter over the squared distance), or over a sun's disk
+(directions within half its angle, uniform in solid angle: the rays go on forever)."""
 from __future__ import annotations
 
 import math
 
 import numpy as np
 
-from addon.core.light_shape import Area, Sphere, stratified_unit_square
+from addon.core.light_shape import Area, Sphere, SunDisk, stratified_points, stratified_unit_square
 from addon.core.scene import LightSpec
 from tests.support.oracle import ray_hits
 
@@ -46,7 +47,7 @@ def sphere_targets(center: np.ndarray, radius: float, points: np.ndarray, n: int
 
 def soft_visibility(light: LightSpec, points: np.ndarray, normals: np.ndarray, tris: np.ndarray,
                     n: int = 256, chunk: int = 256) -> np.ndarray:
-    """(P,) the share of a sphere or area light each point (P, 3), normal (P, 3), sees."""
+    """(P,) the share of a sphere, area or sun light each point (P, 3), normal (P, 3), sees."""
     out = np.zeros(len(points))
     shape = light.shape
     for start in range(0, len(points), chunk):
@@ -65,6 +66,12 @@ def soft_visibility(light: LightSpec, points: np.ndarray, normals: np.ndarray, t
             cos_r = np.maximum(np.einsum("pmi,pi->pm", d, nrm), 0.0) / r
             cos_e = np.maximum(-np.einsum("pmi,i->pm", d, -light.rotation[:, 2]), 0.0) / r
             weight = cos_r * cos_e / r ** 2
+        elif isinstance(shape, SunDisk):
+            directions = stratified_points(shape, n) @ light.rotation.T  # towards the sun
+            far = 1e4 * max(1.0, float(np.abs(tris).max()), float(np.abs(p).max()))
+            d = np.broadcast_to(directions[None], (len(p), n, 3))
+            q = p[:, None] + far * d
+            weight = np.maximum(np.einsum("pmi,pi->pm", d, nrm), 0.0)
         else:
             raise ValueError(f"no soft oracle for {shape!r}")
         lit = ~_blocked(p, q, tris)
