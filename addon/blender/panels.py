@@ -132,8 +132,9 @@ class OMNIWARP_PT_light(bpy.types.Panel):
         col.prop(props, "bias_slope")
         col.prop(props, "bias_normal")
 
-        # The soft filter reads the point lights' maps (render/soft.py): shown where it runs.
-        if light_size.has_size(light) and emission in ("omni", "hemi"):
+        # Every light type with a size is softened (render/soft.py): the filter's points, or
+        # the exact pass's.
+        if light_size.has_size(light):
             box = layout.box()
             box.label(text="Soft shadows (the light's size)")
             col = box.column(align=True)

@@ -274,10 +274,9 @@ class OMNIWARP_PG_light(bpy.types.PropertyGroup):
     )
     light_samples: IntProperty(
         name="Light Samples",
-        description="Soft shadows of a light with a size (radius, area light): points of the light each view "
-                    "sample looks up in the maps. More give smoother penumbrae; each costs one map read per "
-                    "pixel. Point, spot and area lights on dual paraboloid, cube, IPSM and sphere unfolding; "
-                    "ignored for a light of size 0",
+        description="Soft shadows of a light with a size (radius, sun angle, area light): points of the light "
+                    "each view sample looks up in the maps. More give smoother penumbrae; each costs one map read "
+                    "per pixel. Every light type and map; ignored for a light of size 0",
         default=32,
         min=1,
         max=SOFT_MAX_POINTS,

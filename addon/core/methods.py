@@ -128,8 +128,8 @@ _ENTRIES: tuple[Method, ...] = (
     _pipeline("psm", "psm", "a perspective shadow map in the camera's post-perspective space (spot and sun lights)"),
     # Blender's own shadows, rendered by EEVEE in a child process at the light's default and a
     # finer shadow resolution (so --resolutions do not apply): the anchor row of a comparison.
-    Method("eevee", None, "none", False, False, POINT_EMISSIONS,
-           "Blender's own EEVEE shadows, rendered in a child process (point lights; --resolutions do not apply)",
+    Method("eevee", None, "none", False, False, EMISSIONS,
+           "Blender's own EEVEE shadows, rendered in a child process (every light type; --resolutions do not apply)",
            external=True),
 )
 METHODS: dict[str, Method] = {entry.name: entry for entry in _ENTRIES}

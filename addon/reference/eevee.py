@@ -89,10 +89,13 @@ REACH_FACTOR = 2.0
 PROGRESS_PREFIX = "omniwarp-eevee: "
 SPEC_FORMAT = 1
 DEFAULT_TIMEOUT_S = 1800.0
-# EEVEE Next shadows a point light with up to 6 cube-face tilemaps, a 180 degree spot with 5.
-TILEMAPS = {"omni": 6, "hemi": 5}
+# What EEVEE Next shadows each light with: a point light with up to 6 cube-face tilemaps, a
+# spot (180 degrees or narrower) with up to 5, a sun with a clipmap of tilemaps about the view.
+TILEMAPS = {"omni": "6 cube-face tilemaps", "hemi": "5 tilemaps", "spot": "up to 5 tilemaps",
+            "sun": "a clipmap of tilemaps"}
 ROW_NOTE = ("EEVEE times are whole renders (shading included); no map resolution, passes or texels: "
-            "EEVEE's virtual shadow maps are paged tilemaps (6 per omni light, 5 per hemi), not counted draws")
+            "EEVEE's virtual shadow maps are paged tilemaps (6 per omni light, up to 5 per hemi or spot, "
+            "a clipmap per sun), not counted draws")
 
 Progress = Callable[[str], None]
 
@@ -385,8 +388,8 @@ def render_eevee(scene: "bpy.types.Scene", out_dir: Path, settings: Sequence[str
     light_obj = _pick_light(scene, visible, light)
     emission = _emission_of(light_obj.data)
     if emission not in TILEMAPS:
-        # The reference accepts spots and suns; this row (and its tilemap count) does not.
-        raise InputError(f"light {light_obj.name!r} is a {emission} light; the eevee row needs an omni or hemi light")
+        raise InputError(f"light {light_obj.name!r} is a {emission} light; the eevee row needs a point, spot, "
+                         "sun or area light")
     chosen = resolve_settings(names, light_obj.data)
     say = progress or (lambda message: None)
     width, height = output_size(scene)
@@ -612,7 +615,8 @@ def eevee_rows(source_args: list[str], reference: ReferenceData, preset_label: s
     """
     names = parse_settings(settings)
     if reference.emission not in TILEMAPS:
-        raise InputError(f"the reference light is {reference.emission!r}; the eevee row needs an omni or hemi light")
+        raise InputError(f"the reference light is {reference.emission!r}; the eevee row needs a point, spot, sun "
+                         "or area light")
     args = list(source_args)
     if "--preset" in args and "--size" not in args:
         args += ["--size", f"{reference.resolution[0]}x{reference.resolution[1]}"]
@@ -626,7 +630,8 @@ def eevee_rows(source_args: list[str], reference: ReferenceData, preset_label: s
         raise ReferenceCaptureError(f"EEVEE measured a {summary.get('emission')} light but the reference has "
                                     f"a {reference.emission} light; the scenes differ")
 
-    light = LightSpec(reference.emission, reference.light_matrix, shape=shape)  # type: ignore[arg-type]
+    light = LightSpec(reference.emission, reference.light_matrix, spot_size=reference.spot_size,  # type: ignore[arg-type]
+                      shape=shape)
     ref_lit = metrics.reference_visibility(reference.shadowed, reference.unshadowed)
     evaluable = metrics.evaluable_mask(reference.position, reference.normal, reference.hit, reference.unshadowed, light)
     width, height = reference.resolution

@@ -70,6 +70,16 @@ def light_reach(shape: LightShape) -> float:
     return 0.0
 
 
+def spread_tangent(shape: LightShape) -> float:
+    """tan(spread / 2) of an area light whose spread is below 180 degrees, else -1 (no
+    spread: the GLSL's sign for it). Cycles weighs the light an area light sends towards a
+    direction at angle a from its normal by max(tan(spread / 2) - tan a, 0) (a soft box's
+    grid of slats), so the shadow's share weighs each light point by it too."""
+    if isinstance(shape, Area) and shape.spread < math.pi:
+        return math.tan(0.5 * shape.spread)
+    return -1.0
+
+
 def soft_shadowed(light: LightSpec, settings: ShadowSettings) -> bool:
     """True when the frame's shadows follow the light's size (the filter or the exact pass)."""
     return filters(light, settings) or exact_soft(light, settings)
@@ -93,7 +103,7 @@ def soft_uniforms(light: LightSpec, settings: ShadowSettings) -> dict:
     count, search = settings.light_samples, settings.search_samples
     return {"ow_soft_points": _points(light.shape, count, SOFT_MAX_POINTS), "ow_soft_count": count,
             "ow_soft_search_points": _points(light.shape, search, SOFT_MAX_SEARCH), "ow_soft_search": search,
-            "ow_soft_kind": SOFT_KINDS[light.shape.kind]}
+            "ow_soft_kind": SOFT_KINDS[light.shape.kind], "ow_soft_spread": spread_tangent(light.shape)}
 
 
 def exact_soft_uniforms(light: LightSpec, settings: ShadowSettings) -> dict:
@@ -111,6 +121,7 @@ def exact_soft_uniforms(light: LightSpec, settings: ShadowSettings) -> dict:
         described = (EXACT_KINDS["area"], shape.size_x, shape.size_y, EXACT_OUTLINES[shape.outline])
     count = int(settings.exact_samples)
     return {"ow_exact_light": np.array(described, dtype=np.float64), "ow_exact_reach": light_reach(shape),
+            "ow_exact_spread": spread_tangent(shape),
             "ow_exact_frame": light.rotation, EXACT_SOFT_KEY: count,
             "ow_exact_pattern": _exact_pattern(shape, count)}
 

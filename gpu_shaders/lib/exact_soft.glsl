@@ -8,7 +8,8 @@
 //   angle, each point weighted by the cosine at the receiver;
 // - an area light (2; size .y by .z, outline .w: 0 rectangle, 1 ellipse, in the light's
 //   frame ow_exact_frame): uniform over its surface, weighted by both cosines over the
-//   squared distance;
+//   squared distance, and by max(tan(spread / 2) - tan a, 0) at angle a from its normal
+//   where its spread is below 180 degrees (ow_exact_spread >= 0);
 // - a sun's disk (3; half angle .y, its sine .z and tangent .w): directions towards it
 //   (the frame's +Z) within the half angle, uniform in solid angle, each weighted by the
 //   cosine at the receiver. Its "segment" is the unit direction: the ray goes on forever.
@@ -83,5 +84,11 @@ float ow_light_weight(vec3 segment, vec3 n)
   }
   // An area light emits along its -Z: the segment from the receiver meets it from below.
   float cos_e = max(dot(segment, ow_exact_frame[2]), 0.0) / len;
-  return cos_r * cos_e / (len * len);
+  float weight = cos_r * cos_e / (len * len);
+  if (ow_exact_spread >= 0.0) {
+    // A spread below 180 degrees (render/soft.py's spread_tangent): Cycles' soft-box grid.
+    float tan_e = sqrt(max(1.0 - cos_e * cos_e, 0.0)) / max(cos_e, 1e-30);
+    weight *= max(ow_exact_spread - tan_e, 0.0);
+  }
+  return weight;
 }

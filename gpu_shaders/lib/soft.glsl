@@ -35,6 +35,22 @@ float ow_plane_depth(vec3 n, vec3 p, vec3 d, float fallback)
   return (dn < -1e-4) ? dot(n, p) / dn : fallback;
 }
 
+// A tap's weight: 1, but for an area light of spread below 180 degrees (ow_soft_spread >=
+// 0, render/soft.py's spread_tangent) max(tan(spread / 2) - tan a, 0), with a the angle of
+// `emitted` (from the light point to the receiver) from the light's normal, its -Z.
+float ow_soft_spread_weight(vec3 emitted)
+{
+  if (ow_soft_kind != 2 || ow_soft_spread < 0.0) {
+    return 1.0;
+  }
+  float len = length(emitted);
+  float cos_e = dot(emitted, -transpose(ow_light_rot)[2]) / max(len, 1e-30);
+  if (!(cos_e > 0.0)) {
+    return 0.0;
+  }
+  return max(ow_soft_spread - sqrt(max(1.0 - cos_e * cos_e, 0.0)) / cos_e, 0.0);
+}
+
 // The soft visibility at p (normal n towards the light, bias in world units at the
 // receiver); `centre` is the hard test's visibility, kept where the search finds no blocker.
 float ow_soft_visibility(vec3 p, vec3 n, float bias, float centre)
@@ -64,14 +80,18 @@ float ow_soft_visibility(vec3 p, vec3 n, float bias, float centre)
   float t_b = sum_t / float(blockers);
   float s = clamp(1.0 - t_b / dist, 0.0, 1.0);
   float lit = 0.0;
+  float total = 0.0;
   for (int j = 0; j < ow_soft_count; j++) {
-    vec3 d = normalize(p + s * (frame * ow_soft_points[j].xyz - p));
+    vec3 q = frame * ow_soft_points[j].xyz;
+    vec3 d = normalize(p + s * (q - p));
     float t_recv = ow_plane_depth(n, p, d, dist);
     float limit = t_recv - bias * (t_recv / dist);
     vec2 tap = ow_point_tap(d, limit);
-    lit += (tap.x >= limit) ? tap.y : 0.0;
+    float weight = ow_soft_spread_weight(p - q);
+    lit += (tap.x >= limit) ? weight * tap.y : 0.0;
+    total += weight;
   }
-  return lit / float(ow_soft_count);
+  return (total > 0.0) ? lit / total : centre;
 }
 
 // A sun's soft visibility at p (normal n towards the sun, bias in world units). Its points

@@ -760,6 +760,11 @@ def test_light_panel_shows_the_soft_settings_of_a_sized_point_light(make_light) 
     assert (settings.light_samples, settings.search_samples) == (48, 4)
     light.shadow_soft_size = 0.0  # hard: nothing to filter, nothing shown
     assert "light_samples" not in draw_panel(panels.OMNIWARP_PT_light, SimpleNamespace(light=light)).props()
+    # A sized spot and a sun with an angle are softened on their own maps too.
+    spot, sun = make_light("SPOT"), make_light("SUN")
+    spot.spot_size, spot.shadow_soft_size, sun.angle = 1.0, 0.2, 0.1
+    for sized in (spot, sun):
+        assert "light_samples" in draw_panel(panels.OMNIWARP_PT_light, SimpleNamespace(light=sized)).props()
 
 
 def test_light_panel_draw_sun(make_light) -> None:

@@ -7,6 +7,7 @@ from __future__ import annotations
 
 import dataclasses
 import functools
+import math
 
 import numpy as np
 import pytest
@@ -17,6 +18,7 @@ from addon.core.scene import SceneBuilder, look_at
 from addon.render.frame import settings_for
 from addon.render.pipeline import ShadowPipeline
 from tests.support.oracle import view_samples
+from tests.support.soft_oracle import reached as light_reached
 from tests.support.soft_oracle import soft_visibility
 
 pytestmark = pytest.mark.gl
@@ -41,6 +43,10 @@ def _scene(light: str):
         b.sun_light((0.4, 0.3, -1.0), angle_deg=30.0)
     else:
         b.area_light((0.3, 0.2, 3.2), (0.2, 0.0, 0.0), 1.4, 0.9)
+        if light == "area_spread":  # a soft box's grid: light leaves within 50 degrees of its normal
+            # (a spread of 100 degrees)
+            b._light = dataclasses.replace(b._light, shape=dataclasses.replace(b._light.shape,
+                                                                               spread=math.radians(100.0)))
     b.camera((0.5, -6.0, 5.0), (0.3, 0.2, 0.3), fov_deg=55.0)
     return b.finish()
 
@@ -80,6 +86,23 @@ def test_the_filter_follows_the_light(gl_backend, case, method):
     assert soft_err < 0.5 * hard_err, (name, method, soft_err, hard_err)
     assert soft_err < 0.03, (name, method, soft_err)
     assert float(np.abs(soft - truth)[penumbra].mean()) < 0.2, (name, method)
+
+
+def test_an_area_lights_spread_weighs_the_taps(gl_backend):
+    """A spread of 100 degrees narrows what reaches each receiver (the oracle weighs Cycles'
+    soft-box grid): the filter follows the narrowed light, nearer the integral with the
+    spread than the same taps without it."""
+    name, scene, samples, evaluable, truth = _case("area_spread")
+    _, _, _, _, wide = _case("area")
+    # The receivers the narrowed light still reaches (Cycles leaves the others unevaluated).
+    reached = light_reached(scene.light, samples.positions[evaluable], samples.normals[evaluable])
+    assert 1000 < reached.sum() < len(reached)
+    truth, wide = truth[reached], wide[reached]
+    assert float(np.abs(truth - wide).mean()) > 0.01  # the spread changes the answer
+    soft = _visibility(gl_backend, scene, samples, "dpsm+notw")[evaluable][reached]
+    unspread = _visibility(gl_backend, _scene("area"), samples, "dpsm+notw")[evaluable][reached]
+    assert float(np.abs(soft - truth).mean()) < 0.85 * float(np.abs(unspread - truth).mean())
+    assert float(np.abs(soft - truth).mean()) < 0.03
 
 
 @pytest.mark.parametrize("name", ["spot", "sun"])

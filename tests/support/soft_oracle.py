@@ -2,7 +2,8 @@
 the soft filter and of the sized Cycles reference (issue 27). A point sees the share of
 the light's power that reaches it unblocked, cosine-weighted at its own surface: over the
 sphere's visible cap (uniform radiance, so uniform in solid angle) or over an area light's
-surface (Lambertian: cosine at the emitter over the squared distance), or over a sun's disk
+surface (Lambertian: cosine at the emitter over the squared distance, and Cycles' spread
+weight below 180 degrees), or over a sun's disk
 (directions within half its angle, uniform in solid angle: the rays go on forever)."""
 from __future__ import annotations
 
@@ -66,6 +67,10 @@ def soft_visibility(light: LightSpec, points: np.ndarray, normals: np.ndarray, t
             cos_r = np.maximum(np.einsum("pmi,pi->pm", d, nrm), 0.0) / r
             cos_e = np.maximum(-np.einsum("pmi,i->pm", d, -light.rotation[:, 2]), 0.0) / r
             weight = cos_r * cos_e / r ** 2
+            if shape.spread < math.pi:
+                # Cycles' soft-box grid: max(tan(spread / 2) - tan a, 0) at angle a from the normal.
+                tan_e = np.sqrt(np.maximum(1.0 - cos_e ** 2, 0.0)) / np.maximum(cos_e, 1e-300)
+                weight = weight * np.maximum(math.tan(0.5 * shape.spread) - tan_e, 0.0)
         elif isinstance(shape, SunDisk):
             directions = stratified_points(shape, n) @ light.rotation.T  # towards the sun
             far = 1e4 * max(1.0, float(np.abs(tris).max()), float(np.abs(p).max()))
@@ -79,3 +84,10 @@ def soft_visibility(light: LightSpec, points: np.ndarray, normals: np.ndarray, t
         out[start:start + chunk] = np.divide((weight * lit).sum(axis=1), total, out=np.zeros(len(p)),
                                              where=total > 0)
     return out
+
+
+def reached(light: LightSpec, points: np.ndarray, normals: np.ndarray, n: int = 256) -> np.ndarray:
+    """(P,) bool: the points some of the light reaches with nothing in the way (an area light
+    of narrow spread leaves the rest dark, and Cycles' reference leaves them unevaluated)."""
+    nothing = np.full((1, 3, 3), 1e6) + np.eye(3)[None]  # one triangle far beside everything
+    return soft_visibility(light, points, normals, nothing, n=n) > 0.5
