@@ -8,7 +8,8 @@ object and a bevelled curve, a point light and a 180 degree spot ("hemi"), and a
 with lens shift on a parented rig. `--scale` raises the statue's subdivision and
 multiplies the instanced trees (2: about 300k render triangles). `--sized` gives the lights
 the sizes artists give them (issue 27): the Lamp a 0.25 m radius, the Hemi 0.1 m, and adds
-a 1.2 x 0.8 m area light, "Softbox", over the statue.
+a 1.2 x 0.8 m area light, "Softbox", over the statue, a "Key" spot of 0.15 m radius (a 70
+degree cone, blend 0.1) and a "Sun" 2 degrees across.
 """
 from __future__ import annotations
 
@@ -141,6 +142,17 @@ def build(scale: int, sized: bool = False) -> None:
         softbox.location = (-1.0, 2.0, 4.0)
         softbox.rotation_euler = (math.radians(-25.0), math.radians(-15.0), 0.0)
         _link(softbox)
+        # A key spot of 0.15 m radius with a blended 70 degree cone, and a sun 2 degrees across.
+        key = bpy.data.objects.new("Key", bpy.data.lights.new("Key", "SPOT"))
+        key.location = (5.0, 4.0, 6.0)
+        key.rotation_euler = (math.radians(40.0), 0.0, math.radians(130.0))
+        key.data.spot_size, key.data.spot_blend = math.radians(70.0), 0.1
+        key.data.energy, key.data.shadow_soft_size = 3000.0, 0.15
+        _link(key)
+        sun = bpy.data.objects.new("Sun", bpy.data.lights.new("Sun", "SUN"))
+        sun.rotation_euler = (math.radians(50.0), 0.0, math.radians(-35.0))
+        sun.data.energy, sun.data.angle = 3.0, math.radians(2.0)
+        _link(sun)
 
     # A camera with lens shift on a parented, rotated rig.
     rig = _link(bpy.data.objects.new("Rig", None))

@@ -1,7 +1,7 @@
 """The cost of soft shadows against the hard version of each method, in one run (issue 27).
 
     .venv/bin/python scripts/soft_cost.py REFERENCE.npz [--methods dpsm,dpsm+notw,exact,...]
-                                          [--resolution 1024] [--frames 5] [--light-samples 16,32,64]
+                                          [--resolution 1024] [--frames 5] [--light-samples 16,36,64]
                                           [--exact-samples 16,64,256]
 
 REFERENCE is a cached sized-light reference (`omniwarp reference --blend F --light L`
@@ -37,7 +37,7 @@ def main() -> int:
     parser.add_argument("--methods", default="dpsm,dpsm+notw,cube,cube+notw")
     parser.add_argument("--resolution", type=int, default=1024)
     parser.add_argument("--frames", type=int, default=5)
-    parser.add_argument("--light-samples", default="16,32,64")
+    parser.add_argument("--light-samples", default="16,36,64")
     parser.add_argument("--exact-samples", default="16,64,256")
     args = parser.parse_args()
     ref = ReferenceData.load(args.reference)
@@ -62,10 +62,10 @@ def main() -> int:
           "| error % | soft error % |")
     print("|---|---|---|---|---|---|---|---|---|---|---|")
     for method in args.methods.split(","):
-        exact = settings_for(method, args.resolution).exact
+        exact = settings_for(method, args.resolution, sized.emission).exact
         variants = [("hard", hard, 1)] + [("sized", sized, n) for n in (exact_counts if exact else counts)]
         key = "exact_samples" if exact else "light_samples"
-        settings = [settings_for(method, args.resolution, **{key: n}) for _, _, n in variants]
+        settings = [settings_for(method, args.resolution, sized.emission, **{key: n}) for _, _, n in variants]
         for (_, light, _), s in zip(variants, settings):
             pipeline.render(light, scene, samples, s)  # warm-up: compile, allocate
         times: list[list[dict]] = [[] for _ in variants]

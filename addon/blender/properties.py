@@ -30,7 +30,7 @@ from ..core.methods import PARAMETERIZATION_TEXT, WARP_TEXT
 from ..core.scene import PROJECTIVE_EMISSIONS, Emission, LightSpec, spot_emission
 from ..render import blender_compat
 from ..reference import light_size
-from ..render.frame import EXACT_SAMPLES
+from ..render.frame import EXACT_SAMPLES, LIGHT_SAMPLES
 from ..render.pipeline import BiasSettings, ShadowSettings
 from ..render.shaders import SOFT_MAX_POINTS, SOFT_MAX_SEARCH
 from . import events
@@ -277,7 +277,7 @@ class OMNIWARP_PG_light(bpy.types.PropertyGroup):
         description="Soft shadows of a light with a size (radius, sun angle, area light): points of the light "
                     "each view sample looks up in the maps. More give smoother penumbrae; each costs one map read "
                     "per pixel. Every light type and map; ignored for a light of size 0",
-        default=32,
+        default=LIGHT_SAMPLES,
         min=1,
         max=SOFT_MAX_POINTS,
         update=_request_update,

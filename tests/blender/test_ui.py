@@ -769,6 +769,11 @@ def test_light_panel_shows_the_soft_settings_of_a_sized_point_light(make_light) 
 
 def test_light_panel_draw_sun(make_light) -> None:
     sun = make_light("SUN")
+    # Blender's new sun is 0.53 degrees across: a sized light, whose soft settings show.
+    assert sun.angle > 0.0
+    assert draw_panel(panels.OMNIWARP_PT_light, SimpleNamespace(light=sun)).props()[-3:] \
+        == ["light_samples", "search_samples", "cull"]
+    sun.angle = 0.0
     layout = draw_panel(panels.OMNIWARP_PT_light, SimpleNamespace(light=sun))
     assert layout.props() == LIGHT_PANEL_PROPS[1:]  # no emission choice for a sun
     labels = " | ".join(layout.labels())

@@ -16,7 +16,7 @@ def test_entries_are_consistent():
         assert entry.name == name
         assert entry.description and "\n" not in entry.description
         if entry.external:
-            assert entry.parameterization is None and entry.emissions == POINT_EMISSIONS
+            assert entry.parameterization is None and entry.emissions == POINT_EMISSIONS + PROJECTIVE_EMISSIONS
             continue
         assert entry.emissions == tuple(e for e in POINT_EMISSIONS + PROJECTIVE_EMISSIONS
                                         if entry.parameterization_for(e) in parameterizations_for(e))
@@ -40,7 +40,8 @@ def test_lookups_and_messages():
     with pytest.raises(InputError, match="no methods given"):
         methods.parse_methods(" , ")
     assert methods.fits("psm", "sun") and not methods.fits("psm", "omni")
-    assert methods.fits_text("spot") == "spot and sun lights take exact, sm, psm"
+    assert methods.fits_text("spot") == "spot and sun lights take exact, sm, psm, eevee"
+    assert methods.fits_text("spot", pipeline_only=True) == "spot and sun lights take exact, sm, psm"
     assert "eevee" in methods.fits_text("omni") and "eevee" not in methods.fits_text("omni", pipeline_only=True)
     with pytest.raises(InputError, match="does not fit an omni light"):
         methods.check_fits("sm", "omni")
