@@ -40,7 +40,8 @@ from ..core.warping import LayerMapping, max_shear
 from .backend import AtlasLayout, FootprintDraw, ShadowBackend
 from .frame import PreparedGeometry, ShadowSettings
 from .resident import CHUNK_TRIANGLES, ResidentScene
-from .shaders import EXACT_COUNT_KEY, EXACT_MAX_WALK, EXACT_SOFT_KEY, FOOTPRINT_VERTICES, MAX_POINT_SIZE, REGION_PLANES, SLOTS
+from .shaders import (EXACT_COUNT_KEY, EXACT_MAX_WALK, EXACT_SOFT_KEY, FOOTPRINT_VERTICES, MAX_POINT_SIZE,
+                      REGION_PLANES, SLOTS)
 from .soft import exact_soft_uniforms, light_reach
 from .unfold import VERTEX_FLOATS, edge_aa_parameters, prepare_unfold
 

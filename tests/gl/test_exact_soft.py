@@ -2,8 +2,9 @@
 integration over the same light points (tests/support/soft_oracle.py): the scenes of the
 soft filter's test (a box and a post on a floor, a sphere light whose paraboloid seam cuts
 the penumbra, and an area light), on the warped dual paraboloid (`exact`), the plain one,
-and the cube; a sized spot and a sun's disk over their own map. With the same N points the two agree to float32 rounding, for any N; with
-more points both converge."""
+and the cube; a sized spot and a sun's disk over their own map; an area light of narrow
+spread. With the same N points the two agree to float32 rounding, for any N; with more
+points both converge."""
 from __future__ import annotations
 
 import dataclasses
