@@ -81,8 +81,7 @@ def parse_resolutions(text: str) -> tuple[int, ...]:
 def light_from_reference(ref: ReferenceData) -> LightSpec:
     if ref.emission not in POINT_EMISSIONS + PROJECTIVE_EMISSIONS:
         raise InputError(f"the reference light is {ref.emission!r}; expected omni, hemi, spot or sun")
-    return LightSpec(ref.emission, ref.light_matrix, spot_size=ref.spot_size,  # type: ignore[arg-type]
-                     shape=ref.light_shape())
+    return ref.light_spec()
 
 
 def camera_from_reference(ref: ReferenceData) -> CameraSpec:

@@ -10,6 +10,9 @@
 #include "lib/layers.glsl"
 #include "lib/mapping.glsl"
 #include "lib/projective.glsl"
+// Outside the variants' blocks: the loader includes a file once, preprocessor-blind, and both
+// soft variants (lib/soft.glsl, lib/exact_soft.glsl) weigh a spot's cone with it.
+#include "lib/spot_cone.glsl"
 #ifdef OW_VEIL
 #include "lib/veil.glsl"
 #endif
@@ -151,9 +154,11 @@ void main()
     ow_result = ow_projective_test(p, n);
 #ifdef OW_EXACT_SOFT
     // A sized spot's or sun's exact pass: its marks weighed, the normal towards the light.
-    if (ow_result.y == 0.0) {
+    // Its atlas holds no depth, so only the cone decides (flag 2); a sample whose biased
+    // lookup fell off the map's edge (flag 3) is in the lists all the same.
+    if (ow_result.y != 2.0) {
       vec3 to_light = (ow_sun != 0) ? -ow_light_axis : -p;
-      ow_result.x *= ow_exact_soft_share(p, (dot(n, to_light) < 0.0) ? -n : n, pix);
+      ow_result = vec2(ow_exact_soft_share(p, (dot(n, to_light) < 0.0) ? -n : n, pix), 0.0);
     }
 #endif
     return;

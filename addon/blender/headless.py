@@ -37,8 +37,7 @@ def _scene_lights(scene, depsgraph, reference: ReferenceData, light_name: str | 
     if chosen:
         return chosen
     # With the size the reference rendered it at: a sized preset's light keeps its penumbrae.
-    light = LightSpec(reference.emission, reference.light_matrix, spot_size=reference.spot_size,  # type: ignore[arg-type]
-                      shape=reference.light_shape())
+    light = reference.light_spec()
     return [(reference.meta.get("light", "light"), light, default)]
 
 

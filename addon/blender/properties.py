@@ -456,6 +456,8 @@ def light_spec_for(obj: bpy.types.Object) -> LightSpec:
     emission = effective_emission(light)
     # Only a spot cone has a cone angle; the other emissions keep LightSpec's default.
     cone = {"spot_size": float(light.spot_size)} if emission == "spot" else {}
+    if light.type == "SPOT":
+        cone["spot_blend"] = float(light.spot_blend)  # a 180 degree spot (hemi) fades too
     try:
         return LightSpec(emission=emission, matrix_world=matrix, energy=float(light.energy),
                          shape=light_size.light_shape(obj, matrix), **cone)

@@ -84,6 +84,10 @@ class LightSpec:
     energy: float = 1000.0  # W for point and spot lights, W/m^2 (strength) for the sun
     spot_size: float = math.pi
     shape: LightShape = POINT
+    # A spot's blend (Blender's spot_blend): its cone fades over that share of the cone's
+    # 1 - cos(half angle). The maps' cone stays hard; a sized spot's light points are weighed
+    # by it (render/soft.py's spot_cone, as Cycles attenuates each light sample).
+    spot_blend: float = 0.0
 
     def __post_init__(self) -> None:
         if self.emission not in ("omni", "hemi", "spot", "sun"):
@@ -93,6 +97,7 @@ class LightSpec:
         self.matrix_world = validate.finite_matrix("the light's transform (matrix_world)", self.matrix_world)
         self.energy = validate.finite_number("the light's energy", self.energy, low=0.0)
         self.spot_size = validate.finite_number("the light's spot size (radians)", self.spot_size)
+        self.spot_blend = validate.finite_number("the spot's blend", self.spot_blend, low=0.0)
         if self.emission == "spot" and not (float(self.spot_size) > 0.0 and spot_emission(self.spot_size) == "spot"):
             raise InputError(f"spot cone {math.degrees(self.spot_size):.4g} degrees is outside (0, 179): "
                              "a cone of 179 degrees or more is the hemispherical light")

@@ -167,11 +167,11 @@ def build_blender_scene(spec: SceneSpec) -> "bpy.types.Scene":
     elif light_spec.emission == "hemi":
         light = bpy.data.lights.new(f"{spec.name}_light", "SPOT")
         light.spot_size = math.pi  # 180 degree cone: the half space in front of local -Z
-        light.spot_blend = 0.0
+        light.spot_blend = float(light_spec.spot_blend)
     elif light_spec.emission == "spot":
         light = bpy.data.lights.new(f"{spec.name}_light", "SPOT")
         light.spot_size = float(light_spec.spot_size)  # full cone angle, radians
-        light.spot_blend = 0.0  # a hard cone edge, as the projective maps assume
+        light.spot_blend = float(light_spec.spot_blend)  # 0 (a hard edge) unless the spec fades it
     elif light_spec.emission == "sun":
         light = bpy.data.lights.new(f"{spec.name}_light", "SUN")
         # The spec's disk, or a hard sun (Blender's default 0.526 degrees gives penumbrae).

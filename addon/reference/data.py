@@ -48,6 +48,7 @@ from ..core.alpha import AlphaMap, Surface
 from ..core.camera import CameraSpec, Window
 from ..core.errors import ReferenceCaptureError
 from ..core.light_shape import LightShape, shape_from_dict
+from ..core.scene import LightSpec
 
 log = logging.getLogger(__name__)
 
@@ -169,6 +170,11 @@ class ReferenceData:
     def light_shape(self) -> LightShape:
         """The light's size as the reference rendered it (a point for older files)."""
         return shape_from_dict(self.meta.get("light_shape"))
+
+    def light_spec(self) -> LightSpec:
+        """The light as the reference rendered it: emission, matrix, cone and its blend, size."""
+        return LightSpec(self.emission, self.light_matrix, spot_size=self.spot_size,  # type: ignore[arg-type]
+                         shape=self.light_shape(), spot_blend=float(self.meta.get("spot_blend", 0.0)))
 
     def scene_surface(self) -> Surface:
         """The triangles' see-through materials (all opaque for a file without them)."""

@@ -630,8 +630,7 @@ def eevee_rows(source_args: list[str], reference: ReferenceData, preset_label: s
         raise ReferenceCaptureError(f"EEVEE measured a {summary.get('emission')} light but the reference has "
                                     f"a {reference.emission} light; the scenes differ")
 
-    light = LightSpec(reference.emission, reference.light_matrix,  # type: ignore[arg-type]
-                      spot_size=reference.spot_size, shape=shape)
+    light = reference.light_spec()
     ref_lit = metrics.reference_visibility(reference.shadowed, reference.unshadowed)
     evaluable = metrics.evaluable_mask(reference.position, reference.normal, reference.hit, reference.unshadowed, light)
     width, height = reference.resolution

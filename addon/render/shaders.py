@@ -512,7 +512,7 @@ EXACT_SOFT_WORDS = EXACT_SOFT_MAX_POINTS // 32
 EXACT_SOFT_KEY = "ow_exact_points"  # the uniforms' key: a sized light's point count (0: hard)
 SHARED_DEFINES.update({"OW_EXACT_SOFT_MAX_POINTS": str(EXACT_SOFT_MAX_POINTS)})
 EXACT_SOFT_UNIFORMS = (Uniform("vec4", "ow_exact_light"), Uniform("float", "ow_exact_reach"),
-                       Uniform("float", "ow_exact_spread"),
+                       Uniform("float", "ow_exact_spread"), Uniform("vec2", "ow_exact_spot"),
                        Uniform("mat3", "ow_exact_frame"), Uniform("int", EXACT_SOFT_KEY),
                        Uniform("vec4", "ow_exact_pattern", EXACT_SOFT_MAX_POINTS))
 _EXACT_SOFT_VARIANTS: dict[str, ProgramInterface] = {}  # program name -> its exact soft variant
@@ -588,7 +588,7 @@ SOFT_KINDS = {"sphere": 1, "area": 2, "sun_disk": 3}  # ow_soft_kind: how the po
 SHARED_DEFINES.update({"OW_SOFT_MAX_POINTS": str(SOFT_MAX_POINTS), "OW_SOFT_SEARCH_STEPS": str(SOFT_SEARCH_STEPS)})
 SOFT_UNIFORMS = (Uniform("vec4", "ow_soft_points", SOFT_MAX_POINTS), Uniform("int", "ow_soft_count"),
                  Uniform("vec4", "ow_soft_search_points", SOFT_MAX_SEARCH), Uniform("int", "ow_soft_search"),
-                 Uniform("int", "ow_soft_kind"), Uniform("float", "ow_soft_spread"))
+                 Uniform("int", "ow_soft_kind"), Uniform("float", "ow_soft_spread"), Uniform("vec2", "ow_soft_spot"))
 _SOFT_VARIANTS: dict[str, ProgramInterface] = {}  # shadow-test variant name -> its soft variant
 
 

@@ -80,6 +80,19 @@ def spread_tangent(shape: LightShape) -> float:
     return -1.0
 
 
+def spot_cone(light: LightSpec) -> tuple[float, float]:
+    """(cos of the half cone, smoothness) of a spot, as Cycles attenuates the light a sample
+    point sends along a direction at angle a from the axis: smoothstep((cos a - cos half) *
+    smoothness), smoothness 1 / ((1 - cos half) * blend); 0 for a blend of 0 (a step).
+    (-2, 0) for any other light (lib/spot_cone.glsl's sign for no cone). A hemi sphere is
+    Blender's 180 degree spot: its cone is the half space in front of it."""
+    if not (light.emission == "spot" or (light.emission == "hemi" and isinstance(light.shape, Sphere))):
+        return -2.0, 0.0
+    cos_half = math.cos(0.5 * float(light.spot_size))
+    width = (1.0 - cos_half) * float(light.spot_blend)
+    return cos_half, (1.0 / width if width > 0.0 else 0.0)
+
+
 def soft_shadowed(light: LightSpec, settings: ShadowSettings) -> bool:
     """True when the frame's shadows follow the light's size (the filter or the exact pass)."""
     return filters(light, settings) or exact_soft(light, settings)
@@ -103,7 +116,8 @@ def soft_uniforms(light: LightSpec, settings: ShadowSettings) -> dict:
     count, search = settings.light_samples, settings.search_samples
     return {"ow_soft_points": _points(light.shape, count, SOFT_MAX_POINTS), "ow_soft_count": count,
             "ow_soft_search_points": _points(light.shape, search, SOFT_MAX_SEARCH), "ow_soft_search": search,
-            "ow_soft_kind": SOFT_KINDS[light.shape.kind], "ow_soft_spread": spread_tangent(light.shape)}
+            "ow_soft_kind": SOFT_KINDS[light.shape.kind], "ow_soft_spread": spread_tangent(light.shape),
+            "ow_soft_spot": spot_cone(light)}
 
 
 def exact_soft_uniforms(light: LightSpec, settings: ShadowSettings) -> dict:
@@ -121,7 +135,7 @@ def exact_soft_uniforms(light: LightSpec, settings: ShadowSettings) -> dict:
         described = (EXACT_KINDS["area"], shape.size_x, shape.size_y, EXACT_OUTLINES[shape.outline])
     count = int(settings.exact_samples)
     return {"ow_exact_light": np.array(described, dtype=np.float64), "ow_exact_reach": light_reach(shape),
-            "ow_exact_spread": spread_tangent(shape),
+            "ow_exact_spread": spread_tangent(shape), "ow_exact_spot": spot_cone(light),
             "ow_exact_frame": light.rotation, EXACT_SOFT_KEY: count,
             "ow_exact_pattern": _exact_pattern(shape, count)}
 

@@ -5,7 +5,8 @@
 // the unmarked ones (shadow_test.frag). The same points and weights as the numpy oracle
 // (tests/support/soft_oracle.py), which follows how Cycles samples the light:
 // - a sphere (ow_exact_light.x == 1, radius .y): its cap seen from p, uniform in solid
-//   angle, each point weighted by the cosine at the receiver;
+//   angle, each point weighted by the cosine at the receiver, and for a spot by its cone
+//   (lib/spot_cone.glsl, ow_exact_spot);
 // - an area light (2; size .y by .z, outline .w: 0 rectangle, 1 ellipse, in the light's
 //   frame ow_exact_frame): uniform over its surface, weighted by both cosines over the
 //   squared distance, and by max(tan(spread / 2) - tan a, 0) at angle a from its normal
@@ -17,6 +18,8 @@
 // core/light_shape's fixed stratified pattern): for a sphere (u, cos phi, sin phi), the cap
 // point of polar share u and azimuth phi; for an area light (x, y), its place in the light's
 // frame, sizes included; for a sun (x, y, z), the direction in the light's frame.
+
+#include "lib/spot_cone.glsl"
 
 // What a sample needs to place its light points: a sphere's cap frame (towards the light,
 // two axes across it) and the cap's extent; an area light needs nothing per sample.
@@ -80,7 +83,8 @@ float ow_light_weight(vec3 segment, vec3 n)
   }
   float cos_r = max(dot(segment, n), 0.0) / len;
   if (int(ow_exact_light.x) != 2) {
-    return cos_r;
+    // A spot's cone weighs what each point of its sphere sends the receiver (the light's -Z).
+    return cos_r * ow_spot_cone_weight(-segment, -ow_exact_frame[2], ow_exact_spot);
   }
   // An area light emits along its -Z: the segment from the receiver meets it from below.
   float cos_e = max(dot(segment, ow_exact_frame[2]), 0.0) / len;

@@ -35,11 +35,17 @@ float ow_plane_depth(vec3 n, vec3 p, vec3 d, float fallback)
   return (dn < -1e-4) ? dot(n, p) / dn : fallback;
 }
 
-// A tap's weight: 1, but for an area light of spread below 180 degrees (ow_soft_spread >=
-// 0, render/soft.py's spread_tangent) max(tan(spread / 2) - tan a, 0), with a the angle of
-// `emitted` (from the light point to the receiver) from the light's normal, its -Z.
-float ow_soft_spread_weight(vec3 emitted)
+#include "lib/spot_cone.glsl"
+
+// A tap's weight, with `emitted` from the light point to the receiver: for a spot, its
+// cone's (lib/spot_cone.glsl); for an area light of spread below 180 degrees
+// (ow_soft_spread >= 0, render/soft.py's spread_tangent) max(tan(spread / 2) - tan a, 0),
+// a the angle from the light's normal, its -Z; else 1.
+float ow_soft_tap_weight(vec3 emitted)
 {
+  if (ow_soft_kind == 1) {
+    return ow_spot_cone_weight(emitted, -transpose(ow_light_rot)[2], ow_soft_spot);
+  }
   if (ow_soft_kind != 2 || ow_soft_spread < 0.0) {
     return 1.0;
   }
@@ -87,7 +93,7 @@ float ow_soft_visibility(vec3 p, vec3 n, float bias, float centre)
     float t_recv = ow_plane_depth(n, p, d, dist);
     float limit = t_recv - bias * (t_recv / dist);
     vec2 tap = ow_point_tap(d, limit);
-    float weight = ow_soft_spread_weight(p - q);
+    float weight = ow_soft_tap_weight(p - q);
     lit += (tap.x >= limit) ? weight * tap.y : 0.0;
     total += weight;
   }

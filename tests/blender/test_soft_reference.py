@@ -7,6 +7,8 @@ cosine-weighted at the floor, with a ray-box test against the one blocker.
 """
 from __future__ import annotations
 
+import dataclasses
+
 import math
 
 import numpy as np
@@ -20,6 +22,7 @@ from addon.core.scene import SceneBuilder, SceneSpec  # noqa: E402
 from addon.reference.blender_scene import build_blender_scene, remove_blender_scene  # noqa: E402
 from addon.reference.capture import capture  # noqa: E402
 from addon.reference.data import ReferenceData  # noqa: E402
+from tests.support.soft_oracle import soft_visibility  # noqa: E402
 
 pytestmark = pytest.mark.blender
 
@@ -35,6 +38,10 @@ def scene(light: str) -> SceneSpec:
     b.box("box", 0.5 * (BOX_LO + BOX_HI), BOX_HI - BOX_LO)
     if light == "sphere":
         b.point_light(LIGHT, radius=0.6)
+    elif light == "spot":
+        # A blended 60 degree cone whose fading edge crosses the floor in view.
+        b.spot_light(LIGHT, (1.0, 0.6, 0.0), 60.0, radius=0.6)
+        b._light = dataclasses.replace(b._light, spot_blend=0.4)
     else:
         b.area_light(LIGHT, (0.4, 0.3, 0.0), 1.4, 0.9)
     b.camera((0.0, -5.0, 4.5), (0.0, 0.3, 0.0), fov_deg=60.0)
@@ -140,6 +147,29 @@ def test_a_sized_light_renders_its_penumbra_with_its_noise(light):
     assert err <= 2.0 * noise + 0.005, (err, noise)
     # And the noise is where the penumbra is: none in full light.
     assert float(ref.visibility_noise[mask][expected > 0.999].mean()) < 0.2 * noise
+
+
+def test_a_blended_spot_weighs_each_light_point_by_its_cone():
+    """Cycles attenuates each sample of a sized spot by the cone along its own direction
+    (render/soft.py's spot_cone): near the fading edge its ratio follows the oracle that
+    weighs the points so (tests/support/soft_oracle.py), not the one that weighs them alike."""
+    spec = scene("spot")
+    ref, _ = render(spec, soft_samples=SOFT)
+    assert ref.meta["spot_blend"] == pytest.approx(0.4) and ref.light_spec().spot_blend == pytest.approx(0.4)
+    light = ref.light_spec()
+    mask = metrics.evaluable_mask(ref.position, ref.normal, ref.hit, ref.unshadowed, light)
+    p = ref.position[mask].astype(np.float64)
+    normals = ref.normal[mask].astype(np.float64)
+    ratio = metrics.reference_ratio(ref.shadowed, ref.unshadowed)[mask]
+    tris = np.asarray(ref.triangles, dtype=np.float64)
+    weighed = soft_visibility(light, p, normals, tris, n=256)
+    alike = soft_visibility(dataclasses.replace(light, emission="omni", spot_size=math.pi, spot_blend=0.0),
+                            p, normals, tris, n=256)
+    noise = float(ref.visibility_noise[mask].mean())
+    err_weighed = float(np.abs(ratio - weighed).mean())
+    err_alike = float(np.abs(ratio - alike).mean())
+    assert err_weighed <= 2.0 * noise + 0.005, (err_weighed, noise)
+    assert err_weighed < 0.7 * err_alike, (err_weighed, err_alike)
 
 
 def test_hard_takes_the_size_away_for_the_render_only():

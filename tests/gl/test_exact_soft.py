@@ -60,13 +60,14 @@ def test_exact_soft_equals_the_integral_over_its_points(gl_backend, name, param,
     assert float((diff > 1.5 / 64).mean()) < 1e-3, (name, param, warp)
 
 
-@pytest.mark.parametrize("name", ["spot", "sun"])
+@pytest.mark.parametrize("name", ["spot", "spot_blend", "sun"])
 def test_exact_soft_over_a_spot_or_sun_map(gl_backend, name):
     """A sized spot's sphere and a sun's disk, over their own sm map: every pixel's share
     equals the oracle's over the same 64 points, whatever the map's resolution (the grown
     footprints cover every segment: a spot's through the map's perspective, a sun's by the
     depth its rays travel)."""
     _, scene, samples, evaluable, _ = _case(name)
+    evaluable = evaluable & _reached_image(scene, samples, evaluable)  # a blended cone's edge
     truth = soft_visibility(scene.light, samples.positions[evaluable], samples.normals[evaluable],
                             scene.world_triangles(), n=64)
     assert ((truth > 0.02) & (truth < 0.98)).sum() > 100, name

@@ -39,6 +39,11 @@ def _scene(light: str):
         b._light = dataclasses.replace(b._light, matrix_world=look_at((0.3, 0.2, 3.0), (1.3, 0.2, 3.0)))
     elif light == "spot":
         b.spot_light((0.3, 0.2, 3.0), (0.3, 0.1, 0.0), 120.0, radius=0.45)
+    elif light == "spot_blend":
+        # A narrower, blended cone whose edge crosses the floor in view: each of the sphere's
+        # points lights the receiver by its own cone's weight (Cycles' spot attenuation).
+        b.spot_light((0.3, 0.2, 3.0), (0.5, 0.3, 0.0), 70.0, radius=0.45)
+        b._light = dataclasses.replace(b._light, spot_blend=0.3)
     elif light == "sun":
         b.sun_light((0.4, 0.3, -1.0), angle_deg=30.0)
     else:

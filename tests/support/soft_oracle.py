@@ -46,6 +46,19 @@ def sphere_targets(center: np.ndarray, radius: float, points: np.ndarray, n: int
     return points[:, None, :] + t[..., None] * d
 
 
+def spot_weights(light: LightSpec, emitted: np.ndarray) -> np.ndarray:
+    """Cycles' cone of a spot, per light point: smoothstep((cos a - cos half) / ((1 - cos half)
+    blend)) for light leaving along `emitted` (..., 3) at angle a from the axis; a step at the
+    cone's edge without a blend."""
+    cos_a = np.einsum("...i,i->...", emitted, light.axis) / np.linalg.norm(emitted, axis=-1)
+    cos_half = math.cos(0.5 * light.spot_size)
+    width = (1.0 - cos_half) * light.spot_blend
+    if width <= 0.0:
+        return (cos_a > cos_half).astype(np.float64)
+    x = np.clip((cos_a - cos_half) / width, 0.0, 1.0)
+    return x * x * (3.0 - 2.0 * x)
+
+
 def soft_visibility(light: LightSpec, points: np.ndarray, normals: np.ndarray, tris: np.ndarray,
                     n: int = 256, chunk: int = 256) -> np.ndarray:
     """(P,) the share of a sphere, area or sun light each point (P, 3), normal (P, 3), sees."""
@@ -58,6 +71,8 @@ def soft_visibility(light: LightSpec, points: np.ndarray, normals: np.ndarray, t
             q = sphere_targets(light.position, shape.radius, p, n)
             d = q - p[:, None]
             weight = np.maximum(np.einsum("pmi,pi->pm", d, nrm), 0.0) / np.linalg.norm(d, axis=-1)
+            if light.emission in ("spot", "hemi"):  # a hemi sphere is Blender's 180 degree spot
+                weight = weight * spot_weights(light, -d)
         elif isinstance(shape, Area):
             uv = stratified_unit_square(n) - 0.5
             local = np.column_stack([uv * [shape.size_x, shape.size_y], np.zeros(n), np.ones(n)])
