@@ -35,7 +35,7 @@ mkdir -p "$OUT"
     --size 640x480 --repeats "$FRAMES" --no-images --out "$OUT/compare256"
 : > "$OUT/cost.md"
 for preset in ${PRESETS//,/ }; do
-    ref="$(ls "$OMNIWARP_CACHE/${preset}"_640x480_*.npz | head -n 1)"
+    ref="$(ls -t "$OMNIWARP_CACHE/${preset}"_640x480_*.npz | head -n 1)"  # the newest
     case "$preset" in
         soft_spot | soft_sun) methods=sm,psm,exact ;;
         *) methods=dpsm+notw,cube+notw,exact ;;
