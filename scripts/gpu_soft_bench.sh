@@ -8,7 +8,7 @@
 # `prepare` renders soft_room, soft_softbox, soft_spot and soft_sun (256 samples each) into
 # .cache/softbench/ (about 15 MB). The measuring step writes, under OUT (default
 # out/gpu_soft_bench): compare/ (every fitting method of dpsm+notw, cube+notw, sm, psm, exact
-# at 1024, exact with its default 64 points), compare256/ (exact with 256 points), and
+# at 1024, exact with its default 256 points), compare64/ (exact with 64 points), and
 # cost.md (scripts/soft_cost.py on each reference: the filter's and exact's frames against
 # the hard light's). OMNIWARP_PYTHON picks the interpreter, FRAMES (5) the timed frames,
 # PRESETS (all four) the presets.
@@ -31,8 +31,8 @@ echo "gpu_soft_bench: $("$PY" --version) from $PY, references in $OMNIWARP_CACHE
 mkdir -p "$OUT"
 "$PY" -m addon compare --preset "$PRESETS" --methods dpsm+notw,cube+notw,sm,psm,exact --resolutions 1024 \
     --size 640x480 --repeats "$FRAMES" --no-images --out "$OUT/compare"
-"$PY" -m addon compare --preset "$PRESETS" --methods exact --exact-samples 256 --resolutions 1024 \
-    --size 640x480 --repeats "$FRAMES" --no-images --out "$OUT/compare256"
+"$PY" -m addon compare --preset "$PRESETS" --methods exact --exact-samples 64 --resolutions 1024 \
+    --size 640x480 --repeats "$FRAMES" --no-images --out "$OUT/compare64"
 : > "$OUT/cost.md"
 for preset in ${PRESETS//,/ }; do
     ref="$(ls -t "$OMNIWARP_CACHE/${preset}"_640x480_*.npz | head -n 1)"  # the newest

@@ -199,6 +199,7 @@ def test_sized_spots_and_suns_take_the_soft_paths_and_their_rows_no_note():
     from addon.compare import _row_note
     from addon.core.light_shape import POINT, Sphere, SunDisk
     from addon.render import soft
+    from addon.render.frame import EXACT_SAMPLES
     from addon.render.pipeline import settings_for
     from addon.render.shaders import EXACT_SOFT_KEY
 
@@ -207,8 +208,8 @@ def test_sized_spots_and_suns_take_the_soft_paths_and_their_rows_no_note():
     sun = LightSpec("sun", look_at((0.0, 0.0, 5.0), (0.0, 0.0, 0.0)), shape=SunDisk(0.1))
     for light in (spot, sun):
         exact = settings_for("exact", 256, light.emission)
-        assert soft.exact_soft(light, exact) and soft.soft_uniforms(light, exact)[EXACT_SOFT_KEY] == 64
-        assert soft.list_resolution(light, exact) == 64 and soft.hit_words(light, exact) == 2
+        assert soft.exact_soft(light, exact) and soft.soft_uniforms(light, exact)[EXACT_SOFT_KEY] == EXACT_SAMPLES
+        assert soft.list_resolution(light, exact) == 64 and soft.hit_words(light, exact) == EXACT_SAMPLES // 32
         for method in ("sm", "psm"):
             filtered = settings_for(method, 256, light.emission)
             assert soft.filters(light, filtered) and soft.soft_uniforms(light, filtered)["ow_soft_count"] > 0
