@@ -78,6 +78,20 @@ float ow_sun_edges(vec3 v0, vec3 v1, vec3 v2)
   return orientation;
 }
 
+// A uv box (u0, u1, v0, v1) that is not empty and meets the map (false too where not finite).
+bool ow_box_meets_map(vec4 box)
+{
+  return box.x <= box.y && box.x <= 1.0 && box.y >= 0.0 && box.z <= 1.0 && box.w >= 0.0;
+}
+
+// The clip position of the quad's `corner` over a uv box, clamped to the map.
+vec4 ow_box_corner(vec4 box, int corner)
+{
+  box = clamp(box, 0.0, 1.0);
+  vec2 uv = vec2(((corner & 1) != 0) ? box.y : box.x, ((corner & 2) != 0) ? box.w : box.z);
+  return vec4(uv * 2.0 - 1.0, 0.0, 1.0);
+}
+
 // The exact pass over a spot's or sun's map: a conservative cover of the triangle's image
 // (its part in front of the map), grown by `ow_dilate` texels, so that every texel whose
 // square meets the image gets a fragment; the rasterised triangle itself would miss the
@@ -90,7 +104,7 @@ vec4 ow_projective_quad(vec3 v0, vec3 v1, vec3 v2, int corner)
   vec4 box = ow_projective_box(ow_map_matrix, v0, v1, v2, ow_clip_near);
   float grow = ow_dilate / ow_resolution;
   box += vec4(-grow, grow, -grow, grow);
-  if (box.x > box.y || box.x > 1.0 || box.y < 0.0 || box.z > 1.0 || box.w < 0.0) {
+  if (!ow_box_meets_map(box)) {
     return vec4(2.0, 2.0, 2.0, 1.0);  // behind the map or beside it: nothing drawn
   }
   vec4 c0 = ow_map_matrix * vec4(v0, 1.0);
@@ -102,9 +116,7 @@ vec4 ow_projective_quad(vec3 v0, vec3 v1, vec3 v2, int corner)
                              corner, (box.y - box.x) * (box.w - box.z), corner_uv)) {
     return vec4(corner_uv * 2.0 - 1.0, 0.0, 1.0);
   }
-  box = clamp(box, 0.0, 1.0);
-  vec2 uv = vec2(((corner & 1) != 0) ? box.y : box.x, ((corner & 2) != 0) ? box.w : box.z);
-  return vec4(uv * 2.0 - 1.0, 0.0, 1.0);
+  return ow_box_corner(box, corner);
 }
 
 #ifdef OW_EXACT_SOFT
@@ -112,15 +124,12 @@ vec4 ow_projective_quad(vec3 v0, vec3 v1, vec3 v2, int corner)
 // footprint (lib/soft_footprint.glsl's ow_soft_projective_box), grown by `ow_dilate` texels.
 vec4 ow_soft_projective_quad(vec3 v0, vec3 v1, vec3 v2, int corner, float grow)
 {
-  vec4 box = ow_soft_projective_box(ow_map_matrix, v0, v1, v2, grow);
   float dilate = ow_dilate / ow_resolution;
-  box += vec4(-dilate, dilate, -dilate, dilate);
-  if (!(box.x <= box.y) || box.x > 1.0 || box.y < 0.0 || box.z > 1.0 || box.w < 0.0) {
+  vec4 box = ow_soft_projective_box(ow_map_matrix, v0, v1, v2, grow) + vec4(-dilate, dilate, -dilate, dilate);
+  if (!ow_box_meets_map(box)) {
     return vec4(2.0, 2.0, 2.0, 1.0);  // beside the map (or not finite): nothing drawn
   }
-  box = clamp(box, 0.0, 1.0);
-  vec2 uv = vec2(((corner & 1) != 0) ? box.y : box.x, ((corner & 2) != 0) ? box.w : box.z);
-  return vec4(uv * 2.0 - 1.0, 0.0, 1.0);
+  return ow_box_corner(box, corner);
 }
 #endif
 #endif

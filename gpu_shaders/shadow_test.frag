@@ -17,6 +17,29 @@
 #include "lib/veil.glsl"
 #endif
 
+// A spot's or sun's map (sm, psm) at a light-centred point: its z01 (the map's depth, PSM's
+// inverted light turned round), and the atlas texel holding it, or false outside the map.
+float ow_map_z01(vec3 x, out vec2 uv, out float w)
+{
+  vec3 uvz = ow_projective_uvz(ow_map_matrix, x, w);
+  uv = uvz.xy;
+  return (ow_map_inverted != 0) ? 1.0 - uvz.z : uvz.z;
+}
+
+bool ow_map_texel(vec3 x, out ivec2 texel, out float z01)
+{
+  vec2 uv;
+  float w;
+  z01 = ow_map_z01(x, uv, w);
+  texel = ivec2(0);
+  if (!(w > 0.0) || any(lessThan(uv, vec2(0.0))) || any(greaterThan(uv, vec2(1.0)))) {
+    return false;
+  }
+  int res = int(ow_resolution);
+  texel = clamp(ivec2(floor(uv * ow_resolution)), ivec2(0), ivec2(res - 1)) + ivec2(ow_layer_tile[0].xy);
+  return true;
+}
+
 #ifdef OW_SOFT
 #include "lib/soft_map.glsl"
 
@@ -80,21 +103,18 @@ vec2 ow_projective_test(vec3 p, vec3 n)
   float tan_i = sqrt(max(1.0 - cos_i * cos_i, 0.0)) / max(cos_i, 0.05);
   vec3 q = p + n * (ow_bias_normal * footprint)
            + to_light * (footprint * (ow_bias_const + ow_bias_slope * min(tan_i, 20.0)));
-  float w;
-  vec3 uvz = ow_projective_uvz(ow_map_matrix, q, w);
-  if (!(w > 0.0) || any(lessThan(uvz.xy, vec2(0.0))) || any(greaterThan(uvz.xy, vec2(1.0)))) {
+  ivec2 texel;
+  float z01;
+  if (!ow_map_texel(q, texel, z01)) {
     return vec2(1.0, 3.0);  // outside the map: the plan fits the map to every view sample
   }
-  int res = int(ow_resolution);
-  ivec2 texel = clamp(ivec2(floor(uvz.xy * ow_resolution)), ivec2(0), ivec2(res - 1));
-  float stored = texelFetch(ow_atlas, texel + ivec2(ow_layer_tile[0].xy), 0).r;
-  float z01 = (ow_map_inverted != 0) ? 1.0 - uvz.z : uvz.z;
+  float stored = texelFetch(ow_atlas, texel, 0).r;
   // A cleared texel (1.0: nothing drawn) is empty, even for a receiver beyond the
   // occluders' far plane (one that casts no shadow itself, see shadow_rule.py).
   float visibility = (stored >= 1.0 || z01 - ow_depth_offset <= stored) ? 1.0 : 0.0;
 #ifdef OW_VEIL
   if (visibility > 0.0) {
-    visibility *= ow_veil_light(texel + ivec2(ow_layer_tile[0].xy), z01 - ow_depth_offset);
+    visibility *= ow_veil_light(texel, z01 - ow_depth_offset);
   }
 #endif
 #ifdef OW_SOFT

@@ -3,7 +3,8 @@
 # at 1024 and 2048, for dpsm, cube, dpsm+notw and cube+notw.
 #
 #   bash scripts/gpu_bench.sh prepare   # here, with .venv and bpy: render the Cycles references
-#   bash scripts/gpu_bench.sh           # anywhere: measure, and write $OUT/report.md
+#   bash scripts/gpu_bench.sh [ARGS]    # anywhere: measure, and write $OUT/report.md (ARGS go to
+#                                       # `omniwarp compare`, e.g. --exact-samples 64)
 #
 # `prepare` renders the references into .cache/bench/ (about 21 MB). The measuring step
 # needs only Python 3.11+ with numpy and moderngl (an EGL driver: Mesa llvmpipe here, the
@@ -50,5 +51,5 @@ if ! "$PY" -c "import numpy, moderngl" 2>/dev/null; then
 fi
 echo "gpu_bench: $("$PY" --version) from $PY, references in $OMNIWARP_CACHE" >&2
 "$PY" -m addon compare --preset "$PRESETS" --methods "$METHODS" --resolutions "$RESOLUTIONS" \
-    --size "$SIZE" --repeats "$FRAMES" --no-images --out "$OUT"
+    --size "$SIZE" --repeats "$FRAMES" --no-images --out "$OUT" "$@"
 echo "gpu_bench: table in $OUT/report.md" >&2

@@ -1,6 +1,6 @@
 #!/usr/bin/env bash
-# Soft shadows on a GPU machine (issue 27): the four soft presets against their sized Cycles
-# references, and each method's cost against its hard version.
+# Soft shadows on a GPU machine (issue 27): scripts/gpu_bench.sh on the four soft presets
+# against their sized Cycles references, and each method's cost against its hard version.
 #
 #   bash scripts/gpu_soft_bench.sh prepare   # here, with .venv and bpy: render the references
 #   bash scripts/gpu_soft_bench.sh           # anywhere with numpy and moderngl: measure into $OUT
@@ -16,23 +16,17 @@ set -euo pipefail
 REPO_ROOT="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
 cd "$REPO_ROOT"
 
-PRESETS="${PRESETS:-soft_room,soft_softbox,soft_spot,soft_sun}"
+export PRESETS="${PRESETS:-soft_room,soft_softbox,soft_spot,soft_sun}" RESOLUTIONS=1024
+export FRAMES="${FRAMES:-5}" OMNIWARP_CACHE="${OMNIWARP_CACHE:-$REPO_ROOT/.cache/softbench}"
 OUT="${OUT:-out/gpu_soft_bench}"
-FRAMES="${FRAMES:-5}"
-export OMNIWARP_CACHE="${OMNIWARP_CACHE:-$REPO_ROOT/.cache/softbench}"
 
 if [[ "${1:-run}" == "prepare" ]]; then
-    bash scripts/setup_env.sh >&2
-    exec .venv/bin/python -m addon reference --preset "$PRESETS" --size 640x480
+    exec bash scripts/gpu_bench.sh prepare
 fi
 
+METHODS=dpsm+notw,cube+notw,sm,psm,exact OUT="$OUT/compare" bash scripts/gpu_bench.sh
+METHODS=exact OUT="$OUT/compare64" bash scripts/gpu_bench.sh --exact-samples 64
 PY="${OMNIWARP_PYTHON:-$( [[ -x .venv/bin/python ]] && echo .venv/bin/python || command -v python3 )}"
-echo "gpu_soft_bench: $("$PY" --version) from $PY, references in $OMNIWARP_CACHE" >&2
-mkdir -p "$OUT"
-"$PY" -m addon compare --preset "$PRESETS" --methods dpsm+notw,cube+notw,sm,psm,exact --resolutions 1024 \
-    --size 640x480 --repeats "$FRAMES" --no-images --out "$OUT/compare"
-"$PY" -m addon compare --preset "$PRESETS" --methods exact --exact-samples 64 --resolutions 1024 \
-    --size 640x480 --repeats "$FRAMES" --no-images --out "$OUT/compare64"
 : > "$OUT/cost.md"
 for preset in ${PRESETS//,/ }; do
     ref="$(ls -t "$OMNIWARP_CACHE/${preset}"_640x480_*.npz | head -n 1)"  # the newest

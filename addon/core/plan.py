@@ -272,6 +272,11 @@ def _plan_layers(light: LightSpec, parameterization: Parameterization, region: _
                 occluder_planes=_occluder_planes(light, region.strict), sample_polytope=region.polytope)
 
 
+def sun_upstream_reach(scene_lo: np.ndarray, scene_hi: np.ndarray) -> float:
+    """How far upstream of the view a sun's occluder region reaches: past the whole scene."""
+    return 2.0 * float(np.linalg.norm(np.asarray(scene_hi) - np.asarray(scene_lo))) + 1.0
+
+
 def plan_projective(light: LightSpec, parameterization: Parameterization, camera: CameraSpec | None,
                     stats: SampleStats, scene_lo: np.ndarray, scene_hi: np.ndarray,
                     resolution: int, cull: bool = True) -> Plan:
@@ -300,7 +305,7 @@ def plan_projective(light: LightSpec, parameterization: Parameterization, camera
     if cull and corners is not None:
         # Object culling: an occluder of a visible receiver lies between it and the light.
         if light.emission == "sun":
-            reach = 2.0 * float(np.linalg.norm(np.asarray(scene_hi) - np.asarray(scene_lo))) + 1.0
+            reach = sun_upstream_reach(scene_lo, scene_hi)
             planes = hull_planes(np.vstack([corners, corners - reach * light.axis]))
         else:
             planes = _occluder_planes(light, corners)

@@ -33,6 +33,7 @@ from ..core.plan import (
     outside_region,
     plan_frame,
     plan_projective,
+    sun_upstream_reach,
 )
 from ..core.samples import SampleStats
 from ..core.scene import CameraSpec, LightSpec
@@ -299,12 +300,12 @@ class Projective(Parameterization):
 def _projective_slack(light: LightSpec, scene: ResidentScene) -> float:
     """How far a sized spot's or sun's occluders may lie outside the hard light's occluder
     region: the sphere's radius, or for a sun the tangent of its half angle times the
-    region's reach upstream (plan_projective: twice the scene's diagonal, plus one)."""
+    region's reach upstream (plan.sun_upstream_reach, as plan_projective builds it)."""
     if light.emission != "sun":
         return light_reach(light.shape)
     bounds = scene.bounds()
-    diagonal = float(np.linalg.norm(bounds[1] - bounds[0])) if bounds is not None else 0.0
-    return math.tan(0.5 * light.shape.angle) * (2.0 * diagonal + 1.0)
+    reach = sun_upstream_reach(*bounds) if bounds is not None else 1.0
+    return math.tan(0.5 * light.shape.angle) * reach
 
 
 PARAMETERIZATIONS: dict[str, Parameterization] = {

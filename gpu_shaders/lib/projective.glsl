@@ -3,6 +3,12 @@
 // addon/core/perspective.py (project, texel_footprint).
 #include "lib/edges.glsl"
 
+// Row i of a 4x4 matrix without its translation (GLSL indexes m[column][row]).
+vec3 ow_matrix_row(mat4 m, int i)
+{
+  return vec3(m[0][i], m[1][i], m[2][i]);
+}
+
 // uv and z01 of a light-centred point; `w` <= 0 means the point is behind the map.
 vec3 ow_projective_uvz(mat4 m, vec3 p, out float w)
 {
@@ -17,10 +23,9 @@ vec3 ow_projective_uvz(mat4 m, vec3 p, out float w)
 float ow_projective_footprint(mat4 m, vec3 p, float resolution)
 {
   vec4 c = m * vec4(p, 1.0);
-  // Rows of M (GLSL indexes m[column][row]).
-  vec3 row_x = vec3(m[0][0], m[1][0], m[2][0]);
-  vec3 row_y = vec3(m[0][1], m[1][1], m[2][1]);
-  vec3 row_w = vec3(m[0][3], m[1][3], m[2][3]);
+  vec3 row_x = ow_matrix_row(m, 0);
+  vec3 row_y = ow_matrix_row(m, 1);
+  vec3 row_w = ow_matrix_row(m, 3);
   vec3 gx = 0.5 * (row_x * c.w - c.x * row_w) / (c.w * c.w);
   vec3 gy = 0.5 * (row_y * c.w - c.y * row_w) / (c.w * c.w);
   // Eigenvalues of the 2x2 Gram matrix; the small one as det / large (no cancellation).

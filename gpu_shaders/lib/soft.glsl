@@ -157,10 +157,10 @@ float ow_sun_soft_visibility(vec3 p, vec3 n, float bias, float centre)
     float stored = texelFetch(ow_atlas, texel, 0).r;
     float s_r = (abs(nc) > 1e-4) ? dot(n, p - x) / -nc : 0.0;
     float light = 1.0;
-    vec3 y = x + (s_r - bias) * ow_light_axis;  // the receiver's plane, less the bias
-    float w;
-    vec3 uvz = ow_projective_uvz(ow_map_matrix, y, w);
-    float y01 = (ow_map_inverted != 0) ? 1.0 - uvz.z : uvz.z;
+    vec2 y_uv;
+    float y_w;
+    // The receiver's plane on the sun's ray through x, less the bias: its depth in the map.
+    float y01 = ow_map_z01(x + (s_r - bias) * ow_light_axis, y_uv, y_w);
 #ifdef OW_VEIL
     light = ow_veil_light(texel, y01 - ow_depth_offset);
 #endif

@@ -179,9 +179,9 @@ vec4 ow_projective_cap_box(mat4 m, vec3 axis, float spread)
   if (spread >= 1.5707963267948966) {
     return whole;
   }
-  vec3 rx = vec3(m[0][0], m[1][0], m[2][0]);
-  vec3 ry = vec3(m[0][1], m[1][1], m[2][1]);
-  vec3 rw = vec3(m[0][3], m[1][3], m[2][3]);
+  vec3 rx = ow_matrix_row(m, 0);
+  vec3 ry = ow_matrix_row(m, 1);
+  vec3 rw = ow_matrix_row(m, 3);
   float sin_s = sin(spread);
   float s2 = sin_s * sin_s;
   float wa = dot(rw, axis);
@@ -207,12 +207,9 @@ vec4 ow_soft_projective_box(mat4 m, vec3 v0, vec3 v1, vec3 v2, float grow)
   if (int(ow_exact_light.x) == 3) {
     vec4 box = ow_projective_box(m, v0, v1, v2, 0.0);
     float z_min = min(min((m * vec4(v0, 1.0)).z, (m * vec4(v1, 1.0)).z), (m * vec4(v2, 1.0)).z);
-    vec3 rx = vec3(m[0][0], m[1][0], m[2][0]);
-    vec3 ry = vec3(m[0][1], m[1][1], m[2][1]);
-    vec3 rz = vec3(m[0][2], m[1][2], m[2][2]);
     // Receivers lie in the map's depth range (z <= 1, in clip units of length 1 / |r_z|).
-    float aside = max(1.0 - z_min, 0.0) / max(length(rz), 1e-30) * ow_exact_light.w * 1.001;
-    vec2 g = 0.5 * aside * vec2(length(rx), length(ry));
+    float aside = max(1.0 - z_min, 0.0) / max(length(ow_matrix_row(m, 2)), 1e-30) * ow_exact_light.w * 1.001;
+    vec2 g = 0.5 * aside * vec2(length(ow_matrix_row(m, 0)), length(ow_matrix_row(m, 1)));
     return box + vec4(-g.x, g.x, -g.y, g.y);
   }
   vec3 axis;

@@ -1,6 +1,6 @@
 // Reading a spot's or sun's map for the soft filter (lib/soft.glsl, shaders.soft_of): the
-// shadow test's map (ow_map_matrix, lib/projective.glsl) looked up at world points, and its
-// stored depths put back in the world.
+// shadow test's map (ow_map_matrix, lib/projective.glsl; looked up by shadow_test.frag's
+// ow_map_texel) at world points, and its stored depths put back in the world.
 
 // Along the line origin + s dir, the map's z01 is a ratio of two linear functions of s:
 // the s where it equals a stored texel's z01 (under the hard test's rule, ow_depth_offset
@@ -15,21 +15,6 @@ float ow_map_line_depth(vec3 origin, vec3 dir, float stored)
   vec4 c1 = m * vec4(dir, 0.0);
   float denom = c1.z - zs * c1.w;
   return (abs(denom) > 1e-30) ? (zs * c0.w - c0.z) / denom : 1e30;
-}
-
-// The map's texel at a light-centred point, or false outside the map.
-bool ow_map_texel(vec3 x, out ivec2 texel, out float z01)
-{
-  float w;
-  vec3 uvz = ow_projective_uvz(ow_map_matrix, x, w);
-  texel = ivec2(0);
-  z01 = (ow_map_inverted != 0) ? 1.0 - uvz.z : uvz.z;
-  if (!(w > 0.0) || any(lessThan(uvz.xy, vec2(0.0))) || any(greaterThan(uvz.xy, vec2(1.0)))) {
-    return false;
-  }
-  int res = int(ow_resolution);
-  texel = clamp(ivec2(floor(uvz.xy * ow_resolution)), ivec2(0), ivec2(res - 1)) + ivec2(ow_layer_tile[0].xy);
-  return true;
 }
 
 // A spot's tap, in ow_point_tap's terms: the spot's map read along the light-centred
