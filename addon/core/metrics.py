@@ -12,6 +12,13 @@ UNSHADOWED_EPS = 1e-6
 # surfaces (a curtain, a filtered cut-out edge; issue 25). The binary error leaves such
 # pixels out, as neither lit nor shadowed; the soft error measures them.
 FRACTIONAL_BAND = (0.02, 0.98)
+# A receiver lit within this cosine of edge-on has no shadow to measure: its shadow ray runs
+# inside its own surface, so whether it meets the faces beside it is float32 rounding, in
+# Cycles as anywhere (docs/exact.md: sun_field's hay bale face, cos 2.6e-6, where a float64
+# ray cast disagrees with Cycles on every pixel Cycles shadows). The light it gets is below
+# 1e-5 of a facing receiver's. Float32 rounds a position p by about 6e-8 |p|, which a ray
+# at this cosine leaves behind within a metre at 100 m.
+GRAZING_COS = 1e-5
 
 
 def reference_visibility(shadowed: np.ndarray, unshadowed: np.ndarray, eps: float = UNSHADOWED_EPS) -> np.ndarray:
@@ -31,7 +38,8 @@ def reference_ratio(shadowed: np.ndarray, unshadowed: np.ndarray, eps: float = U
 
 def evaluable_mask(position: np.ndarray, normal: np.ndarray, hit: np.ndarray, unshadowed: np.ndarray,
                    light: LightSpec, eps: float = UNSHADOWED_EPS) -> np.ndarray:
-    """Pixels that count: hit geometry, face the light, lie in the emission domain and get light.
+    """Pixels that count: hit geometry, face the light by more than GRAZING_COS, lie in the
+    emission domain and get light.
 
     The domain is every direction for omni, the half space in front of the axis for
     hemi, the cone of full angle `light.spot_size` around the axis for spot, and all
@@ -43,7 +51,10 @@ def evaluable_mask(position: np.ndarray, normal: np.ndarray, hit: np.ndarray, un
         to_light = np.broadcast_to(-light.axis, pos.shape)
     else:
         to_light = light.position - pos
-    facing = np.einsum("...i,...i->...", np.asarray(normal, dtype=np.float64), to_light) > 0.0
+    nrm = np.asarray(normal, dtype=np.float64)
+    # cos(normal, to_light) > GRAZING_COS, without dividing by the lengths.
+    reach = np.linalg.norm(nrm, axis=-1) * np.linalg.norm(to_light, axis=-1)
+    facing = np.einsum("...i,...i->...", nrm, to_light) > GRAZING_COS * reach
     mask = np.asarray(hit, dtype=bool) & facing & (np.asarray(unshadowed) > eps)
     mask &= np.all(np.isfinite(pos), axis=-1)
     if light.emission == "hemi":

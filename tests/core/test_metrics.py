@@ -88,6 +88,18 @@ def test_evaluable_mask_grazing_normal_is_out():
     assert got.tolist() == [False]
 
 
+@pytest.mark.parametrize("emission", ["omni", "sun"])
+def test_evaluable_mask_leaves_out_receivers_within_rounding_of_edge_on(emission):
+    """Tilted by 2.6e-6 rad towards the light (sun_field's hay bale face), a receiver is out;
+    by 1e-4 it counts. The rule reads the cosine, so the normal's length plays no part."""
+    light = LightSpec(emission, look_at((0.0, 0.0, 50.0), (0.0, 0.0, 0.0)))
+    pos = np.array([[0.0, 0.0, 0.0], [0.0, 0.0, 0.0], [0.0, 0.0, 0.0]])
+    normal = np.array([[1.0, 0.0, 2.6e-6], [1.0, 0.0, 1e-4], [10.0, 0.0, 1e-3]])
+    got = M.evaluable_mask(pos, normal, np.ones(3, bool), np.ones(3), light)
+    assert got.tolist() == [False, True, True]
+    assert 2.6e-6 < M.GRAZING_COS < 1e-4
+
+
 def _ring(light_pos, angles_deg, distance: float = 5.0):
     """Receivers `distance` from the light at `angles_deg` from world -Z (in the x-z plane), facing it."""
     pos = []

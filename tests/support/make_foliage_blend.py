@@ -1,6 +1,6 @@
 """Writes a foliage .blend built the way an artist builds one (run in a child process).
 
-    python tests/support/make_foliage_blend.py OUT.blend
+    python tests/support/make_foliage_blend.py OUT.blend [--sized]
 
 Not the foliage preset: the materials come from bpy's own node setups, the way an artist
 wires them, and the images are 8-bit sRGB PNGs packed into the file.
@@ -12,6 +12,12 @@ wires them, and the images are 8-bit sRGB PNGs packed into the file.
 - a net curtain: a Principled BSDF with Alpha 0.4 and a subdivision modifier;
 - an opaque barrel (a cylinder) and a ground plane with the default material;
 - a point light, and a camera with a lens shift.
+
+`--sized` gives the file the lights an artist lights foliage with (issue 27): the point
+light a 0.2 m radius, a "Sun" 3 degrees across, a "Disc" area light (DISK, 1.5 m,
+spread 100 degrees) and an "Oval" (ELLIPSE, 2 x 0.8 m, its object scaled 1.2 in x) over
+the tree, and a "Key" spot (0.1 m radius, 80 degree cone, blend 0.3) keyed to move
+between frames 1 and 3.
 """
 from __future__ import annotations
 
@@ -105,7 +111,42 @@ def _curtain_material():
     return mat
 
 
-def main(out: str) -> None:
+def _sized_lights() -> None:
+    """The foliage's sized lights (see the module's docstring)."""
+    import bpy
+
+    scene = bpy.context.scene
+    point = next(o for o in scene.objects if o.type == "LIGHT")
+    point.data.shadow_soft_size = 0.2
+    sun = bpy.data.objects.new("Sun", bpy.data.lights.new("Sun", "SUN"))
+    sun.data.angle = math.radians(3.0)
+    sun.rotation_euler = (math.radians(40.0), 0.0, math.radians(150.0))
+    scene.collection.objects.link(sun)
+    for name, shape, size, size_y, location in (("Disc", "DISK", 1.5, 1.5, (-1.0, 0.5, 5.5)),
+                                               ("Oval", "ELLIPSE", 2.0, 0.8, (1.0, -1.0, 4.5))):
+        area = bpy.data.objects.new(name, bpy.data.lights.new(name, "AREA"))
+        area.data.shape, area.data.size, area.data.size_y = shape, size, size_y
+        area.location = location
+        scene.collection.objects.link(area)
+    disc = bpy.data.objects["Disc"]
+    disc.data.spread = math.radians(100.0)
+    oval = bpy.data.objects["Oval"]
+    oval.scale = (1.2, 1.0, 1.0)
+    oval.rotation_euler = (math.radians(20.0), 0.0, 0.0)
+    key = bpy.data.objects.new("Key", bpy.data.lights.new("Key", "SPOT"))
+    key.data.shadow_soft_size = 0.1
+    key.data.spot_size = math.radians(80.0)
+    key.data.spot_blend = 0.3
+    for frame, location in ((1, (4.0, -3.0, 5.0)), (3, (3.0, 4.0, 5.5))):
+        key.location = location
+        key.rotation_euler = tuple(_look(np.array([-1.0, 1.0, 0.5]) - np.array(location)))
+        key.keyframe_insert("location", frame=frame)
+        key.keyframe_insert("rotation_euler", frame=frame)
+    scene.collection.objects.link(key)
+    scene.frame_start, scene.frame_end = 1, 3
+
+
+def main(out: str, sized: bool = False) -> None:
     import bpy
 
     bpy.ops.wm.read_homefile(use_empty=True)
@@ -152,6 +193,8 @@ def main(out: str) -> None:
     camera.rotation_euler = tuple(_look(direction))
     camera.data.shift_x = 0.05
     scene.camera = camera
+    if sized:
+        _sized_lights()
     bpy.ops.wm.save_as_mainfile(filepath=out)
 
 
@@ -163,4 +206,4 @@ def _look(direction: np.ndarray):
 
 
 if __name__ == "__main__":
-    main(sys.argv[1])
+    main(sys.argv[1], "--sized" in sys.argv[2:])
