@@ -48,6 +48,20 @@ void ow_see_through(float alpha, float depth)
 // A sphere or area light is held by the sphere of radius ow_exact_reach about the light
 // centre (-p from p); a sun's directions by the cone of half angle ow_exact_light.y about
 // the frame's +Z.
+// Whether every segment from sample p (at height h over the triangle's plane) to the light
+// crosses that plane more than ow_exact_eps from p: the whole light lies beyond it, a sun's
+// cone of directions wholly leaves towards it.
+bool ow_exact_crossing(vec3 p, float h)
+{
+  if (int(ow_exact_light.x) == 3) {
+    float nc = dot(v_plane.xyz, ow_exact_frame[2]);
+    return h * nc < 0.0 && abs(nc) > ow_exact_light.z && abs(h) > ow_exact_eps * length(p);
+  }
+  float centre_h = -dot(v_plane.xyz, v_edge_at0);  // the light centre's height
+  return centre_h * h < 0.0 && abs(centre_h) > ow_exact_reach
+         && abs(h) > ow_exact_eps * (abs(h) + abs(centre_h) + ow_exact_reach);
+}
+
 int ow_exact_soft_whole(vec3 p, float h, vec3 e0, vec3 e1, vec3 e2)
 {
   vec3 lengths = vec3(length(e0), length(e1), length(e2));
@@ -65,9 +79,7 @@ int ow_exact_soft_whole(vec3 p, float h, vec3 e0, vec3 e1, vec3 e2)
       return -1;  // the cone wholly outside one edge plane
     }
     // Inside all three, wholly crossing the plane, and |t| >= |h| > eps |p| for every ray.
-    bool umbra = all(greaterThan(toward, lengths * sin_half)) && h * nc < 0.0 && abs(nc) > sin_half
-                 && abs(h) > ow_exact_eps * length(p);
-    return umbra ? 1 : 0;
+    return (all(greaterThan(toward, lengths * sin_half)) && ow_exact_crossing(p, h)) ? 1 : 0;
   }
   float centre_h = -dot(v_plane.xyz, v_edge_at0);  // the light centre's height
   if (centre_h * h > 0.0 && abs(centre_h) >= ow_exact_reach) {
@@ -81,9 +93,42 @@ int ow_exact_soft_whole(vec3 p, float h, vec3 e0, vec3 e1, vec3 e2)
   if (any(lessThan(centre_side, -reach))) {
     return -1;
   }
-  bool umbra = all(greaterThan(centre_side, reach)) && centre_h * h < 0.0 && abs(centre_h) > ow_exact_reach
-               && abs(h) > ow_exact_eps * (abs(h) + abs(centre_h) + ow_exact_reach);
-  return umbra ? 1 : 0;
+  return (all(greaterThan(centre_side, reach)) && ow_exact_crossing(p, h)) ? 1 : 0;
+}
+
+// Whether a triangle decides light cluster c (points c * OW_EXACT_SOFT_CLUSTER on) for a
+// sample as a whole: -1 when every point lies outside an edge plane, 1 when every point
+// lies inside all three and `crossing` says each segment crosses the plane, 0 when its
+// points are to be tested one by one. The cluster's box (ow_exact_bounds) bounds the
+// points' weights in the axes along0..2 (the per-point test's): an area light's
+// (x, y, -1) and a sun's (x, y, z) directly; a sphere's (sin_t cos phi, sin_t sin phi,
+// cos_t) through the cap's polar angle at this sample, monotone in the box's u. Each edge's
+// side is linear in the weights, so the box gives its least and greatest value; a margin
+// of 1e-4 of their size keeps a point whose own test rounds the other way to that test.
+int ow_exact_cluster(int c, OwLightView view, mat3 side_matrix, bool crossing)
+{
+  vec3 lo = ow_exact_bounds[2 * c].xyz;
+  vec3 hi = ow_exact_bounds[2 * c + 1].xyz;
+  vec3 w_lo = lo;
+  vec3 w_hi = hi;
+  int kind = int(ow_exact_light.x);
+  if (kind == 2) {
+    w_lo.z = -1.0;
+    w_hi.z = -1.0;
+  } else if (kind == 1) {
+    vec2 near = ow_cap_polar(view, vec4(lo.x, 0.0, 0.0, 0.0));  // the least polar angle
+    vec2 far = ow_cap_polar(view, vec4(hi.x, 0.0, 0.0, 0.0));
+    // sin_t in [near.y, far.y] (>= 0) times cos phi in [lo.y, hi.y], and sin phi likewise.
+    w_lo = vec3(min(near.y * lo.y, far.y * lo.y), min(near.y * lo.z, far.y * lo.z), far.x);
+    w_hi = vec3(max(near.y * hi.y, far.y * hi.y), max(near.y * hi.z, far.y * hi.z), near.x);
+  }
+  vec3 mid = side_matrix * (0.5 * (w_lo + w_hi));
+  vec3 half_range = mat3(abs(side_matrix[0]), abs(side_matrix[1]), abs(side_matrix[2])) * (0.5 * (w_hi - w_lo));
+  vec3 margin = 1e-4 * (half_range + abs(mid));
+  if (any(lessThan(mid + half_range, -margin))) {
+    return -1;
+  }
+  return (crossing && all(greaterThan(mid - half_range, margin))) ? 1 : 0;
 }
 
 // A sized light (lib/exact_soft.glsl): the light points of sample p (light-centred, at
@@ -146,6 +191,13 @@ void ow_exact_soft_mark(vec3 p, ivec2 at, int rows)
   vec3 side1 = edges * along1;
   vec3 side2 = edges * along2;
   vec3 height = vec3(dot(n, along0), dot(n, along1), dot(n, along2));
+  // Every segment crosses the triangle's plane in its span (ow_exact_soft_whole's umbra test
+  // without the edges): then a cluster inside all three edge planes is blocked whole.
+  bool crossing = ow_exact_crossing(p, h);
+#ifdef OW_ALPHA
+  crossing = false;  // a see-through triangle blocks a share of the points: each is looked up
+#endif
+  mat3 side_matrix = mat3(side0, side1, side2);  // weights -> the three edges' sides
   for (int w = 0; w * 32 < ow_exact_points; w++) {
     int count = min(32, ow_exact_points - 32 * w);
     uint all_points = (count == 32) ? 0xFFFFFFFFu : ((1u << uint(count)) - 1u);
@@ -156,37 +208,50 @@ void ow_exact_soft_mark(vec3 p, ivec2 at, int rows)
       continue;
     }
     uint word = 0u;
-    for (int j = 0; j < count; j++) {
-      if (((blocked >> uint(j)) & 1u) != 0u) {
+    for (int first = 0; first < count; first += OW_EXACT_SOFT_CLUSTER) {
+      int last = min(count, first + OW_EXACT_SOFT_CLUSTER);
+      uint span = uint(last - first);
+      uint cluster_bits = ((span == 32u) ? 0xFFFFFFFFu : ((1u << span) - 1u)) << uint(first);
+      if ((blocked & cluster_bits) == cluster_bits) {
         continue;
       }
-      int k = 32 * w + j;
-      vec4 pattern = ow_exact_pattern[k];
-      vec3 weights;  // the segment (or its direction) in the axes along0..2
-      vec2 polar = vec2(1.0, 0.0);
-      if (sphere) {
-        polar = ow_cap_polar(view, pattern);
-        weights = vec3(polar.y * pattern.y, polar.y * pattern.z, polar.x);
-      } else {
-        weights = sun ? pattern.xyz : vec3(pattern.x, pattern.y, -1.0);
+      int decided = ow_exact_cluster((32 * w + first) / OW_EXACT_SOFT_CLUSTER, view, side_matrix, crossing);
+      if (decided != 0) {
+        word |= (decided > 0) ? cluster_bits : 0u;
+        continue;
       }
-      vec3 sides = weights.x * side0 + weights.y * side1 + weights.z * side2;
-      if (all(greaterThanEqual(sides, vec3(0.0)))) {
-        float along = dot(weights, height);  // n . seg, over t for a sphere
-        float f = -h / (sphere ? along * ow_cap_distance(view, polar) : along);  // where the plane cuts it
-        if (sun ? (f > sun_min) : (f > ow_exact_eps && f < 1.0)) {
+      for (int j = first; j < last; j++) {
+        if (((blocked >> uint(j)) & 1u) != 0u) {
+          continue;
+        }
+        int k = 32 * w + j;
+        vec4 pattern = ow_exact_pattern[k];
+        vec3 weights;  // the segment (or its direction) in the axes along0..2
+        vec2 polar = vec2(1.0, 0.0);
+        if (sphere) {
+          polar = ow_cap_polar(view, pattern);
+          weights = vec3(polar.y * pattern.y, polar.y * pattern.z, polar.x);
+        } else {
+          weights = sun ? pattern.xyz : vec3(pattern.x, pattern.y, -1.0);
+        }
+        vec3 sides = weights.x * side0 + weights.y * side1 + weights.z * side2;
+        if (all(greaterThanEqual(sides, vec3(0.0)))) {
+          float along = dot(weights, height);  // n . seg, over t for a sphere
+          float f = -h / (sphere ? along * ow_cap_distance(view, polar) : along);  // where the plane cuts it
+          if (sun ? (f > sun_min) : (f > ow_exact_eps && f < 1.0)) {
 #ifdef OW_ALPHA
-          // A see-through crossing blocks the points whose fixed threshold its alpha passes:
-          // a share alpha of them (thresholds a permutation of the points, so not the
-          // spatial pattern); several such crossings count as the one of largest alpha.
-          float alpha = ow_alpha_along(p + f * ow_light_segment(p, view, k));
-          float threshold = (float((k * 37 + 11) % ow_exact_points) + 0.5) / float(ow_exact_points);
-          if (alpha >= OW_OPAQUE_ALPHA || (alpha > OW_CLEAR_ALPHA && alpha > threshold)) {
-            word |= 1u << uint(j);
-          }
+            // A see-through crossing blocks the points whose fixed threshold its alpha passes:
+            // a share alpha of them (thresholds a permutation of the points, so not the
+            // spatial pattern); several such crossings count as the one of largest alpha.
+            float alpha = ow_alpha_along(p + f * ow_light_segment(p, view, k));
+            float threshold = (float((k * 37 + 11) % ow_exact_points) + 0.5) / float(ow_exact_points);
+            if (alpha >= OW_OPAQUE_ALPHA || (alpha > OW_CLEAR_ALPHA && alpha > threshold)) {
+              word |= 1u << uint(j);
+            }
 #else
-          word |= 1u << uint(j);
+            word |= 1u << uint(j);
 #endif
+          }
         }
       }
     }

@@ -509,12 +509,18 @@ def exact_variant(uniforms: dict, points: bool = False, see_through: bool = Fals
 EXACT_SOFT_DEFINE = "OW_EXACT_SOFT"
 EXACT_SOFT_MAX_POINTS = 256
 EXACT_SOFT_WORDS = EXACT_SOFT_MAX_POINTS // 32
+# The points go in clusters of this many, two to a word, each with its bounds
+# (ow_exact_bounds): a triangle decides a cluster whole when it can, and tests its points one
+# by one only where an edge crosses it (footprint.frag's ow_exact_cluster).
+EXACT_SOFT_CLUSTER = 16
 EXACT_SOFT_KEY = "ow_exact_points"  # the uniforms' key: a sized light's point count (0: hard)
-SHARED_DEFINES.update({"OW_EXACT_SOFT_MAX_POINTS": str(EXACT_SOFT_MAX_POINTS)})
+SHARED_DEFINES.update({"OW_EXACT_SOFT_MAX_POINTS": str(EXACT_SOFT_MAX_POINTS),
+                       "OW_EXACT_SOFT_CLUSTER": str(EXACT_SOFT_CLUSTER)})
 EXACT_SOFT_UNIFORMS = (Uniform("vec4", "ow_exact_light"), Uniform("float", "ow_exact_reach"),
                        Uniform("float", "ow_exact_spread"), Uniform("vec2", "ow_exact_spot"),
                        Uniform("mat3", "ow_exact_frame"), Uniform("int", EXACT_SOFT_KEY),
-                       Uniform("vec4", "ow_exact_pattern", EXACT_SOFT_MAX_POINTS))
+                       Uniform("vec4", "ow_exact_pattern", EXACT_SOFT_MAX_POINTS),
+                       Uniform("vec4", "ow_exact_bounds", 2 * EXACT_SOFT_MAX_POINTS // EXACT_SOFT_CLUSTER))
 _EXACT_SOFT_VARIANTS: dict[str, ProgramInterface] = {}  # program name -> its exact soft variant
 
 

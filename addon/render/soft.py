@@ -11,7 +11,8 @@ import numpy as np
 from ..core.light_shape import Area, LightShape, Sphere, SunDisk, stratified_points, stratified_unit_square
 from ..core.scene import LightSpec
 from .frame import MIN_RESOLUTION, ShadowSettings
-from .shaders import EXACT_SOFT_KEY, EXACT_SOFT_MAX_POINTS, SOFT_KINDS, SOFT_MAX_POINTS, SOFT_MAX_SEARCH
+from .shaders import (EXACT_SOFT_CLUSTER, EXACT_SOFT_KEY, EXACT_SOFT_MAX_POINTS, SOFT_KINDS, SOFT_MAX_POINTS,
+                      SOFT_MAX_SEARCH)
 
 # The exact soft pass lists its samples at 1 / EXACT_SOFT_LIST_SHARE of the map resolution
 # (list_resolution).
@@ -137,7 +138,20 @@ def exact_soft_uniforms(light: LightSpec, settings: ShadowSettings) -> dict:
     return {"ow_exact_light": np.array(described, dtype=np.float64), "ow_exact_reach": light_reach(shape),
             "ow_exact_spread": spread_tangent(shape), "ow_exact_spot": spot_cone(light),
             "ow_exact_frame": light.rotation, EXACT_SOFT_KEY: count,
-            "ow_exact_pattern": _exact_pattern(shape, count)}
+            "ow_exact_pattern": _exact_pattern(shape, count), "ow_exact_bounds": _exact_bounds(shape, count)}
+
+
+def cluster_order(count: int) -> np.ndarray:
+    """The order the exact pass keeps `count` stratified points in: by tiles of 4 x 4 cells
+    of their grid (light_shape.stratified_unit_square's), so that each run of
+    EXACT_SOFT_CLUSTER points lies close together on the light and a triangle's edge
+    crosses few of them. The order only makes the pass faster: each cluster's bounds are
+    taken from its own points, whatever they are."""
+    cols = int(math.ceil(math.sqrt(count)))
+    index = np.arange(count)
+    col, row = index % cols, index // cols
+    tile = 4
+    return np.lexsort((col % tile, row % tile, col // tile, row // tile))
 
 
 @functools.lru_cache(maxsize=32)
@@ -145,16 +159,32 @@ def _exact_pattern(shape: LightShape, count: int) -> np.ndarray:
     """The exact pass's table of `count` light points (lib/exact_soft.glsl), zero-padded to
     EXACT_SOFT_MAX_POINTS: a sphere's (u, cos phi, sin phi, 0) on its cap, an area light's
     (x, y, 0, 0) in its frame, a sun's unit direction towards it (x, y, z, 0) in its frame
-    (light_shape.stratified_points)."""
+    (light_shape.stratified_points), in `cluster_order`."""
     out = np.zeros((EXACT_SOFT_MAX_POINTS, 4))
     if isinstance(shape, Sphere):
         uv = stratified_unit_square(count)
         phi = 2.0 * math.pi * uv[:, 1]
-        out[:count, :3] = np.column_stack([uv[:, 0], np.cos(phi), np.sin(phi)])
+        table = np.column_stack([uv[:, 0], np.cos(phi), np.sin(phi)])
     elif isinstance(shape, SunDisk):
-        out[:count, :3] = stratified_points(shape, count)
+        table = stratified_points(shape, count)
     else:
-        out[:count, :2] = stratified_points(shape, count)[:, :2]
+        table = np.column_stack([stratified_points(shape, count)[:, :2], np.zeros(count)])
+    out[:count, :3] = table[cluster_order(count)]
+    out.setflags(write=False)
+    return out
+
+
+@functools.lru_cache(maxsize=32)
+def _exact_bounds(shape: LightShape, count: int) -> np.ndarray:
+    """Each cluster's box over its points' table entries: rows 2c (the least x, y, z) and
+    2c + 1 (the greatest) for cluster c, the points 16c.. of `_exact_pattern`; zero past
+    the last cluster. footprint.frag turns a box into bounds on the segments' sides."""
+    table = _exact_pattern(shape, count)
+    out = np.zeros((2 * EXACT_SOFT_MAX_POINTS // EXACT_SOFT_CLUSTER, 4))
+    for c, first in enumerate(range(0, count, EXACT_SOFT_CLUSTER)):
+        points = table[first:min(count, first + EXACT_SOFT_CLUSTER), :3]
+        out[2 * c, :3] = points.min(axis=0)
+        out[2 * c + 1, :3] = points.max(axis=0)
     out.setflags(write=False)
     return out
 

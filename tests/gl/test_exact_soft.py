@@ -92,6 +92,34 @@ def test_exact_soft_converges_with_its_points(gl_backend):
     assert float(np.abs(many - fine).mean()) < 0.5 * float(np.abs(few - fine).mean())
 
 
+@pytest.mark.parametrize("name,param", [("sphere", "dpsm"), ("area", "cube"), ("spot_blend", "sm"), ("sun", "sm")])
+def test_clusters_decide_as_their_points_would(gl_backend, monkeypatch, name, param):
+    """The walk decides a cluster of points whole where its box lies beside an edge plane or
+    inside all three (ow_exact_cluster). With boxes too large to decide anything, every point
+    is tested on its own; the shares must not change. Each cluster's box holds its points,
+    and the clusters are tiles of the points' grid, so a tile's box is small."""
+    from addon.render import soft
+    from addon.render.shaders import EXACT_SOFT_CLUSTER
+
+    _, scene, samples, evaluable, _ = _case(name)
+    warp = "notw" if param == "dpsm" else "none"
+    clustered = _exact(gl_backend, scene, samples, 256, param, warp).visibility
+    table = soft._exact_pattern(scene.light.shape, 256)
+    bounds = soft._exact_bounds(scene.light.shape, 256)
+    for c in range(256 // EXACT_SOFT_CLUSTER):
+        points = table[c * EXACT_SOFT_CLUSTER:(c + 1) * EXACT_SOFT_CLUSTER, :3]
+        assert np.all(points >= bounds[2 * c, :3]) and np.all(points <= bounds[2 * c + 1, :3])
+    order = soft.cluster_order(256)
+    assert sorted(order.tolist()) == list(range(256))
+    tiles = {(int(i) % 16 // 4, int(i) // 16 // 4) for i in order[:EXACT_SOFT_CLUSTER]}
+    assert len(tiles) == 1  # the first cluster is one 4 x 4 tile of the 16 x 16 grid
+    undecided = np.tile([[-1e6, -1e6, -1e6, 0.0], [1e6, 1e6, 1e6, 0.0]], (256 // EXACT_SOFT_CLUSTER, 1))
+    monkeypatch.setattr(soft, "_exact_bounds", lambda shape, count: undecided)
+    pointwise = _exact(gl_backend, scene, samples, 256, param, warp).visibility
+    assert np.array_equal(clustered[evaluable], pointwise[evaluable]), float(
+        np.abs(clustered - pointwise)[evaluable].max())
+
+
 def test_a_hard_light_keeps_the_hard_pass(gl_backend):
     """Size 0 gives the hard exact pass's binary answer, whatever exact_samples says."""
     _, scene, samples, evaluable, _ = _case("sphere")
