@@ -376,7 +376,7 @@ def measure_reference(pipeline: ShadowPipeline, ref: ReferenceData, preset: str,
             if not entry.fits(ref.emission):
                 # e.g. `--preset all --methods dpsm,psm`: each light gets the methods it fits.
                 skipped.append(f"{preset} {method}")
-                print(f"skipped {preset} {method}: it does not fit a {ref.emission} light "
+                print(f"skipped {preset} {method}: it does not fit {method_registry.light_phrase(ref.emission)} "
                       f"({method_registry.fits_text(ref.emission)})", file=sys.stderr)
                 progress.done += 1 if entry.external else len(options.resolutions) * len(variants)
                 continue

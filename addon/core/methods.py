@@ -190,6 +190,12 @@ def fits_text(emission: str, pipeline_only: bool = False) -> str:
     return f"{kind} take " + ", ".join(fitting(emission, pipeline_only))
 
 
+def light_phrase(emission: str) -> str:
+    """'an omni light', 'a spot light': an emission named in a sentence."""
+    article = "an" if emission[:1] in ("a", "e", "i", "o", "u") else "a"
+    return f"{article} {emission} light"
+
+
 def check_fits(name: str, emission: str, pipeline_only: bool = False) -> Method:
     """The entry of `name`, or an InputError when it does not fit a light of this emission
     (or, with `pipeline_only`, is not drawn by the pipeline)."""
@@ -198,8 +204,7 @@ def check_fits(name: str, emission: str, pipeline_only: bool = False) -> Method:
         raise InputError(f"method {name} is measured outside the pipeline; "
                          f"only these can be drawn: {', '.join(pipeline_methods())}")
     if not entry.fits(emission):
-        article = "an" if emission[:1] in ("a", "e", "i", "o", "u") else "a"
-        raise InputError(f"method {name} does not fit {article} {emission} light "
+        raise InputError(f"method {name} does not fit {light_phrase(emission)} "
                          f"({fits_text(emission, pipeline_only)})")
     return entry
 

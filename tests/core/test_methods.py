@@ -69,3 +69,8 @@ def test_exact_fits_spot_and_sun_lights_over_their_own_map(emission):
     assert methods.label_for("psm", exact=True) == "psm+exact"  # no entry draws it
     with pytest.raises(InputError, match="exact.*not psm"):
         settings_for("psm", 512, emission).__class__("psm", 512, exact=True)
+
+
+def test_an_emission_is_named_with_its_article():
+    assert [methods.light_phrase(e) for e in ("omni", "hemi", "spot", "sun")] == [
+        "an omni light", "a hemi light", "a spot light", "a sun light"]
