@@ -169,16 +169,19 @@ void main()
   // The samples a triangle may shadow lie within `soft_grow` of its image from the light's
   // centre (lib/soft_footprint.glsl): the walk leaves out those farther than that from
   // one of its edges' great circles (v_cull: unit normals inwards, w the angle's sine).
-  // A sun's rays come from no centre: its walk takes no such cut (reach_sin 2).
+  // A sun's rays come from no centre: its walk takes no such cut (reach_sin 2). v_cull1.w
+  // carries the triangle's distance from the centre, a little under for float32 rounding,
+  // for the walk's cut by the sample's own distance (footprint.frag).
   bool soft_sun = int(ow_exact_light.x) == 3;
-  float soft_grow = ow_soft_grow(ow_origin_distance(v0, v1, v2), ow_exact_reach);
+  float d_min = ow_origin_distance(v0, v1, v2);
+  float soft_grow = ow_soft_grow(d_min, ow_exact_reach);
   float reach_sin = (soft_grow < 1.5707963267948966 && !soft_sun) ? sin(soft_grow) : 2.0;
   vec3 c0 = n0 * orientation;
   vec3 c1 = n1 * orientation;
   vec3 c2 = n2 * orientation;
   v_cull0 = vec4(c0 / max(length(c0), 1e-30), reach_sin);
-  v_cull1 = vec4(c1 / max(length(c1), 1e-30), reach_sin);
-  v_cull2 = vec4(c2 / max(length(c2), 1e-30), reach_sin);
+  v_cull1 = vec4(c1 / max(length(c1), 1e-30), d_min * (1.0 - 1e-4));
+  v_cull2 = vec4(c2 / max(length(c2), 1e-30), 0.0);
   // Seen edge-on from the light's centre, a triangle still shadows from its other points.
   if (length(cross(v1 - v0, v2 - v0)) > 0.0 && orientation == 0.0) {
     orientation = 1.0;

@@ -137,6 +137,23 @@ vec2 ow_projective_test(vec3 p, vec3 n)
 float ow_exact_soft_share(vec3 p, vec3 n, ivec2 pix)
 {
   int rows = textureSize(ow_positions, 0).y;
+  // Most samples are wholly lit or wholly shadowed: then the share is 1 or 0 whatever the
+  // weights, and only a penumbra's samples weigh their points.
+  uint any_blocked = 0u;
+  uint all_blocked = 0xFFFFFFFFu;
+  for (int w = 0; w * 32 < ow_exact_points; w++) {
+    int left = ow_exact_points - 32 * w;
+    uint valid = (left >= 32) ? 0xFFFFFFFFu : ((1u << uint(left)) - 1u);
+    uint marks = imageLoad(ow_hits, pix + ivec2(0, w * rows)).x & valid;
+    any_blocked |= marks;
+    all_blocked &= marks | ~valid;
+  }
+  if (any_blocked == 0u) {
+    return 1.0;
+  }
+  if (all_blocked == 0xFFFFFFFFu) {
+    return 0.0;
+  }
   OwLightView view = ow_light_view(p);
   float lit = 0.0;
   float total = 0.0;
