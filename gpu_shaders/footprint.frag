@@ -41,6 +41,7 @@ void ow_see_through(float alpha, float depth)
 
 #ifdef OW_EXACT_SOFT
 #include "lib/exact_soft.glsl"
+#include "lib/soft_reach.glsl"
 
 // Whether the light as a whole decides triangle (plane v_plane, edge planes e0..e2 through
 // p, inner sides positive) for sample p at height h over its plane: -1 when no point of the
@@ -143,18 +144,16 @@ void ow_exact_soft_mark(vec3 p, ivec2 at, int rows)
   vec3 dir = p * inversesqrt(max(dot(p, p), 1e-30));
   float reach_sin = v_cull0.w;
   if (reach_sin <= 1.0) {
-    // The sample's own distance D cuts tighter: a segment from p to a light point q
-    // (|q| <= R) meets the triangle (|x| >= d) at x = p + s (q - p) only where
-    // s <= (D - d) / (D - R), as |x| <= (1 - s) D + s R; x's direction then differs from
-    // p's by at most asin(s R / d). A sample nearer the centre than the whole triangle
-    // (D < d, and R < d here) has none: behind a blocker, a receiver a little farther
-    // is cut far tighter than by the triangle's own growth, reach_sin ~ R / d.
+    // The sample's own distance cuts tighter than the footprint's growth, which holds for
+    // the farthest sample (lib/soft_footprint.glsl's ow_soft_reach_sin): a receiver just
+    // behind its blocker is cut far tighter. A sample nearer the centre than the whole
+    // triangle (and R < d here) has no segment that crosses it.
     float d = v_cull1.w;
     float dist = length(p);
     if (dist < d) {
       return;
     }
-    reach_sin *= min(1.0, (dist - d) / max(dist - ow_exact_reach, 1e-30));
+    reach_sin = min(reach_sin, ow_soft_reach_sin(d, ow_exact_reach, dist) + 1e-4);
   }
   if (dot(dir, v_cull0.xyz) < -reach_sin || dot(dir, v_cull1.xyz) < -reach_sin || dot(dir, v_cull2.xyz) < -reach_sin) {
     return;

@@ -174,7 +174,7 @@ void main()
   // for the walk's cut by the sample's own distance (footprint.frag).
   bool soft_sun = int(ow_exact_light.x) == 3;
   float d_min = ow_origin_distance(v0, v1, v2);
-  float soft_grow = ow_soft_grow(d_min, ow_exact_reach);
+  float soft_grow = ow_soft_grow(d_min, ow_exact_reach, ow_exact_far);
   float reach_sin = (soft_grow < 1.5707963267948966 && !soft_sun) ? sin(soft_grow) : 2.0;
   vec3 c0 = n0 * orientation;
   vec3 c1 = n1 * orientation;

@@ -43,7 +43,7 @@ from .frame import PreparedGeometry, ShadowSettings
 from .resident import CHUNK_TRIANGLES, ResidentScene
 from .shaders import (EXACT_COUNT_KEY, EXACT_MAX_WALK, EXACT_SOFT_KEY, FOOTPRINT_VERTICES, MAX_POINT_SIZE,
                       REGION_PLANES, SLOTS)
-from .soft import exact_soft_uniforms, light_reach
+from .soft import exact_soft_uniforms, light_reach, sample_far
 from .unfold import VERTEX_FLOATS, edge_aa_parameters, prepare_unfold
 
 log = logging.getLogger(__name__)
@@ -120,7 +120,7 @@ class Parameterization:
             return 0  # nothing to draw (no blockers): the cleared atlas is the map
         res = inputs.settings.resolution
         exact = inputs.settings.exact
-        soft = exact_soft_uniforms(inputs.light, inputs.settings) if exact else {}
+        soft = exact_soft_uniforms(inputs.light, inputs.settings, sample_far(inputs.plan, inputs.light)) if exact else {}
         reach = float(soft.get("ow_exact_reach", 0.0))
         region = inputs.region
         if reach > 0.0:
@@ -276,7 +276,7 @@ class Projective(Parameterization):
         size in texels has no bound here that would fit a point sprite."""
         light = inputs.light
         sun = light.emission == "sun"
-        soft = exact_soft_uniforms(light, inputs.settings)
+        soft = exact_soft_uniforms(light, inputs.settings, sample_far(inputs.plan, light))
         uniforms = {**uniforms, "ow_exact_tile": 0, "ow_exact_eps": EXACT_EPS, "ow_exact_bound": EXACT_MAX_WALK,
                     EXACT_COUNT_KEY: int(inputs.count_work), "ow_sun": int(sun), "ow_light_axis": light.axis,
                     "ow_clip_near": 0.0 if sun else inputs.geometry.far * CLIP_NEAR_RELATIVE,

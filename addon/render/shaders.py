@@ -520,7 +520,8 @@ EXACT_SOFT_UNIFORMS = (Uniform("vec4", "ow_exact_light"), Uniform("float", "ow_e
                        Uniform("float", "ow_exact_spread"), Uniform("vec2", "ow_exact_spot"),
                        Uniform("mat3", "ow_exact_frame"), Uniform("int", EXACT_SOFT_KEY),
                        Uniform("vec4", "ow_exact_pattern", EXACT_SOFT_MAX_POINTS),
-                       Uniform("vec4", "ow_exact_bounds", 2 * EXACT_SOFT_MAX_POINTS // EXACT_SOFT_CLUSTER))
+                       Uniform("vec4", "ow_exact_bounds", 2 * EXACT_SOFT_MAX_POINTS // EXACT_SOFT_CLUSTER),
+                       Uniform("float", "ow_exact_far"))
 _EXACT_SOFT_VARIANTS: dict[str, ProgramInterface] = {}  # program name -> its exact soft variant
 
 

@@ -9,6 +9,7 @@ import math
 import numpy as np
 
 from ..core.light_shape import Area, LightShape, Sphere, SunDisk, stratified_points, stratified_unit_square
+from ..core.plan import Plan
 from ..core.scene import LightSpec
 from .frame import MIN_RESOLUTION, ShadowSettings
 from .shaders import (EXACT_SOFT_CLUSTER, EXACT_SOFT_KEY, EXACT_SOFT_MAX_POINTS, SOFT_KINDS, SOFT_MAX_POINTS,
@@ -121,9 +122,23 @@ def soft_uniforms(light: LightSpec, settings: ShadowSettings) -> dict:
             "ow_soft_spot": spot_cone(light)}
 
 
-def exact_soft_uniforms(light: LightSpec, settings: ShadowSettings) -> dict:
+def sample_far(plan: Plan, light: LightSpec) -> float:
+    """The farthest a view sample lies from the light's centre, a little over: the farthest
+    vertex of the plan's sample polytope, or else of its strictly truncated view frustum
+    (each convex, and holding every sample); 0 (not known) without either. The exact soft
+    pass grows its footprints for a receiver that far (lib/soft_reach.glsl)."""
+    polytope = plan.sample_polytope
+    vertices = polytope.vertices if polytope is not None else plan.frustum_corners
+    if vertices is None or len(vertices) == 0:
+        return 0.0
+    far = float(np.linalg.norm(np.asarray(vertices) - light.position, axis=1).max())
+    return far * (1.0 + 1e-4) if math.isfinite(far) else 0.0
+
+
+def exact_soft_uniforms(light: LightSpec, settings: ShadowSettings, far: float = 0.0) -> dict:
     """The exact soft pass's uniforms (footprint pass and shadow test alike), or
-    {EXACT_SOFT_KEY: 0} (the hard pass) when `exact_soft` does not hold."""
+    {EXACT_SOFT_KEY: 0} (the hard pass) when `exact_soft` does not hold. `far` is
+    `sample_far`'s bound for the footprint pass (0: not known)."""
     if not exact_soft(light, settings):
         return {EXACT_SOFT_KEY: 0}
     shape = light.shape
@@ -138,7 +153,8 @@ def exact_soft_uniforms(light: LightSpec, settings: ShadowSettings) -> dict:
     return {"ow_exact_light": np.array(described, dtype=np.float64), "ow_exact_reach": light_reach(shape),
             "ow_exact_spread": spread_tangent(shape), "ow_exact_spot": spot_cone(light),
             "ow_exact_frame": light.rotation, EXACT_SOFT_KEY: count,
-            "ow_exact_pattern": _exact_pattern(shape, count), "ow_exact_bounds": _exact_bounds(shape, count)}
+            "ow_exact_pattern": _exact_pattern(shape, count), "ow_exact_bounds": _exact_bounds(shape, count),
+            "ow_exact_far": float(far)}
 
 
 def cluster_order(count: int) -> np.ndarray:

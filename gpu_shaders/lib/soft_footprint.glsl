@@ -9,6 +9,8 @@
 // lies within that angle of the triangle's image. A triangle nearer the light than
 // 1.5 R covers its whole layers. Light-centred vertices in the layer's frame (axis +Z).
 
+#include "lib/soft_reach.glsl"
+
 // Distance from the light (the origin) to the triangle (a, b, c): the closest point by
 // its Voronoi region (Ericson, Real-Time Collision Detection, 5.1.5).
 float ow_origin_distance(vec3 a, vec3 b, vec3 c)
@@ -108,11 +110,13 @@ vec4 ow_cap_cube_box(vec3 axis, float spread)
 // The grown footprint's box in the layer (projection coordinates): the cap around the
 // triangle's directions widened by the light's angle; on a paraboloid, a triangle wholly in
 // front also keeps within that angle of its own box (the map's scale is at most 1 there).
-// The angle the light's reach subtends from a triangle d_min from its centre, a little
-// over for float32 rounding; above pi / 2 (the whole sphere) when d_min <= 1.5 R.
-float ow_soft_grow(float d_min, float reach)
+// The angle by which a sample's direction from the light's centre may differ from that of
+// the point where one of its segments to the light crosses a triangle d_min from the centre
+// (lib/soft_reach.glsl), a little over for float32 rounding; above pi / 2 (the whole
+// sphere) when d_min <= 1.5 R.
+float ow_soft_grow(float d_min, float reach, float far)
 {
-  return (d_min > 1.5 * reach) ? asin(reach / d_min) + 1e-4 : 4.0;
+  return (d_min > 1.5 * reach) ? asin(ow_soft_reach_sin(d_min, reach, far)) + 1e-4 : 4.0;
 }
 
 // The cap (unit axis, half angle) that holds the directions of a triangle's corners from

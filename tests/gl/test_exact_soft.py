@@ -120,6 +120,20 @@ def test_clusters_decide_as_their_points_would(gl_backend, monkeypatch, name, pa
         np.abs(clustered - pointwise)[evaluable].max())
 
 
+@pytest.mark.parametrize("name,param", [("sphere", "dpsm"), ("spot", "sm")])
+def test_the_footprints_grow_for_the_farthest_sample(gl_backend, name, param):
+    """The footprints grow for a receiver as far from the light as the farthest view sample
+    (soft.sample_far, from the plan's sample polytope): that bound holds every sample, and
+    lies below the unbounded growth's infinity."""
+    from addon.render.soft import sample_far
+
+    _, scene, samples, evaluable, _ = _case(name)
+    result = _exact(gl_backend, scene, samples, 16, param, "notw" if param == "dpsm" else "none")
+    far = sample_far(result.plan, scene.light)
+    farthest = float(np.linalg.norm(samples.positions[evaluable] - scene.light.position, axis=-1).max())
+    assert farthest <= far < 10.0 * farthest, (farthest, far)
+
+
 def test_a_hard_light_keeps_the_hard_pass(gl_backend):
     """Size 0 gives the hard exact pass's binary answer, whatever exact_samples says."""
     _, scene, samples, evaluable, _ = _case("sphere")
