@@ -145,7 +145,7 @@ void ow_exact_soft_mark(vec3 p, ivec2 at, int rows)
   float reach_sin = v_cull0.w;
   if (reach_sin <= 1.0) {
     // The sample's own distance cuts tighter than the footprint's growth, which holds for
-    // the farthest sample (lib/soft_footprint.glsl's ow_soft_reach_sin): a receiver just
+    // the farthest sample (lib/soft_reach.glsl's ow_soft_reach_sin): a receiver just
     // behind its blocker is cut far tighter. A sample nearer the centre than the whole
     // triangle (and R < d here) has no segment that crosses it.
     float d = v_cull1.w;

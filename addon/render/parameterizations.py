@@ -120,7 +120,8 @@ class Parameterization:
             return 0  # nothing to draw (no blockers): the cleared atlas is the map
         res = inputs.settings.resolution
         exact = inputs.settings.exact
-        soft = exact_soft_uniforms(inputs.light, inputs.settings, sample_far(inputs.plan, inputs.light)) if exact else {}
+        soft = (exact_soft_uniforms(inputs.light, inputs.settings, sample_far(inputs.plan, inputs.light))
+                if exact else {})
         reach = float(soft.get("ow_exact_reach", 0.0))
         region = inputs.region
         if reach > 0.0:
