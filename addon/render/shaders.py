@@ -502,20 +502,17 @@ def exact_variant(uniforms: dict, points: bool = False, see_through: bool = Fals
     return held
 
 
-# Exact soft shadows of a sized light (lib/exact_soft.glsl, issue 27): the exact pass marks,
-# per view sample, which of the light's N points each triangle blocks, in N bits of the
-# sample's words (EXACT_SOFT_WORDS texels of the hits image, rows apart), and the shadow
-# test weighs the points left. N is a square (one point per cell of a square grid).
+# Exact soft shadows of a sized light (lib/exact_soft.glsl, issue 27): the exact pass marks, per
+# view sample, which of the light's N points (a square) each triangle blocks, in N bits of the
+# sample's words (EXACT_SOFT_WORDS texels of the hits image, rows apart); the shadow test weighs
+# the points left. The points go in clusters of EXACT_SOFT_CLUSTER, two to a word, each with
+# its bounding box (ow_exact_bounds), which a triangle decides whole where it can.
 EXACT_SOFT_DEFINE = "OW_EXACT_SOFT"
 EXACT_SOFT_MAX_POINTS = 256
 EXACT_SOFT_WORDS = EXACT_SOFT_MAX_POINTS // 32
-# The points go in clusters of this many, two to a word, each with its bounds
-# (ow_exact_bounds): a triangle decides a cluster whole when it can, and tests its points one
-# by one only where an edge crosses it (footprint.frag's ow_exact_cluster).
 EXACT_SOFT_CLUSTER = 16
 EXACT_SOFT_KEY = "ow_exact_points"  # the uniforms' key: a sized light's point count (0: hard)
-SHARED_DEFINES.update({"OW_EXACT_SOFT_MAX_POINTS": str(EXACT_SOFT_MAX_POINTS),
-                       "OW_EXACT_SOFT_CLUSTER": str(EXACT_SOFT_CLUSTER)})
+SHARED_DEFINES.update(OW_EXACT_SOFT_MAX_POINTS=str(EXACT_SOFT_MAX_POINTS), OW_EXACT_SOFT_CLUSTER=str(EXACT_SOFT_CLUSTER))
 EXACT_SOFT_UNIFORMS = (Uniform("vec4", "ow_exact_light"), Uniform("float", "ow_exact_reach"),
                        Uniform("float", "ow_exact_spread"), Uniform("vec2", "ow_exact_spot"),
                        Uniform("mat3", "ow_exact_frame"), Uniform("int", EXACT_SOFT_KEY),
