@@ -180,8 +180,7 @@ void ow_exact_soft_mark(vec3 p, ivec2 at, int rows)
   if (whole > 0) {
 #ifndef OW_ALPHA
     for (int w = 0; w * 32 < ow_exact_points; w++) {
-      int left = ow_exact_points - 32 * w;
-      imageAtomicOr(ow_hits, at + ivec2(0, w * rows), (left >= 32) ? 0xFFFFFFFFu : ((1u << uint(left)) - 1u));
+      imageAtomicOr(ow_hits, at + ivec2(0, w * rows), ow_exact_word_points(w));
     }
     return;
 #endif
@@ -213,7 +212,7 @@ void ow_exact_soft_mark(vec3 p, ivec2 at, int rows)
   mat3 side_matrix = mat3(side0, side1, side2);  // weights -> the three edges' sides
   for (int w = 0; w * 32 < ow_exact_points; w++) {
     int count = min(32, ow_exact_points - 32 * w);
-    uint all_points = (count == 32) ? 0xFFFFFFFFu : ((1u << uint(count)) - 1u);
+    uint all_points = ow_exact_word_points(w);
     ivec2 word_at = at + ivec2(0, w * rows);
     // Points other triangles blocked already need no test (a stale read only tests more).
     uint blocked = imageLoad(ow_hits, word_at).x;

@@ -139,14 +139,14 @@ float ow_exact_soft_share(vec3 p, vec3 n, ivec2 pix)
   int rows = textureSize(ow_positions, 0).y;
   // Most samples are wholly lit or wholly shadowed: then the share is 1 or 0 whatever the
   // weights, and only a penumbra's samples weigh their points.
+  uint words[OW_EXACT_SOFT_MAX_POINTS / 32];
   uint any_blocked = 0u;
   uint all_blocked = 0xFFFFFFFFu;
   for (int w = 0; w * 32 < ow_exact_points; w++) {
-    int left = ow_exact_points - 32 * w;
-    uint valid = (left >= 32) ? 0xFFFFFFFFu : ((1u << uint(left)) - 1u);
-    uint marks = imageLoad(ow_hits, pix + ivec2(0, w * rows)).x & valid;
-    any_blocked |= marks;
-    all_blocked &= marks | ~valid;
+    uint valid = ow_exact_word_points(w);
+    words[w] = imageLoad(ow_hits, pix + ivec2(0, w * rows)).x & valid;
+    any_blocked |= words[w];
+    all_blocked &= words[w] | ~valid;
   }
   if (any_blocked == 0u) {
     return 1.0;
@@ -158,13 +158,9 @@ float ow_exact_soft_share(vec3 p, vec3 n, ivec2 pix)
   float lit = 0.0;
   float total = 0.0;
   int open = 0;
-  uint word = 0u;
   for (int k = 0; k < ow_exact_points; k++) {
-    if ((k & 31) == 0) {
-      word = imageLoad(ow_hits, pix + ivec2(0, (k >> 5) * rows)).x;
-    }
     float weight = ow_light_weight(ow_light_segment(p, view, k), n);
-    bool blocked = ((word >> uint(k & 31)) & 1u) != 0u;
+    bool blocked = ((words[k >> 5] >> uint(k & 31)) & 1u) != 0u;
     total += weight;
     if (!blocked) {
       lit += weight;

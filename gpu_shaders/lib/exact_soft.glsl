@@ -21,6 +21,13 @@
 
 #include "lib/spot_cone.glsl"
 
+// The bits of word w that hold light points (all 32 but in a last, partial word).
+uint ow_exact_word_points(int w)
+{
+  int left = ow_exact_points - 32 * w;
+  return (left >= 32) ? 0xFFFFFFFFu : ((1u << uint(max(left, 0))) - 1u);
+}
+
 // What a sample needs to place its light points: a sphere's cap frame (towards the light,
 // two axes across it) and the cap's extent; an area light needs nothing per sample.
 struct OwLightView {

@@ -10,10 +10,6 @@ the reference's own visibility. With the alpha ignored the share is far off.
 from __future__ import annotations
 
 import json
-import os
-import subprocess
-import sys
-from pathlib import Path
 
 import numpy as np
 import pytest
@@ -23,30 +19,22 @@ pytest.importorskip("bpy", reason="the reference needs bpy")
 from addon.core import metrics  # noqa: E402
 from addon.core.alpha import Surface  # noqa: E402
 from addon.reference.data import ReferenceData  # noqa: E402
+from tests.support.cli_run import SUPPORT, env_with, python_ok  # noqa: E402
 from tests.support.oracle import transmittance  # noqa: E402
 
 pytestmark = pytest.mark.blender
 
-REPO = Path(__file__).resolve().parents[2]
-SUPPORT = REPO / "tests" / "support"
 # The issue's bound on the shadowed share of the hit pixels, in points.
 MAX_SHARE_POINTS = 1.5
-
-
-def _run(*args: str, env: dict | None = None) -> str:
-    proc = subprocess.run([sys.executable, *args], capture_output=True, text=True, timeout=600, cwd=REPO,
-                          env={**os.environ, **(env or {})})
-    assert proc.returncode == 0, proc.stderr[-3000:]
-    return proc.stdout
 
 
 @pytest.fixture(scope="module")
 def captured(tmp_path_factory):
     folder = tmp_path_factory.mktemp("foliage_blend")
     blend = folder / "foliage.blend"
-    _run(str(SUPPORT / "make_foliage_blend.py"), str(blend))
-    _run("-m", "addon.cli", "reference", "--blend", str(blend), env={"OMNIWARP_CACHE": str(folder / "cache")})
-    _run(str(SUPPORT / "plain_cycles.py"), str(blend), str(folder / "plain.npz"))
+    python_ok(SUPPORT / "make_foliage_blend.py", blend)
+    python_ok("-m", "addon.cli", "reference", "--blend", blend, env=env_with(OMNIWARP_CACHE=folder / "cache"))
+    python_ok(SUPPORT / "plain_cycles.py", blend, folder / "plain.npz")
     (path,) = (folder / "cache").glob("foliage_*.npz")
     return ReferenceData.load(path), dict(np.load(folder / "plain.npz")), blend
 
@@ -87,8 +75,8 @@ def test_the_preview_draws_the_alpha(captured, tmp_path):
     the file's alpha: exact matches Cycles there as compare does."""
     ref, _, blend = captured
     out = tmp_path / "preview"
-    _run("-m", "addon", "preview", "--blend", str(blend), "--method", "exact", "--resolution", "512",
-         "--out", str(out), env={"OMNIWARP_CACHE": str(blend.parent / "cache")})
+    python_ok("-m", "addon", "preview", "--blend", blend, "--method", "exact", "--resolution", "512",
+              "--out", out, env=env_with(OMNIWARP_CACHE=blend.parent / "cache"))
     report = json.loads((out / "preview.json").read_text())
     assert report["evaluated_pixels"] > 0.5 * ref.lit_domain().sum()  # the G-buffer sees what Cycles sees
     assert report["error_pct"] < 0.2, report["error_pct"]

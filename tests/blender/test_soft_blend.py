@@ -12,38 +12,28 @@ points (on this file 0.5-2.2 %, EEVEE 4.4-9.2 %: docs/soft.md).
 from __future__ import annotations
 
 import json
-import os
-import subprocess
-import sys
-from pathlib import Path
 
 import pytest
 
 pytest.importorskip("bpy", reason="the file and its reference need bpy")
 
+from tests.support.cli_run import SUPPORT, python_ok  # noqa: E402
+
 pytestmark = pytest.mark.blender
 
-REPO = Path(__file__).resolve().parents[2]
 LIGHTS = ("Sun", "Oval", "Key")
 # The bound: exact's soft error % <= 2 x reference noise % + 0.05.
 NOISE_FACTOR, NOISE_SLACK = 2.0, 0.05
-
-
-def _run(*args: str, env: dict | None = None) -> str:
-    proc = subprocess.run([sys.executable, *args], capture_output=True, text=True, timeout=1200, cwd=REPO,
-                          env={**os.environ, **(env or {})})
-    assert proc.returncode == 0, proc.stderr[-3000:]
-    return proc.stdout
 
 
 @pytest.fixture(scope="module")
 def rows(tmp_path_factory):
     folder = tmp_path_factory.mktemp("foliage_sized")
     blend = folder / "foliage_sized.blend"
-    _run(str(REPO / "tests" / "support" / "make_foliage_blend.py"), str(blend), "--sized")
-    _run("-m", "addon.cli", "compare", "--blend", str(blend), "--lights", ",".join(LIGHTS), "--frame-range", "2-2",
-         "--methods", "exact,dpsm+notw,sm", "--resolutions", "1024", "--repeats", "1", "--no-images",
-         "--out", str(folder / "out"), "--cache-dir", str(folder / "cache"))
+    python_ok(SUPPORT / "make_foliage_blend.py", blend, "--sized")
+    python_ok("-m", "addon.cli", "compare", "--blend", blend, "--lights", ",".join(LIGHTS), "--frame-range", "2-2",
+              "--methods", "exact,dpsm+notw,sm", "--resolutions", "1024", "--repeats", "1", "--no-images",
+              "--out", folder / "out", "--cache-dir", folder / "cache")
     return json.loads((folder / "out" / "results.json").read_text())
 
 

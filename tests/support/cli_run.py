@@ -27,6 +27,15 @@ def omniwarp(*args: str | os.PathLike, env: dict[str, str] | None = None,
                           text=True, timeout=timeout, cwd=REPO, env=env)
 
 
+def python_ok(*args: str | os.PathLike, env: dict[str, str] | None = None, timeout: float = 1200) -> str:
+    """Run `python ARGS` from the repository root in a child (it may reset bpy, or own a GL
+    context), assert that it exits 0 and return its stdout."""
+    proc = subprocess.run([sys.executable, *map(str, args)], capture_output=True, text=True, timeout=timeout,
+                          cwd=REPO, env=env)
+    assert proc.returncode == 0, proc.stderr[-3000:]
+    return proc.stdout
+
+
 def stderr_lines(text: str) -> list[str]:
     """Non-empty stderr lines, without Mesa's harmless EGL_BAD_MATCH noise."""
     return [line for line in text.splitlines() if line.strip() and "EGL_BAD" not in line]
