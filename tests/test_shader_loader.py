@@ -103,8 +103,8 @@ def test_every_program_loads_and_uses_only_declared_names(iface):
     declared = {u.name for u in iface.uniforms} | set(iface.samplers) | {name for _, name in iface.images}
     used = set(re.findall(r"\b(ow_[a-z_0-9]+)\b", body))
     # Every ow_ name a body reads is either declared here or defined in the GLSL itself.
-    types = (r"void|float|vec[234]|mat[234]|int|bool|ivec[234]|struct|OwBlend|OwLightView|const int|const float"
-             r"|const vec4")
+    types = (r"void|float|vec[234]|mat[234]|int|uint|bool|ivec[234]|uvec[234]|struct|OwBlend|OwLightView"
+             r"|const int|const float|const vec4")
     defined = set(re.findall(rf"\b(?:{types})\s+(ow_[a-z_0-9]+)", body))
     missing = used - declared - defined - {n for _, n in iface.vertex_in} - {n for _, n in iface.fragment_out}
     assert not missing, f"{iface.name} reads undeclared {sorted(missing)}"
