@@ -59,7 +59,7 @@ _GLSL_TYPES = {
     "float": "FLOAT", "vec2": "VEC2", "vec3": "VEC3", "vec4": "VEC4", "mat3": "MAT3", "mat4": "MAT4",
     "int": "INT", "ivec2": "IVEC2", "ivec3": "IVEC3", "ivec4": "IVEC4", "bool": "BOOL",
 }
-_VECTOR_SIZES = {"float": 1, "vec2": 2, "vec3": 3, "vec4": 4, "mat3": 9, "mat4": 16}
+VECTOR_SIZES = {"float": 1, "vec2": 2, "vec3": 3, "vec4": 4, "mat3": 9, "mat4": 16}
 
 
 def ensure_gpu() -> None:
@@ -120,16 +120,6 @@ def create_info(iface: ProgramInterface) -> Any:
     return info
 
 
-def float_texture(size: tuple[int, int], fmt: str, data: np.ndarray | None = None):
-    """A float `GPUTexture` (R32F, RG32F or RGBA32F), optionally filled from numpy (row 0 at the bottom)."""
-    return _float_texture(size, fmt, data)
-
-
-def read_texture(texture, fmt: str) -> np.ndarray:
-    """Texture contents as numpy, row 0 at the bottom."""
-    return _read(texture, fmt)
-
-
 def compute_create_info(iface: ComputeInterface) -> Any:
     """A `GPUShaderCreateInfo` for a compute program: push constants, samplers, R32UI images."""
     import gpu
@@ -148,7 +138,9 @@ def compute_create_info(iface: ComputeInterface) -> Any:
     return info
 
 
-def _float_texture(size: tuple[int, int], fmt: str, data: np.ndarray | None = None):
+def float_texture(size: tuple[int, int], fmt: str, data: np.ndarray | None = None):
+    """A float `GPUTexture` (R32F, RG32F or RGBA32F), optionally filled from numpy (row 0 at
+    the bottom; counted in CREATED)."""
     import gpu
 
     buffer = None
@@ -171,19 +163,16 @@ def read_uint(texture) -> np.ndarray:
     return raw.reshape(texture.height, texture.width).copy()
 
 
-def _framebuffer(**slots):
+def framebuffer(**slots):
+    """A `GPUFrameBuffer` (counted in CREATED)."""
     import gpu
 
     CREATED["framebuffer"] += 1
     return gpu.types.GPUFrameBuffer(**slots)
 
 
-def framebuffer(**slots):
-    """A `GPUFrameBuffer` (counted in CREATED)."""
-    return _framebuffer(**slots)
-
-
-def _backend_type() -> str:
+def backend_type() -> str:
+    """The GPU backend Blender draws with (OPENGL, VULKAN, METAL)."""
     import gpu
 
     getter = getattr(gpu.platform, "backend_type_get", None)
@@ -194,7 +183,7 @@ def _components(fmt: str) -> int:
     return {"R32F": 1, "RG32F": 2, "RGBA32F": 4}[fmt]
 
 
-def _read(texture, fmt: str) -> np.ndarray:
+def read_texture(texture, fmt: str) -> np.ndarray:
     """Texture contents as (height, width[, channels]) float32, row 0 at the bottom."""
     raw = blender_compat.buffer_array(texture.read(), np.float32)
     channels = _components(fmt)

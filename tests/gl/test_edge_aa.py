@@ -56,7 +56,7 @@ def test_edge_passes_match_numpy(gl_backend):
     radius, eps = 3, 0.02
     gl_backend.edge_distance(radius, eps)
     with gl_backend.ctx:
-        raw = gl_backend._textures["ow_edges"].read()  # the test reads the backend's own target
+        raw = gl_backend.textures["ow_edges"].read()  # the test reads the backend's own target
     got = np.frombuffer(raw, dtype="f4").reshape(result.atlas.shape)
     expected = edge_distance_oracle(result.atlas.astype(np.float64), res, radius, eps)
     assert np.any(expected <= radius)  # the box's silhouette makes edges to find

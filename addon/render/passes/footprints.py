@@ -1,0 +1,108 @@
+"""The footprint pass: resident objects drawn into one tile of the atlas (the maps), or
+marking the linked view samples (the exact pass), and the ray table of warped layers."""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from ...core.errors import BackendError
+from ..device import Geometry, UniformValues
+from ..shaders import FOOTPRINT_PROGRAM, FOOTPRINT_VERTICES, RAY_TABLE_PROGRAM, ProgramInterface, program_variant
+from ..shaders import alpha_of, exact_variant
+from .atlas import layer_viewport
+
+
+@dataclass(frozen=True)
+class FootprintDraw:
+    """One object's triangles [first, first + count) drawn by the footprint pass, with the
+    object's own uniforms (ow_object_linear, ow_light_hi, ow_light_lo); as point sprites when
+    `points` (each triangle's box is known to fit MAX_POINT_SIZE), else as quads."""
+
+    key: str
+    first: int
+    count: int
+    uniforms: UniformValues
+    points: bool = False
+
+
+def corner_indices(triangles: int) -> np.ndarray:
+    """The footprint pass's corner buffer for `triangles` triangles: vertex i holds i % 6.
+
+    Devices keep one, grown by doubling, and draw a range of it per object.
+    """
+    return np.tile(np.arange(FOOTPRINT_VERTICES, dtype=np.float32), max(int(triangles), 1))
+
+
+def corner_capacity(triangles: int, held: int) -> int:
+    """Triangles a corner buffer must hold for a draw of `triangles`: `held` while it is
+    enough, else the next power of two (so a growing scene reallocates rarely)."""
+    if triangles <= held:
+        return held
+    return 1 << max(int(triangles) - 1, 1).bit_length()
+
+
+def build_ray_table(backend, tile: int, uniforms: UniformValues) -> None:
+    """Fill one tile of the ray table (RAY_TABLE_PROGRAM, RG32F, the atlas's size), bound as
+    `ow_ray_table` for the footprint pass: the projection point of every texel of a warped
+    layer. Call after begin_atlas and set_warp_tables."""
+    if backend.atlas is None:
+        raise BackendError("build_ray_table called before begin_atlas")
+    device = backend.device
+    layout = backend.atlas.layout
+    table = backend.textures["ow_ray_table"]
+    if device.texture_size(table) != layout.size or backend.ray_target is None:
+        device.free(backend.ray_target, table)
+        table = backend.textures["ow_ray_table"] = device.texture(layout.size, "RG32F")
+        backend.ray_target = device.target((table,))
+    with device.drawing(backend.ray_target, layout.span_viewport(tile, 1)):
+        device.draw(RAY_TABLE_PROGRAM, uniforms, backend.textures)
+
+
+def footprint_program(backend, draw: FootprintDraw, uniforms: UniformValues, exact: bool,
+                      points: bool) -> tuple[ProgramInterface, dict[str, object], dict[str, object]]:
+    """The program one footprint draw runs (the exact pass's variant with `exact`, after
+    `link_samples`; the alpha variant for a see-through part), the textures it reads from
+    the object (its vertex texture and alpha map) and the images it writes, by name: the
+    exact pass's lists and marks, or the atlas's veil. A BackendError for an object not resident."""
+    if exact and backend.exact is None:
+        raise BackendError("the exact footprint pass needs link_samples first")
+    held = backend.vertices.get(draw.key)
+    if held is None:
+        raise BackendError(f"object {draw.key!r} is not resident; call sync_scene first")
+    see_through = backend.alpha.see_through(draw.key)
+    if exact:
+        iface = exact_variant(uniforms, points, see_through=see_through)
+        images = backend.exact.images(iface)
+    else:
+        iface = program_variant(FOOTPRINT_PROGRAM, uniforms, points)
+        iface = alpha_of(iface) if see_through else iface
+        images = backend.veil.ready(backend.device, backend.atlas.layout.size) if see_through else {}
+    return iface, {"ow_vertices": held[1], **backend.alpha.textures_of(draw.key)}, images
+
+
+def draw_footprints(backend, tile: int, draws: list[FootprintDraw], uniforms: UniformValues,
+                    scissor: tuple[int, int, int, int] | None = None, exact: bool = False) -> None:
+    """Draw resident objects into one tile with the footprint program (FOOTPRINT_PROGRAM).
+
+    FOOTPRINT_VERTICES vertices per triangle (corner_indices); `uniforms` are the layer's,
+    each draw adds its object's. `scissor` is as for `draw_layer`. With `exact` the
+    irregular z-buffer's variant (shaders.exact_variant) marks the linked samples instead
+    (uniforms ow_exact_tile, ow_exact_eps; after `link_samples`).
+    """
+    viewport = layer_viewport(backend, tile, caller="draw_footprints")
+    device = backend.device
+    layout = backend.atlas.layout
+    if not exact and any(backend.alpha.see_through(draw.key) for draw in draws):
+        # Cleared before the atlas is bound: a device may clear through a target of its own.
+        backend.veil.ready(device, layout.size)
+    # Always scissored: point sprites may reach past the tile's edge.
+    rect = viewport if scissor is None else layout.scissor_rect(tile, scissor)
+    with device.drawing(backend.atlas.target, viewport, rect, depth_test=True):
+        for draw in draws:
+            if draw.count <= 0:
+                continue  # a count of 0 would mean "all" to some APIs
+            points = draw.points and device.point_sprites
+            iface, textures, images = footprint_program(backend, draw, uniforms, exact, points)
+            device.draw(iface, {**uniforms, **draw.uniforms}, {**backend.textures, **textures},
+                        Geometry.corners(draw.first, draw.count, points), images)

@@ -1,0 +1,134 @@
+"""The view samples on the GPU and the passes that read them before the maps: the warp
+tables, the count scatters of the analysis and the planning reductions."""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+
+from ...core.errors import BackendError
+from ...core.samples import STAT_SPAN, STAT_TEXELS
+from ..device import Target, UniformValues
+from ..shaders import SAMPLE_STATS_PROGRAM, scatter_variant
+
+
+@dataclass
+class SampleTargets:
+    """What the passes over the samples write: the shadow test's target of the samples'
+    size, one R32UI count strip per count-map size, and the statistics' row."""
+
+    size: tuple[int, int] | None = None  # (width, height) of the sample textures
+    test: tuple[Any, Target] | None = None  # (RG32F texture, its target)
+    counts: dict[int, Any] = field(default_factory=dict)  # count-map size -> strip of its tiles
+    stats: Any = None  # R32UI row of the planning statistics
+
+    def held(self) -> list[Any]:
+        """Every GPU object held here, targets before their textures."""
+        return [*(reversed(self.test) if self.test else ()), *self.counts.values(), self.stats]
+
+
+def set_size(backend, size: tuple[int, int]) -> None:
+    """Samples of `size` from now on: the shadow test's target follows them."""
+    held = backend.samples
+    if held.size != size:
+        device = backend.device
+        if held.test is not None:
+            device.free(held.test[1], held.test[0])
+        out = device.texture(size, "RG32F")
+        held.test = (out, device.target((out,)))
+        held.size = size
+
+
+def upload_samples(backend, positions: np.ndarray, normals: np.ndarray) -> None:
+    """View samples for the scatter and test passes: (H, W, 4) float32, row 0 at the bottom.
+
+    positions: light-centred xyz; w = the sample's importance weight (an integer >= 1, 1
+    unless ViewSamples.importance is given) where the pixel hit geometry, 0 where it missed.
+    """
+    height, width = positions.shape[:2]
+    for name, data in (("ow_positions", positions), ("ow_normals", normals)):
+        backend.textures[name] = backend.device.upload(backend.textures.get(name), (width, height), "RGBA32F", data)
+    set_size(backend, (width, height))
+
+
+def pack_warp_table(table: np.ndarray | None) -> np.ndarray:
+    """The GPU layout of a (6 * A, A + 1) warp table: (6 * A, A, 4) float32.
+
+    Texel (k, row) holds the four offsets one evaluation needs: nodes k and k + 1 of
+    function i = row and of its neighbour i + 1 (the same function at the last one of a
+    slot's A). One fetch instead of four: on a software rasteriser the fetches of the
+    warp dominate the warped depth pass, which evaluates it twice per texel (see
+    lib/warp.glsl). None packs to one zero texel.
+    """
+    if table is None:
+        return np.zeros((1, 1, 4), dtype=np.float32)
+    t = np.asarray(table, dtype=np.float32)
+    size = t.shape[1] - 1
+    if size < 1 or t.shape[0] % size:
+        raise BackendError(f"warp table of shape {t.shape} is not (6 * A, A + 1)")
+    following = np.arange(t.shape[0]) + 1
+    following[size - 1::size] -= 1  # the last function of each slot has no next one: itself
+    nxt = t[following]
+    return np.ascontiguousarray(np.stack([t[:, :-1], t[:, 1:], nxt[:, :-1], nxt[:, 1:]], axis=-1))
+
+
+def set_warp_tables(backend, rows: np.ndarray | None, cols: np.ndarray | None) -> None:
+    """Warp offset tables, (6 * A, A + 1) float32 each (slot-major), or None for no warp,
+    uploaded as `pack_warp_table` lays them out (RGBA32F, A x 6A). "No warp" is one zero
+    texel, made once and bound as both."""
+    device = backend.device
+    for name, table in (("ow_warp_rows", rows), ("ow_warp_cols", cols)):
+        old = backend.textures.get(name)
+        old = None if old is backend.no_warp else old  # never written over: both tables share it
+        if table is None:
+            if backend.no_warp is None:
+                backend.no_warp = device.texture((1, 1), "RGBA32F", pack_warp_table(None))
+            device.free(old)
+            backend.textures[name] = backend.no_warp
+            continue
+        data = pack_warp_table(table)
+        backend.textures[name] = device.upload(old, (data.shape[1], data.shape[0]), "RGBA32F", data)
+
+
+def scatter_counts(backend, size: int, tiles: int, uniforms: UniformValues) -> np.ndarray:
+    """Count maps of the uploaded samples, all layers in one dispatch (SCATTER_PROGRAM).
+
+    Returns (size, size * tiles) float32, row 0 at the bottom (v = 0); the layer in slot s
+    fills the columns of tile `uniforms["ow_slot_tile"][s]`.
+    """
+    held = backend.samples
+    if held.size is None:
+        raise BackendError("scatter_counts called before upload_samples")
+    device = backend.device
+    target = held.counts.get(size)
+    if target is None or device.texture_size(target)[0] != size * tiles:
+        # One strip per count-map size, reallocated when the layer count changes.
+        device.free(target)
+        target = held.counts[size] = device.texture((size * tiles, size), "R32UI")
+    device.clear_image(target)
+    iface = scatter_variant(uniforms)
+    width, height = held.size
+    device.dispatch(iface, uniforms, backend.textures, {"ow_counts": target}, iface.groups(width * height))
+    return device.read(target, "R32UI").astype(np.float32)
+
+
+def reduce_samples(backend, uniforms: UniformValues, clear: bool) -> np.ndarray:
+    """One pass of the planning statistics over the uploaded samples (SAMPLE_STATS_PROGRAM).
+
+    The reduction image (core.samples.STAT_TEXELS R32UI texels) is zeroed first when
+    `clear`; pass 1 adds its histogram beside pass 0's fields. Returns the image as
+    (STAT_TEXELS,) uint32.
+    """
+    held = backend.samples
+    if held.size is None:
+        raise BackendError("reduce_samples called before upload_samples")
+    device = backend.device
+    if held.stats is None:
+        held.stats = device.texture((STAT_TEXELS, 1), "R32UI")
+    if clear:
+        device.clear_image(held.stats)
+    width, height = held.size
+    device.dispatch(SAMPLE_STATS_PROGRAM, uniforms, backend.textures, {"ow_stats": held.stats},
+                    SAMPLE_STATS_PROGRAM.groups(-(-width * height // STAT_SPAN)))
+    return device.read(held.stats, "R32UI").ravel()

@@ -1,0 +1,47 @@
+"""The shadow test: the visibility of every view sample, from the atlas (and the veil,
+the edge map, a sized light's points or the exact pass's marks)."""
+from __future__ import annotations
+
+import numpy as np
+
+from ...core.errors import BackendError
+from ..device import UniformValues
+from ..shaders import EXACT_SOFT_KEY, SHADOW_TEST_PROGRAM, ProgramInterface, exact_soft_of, program_variant
+from ..shaders import soft_of, veil_of
+
+
+def test_program(backend, uniforms: UniformValues) -> tuple[ProgramInterface, dict[str, object]]:
+    """The shadow test's variant for `uniforms` and the images it reads: the veil's when this
+    atlas drew see-through parts, none otherwise (the plain test, unchanged); the soft
+    variant when the uniforms carry a sized light's points; the exact soft variant, which
+    weighs the light points the exact pass left unmarked, with its marks."""
+    iface = program_variant(SHADOW_TEST_PROGRAM, uniforms)
+    images = {}
+    if backend.veil.live:
+        iface, images = veil_of(iface), backend.veil.by_name()
+    if int(uniforms.get("ow_soft_count", 0)) > 0:
+        iface = soft_of(iface)  # a sized light (lib/soft.glsl)
+    if int(uniforms.get(EXACT_SOFT_KEY, 0)) > 0:
+        if backend.exact is None:
+            raise BackendError("the exact soft shadow test needs the exact pass's marks (link_samples)")
+        iface, images = exact_soft_of(iface), {"ow_hits": backend.exact.hits}
+    return iface, images
+
+
+def shadow_test(backend, uniforms: UniformValues) -> np.ndarray:
+    """Run the shadow test on the uploaded samples: (H, W, 2) float32, row 0 at the bottom,
+    visibility and flag per sample."""
+    held = backend.samples
+    if backend.atlas is None or held.size is None:
+        raise BackendError("shadow_test needs an atlas and uploaded samples")
+    device = backend.device
+    if "ow_edges" not in backend.textures:
+        # Bound even when no antialiasing runs (ow_edge_radius = 0 never reads it).
+        backend.textures["ow_edges"] = device.texture((1, 1), "R32F", np.zeros(1, np.float32))
+    iface, images = test_program(backend, uniforms)
+    if images:
+        device.barrier()  # the depth pass's image atomics, before the test's loads
+    out, target = held.test
+    with device.drawing(target, (0, 0) + held.size):
+        device.draw(iface, uniforms, backend.textures, images=images)
+    return device.read(out, "RG32F")
