@@ -30,17 +30,14 @@ from collections.abc import Callable, Sequence
 from pathlib import Path
 from typing import TextIO
 
-from .core import interrupt
+from .core import child, interrupt
 from .core import methods as method_registry
 from .core.errors import (
     EXIT_BAD_INPUT,
     EXIT_BUG,
     EXIT_CONTRACT,
-    ChildProcessCrash,
     InputError,
     OmniWarpError,
-    child_error_line,
-    child_stderr_tail,
     report_error,
     report_interrupt,
 )
@@ -108,7 +105,7 @@ def _parser() -> argparse.ArgumentParser:
     cmp_.add_argument("--methods", default=",".join(method_registry.DEFAULT_METHODS),
                       help=f"comma list of methods: {method_registry.help_list()} "
                            f"(default {','.join(method_registry.DEFAULT_METHODS)})")
-    cmp_.add_argument("--resolutions", default="512,1024,2048", help="comma list of map resolutions")
+    cmp_.add_argument("--resolutions", help="comma list of map resolutions")
     culling = cmp_.add_mutually_exclusive_group()
     culling.add_argument("--no-cull", action="store_true", help="draw every layer and triangle (measure culling)")
     culling.add_argument("--cull-both", action="store_true",
@@ -321,11 +318,11 @@ def _compare_jobs(args: argparse.Namespace, methods: Sequence[str]) -> list:
 
 
 def cmd_compare(args: argparse.Namespace) -> int:
-    from .compare import CompareOptions, parse_resolutions, run_compare
+    from .compare import DEFAULT_RESOLUTIONS, CompareOptions, parse_resolutions, run_compare
 
     # Everything the user typed is checked here, before any render or measurement.
     methods = method_registry.parse_methods(args.methods)
-    resolutions = parse_resolutions(args.resolutions)
+    resolutions = DEFAULT_RESOLUTIONS if args.resolutions is None else parse_resolutions(args.resolutions)
     repeats, deprecated = _repeats(args)
     if args.workers is not None and not 1 <= args.workers <= MAX_WORKERS:
         raise InputError(f"bad --workers {args.workers}: use 1-{MAX_WORKERS}")
@@ -371,8 +368,6 @@ def cmd_compare(args: argparse.Namespace) -> int:
 
 def cmd_preview(args: argparse.Namespace) -> int:
     """Reference first (Cycles, this process), then the Blender gpu backend in a child process."""
-    import subprocess
-
     from .compare import parse_resolutions
 
     # The method is checked here, before any Cycles render: unknown or external (eevee) at
@@ -411,31 +406,13 @@ def cmd_preview(args: argparse.Namespace) -> int:
     method = entry.name if entry is not None else None
     with StagedOutput(out) as stage, interrupt.temporary_dir("omniwarp_preview_") as tmp:
         ref_path = reference.save(tmp / "reference.npz")
-        env = dict(os.environ)
-        repo_root = str(Path(__file__).resolve().parents[1])
-        env["PYTHONPATH"] = repo_root + os.pathsep + env.get("PYTHONPATH", "")
-        # Blender's session folder goes inside ours: gone with it even if the child is killed.
-        env["TMPDIR"] = str(tmp)
         _say("drawing the preview with Blender's gpu (child process)")
         # One GL owner per process: Blender's gpu runs in a child (docs/design.md section 3).
-        proc: subprocess.Popen | None = None
-        try:
-            with interrupt.deferred():  # a Ctrl-C during the start must not orphan the child
-                proc = subprocess.Popen([sys.executable, "-m", "addon.blender.headless", *source,
-                                         "--reference", str(ref_path), "--out", str(stage.path),
-                                         *(["--method", method] if method else []), "--resolution", str(resolution)],
-                                        env=env, cwd=repo_root, stdout=subprocess.PIPE, stderr=subprocess.PIPE,
-                                        text=True, errors="replace")
-            _, stderr = proc.communicate()
-        except BaseException:
-            if proc is not None:
-                interrupt.stop_child(proc)  # Ctrl-C: the child goes too, and nothing is moved into place
-            raise
-        if proc.returncode == EXIT_BAD_INPUT and child_error_line(stderr):
-            raise InputError(child_error_line(stderr))
-        if proc.returncode != 0:
-            raise ChildProcessCrash(f"the preview process crashed (exit {proc.returncode}):\n"
-                                    f"{child_stderr_tail(stderr)}")
+        # Blender's session folder goes inside ours: gone with it even if the child is killed.
+        child.run_module("addon.blender.headless", [*source, "--reference", ref_path, "--out", stage.path,
+                                                    *(["--method", method] if method else []),
+                                                    "--resolution", resolution],
+                         what="preview", tmpdir=tmp, refused=InputError)
         stage.commit()
     _result(args, f"wrote {out / 'preview.png'}, {out / 'overlay.png'}, {out / 'preview.json'}")
     report = json.loads((out / "preview.json").read_text())

@@ -7,9 +7,17 @@ A worker sends back its rows, its images as bytes and, unless the workers share 
 cache folder (`--cache-dir`), the reference it rendered, which goes into the client's
 cache. A lost worker's job is run again on another by Dask's own rescheduling; a job
 that fails on bad input ends the run with its one line; Ctrl-C cancels the futures.
+
+While a run lasts, each worker's statistical profiler is off (`RunPlugin`): it samples
+the frames of the thread running a job every 10 ms, and a sample held as a Cycles render
+ends keeps Cycles' engine object alive after Blender has freed it; when the sample is
+dropped, the engine's `__del__` (addons_core/cycles/__init__.py) runs on the freed struct
+and prints a ReferenceError traceback. At the end of a run a worker releases its GL
+contexts and collects what it still holds of bpy's, while its modules are loaded.
 """
 from __future__ import annotations
 
+import gc
 import logging
 import os
 import sys
@@ -22,7 +30,8 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 import dask
-from distributed import Client, Future, LocalCluster, get_worker
+from distributed import Client, Future, LocalCluster, Worker, get_worker
+from distributed.diagnostics.plugin import WorkerPlugin
 
 from .compare import CompareOptions, Progress, check_some_fit
 from .core import interrupt
@@ -37,6 +46,8 @@ CONNECT_TIMEOUT_S = 10
 POLL_S = 0.1  # how often the client looks at its futures: short, so Ctrl-C is served at once
 # One pipeline per worker thread: a GL context is current in the thread that made it.
 _PIPELINES: dict[int, ShadowPipeline] = {}
+# The worker's periodic callbacks of Dask's statistical profiler (distributed.worker.profile).
+PROFILER_CALLBACKS = ("profile", "profile-cycle")
 
 
 class ClusterError(OmniWarpError):
@@ -62,6 +73,27 @@ def _worker_pipeline() -> ShadowPipeline:
     if key not in _PIPELINES:
         _PIPELINES[key] = ShadowPipeline(ModernGLBackend())
     return _PIPELINES[key]
+
+
+class RunPlugin(WorkerPlugin):
+    """A worker's part in one run: its profiler stopped from before the first job (see the
+    module docstring) and started again at the end, after the worker has released what it
+    holds (`release_worker`). Registered per run; a worker that joins later gets it too."""
+
+    def __init__(self) -> None:
+        self.stopped: list[str] = []
+
+    def setup(self, worker: Worker) -> None:
+        callbacks = worker.periodic_callbacks
+        self.stopped = [name for name in PROFILER_CALLBACKS if name in callbacks and callbacks[name].is_running()]
+        for name in self.stopped:
+            callbacks[name].stop()
+
+    def teardown(self, worker: Worker) -> None:
+        release_worker()
+        for name in self.stopped:  # a closing worker stops them again right after
+            worker.periodic_callbacks[name].start()
+        self.stopped = []
 
 
 def remote_job(job: Job, options: CompareOptions, cache_dir: str | None, send_reference: bool) -> RemoteResult:
@@ -109,6 +141,7 @@ def run_jobs(jobs: Sequence[Job], options: CompareOptions, image_dir: Path | Non
     with interrupt.temporary_dir("omniwarp_dask_") as tmp, dask.config.set({"temporary-directory": str(tmp)}):
         cluster: LocalCluster | None = None
         client: Client | None = None
+        plugin: str | None = None
         futures: list[Future] = []
         try:
             with interrupt.deferred():  # a Ctrl-C during the start must not orphan the workers
@@ -118,6 +151,8 @@ def run_jobs(jobs: Sequence[Job], options: CompareOptions, image_dir: Path | Non
             # worker rendered comes back into this machine's cache too.
             send = cache_dir is None
             run = uuid.uuid4().hex[:8]
+            plugin = f"omniwarp-{run}"
+            client.register_plugin(RunPlugin(), name=plugin)
             futures = [client.submit(remote_job, job, options, cache_dir, send, key=f"omniwarp-{run}-{i}", pure=False)
                        for i, job in enumerate(jobs)]
             results = _gather(jobs, futures, image_dir, cache_dir)
@@ -129,7 +164,7 @@ def run_jobs(jobs: Sequence[Job], options: CompareOptions, image_dir: Path | Non
             raise
         finally:
             with interrupt.deferred():  # the workers go before the temporaries do
-                _close(client, cluster)
+                _close(client, cluster, plugin)
     rows = [row for result in results for row in result.rows]
     check_some_fit(rows, [entry for result in results for entry in result.skipped])
     return rows
@@ -232,21 +267,26 @@ def _cancel(client: Client, futures: list[Future]) -> None:
         log.info("cancelling the futures: %s", exc)
 
 
-def release_pipelines() -> None:
-    """On a worker: release its GL contexts before the process ends (run by the client)."""
+def release_worker() -> None:
+    """On a worker at the end of a run: release its GL contexts, and collect the garbage now,
+    while Blender's Python modules are loaded: a bpy object in a reference cycle is then
+    finalized by a working interpreter, not during the worker's interpreter shutdown."""
     while _PIPELINES:
         _, pipeline = _PIPELINES.popitem()
         pipeline.backend.release()
+    if "bpy" in sys.modules:
+        gc.collect()
 
 
-def _close(client: Client | None, cluster: LocalCluster | None) -> None:
+def _close(client: Client | None, cluster: LocalCluster | None, plugin: str | None) -> None:
     """Close the client, then the local cluster and its worker processes (an external
-    cluster stays up: it is not ours, but its workers' GL contexts are released)."""
-    if client is not None:
+    cluster stays up: it is not ours, but each worker ends its part in the run first:
+    `RunPlugin.teardown`)."""
+    if client is not None and plugin is not None:
         try:
-            client.run(release_pipelines)
-        except (OSError, TimeoutError, RuntimeError) as exc:
-            log.info("releasing the workers' pipelines: %s", exc)
+            client.unregister_worker_plugin(plugin)
+        except (OSError, TimeoutError, RuntimeError, ValueError) as exc:
+            log.info("ending the workers' part in the run: %s", exc)
     for what, thing in (("client", client), ("cluster", cluster)):
         if thing is None:
             continue

@@ -200,7 +200,7 @@ def _row_note(light: LightSpec, settings: ShadowSettings, scene: ResidentScene) 
     notes = []
     if settings.parameterization == "unfold" and scene_has_alpha(scene):
         notes.append(UNFOLD_ALPHA_NOTE)
-    if light.sized and not soft.soft_shadowed(light, settings):
+    if light.sized and soft.sized_mode(light, settings) is soft.SizedMode.HARD:
         notes.append(HARD_SIZED_NOTE)
     return "; ".join(notes) or None
 

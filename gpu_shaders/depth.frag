@@ -24,7 +24,7 @@ void main()
   mat3 rot = ow_layer_rot;
   // A paraboloid or cube variant is never an unfold.
 #ifndef OW_FIXED_KIND
-  if (ow_unfold_split >= 0 && uv.x >= 1.0) {
+  if (ow_unfold_split > OW_NO_SPLIT && uv.x >= 1.0) {
     uv.x -= 1.0;  // the second unfold half, whose frame has y and z negated
     rot = mat3(1.0, 0.0, 0.0, 0.0, -1.0, 0.0, 0.0, 0.0, -1.0) * rot;
   }

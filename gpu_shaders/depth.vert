@@ -16,7 +16,7 @@ void main()
     gl_Position = ow_map_matrix * vec4(ow_position, 1.0);
     return;
   }
-  if (ow_unfold_split >= 0) {
+  if (ow_unfold_split > OW_NO_SPLIT) {
     // Dual sphere-unfolding: half 0's triangles come first in the stream, half 1's
     // after `ow_unfold_split`. Half 1's frame is half 0's with y and z negated. The
     // viewport spans the `ow_unfold_halves` tiles, half 0 on the left.

@@ -20,7 +20,7 @@ void main()
   ivec2 tile_origin = (texel / size) * size;
   int radius = ow_edge_radius;
   float best = float(radius + 1);
-  if (ow_edge_pass == 0) {
+  if (ow_edge_pass == OW_EDGE_ALONG_X) {
     float centre = texelFetch(ow_atlas, texel, 0).r;
     for (int d = 1; d <= radius; ++d) {
       for (int s = -1; s <= 1; s += 2) {

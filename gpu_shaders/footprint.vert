@@ -171,8 +171,8 @@ void main()
   // one of its edges' great circles (v_cull: unit normals inwards, w the angle's sine).
   // A sun's rays come from no centre: its walk takes no such cut (reach_sin 2). v_cull1.w
   // carries the triangle's distance from the centre, a little under for float32 rounding,
-  // for the walk's cut by the sample's own distance (footprint.frag).
-  bool soft_sun = int(ow_exact_light.x) == 3;
+  // for the walk's cut by the sample's own distance (lib/exact_soft_mark.glsl).
+  bool soft_sun = int(ow_exact_light.x) == OW_LIGHT_SUN_DISK;
   float d_min = ow_origin_distance(v0, v1, v2);
   float soft_grow = ow_soft_grow(d_min, ow_exact_reach, ow_exact_far);
   float reach_sin = (soft_grow < 1.5707963267948966 && !soft_sun) ? sin(soft_grow) : 2.0;

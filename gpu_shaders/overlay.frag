@@ -1,5 +1,5 @@
-// Map thumbnail: mode 0 = depth in grey (1 = empty, drawn dark blue), mode 1 = count
-// on a log heat scale normalised by ow_max, mode 2 = the heat legend (u = value).
+// Map thumbnail: OW_OVERLAY_DEPTH = depth in grey (1 = empty, drawn dark blue), OW_OVERLAY_COUNT = count
+// on a log heat scale normalised by ow_max, OW_OVERLAY_LEGEND = the heat legend (u = value).
 vec3 ow_heat(float t)
 {
   t = clamp(t, 0.0, 1.0);
@@ -12,14 +12,14 @@ vec3 ow_heat(float t)
 
 void main()
 {
-  if (ow_mode == 2) {
+  if (ow_mode == OW_OVERLAY_LEGEND) {
     ow_color = vec4(ow_heat(v_uv.x), 1.0);
     return;
   }
   ivec2 size = textureSize(ow_image, 0);
   ivec2 texel = clamp(ivec2(v_uv * vec2(size)), ivec2(0), size - 1);
   float value = texelFetch(ow_image, texel, 0).r;
-  if (ow_mode == 0) {
+  if (ow_mode == OW_OVERLAY_DEPTH) {
     ow_color = (value >= 1.0) ? vec4(0.02, 0.03, 0.12, 1.0) : vec4(vec3(1.0 - 0.85 * value), 1.0);
   }
   else {

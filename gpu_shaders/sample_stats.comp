@@ -45,7 +45,7 @@ void main()
       continue;  // a miss (the upload zeroes misses and non-finite positions)
     }
     float depth = dot(pw.xyz, ow_view_axis) + ow_view_offset;
-    if (ow_stats_pass == 1) {
+    if (ow_stats_pass == OW_STATS_HISTOGRAM) {
       float t = (ow_log_bins != 0) ? log(max(depth, ow_depth_lo) / ow_depth_lo) / log(ow_depth_hi / ow_depth_lo)
                                    : (depth - ow_depth_lo) / (ow_depth_hi - ow_depth_lo);
       int bin = (ow_depth_hi > ow_depth_lo) ? clamp(int(floor(t * float(OW_HIST_BINS))), 0, OW_HIST_BINS - 1) : 0;

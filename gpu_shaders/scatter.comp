@@ -1,9 +1,9 @@
 // Count-map scatter (thesis Algorithm 3, steps 2 and 6): one invocation per view
 // sample adds one to the count-map texel it maps to, with imageAtomicAdd on R32UI, so
 // counts are exact integers. Every drawn layer goes out in the same dispatch: layer
-// slot s writes the tile at x = ow_slot_tile[s] * ow_count_size (-1: not drawn).
-// ow_scatter_mode: 0 = after the DV crop, 1 = also through the row warps,
-// 2 = through the full warp (the importance map). With ow_weighted != 0 a sample adds
+// slot s writes the tile at x = ow_slot_tile[s] * ow_count_size (OW_NO_TILE: not drawn).
+// ow_scatter_mode: OW_SCATTER_CROP = after the DV crop, OW_SCATTER_ROWS = also through the row warps,
+// OW_SCATTER_WARP = through the full warp (the importance map). With ow_weighted != 0 a sample adds
 // its importance weight, which the positions' w holds (an integer >= 1 where the
 // pixel hit, 0 where it missed), instead of one: the warp analysis counts weights,
 // the count statistics count samples. Variants built for one mode define
@@ -73,16 +73,16 @@ void main()
   }
   int slot = ow_pick_slot(ow_param, ldir);
   int tile = ow_slot_tile[slot];
-  if (tile < 0) {
+  if (tile <= OW_NO_TILE) {
     return;
   }
   vec4 crop = ow_layer_crop[slot];
   vec2 xy = ow_project(ow_layer_kind, ow_layer_rot[slot] * dir);
   vec2 uv = ((xy * 0.5 + 0.5) - crop.xy) * crop.zw;
-  if (OW_MODE == 1) {
+  if (OW_MODE == OW_SCATTER_ROWS) {
     uv = ow_apply_row_warp(ow_warp_rows, slot, ow_warp_size, uv);
   }
-  else if (OW_MODE == 2) {
+  else if (OW_MODE == OW_SCATTER_WARP) {
     float magnification;
     uv = ow_map_forward(ow_warp_rows, ow_warp_cols, slot, ow_warp_size, crop, xy, magnification);
   }

@@ -4,8 +4,8 @@
 // Shadow test: one fragment per view sample. Positions are light-centred world
 // coordinates (w >= 1, the sample's importance weight, where the pixel hit geometry;
 // 0 where it missed). Output: x = visibility
-// (1 lit, 0 shadowed), y = flag (0 tested, 1 no geometry, 2 outside the emission
-// domain or at the light, 3 its layer was not drawn).
+// (1 lit, 0 shadowed), y = flag (OW_FLAG_TESTED, OW_FLAG_NO_GEOMETRY, OW_FLAG_OUTSIDE the emission
+// domain or at the light, OW_FLAG_NOT_DRAWN: its layer was not drawn; frame.FrameResult.flags).
 #include "lib/projection.glsl"
 #include "lib/layers.glsl"
 #include "lib/mapping.glsl"
@@ -91,7 +91,7 @@ vec2 ow_projective_test(vec3 p, vec3 n)
   float dist = length(p);
   vec3 dir = p / max(dist, 1e-30);
   if (ow_sun == 0 && !(dot(dir, ow_light_axis) >= ow_spot_cos)) {
-    return vec2(0.0, 2.0);  // outside the spot cone (or at the light)
+    return vec2(0.0, OW_FLAG_OUTSIDE);  // outside the spot cone (or at the light)
   }
   vec3 to_light = (ow_sun != 0) ? -ow_light_axis : -dir;
   float cos_i = dot(n, to_light);
@@ -106,7 +106,7 @@ vec2 ow_projective_test(vec3 p, vec3 n)
   ivec2 texel;
   float z01;
   if (!ow_map_texel(q, texel, z01)) {
-    return vec2(1.0, 3.0);  // outside the map: the plan fits the map to every view sample
+    return vec2(1.0, OW_FLAG_NOT_DRAWN);  // outside the map: the plan fits the map to every view sample
   }
   float stored = texelFetch(ow_atlas, texel, 0).r;
   // A cleared texel (1.0: nothing drawn) is empty, even for a receiver beyond the
@@ -124,7 +124,7 @@ vec2 ow_projective_test(vec3 p, vec3 n)
   visibility = (ow_sun != 0) ? ow_sun_soft_visibility(p, n, bias, visibility)
                              : ow_soft_visibility(p, n, bias, visibility);
 #endif
-  return vec2(visibility, 0.0);
+  return vec2(visibility, OW_FLAG_TESTED);
 }
 
 
@@ -176,7 +176,7 @@ void main()
   ivec2 pix = ivec2(gl_FragCoord.xy);
   vec4 pw = texelFetch(ow_positions, pix, 0);
   if (pw.w < 0.5) {
-    ow_result = vec2(0.0, 1.0);
+    ow_result = vec2(0.0, OW_FLAG_NO_GEOMETRY);
     return;
   }
   vec3 p = pw.xyz;
@@ -187,11 +187,11 @@ void main()
     ow_result = ow_projective_test(p, n);
 #ifdef OW_EXACT_SOFT
     // A sized spot's or sun's exact pass: its marks weighed, the normal towards the light.
-    // Its atlas holds no depth, so only the cone decides (flag 2); a sample whose biased
-    // lookup fell off the map's edge (flag 3) is in the lists all the same.
-    if (ow_result.y != 2.0) {
+    // Its atlas holds no depth, so only the cone decides (OW_FLAG_OUTSIDE); a sample whose biased
+    // lookup fell off the map's edge (OW_FLAG_NOT_DRAWN) is in the lists all the same.
+    if (ow_result.y != OW_FLAG_OUTSIDE) {
       vec3 to_light = (ow_sun != 0) ? -ow_light_axis : -p;
-      ow_result = vec2(ow_exact_soft_share(p, (dot(n, to_light) < 0.0) ? -n : n, pix), 0.0);
+      ow_result = vec2(ow_exact_soft_share(p, (dot(n, to_light) < 0.0) ? -n : n, pix), OW_FLAG_TESTED);
     }
 #endif
     return;
@@ -199,7 +199,7 @@ void main()
 #endif
   float dist = length(p);
   if (!(dist > 0.0)) {
-    ow_result = vec2(1.0, 2.0);
+    ow_result = vec2(1.0, OW_FLAG_OUTSIDE);
     return;
   }
   vec3 dir = p / dist;
@@ -210,7 +210,7 @@ void main()
   }
   vec3 ldir = ow_light_rot * dir;
   if (ow_hemi != 0 && ldir.z >= 0.0) {
-    ow_result = vec2(0.0, 2.0);
+    ow_result = vec2(0.0, OW_FLAG_OUTSIDE);
     return;
   }
   int slot = ow_pick_slot(ow_param, ldir);
@@ -253,7 +253,7 @@ void main()
   slot = ow_pick_slot(ow_param, qldir);
   vec4 tile = ow_layer_tile[slot];
   if (tile.z < 0.5) {
-    ow_result = vec2(1.0, 3.0);
+    ow_result = vec2(1.0, OW_FLAG_NOT_DRAWN);
     return;
   }
   xy = ow_project(ow_layer_kind, ow_layer_rot[slot] * qdir);
@@ -264,7 +264,7 @@ void main()
   ivec2 texel = clamp(ivec2(floor(uv * ow_resolution)), ivec2(0), ivec2(res - 1));
   vec4 box = ow_layer_box[slot];  // texels (x0, y0, x1, y1) cleared and drawn this frame
   if (any(lessThan(vec2(texel), box.xy)) || any(greaterThanEqual(vec2(texel), box.zw))) {
-    ow_result = vec2(1.0, 0.0);  // outside: empty, as a cleared texel would be (lit)
+    ow_result = vec2(1.0, OW_FLAG_TESTED);  // outside: empty, as a cleared texel would be (lit)
 #ifdef OW_EXACT_SOFT
     ow_result.x = ow_exact_soft_share(p, n, pix);
 #endif
@@ -299,5 +299,5 @@ void main()
   // The exact pass of a sized light (its atlas holds no depth, so the test above lit it).
   visibility *= ow_exact_soft_share(p, n, pix);
 #endif
-  ow_result = vec2(visibility, 0.0);
+  ow_result = vec2(visibility, OW_FLAG_TESTED);
 }

@@ -14,7 +14,7 @@ what an edge importance could give with the NoTW and RTW warps as built.
 
 Run:
   .venv/bin/python scripts/edge_oracle_bound.py --preset room_omni,courtyard \\
-      --resolution 1024 --weights 8,32 --radius 2 --out docs/edge_oracle
+      --resolution 1024 --weights 8,32 --radius 2 --out docs/results/edge_oracle
 It writes OUT/results.json and OUT/report.md (with the renderer and the date).
 """
 from __future__ import annotations

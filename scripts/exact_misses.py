@@ -27,7 +27,7 @@ from addon.core.scene import parse_size  # noqa: E402
 from addon.reference.cache import load_or_capture  # noqa: E402
 from addon.render.moderngl_backend import ModernGLBackend  # noqa: E402
 from addon.render.pipeline import ShadowPipeline, ShadowSettings  # noqa: E402
-from addon.render.parameterizations import EXACT_EPS  # noqa: E402
+from addon.render.passes.exact import EXACT_EPS  # noqa: E402
 
 
 def nearest_crossing(light: np.ndarray, point: np.ndarray, tris: np.ndarray) -> tuple[float, float] | None:

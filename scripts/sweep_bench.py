@@ -1,7 +1,7 @@
 """The cost of a sweep's job at 1920x1080, and jobs per minute on 1 and 2 local Dask workers,
 measured in one run (docs/sweeps.md). Writes OUT/bench.md and OUT/bench.json.
 
-    python scripts/sweep_bench.py [--out docs/sweeps] [--jobs 6] [--workers 1,2]
+    python scripts/sweep_bench.py [--out docs/results/sweeps] [--jobs 6] [--workers 1,2]
 
 The shot is tests/support/make_shot_blend.py at 1920x1080 (two boxes on a ground, the key
 light and the crate animated). Each job is one frame with the key light: its Cycles
@@ -71,7 +71,7 @@ def markdown(result: dict) -> list[str]:
 
 def main() -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--out", default="docs/sweeps")
+    parser.add_argument("--out", default="docs/results/sweeps")
     parser.add_argument("--jobs", type=int, default=6, help="jobs (frames) per cluster run")
     parser.add_argument("--workers", default="1,2")
     parser.add_argument("--rewrite", action="store_true", help="write OUT/bench.md again from OUT/bench.json")

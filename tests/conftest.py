@@ -37,6 +37,19 @@ def shaders_dir(repo_root: Path) -> Path:
 
 
 @pytest.fixture(scope="session")
+def reference_cache(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    """One Cycles reference cache for the whole test run ($OMNIWARP_CACHE or a cache_dir).
+
+    The cache keys a preset's reference by its builder's source, the size, the samples and
+    the Blender version (addon/reference/cache.py), so every test that hands it this folder
+    renders a given preset and size once per run, whichever test asks first. A test that
+    watches a render happen (a cache miss, a damaged file, a render interrupted) keeps a
+    fresh folder of its own instead.
+    """
+    return tmp_path_factory.mktemp("reference_cache")
+
+
+@pytest.fixture(scope="session")
 def gl_backend():
     """One standalone moderngl (EGL) backend for the session.
 
@@ -48,6 +61,21 @@ def gl_backend():
     backend = ModernGLBackend()
     yield backend
     backend.release()
+
+
+def pytest_generate_tests(metafunc: pytest.Metafunc) -> None:
+    """A test asking for `preset_case` runs once per preset in its module's PRESET_CASES."""
+    if "preset_case" in metafunc.fixturenames:
+        metafunc.parametrize("preset_case", metafunc.module.PRESET_CASES, indirect=True, scope="module")
+
+
+@pytest.fixture(scope="module")
+def preset_case(request: pytest.FixtureRequest):
+    """oracle.PresetCase (name, scene, samples, lit, evaluable) of one preset of the module's
+    PRESET_CASES at its PRESET_CASE_SIZE; made once per test run."""
+    from tests.support.oracle import preset_case_of
+
+    return preset_case_of(request.param, tuple(request.module.PRESET_CASE_SIZE))
 
 
 # A test module that imports bpy anywhere (at the top, inside a test, or via importorskip).

@@ -1,4 +1,4 @@
-"""The GLSL loader (addon/render/shaders.py): includes, headers, and the shipped programs.
+"""The GLSL loader (addon/render/shaders/): includes, headers, and the shipped programs.
 
 Pure Python: no GL context. Compiling and running the shaders is tested in tests/gl.
 """
@@ -45,6 +45,20 @@ def test_include_cycle_and_missing_file_are_named(tmp_path):
         S.load_source("loop.glsl", root)
     with pytest.raises(BackendError, match="nope.glsl"):
         S.load_source("broken.glsl", root)
+
+
+def test_an_include_path_reaches_the_shipped_library(tmp_path):
+    """A test's own shader includes the shipped lib/ files through the include path: no copy."""
+    root = _write(tmp_path, {"probe.frag": '#include "lib/layers.glsl"\nvoid main() {}\n',
+                             "lib/local.glsl": "float local() { return 1.0; }\n"})
+    text = S.load_source("probe.frag", root, include_path=(S.SHADER_DIR,))
+    assert "int ow_pick_slot(" in text and "#include" not in text
+    assert not (root / "lib" / "layers.glsl").exists()
+    # The shader's own folder comes first; a string expands the same way.
+    text = S.expand_source('#include "lib/local.glsl"\n#include "lib/spot_cone.glsl"\n', root, (S.SHADER_DIR,))
+    assert "float local()" in text and "ow_spot_cone_weight" in text
+    with pytest.raises(BackendError, match="nope.glsl"):
+        S.expand_source('#include "lib/nope.glsl"\n', root, (S.SHADER_DIR,))
 
 
 def test_stage_headers_declare_the_interface():

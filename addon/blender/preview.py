@@ -18,6 +18,7 @@ from ..core.scene import LightSpec
 from ..reference.data import ReferenceData
 from ..render.pipeline import ShadowPipeline, ShadowSettings, count_statistics
 from ..render.resident import ResidentScene
+from ..render.shaders import OVERLAY_MODES
 
 log = logging.getLogger(__name__)
 
@@ -72,12 +73,13 @@ def overlay_panels(result, stats, label: str, maps: set[str], thumb: int = 256) 
         if "DEPTH" in maps and result.atlas is not None:
             x, y = result.layout.origin(result.tile_of_slot[layer.slot])
             depth = pool_image(result.atlas[y:y + res, x:x + res], 2 * thumb, np.min)
-            panels.append(OverlayPanel(f"depth {layer.name}", depth, 0))
+            panels.append(OverlayPanel(f"depth {layer.name}", depth, OVERLAY_MODES["depth"]))
         if "COUNT" in maps:
-            panels.append(OverlayPanel(f"count {layer.name}", pool_image(stats.before[layer.slot], 2 * thumb), 1, top))
+            panels.append(OverlayPanel(f"count {layer.name}", pool_image(stats.before[layer.slot], 2 * thumb),
+                                       OVERLAY_MODES["count"], top))
         if "IMPORTANCE" in maps:
             panels.append(OverlayPanel(f"importance {layer.name}", pool_image(stats.after[layer.slot], 2 * thumb),
-                                       1, top))
+                                       OVERLAY_MODES["count"], top))
     return panels, top
 
 

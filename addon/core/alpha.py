@@ -36,7 +36,7 @@ LUMINANCE = (0.2126729, 0.7151522, 0.0721750)
 # through: the same bounds on the GPU (shaders.SHARED_DEFINES).
 OPAQUE_ALPHA = 1.0 - 1.0 / 65536.0
 CLEAR_ALPHA = 1.0 / 65536.0
-# The exact pass's per-sample word (footprint.frag): an opaque crossing sets HIT_OPAQUE; a
+# The exact pass's per-sample word (lib/exact_walk.glsl): an opaque crossing sets HIT_OPAQUE; a
 # see-through one adds its optical depth -ln(1 - alpha) in units of 1 / OPTICAL_SCALE, so
 # the sum over any order of crossings is the product of their (1 - alpha). A crossing adds
 # at most OPTICAL_SCALE * ln(1 / (1 - OPAQUE_ALPHA)) (about 2^19.5), so 4096 of them (the

@@ -42,7 +42,6 @@ import os
 import subprocess
 import sys
 import tempfile
-import threading
 import time
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
@@ -51,16 +50,12 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from ..core import interrupt, metrics
+from ..core import child, metrics
 from ..core.alpha import AlphaMap
 from ..core.errors import (
-    EXIT_BAD_INPUT,
-    ChildProcessCrash,
     InputError,
     OmniWarpError,
     ReferenceCaptureError,
-    child_error_line,
-    child_stderr_tail,
     report_error,
 )
 from ..core.light_shape import shape_from_dict
@@ -75,7 +70,6 @@ if TYPE_CHECKING:  # pragma: no cover - typing only
 
 log = logging.getLogger(__name__)
 
-REPO_ROOT = Path(__file__).resolve().parents[2]
 SETTINGS = ("default", "fine")  # measured by default
 KNOWN_SETTINGS = ("default", "fine", "coarse")
 FINE_FACTOR = 4.0  # "fine" caps the texel size at default / FINE_FACTOR
@@ -521,12 +515,14 @@ def main(argv: Sequence[str] | None = None) -> int:
 # ----------------------------------------------------------------------------
 # parent side (numpy, matplotlib)
 # ----------------------------------------------------------------------------
-def _forward_progress(stream, progress: Progress | None) -> None:
-    """Read the child's stdout to the end; pass our progress lines on (Blender prints there too)."""
-    for line in stream:
+def _progress_line(progress: Progress | None) -> Callable[[str], None]:
+    """Pass the child's progress lines on to `progress` (Blender prints on stdout too)."""
+
+    def forward(line: str) -> None:
         if line.startswith(PROGRESS_PREFIX) and progress is not None:
             progress(line[len(PROGRESS_PREFIX):].rstrip())
-    stream.close()
+
+    return forward
 
 
 def run_child(args: Sequence[str], out_dir: Path, progress: Progress | None = None,
@@ -539,40 +535,14 @@ def run_child(args: Sequence[str], out_dir: Path, progress: Progress | None = No
     out_dir.mkdir(parents=True, exist_ok=True)
     summary_path = out_dir / "eevee.json"
     summary_path.unlink(missing_ok=True)  # never read a stale summary
-    env = dict(os.environ)
-    env["PYTHONPATH"] = str(REPO_ROOT) + (os.pathsep + env["PYTHONPATH"] if env.get("PYTHONPATH") else "")
     # Blender's session folder goes under out_dir: removed with it even if the child is
     # killed (on Ctrl-C), which skips Blender's own clean-up.
-    env["TMPDIR"] = str(out_dir.resolve())
-    command = [sys.executable, "-m", "addon.reference.eevee", *args, "--out", str(out_dir.resolve())]
-    log.info("running %s", " ".join(command))
-    with tempfile.TemporaryFile(mode="w+", encoding="utf-8", errors="replace") as err:
-        proc: subprocess.Popen | None = None
-        reader: threading.Thread | None = None
-        try:
-            with interrupt.deferred():  # a Ctrl-C during the start must not orphan the child
-                proc = subprocess.Popen(command, cwd=REPO_ROOT, env=env, stdout=subprocess.PIPE, stderr=err,
-                                        text=True, errors="replace")
-                reader = threading.Thread(target=_forward_progress, args=(proc.stdout, progress), daemon=True)
-                reader.start()
-            proc.wait(timeout=timeout_s)
-        except subprocess.TimeoutExpired:
-            interrupt.stop_child(proc)
-            raise ReferenceCaptureError(f"the EEVEE process took longer than {timeout_s:.0f} s; killed") from None
-        except BaseException:
-            # Ctrl-C (Interrupted) or any failure here: the child must not outlive us.
-            if proc is not None:
-                interrupt.stop_child(proc)
-            raise
-        finally:
-            if reader is not None:
-                reader.join(timeout=5.0)
-        err.seek(0)
-        stderr = err.read()
-    if proc.returncode == EXIT_BAD_INPUT and child_error_line(stderr):
-        raise ReferenceCaptureError(f"the EEVEE render failed: {child_error_line(stderr)}")
-    if proc.returncode != 0:
-        raise ChildProcessCrash(f"the EEVEE process crashed (exit {proc.returncode}):\n{child_stderr_tail(stderr)}")
+    try:
+        child.run_module("addon.reference.eevee", [*args, "--out", out_dir.resolve()], what="EEVEE",
+                         tmpdir=out_dir.resolve(), on_stdout=_progress_line(progress), timeout_s=timeout_s,
+                         refused=lambda line: ReferenceCaptureError(f"the EEVEE render failed: {line}"))
+    except subprocess.TimeoutExpired:
+        raise ReferenceCaptureError(f"the EEVEE process took longer than {timeout_s:.0f} s; killed") from None
     try:
         return json.loads(summary_path.read_text(encoding="utf-8"))
     except (OSError, ValueError) as exc:

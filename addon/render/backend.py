@@ -55,6 +55,7 @@ class ShadowBackend:
         self.edge_targets: tuple[Target, ...] = ()  # edge-distance passes' targets
         self.ray_target: Target | None = None  # the ray table's, the atlas's size
         self.no_warp = None  # the one zero texel bound as both warp tables without a warp
+        self.warp_tables: dict[str, Any] = {}  # each table's own texture, kept between warped frames
         self._released = False
         with device.bound():
             passes.samples.set_warp_tables(self, None, None)
@@ -171,9 +172,10 @@ class ShadowBackend:
             self.vertices.clear()
             self.alpha.release(device)
             self.veil.release(device)
-            textures = {id(t): t for t in (*self.textures.values(), self.no_warp) if t is not None}
-            device.free(*textures.values())
+            held = (*self.textures.values(), *self.warp_tables.values(), self.no_warp)
+            device.free(*{id(t): t for t in held if t is not None}.values())
             self.textures.clear()
+            self.warp_tables.clear()
             self.no_warp = None
         device.release()  # outside the binding: it may end the context itself
         self._released = True

@@ -22,7 +22,7 @@ from .blender_backend import BlenderGPUBackend
 from .blender_gpu import empty_texture, float_texture, framebuffer, read_texture
 from .frame import GBufferSamples, ViewSamples
 from .resident import ResidentScene
-from .shaders import OVERLAY_PROGRAM, PREVIEW_PROGRAM
+from .shaders import OVERLAY_MODES, OVERLAY_PROGRAM, PREVIEW_PROGRAM
 
 log = logging.getLogger(__name__)
 
@@ -159,7 +159,7 @@ class OverlayPanel:
 
     label: str
     image: np.ndarray  # (h, w) float32
-    mode: int  # 0 depth, 1 count heat (log)
+    mode: int  # shaders.OVERLAY_MODES: depth, or count heat (log)
     maximum: float = 1.0
     texture: Any = None  # made on first draw, then reused
 
@@ -210,7 +210,7 @@ def draw_overlay(backend: BlenderGPUBackend, panels: list[OverlayPanel], target_
             shader = backend.bind_program(OVERLAY_PROGRAM, {
                 "ow_rect": (float(x), float(y - 14), float(thumb), 6.0),
                 "ow_target_size": (float(target_size[0]), float(target_size[1])),
-                "ow_mode": 2, "ow_max": float(legend_max)}, {"ow_image": backend_dummy(backend)})
+                "ow_mode": OVERLAY_MODES["legend"], "ow_max": float(legend_max)}, {"ow_image": backend_dummy(backend)})
             _static_batch(backend, "overlay_quad", shader, _QUAD).draw(shader)
     finally:
         gpu.state.blend_set(previous)

@@ -1,4 +1,4 @@
-"""The moderngl backend's GLSL headers (shaders.py holds the interfaces and the loader;
+"""The moderngl backend's GLSL headers (the `shaders` package holds the interfaces and the loader;
 blender_gpu.py builds Blender's): a `#version` block of declarations before each shared
 stage body."""
 from __future__ import annotations

@@ -25,42 +25,22 @@ import numpy as np
 
 from ..core import footprint, projection
 from ..core.frames import Layer
-from ..core.plan import (
-    REGION_SLACK,
-    SCISSOR_EDGE_POINTS,
-    Plan,
-    layer_scissor,
-    outside_region,
-    plan_frame,
-    plan_projective,
-    sun_upstream_reach,
-)
+from ..core.plan import SCISSOR_EDGE_POINTS, Plan, layer_scissor, plan_frame, plan_projective, sun_upstream_reach
 from ..core.samples import SampleStats
 from ..core.scene import CameraSpec, LightSpec
 from ..core.warping import LayerMapping, max_shear
 from .backend import AtlasLayout, FootprintDraw, ShadowBackend
+from .footprint_runs import (  # noqa: F401  (map_stretch: the tests')
+    FOOTPRINT_DILATE_TEXELS, _chunk_spheres, _measurer, footprint_ranges, map_stretch)
 from .frame import PreparedGeometry, ShadowSettings
-from .resident import CHUNK_TRIANGLES, ResidentScene
-from .shaders import (EXACT_COUNT_KEY, EXACT_MAX_WALK, EXACT_SOFT_KEY, FOOTPRINT_VERTICES, MAX_POINT_SIZE,
-                      REGION_PLANES, SLOTS)
+from .passes import exact as exact_rounds
+from .passes.exact import EXACT_LIFT
+from .resident import ResidentScene
+from .shaders import EXACT_SOFT_KEY, NO_SPLIT, SLOTS
 from .soft import exact_soft_uniforms, light_reach, sample_far
 from .unfold import VERTEX_FLOATS, edge_aa_parameters, prepare_unfold
 
 log = logging.getLogger(__name__)
-
-# The exact pass leaves out an occluder within this share of the segment's length from the
-# sample: the receiver's own surface, and its coplanar neighbours, in float32 rounding.
-EXACT_EPS = 1e-4
-# The exact pass over a spot's or sun's map lifts each sample off its own surface, towards
-# the light, by this share of its distance from the light-centred origin (footprint.frag's
-# ow_exact_lift): about three times float32's rounding of the sample (6e-8), far below a
-# pixel. On sun_field 5e-8 still left 333 samples of a face parallel to the sun shadowed by
-# their own box, 1e-7 to 2e-7 none; from 5e-7 on, the lift moves shadow edges on the
-# ground past Cycles' samples (1 pixel at 5e-7, 5 at 1e-6, 59 at 1e-5).
-EXACT_LIFT = 2e-7
-# Rounds of the exact pass after the first (_finish_lists): the bound doubles each round, so
-# 16 of them walk lists of up to 4096 * 2^17 entries, far more than any frame's samples.
-EXACT_MAX_ROUNDS = 16
 
 # Near clip of cube faces, relative to far: geometry closer to the light than this
 # is lost to clipping; 1e-6 keeps it far below a texel at any supported resolution.
@@ -68,10 +48,6 @@ CLIP_NEAR_RELATIVE = 1e-6
 
 
 
-# Texels a footprint box grows by on each side: its float32 corners may fall short of the
-# exact box by rounding (about 1e-4 map units, 2e-3 next to the light), and a texel
-# centre left outside would lose its triangle (lib/footprint.glsl).
-FOOTPRINT_DILATE_TEXELS = 1.0
 
 
 @dataclass(frozen=True)
@@ -138,8 +114,7 @@ class Parameterization:
                                          inputs.warp_size), **region}
             if exact:
                 # The irregular z-buffer: the tile's lists are strip tile `tile` (link_lists).
-                uniforms.update({"ow_exact_tile": tile, "ow_exact_eps": EXACT_EPS, "ow_exact_bound": EXACT_MAX_WALK,
-                                 EXACT_COUNT_KEY: int(inputs.count_work), **soft})
+                uniforms.update({**exact_rounds.map_uniforms(tile, inputs.count_work), **soft})
             elif mapping.warp is not None:
                 backend.build_ray_table(tile, uniforms)
             stretch = map_stretch(mapping)
@@ -149,39 +124,11 @@ class Parameterization:
             backend.draw_footprints(tile, draws, uniforms, scissor=scissor, exact=exact)
             passes.append((tile, draws, uniforms, scissor))
         if exact:
-            _finish_lists(backend, inputs.layout, passes)
+            exact_rounds.finish_lists(backend, inputs.layout, passes)
         return 0
 
     def test_uniforms(self, plan: Plan) -> dict:
         return {}
-
-
-def _finish_lists(backend: ShadowBackend, layout: AtlasLayout, passes: list) -> None:
-    """Later rounds of the exact pass until every list entry met every triangle over its
-    texel (issue 26). A round whose walks stopped at their bound moves each list's head past
-    the entries walked (backend.advance_lists) and draws the layers again, scissored to the
-    texels whose lists go on, with twice the bound; so a texel of n samples takes about
-    log2(n / EXACT_MAX_WALK) + 1 rounds, each entry is walked once per triangle, and a frame
-    whose lists all fit (every ordinary one) pays one read of the work counters, which
-    also folds the frame's work for `read_hits`."""
-    bound = EXACT_MAX_WALK
-    for _ in range(EXACT_MAX_ROUNDS):
-        if not backend.exact_round():
-            return
-        remaining = backend.advance_lists(bound, layout)
-        bound *= 2
-        for tile, draws, uniforms, scissor in passes:
-            box = remaining.get(tile)
-            if box is not None:
-                clip = box if scissor is None else _intersect(box, scissor)
-                backend.draw_footprints(tile, draws, {**uniforms, "ow_exact_bound": bound}, scissor=clip, exact=True)
-    if backend.exact_round():  # the last round's counters
-        log.warning("exact pass: lists still unfinished after %d rounds", EXACT_MAX_ROUNDS)
-
-
-def _intersect(a: tuple[int, int, int, int], b: tuple[int, int, int, int]) -> tuple[int, int, int, int]:
-    """The common part of two texel boxes (x0, y0, x1, y1); empty ones have x1 <= x0."""
-    return max(a[0], b[0]), max(a[1], b[1]), min(a[2], b[2]), min(a[3], b[3])
 
 
 class DualParaboloid(Parameterization):
@@ -278,8 +225,8 @@ class Projective(Parameterization):
         light = inputs.light
         sun = light.emission == "sun"
         soft = exact_soft_uniforms(light, inputs.settings, sample_far(inputs.plan, light))
-        uniforms = {**uniforms, "ow_exact_tile": 0, "ow_exact_eps": EXACT_EPS, "ow_exact_bound": EXACT_MAX_WALK,
-                    EXACT_COUNT_KEY: int(inputs.count_work), "ow_sun": int(sun), "ow_light_axis": light.axis,
+        uniforms = {**uniforms, **exact_rounds.map_uniforms(0, inputs.count_work), "ow_sun": int(sun),
+                    "ow_light_axis": light.axis,
                     "ow_clip_near": 0.0 if sun else inputs.geometry.far * CLIP_NEAR_RELATIVE,
                     "ow_exact_lift_share": EXACT_LIFT, **soft}
         if int(soft.get(EXACT_SOFT_KEY, 0)) > 0:
@@ -291,7 +238,7 @@ class Projective(Parameterization):
         if not inputs.draws:
             return
         backend.draw_footprints(0, inputs.draws, uniforms, exact=True)
-        _finish_lists(backend, inputs.layout, [(0, inputs.draws, uniforms, None)])
+        exact_rounds.finish_lists(backend, inputs.layout, [(0, inputs.draws, uniforms, None)])
 
     def test_uniforms(self, plan: Plan) -> dict:
         return {"ow_projective": 1, "ow_map_inverted": int(plan.projective.inverted),
@@ -337,241 +284,12 @@ def layer_uniforms(layer: Layer, geometry: PreparedGeometry, res: int, origin: t
         "ow_clip_near": geometry.far * CLIP_NEAR_RELATIVE,
         "ow_resolution": float(res),
         "ow_tile_origin": (float(origin[0]), float(origin[1])),
-        "ow_unfold_split": -1,
+        "ow_unfold_split": NO_SPLIT,
         "ow_unfold_halves": 1,
         "ow_projective": 0,
         "ow_map_inverted": 0,
         "ow_map_matrix": np.eye(4),
     }
-
-
-# Most draw calls one object gets per layer (runs of points and quads); beyond it the
-# shortest point runs are drawn as quads, which are right for any triangle.
-MAX_RUNS = 32
-
-
-def _slopes(table: np.ndarray) -> np.ndarray:
-    """(A,) each function's steepest d(offset)/d(along), at least 0."""
-    return np.maximum(np.diff(table, axis=1).max(axis=1) * table.shape[0], 0.0)
-
-
-def map_stretch(mapping: LayerMapping) -> float:
-    """An upper bound of how much the crop and warp widen a box of the plain map (map uv
-    per plain uv, on the box's longer side), as footprint.warp_box widens it.
-
-    A plain box of side d is at most s d a side after the crop (s: its larger scale).
-    The row warp widens it by its offsets' steepest slope along the rows and by the shear
-    across them: W <= s d (1 + slope_r + shear_r). The column warp then takes the box's
-    height and the new width: H <= s d (1 + slope_c) + shear_c W. Bounding the two in turn,
-    not their product, keeps more chunks within a point sprite on a warped layer.
-    """
-    scale = float(np.max(mapping.scale))
-    warp = mapping.warp
-    if warp is None:
-        return scale
-    width = scale * (1.0 + float(_slopes(warp.rows).max()) + max_shear(warp.rows))
-    height = scale * (1.0 + float(_slopes(warp.cols).max())) + max_shear(warp.cols) * width
-    return max(width, height)
-
-
-def _chunk_spheres(obj, light: LightSpec) -> tuple[np.ndarray, np.ndarray, np.ndarray] | None:
-    """Light-centred chunk centres (C, 3), radii and longest edges (C,), in world units;
-    None for an object without chunks."""
-    chunks = obj.chunks
-    if chunks is None:
-        return None
-    linear = obj.matrix[:3, :3]
-    scale = float(np.linalg.norm(linear, 2))
-    return chunks.centres @ linear.T + obj.offset(light.position), chunks.radii * scale, chunks.edges * scale
-
-
-def _chunk_texels(centres: np.ndarray, radii: np.ndarray, edges: np.ndarray, layer: Layer,
-                  stretch: np.ndarray | float, res: int) -> np.ndarray:
-    """(C,) a bound of each chunk's triangles' footprint boxes, in texels a side, on this
-    layer; inf where the bound does not apply."""
-    distance = np.maximum(np.linalg.norm(centres, axis=1) - radii, 0.0)
-    with np.errstate(divide="ignore"):
-        # Two points of a triangle with edges <= e, all >= d from the light, are at most
-        # 2 atan(e / 2d) apart as seen from it.
-        angle = np.where(distance > 0.0, 2.0 * np.arctan(edges / np.maximum(2.0 * distance, 1e-300)), np.pi)
-    if layer.kind == projection.PARABOLOID:
-        # Conformal, scale 1 / (1 + z) <= 1 on the layer's hemisphere: uv moves at most
-        # half the angle (and the box's arcs and sag stay within the image's hull).
-        per_radian = 0.5
-    else:
-        # Where |x|, |y| <= k z the gnomonic map stretches at most 1 + 2 k^2 (sec^2 at the
-        # corner): 1.5 uv per radian on the face (k = 1), 4.5 out to k = 2. A chunk wholly
-        # inside that frustum has its clamped box bounded so; outside it, not at all.
-        local = centres @ layer.rotation.T
-        x, y, z = np.abs(local[:, 0]), np.abs(local[:, 1]), local[:, 2]
-        per_radian = np.full(len(radii), np.inf)
-        for k, bound in ((2.0, 4.5), (1.0, 1.5)):
-            inside = (np.minimum(k * z - x, k * z - y) / np.sqrt(1.0 + k * k)) > radii
-            per_radian = np.where(inside, bound, per_radian)
-    return res * stretch * per_radian * angle + 2.0 * FOOTPRINT_DILATE_TEXELS + 2.0
-
-
-def _chunks_outside(centres: np.ndarray, radii: np.ndarray, layer: Layer | None, region: dict) -> np.ndarray:
-    """(C,) chunks no triangle of which the footprint pass would draw on this layer: wholly
-    behind the paraboloid's hemisphere or beside the cube face, or beyond a plane of the
-    occluder region (the same tests the vertex stage makes per triangle); with no layer,
-    only the region's test."""
-    outside = np.zeros(len(radii), dtype=bool)
-    if layer is not None:
-        local = centres @ layer.rotation.T
-        x, y, z = local[:, 0], local[:, 1], local[:, 2]
-        outside |= z < -radii
-        if layer.kind == projection.CUBE:
-            for side in (x - z, -x - z, y - z, -y - z):
-                outside |= side / np.sqrt(2.0) > radii
-    count = int(region.get("ow_region_count", 0))
-    if count:
-        planes = np.asarray(region["ow_region_planes"], dtype=np.float64)[:count]
-        distance = centres @ planes[:, :3].T - planes[:, 3] - float(region["ow_region_slack"])
-        outside |= np.any(distance / np.linalg.norm(planes[:, :3], axis=1) > radii[:, None], axis=1)
-    return outside
-
-
-SKIP, POINTS, QUADS = 0, 1, 2  # how a chunk is drawn on a layer
-
-
-_VERTEX_COST = np.array([0, 1, FOOTPRINT_VERTICES])  # vertices a triangle costs, by kind (SKIP, POINTS, QUADS)
-
-
-def _run_bounds(kinds: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Start and end (exclusive) chunk of each run of equal kinds."""
-    edges = np.flatnonzero(np.diff(kinds)) + 1
-    return np.concatenate([[0], edges]), np.concatenate([edges, [len(kinds)]])
-
-
-def _runs(kinds: np.ndarray) -> list[tuple[int, int, int]]:
-    """(start, end, kind) runs of equal kinds, merged down to about MAX_RUNS drawn runs at
-    little added vertex work: a skipped run between drawn ones takes its cheaper
-    neighbour's kind (its triangles are culled per triangle anyway), and a point run
-    becomes quads, which are right for any triangle. Vectorised: a few passes, each
-    converting the cheapest runs at once."""
-    kinds = np.asarray(kinds, dtype=np.int64).copy()
-    for _ in range(16):
-        start, end = _run_bounds(kinds)
-        kind = kinds[start]
-        excess = int(np.count_nonzero(kind != SKIP)) - MAX_RUNS
-        if excess <= 0:
-            break
-        before = np.concatenate([[QUADS], kind[:-1]])
-        after = np.concatenate([kind[1:], [QUADS]])
-        neighbour = np.where(_VERTEX_COST[before] <= _VERTEX_COST[after], before, after)
-        inner = (np.arange(len(kind)) > 0) & (np.arange(len(kind)) < len(kind) - 1)
-        target = np.where(kind == SKIP, neighbour, QUADS)
-        cost = np.where(kind == QUADS, np.inf, (end - start) * (_VERTEX_COST[target] - _VERTEX_COST[kind]))
-        cost = np.where((kind == SKIP) & ~inner, np.inf, cost)
-        chosen = np.argsort(cost, kind="stable")[:max(1, excess // 2)]
-        chosen = chosen[np.isfinite(cost[chosen])]
-        if not len(chosen):
-            break
-        for i in chosen:
-            kinds[start[i]:end[i]] = target[i]
-    start, end = _run_bounds(kinds)
-    return [(int(a), int(b), int(kinds[a])) for a, b in zip(start, end)]
-
-
-def footprint_ranges(draw: FootprintDraw, spheres: tuple[np.ndarray, np.ndarray, np.ndarray] | None,
-                     layer: Layer, stretch: float, res: int, region: dict | None = None,
-                     reach: float = 0.0) -> list[FootprintDraw]:
-    """One object's draw on one layer, by chunks of CHUNK_TRIANGLES: chunks that cannot
-    reach the layer are left out; chunks whose footprint bound fits MAX_POINT_SIZE draw
-    one point sprite a triangle instead of a six-vertex quad. `spheres` are the object's
-    `_chunk_spheres` (None: draw it whole as quads), `stretch` the layer's `map_stretch`.
-    With a sized light's `reach` (the exact soft pass) footprints grow past a point sprite
-    and past the layer's own half-space, so every chunk draws quads and only the region
-    (already widened by the reach) leaves chunks out.
-    Host work per chunk, not per triangle; the vertex stage still culls each triangle."""
-    if spheres is None or not len(spheres[1]):
-        return [draw]
-    centres, radii, edges = spheres
-    if reach > 0.0:
-        kinds = np.full(len(radii), QUADS)
-        kinds[_chunks_outside(centres, radii, None, region or {})] = SKIP
-    else:
-        small = _chunk_texels(centres, radii, edges, layer, stretch, res) <= MAX_POINT_SIZE
-        kinds = np.where(small, POINTS, QUADS)
-        kinds[_chunks_outside(centres, radii, layer, region or {})] = SKIP
-    total = draw.first + draw.count
-    out = []
-    for a, b, kind in _runs(kinds):
-        first = draw.first + a * CHUNK_TRIANGLES
-        count = min(b * CHUNK_TRIANGLES, total - draw.first) - a * CHUNK_TRIANGLES
-        if kind != SKIP and count > 0:
-            out.append(FootprintDraw(draw.key, first, count, draw.uniforms, kind == POINTS))
-    return out
-
-
-def footprint_draws(scene: ResidentScene, light: LightSpec) -> list[FootprintDraw]:
-    """One draw per resident object: its matrix, and the light in its frame as double-single."""
-    draws = []
-    for key, obj in scene.objects.items():
-        if obj.triangles:
-            hi, lo = obj.light_split(light.position)
-            uniforms = {"ow_object_linear": obj.matrix[:3, :3], "ow_light_hi": hi, "ow_light_lo": lo}
-            if obj.alpha is not None:
-                uniforms["ow_alpha_mode"] = obj.alpha.mode  # the see-through variant's
-            draws.append(FootprintDraw(key, 0, obj.triangles, uniforms))
-    return draws
-
-
-def region_uniforms(plan: Plan, light: LightSpec, cull: bool) -> dict:
-    """The occluder region (plan.occluder_planes) light-centred, for the GPU's object culling.
-
-    A triangle with all corners beyond one plane (by outside_region's slack) is not drawn.
-    """
-    planes = plan.occluder_planes if cull else None
-    table = np.zeros((REGION_PLANES, 4))
-    if planes is None or len(planes) == 0:
-        return {"ow_region_planes": table, "ow_region_count": 0, "ow_region_slack": 0.0}
-    if len(planes) > REGION_PLANES:
-        log.debug("occluder region has %d planes, more than the GPU table's %d: not culled",
-                  len(planes), REGION_PLANES)
-        return {"ow_region_planes": table, "ow_region_count": 0, "ow_region_slack": 0.0}
-    planes = np.asarray(planes, dtype=np.float64)
-    table[:len(planes), :3] = planes[:, :3]
-    table[:len(planes), 3] = planes[:, 3] - planes[:, :3] @ light.position
-    slack = REGION_SLACK * (float(np.abs(planes[:, 3]).max()) + 1.0)
-    return {"ow_region_planes": table, "ow_region_count": len(planes), "ow_region_slack": slack}
-
-
-def _measurer(scene: ResidentScene, light: LightSpec, plan: Plan, settings: ShadowSettings, plan_far: float):
-    """Host counts of a resident frame, for measurement only: the triangles the footprint
-    pass keeps, summed over the drawn layers (not edge-on, inside the occluder region,
-    in front of the layer: a paraboloid's hemisphere, a cube face's frustum), and the
-    triangles seen edge-on, which cover nothing."""
-
-    def measure() -> tuple[int, int]:
-        kept, edge_on = [], 0
-        for obj in scene.objects.values():
-            tris = obj.light_centred(light.position)
-            if plan.projective is None and len(tris):
-                _, orientation = footprint.edge_planes(tris, footprint.GPU_EDGE_ON,
-                                                       footprint.EDGE_ON_SCENE * plan_far)
-                edge_on += int(np.count_nonzero(orientation == 0.0))
-                tris = tris[orientation != 0.0]
-            kept.append(tris)
-        tris = np.concatenate(kept) if kept else np.zeros((0, 3, 3))
-        if settings.cull and len(tris):
-            tris = tris[~outside_region(tris + light.position, plan.occluder_planes)]
-        if plan.projective is not None:
-            return len(tris), edge_on
-        total = 0
-        for layer in plan.drawn:
-            local = tris @ layer.rotation.T
-            z = local[..., 2]
-            front = np.any(z > 0.0, axis=1)
-            if layer.kind == projection.CUBE:
-                x, y = local[..., 0], local[..., 1]
-                front &= ~(np.all(x > z, axis=1) | np.all(-x > z, axis=1) | np.all(y > z, axis=1)
-                           | np.all(-y > z, axis=1))
-            total += int(np.count_nonzero(front))
-        return total, edge_on
-
-    return measure
 
 
 def slot_rotations_and_crops(plan: Plan, mappings: dict[int, LayerMapping]) -> tuple[np.ndarray, np.ndarray]:

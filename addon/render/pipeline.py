@@ -69,16 +69,11 @@ from .frame import (
     check_light_fits,
     settings_for,
 )
-from .parameterizations import (
-    DrawInputs,
-    footprint_draws,
-    parameterization,
-    region_uniforms,
-    slot_rotations_and_crops,
-)
+from .footprint_runs import footprint_draws, region_uniforms
+from .parameterizations import DrawInputs, parameterization, slot_rotations_and_crops
 from .resident import ResidentScene
-from .shaders import PARAM_CODES, SLOTS
-from .soft import exact_soft, hit_words, list_resolution, soft_uniforms
+from .shaders import NO_TILE, PARAM_CODES, SLOTS, STATS_PASSES
+from .soft import SizedMode, hit_words, list_resolution, sized_mode, soft_uniforms
 from .unfold import edge_aa_parameters
 
 log = logging.getLogger(__name__)
@@ -286,7 +281,7 @@ class ShadowPipeline:
         if settings.exact:
             # The atlas holds no depth (every texel empty), so the test lit every tested
             # sample; the exact pass's marks shadow the ones a triangle crosses.
-            if exact_soft(light, settings):
+            if sized_mode(light, settings) is SizedMode.EXACT_SOFT:
                 exact_work = backend.exact_work()  # the test weighed a sized light's marks itself
             else:
                 hits, exact_work = backend.read_hits()
@@ -302,13 +297,13 @@ class ShadowPipeline:
         camera = samples.camera
         axis, offset = depth_axis(camera, light) if camera is not None else (np.zeros(3), 0.0)
         uniforms = {"ow_light_rot": light.rotation.T, "ow_view_axis": axis, "ow_view_offset": offset,
-                    "ow_hemi": 1 if light.emission == "hemi" else 0, "ow_stats_pass": 0,
+                    "ow_hemi": 1 if light.emission == "hemi" else 0, "ow_stats_pass": STATS_PASSES["fields"],
                     "ow_depth_lo": 0.0, "ow_depth_hi": 1.0, "ow_log_bins": 0}
         shape = samples.shape
         reduction = Reduction.decode(self.backend.reduce_samples(uniforms, clear=True), camera, light, shape)
         hist = None
         if reduction.depth is not None:
-            uniforms.update(ow_stats_pass=1, **reduction.histogram_uniforms(camera))
+            uniforms.update(ow_stats_pass=STATS_PASSES["histogram"], **reduction.histogram_uniforms(camera))
             hist = self.backend.reduce_samples(uniforms, clear=False)[STAT_COUNT:]
         return reduction.stats(camera, shape, hist)
 
@@ -379,7 +374,7 @@ def _scatter_uniforms(light: LightSpec, plan: Plan, mappings: dict[int, LayerMap
     """The uniforms of the scatter (and its list-linking variant) over the drawn layers."""
     slots = plan.drawn_slots
     rotations, crops = slot_rotations_and_crops(plan, mappings)
-    tiles = np.full(SLOTS, -1, dtype=np.int64)
+    tiles = np.full(SLOTS, NO_TILE, dtype=np.int64)
     tiles[slots] = np.arange(len(slots))
     warp_size = max((m.warp.size for m in mappings.values() if m.warp is not None), default=0)
     projective = plan.projective

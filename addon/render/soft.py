@@ -1,8 +1,10 @@
 """What the shadow test and the exact pass read for a sized light (issue 27): one place that
-turns a light's shape and the frame's settings into the soft filter's uniforms
-(lib/soft.glsl) or the exact soft pass's (lib/exact_soft.glsl)."""
+turns a light's shape and the frame's settings into the frame's sized-light mode
+(`sized_mode`), and that into the soft filter's uniforms (lib/soft.glsl) or the exact soft
+pass's (lib/exact_soft.glsl)."""
 from __future__ import annotations
 
+import enum
 import functools
 import math
 
@@ -12,15 +14,12 @@ from ..core.light_shape import Area, LightShape, Sphere, SunDisk, stratified_poi
 from ..core.plan import Plan
 from ..core.scene import LightSpec
 from .frame import MIN_RESOLUTION, ShadowSettings
-from .shaders import (EXACT_SOFT_CLUSTER, EXACT_SOFT_KEY, EXACT_SOFT_MAX_POINTS, SOFT_KINDS, SOFT_MAX_POINTS,
-                      SOFT_MAX_SEARCH)
+from .shaders import (EXACT_SOFT_CLUSTER, EXACT_SOFT_KEY, EXACT_SOFT_MAX_POINTS, LIGHT_KINDS, NO_SPOT, NO_SPREAD,
+                      OUTLINES, SOFT_MAX_POINTS, SOFT_MAX_SEARCH)
 
 # The exact soft pass lists its samples at 1 / EXACT_SOFT_LIST_SHARE of the map resolution
 # (list_resolution).
 EXACT_SOFT_LIST_SHARE = 4
-# The exact soft pass's light kinds (ow_exact_light.x) and area outlines (.w).
-EXACT_KINDS = {"sphere": 1, "area": 2, "sun_disk": 3}
-EXACT_OUTLINES = {"rectangle": 0, "ellipse": 1}
 
 
 @functools.lru_cache(maxsize=32)
@@ -32,32 +31,33 @@ def _points(shape: LightShape, count: int, size: int) -> np.ndarray:
     return out
 
 
-def _point_soft(light: LightSpec) -> bool:
-    """A sized sphere or area light of omni or hemi emission: on a point light's maps."""
-    return light.sized and isinstance(light.shape, (Sphere, Area)) and light.is_point
+class SizedMode(enum.Enum):
+    """How a frame's shadows follow the light's size."""
+
+    HARD = "hard"  # not at all: a light without a size, or a shape its maps cannot follow
+    FILTERED = "filtered"  # the shadow test filters the maps by the light's points (lib/soft.glsl)
+    EXACT_SOFT = "exact_soft"  # the exact pass marks the light's points per sample (lib/exact_soft.glsl)
 
 
-def _projective_soft(light: LightSpec) -> bool:
-    """A sized spot (its sphere) or sun (its disk): on the light's own projective map."""
-    return light.sized and ((light.emission == "spot" and isinstance(light.shape, Sphere))
-                            or (light.emission == "sun" and isinstance(light.shape, SunDisk)))
+def _follows_size(light: LightSpec) -> bool:
+    """Whether the frame's maps can follow the light's size: a sphere or area light of omni
+    or hemi emission (a point light's maps), a spot's sphere or a sun's disk (the light's
+    own projective map)."""
+    if not light.sized:
+        return False
+    if light.is_point:
+        return isinstance(light.shape, (Sphere, Area))
+    return ((light.emission == "spot" and isinstance(light.shape, Sphere))
+            or (light.emission == "sun" and isinstance(light.shape, SunDisk)))
 
 
-def _soft_shape(light: LightSpec) -> bool:
-    """A sized light whose shadows both soft paths follow: every light type with a size."""
-    return _point_soft(light) or _projective_soft(light)
-
-
-def filters(light: LightSpec, settings: ShadowSettings) -> bool:
-    """True when the frame's maps are filtered by the light's size: a sized light on any
-    map's depth test (the exact pass samples the light itself, `exact_soft`)."""
-    return _soft_shape(light) and not settings.exact
-
-
-def exact_soft(light: LightSpec, settings: ShadowSettings) -> bool:
-    """True when the exact pass samples the light per view sample: a sized light of any
-    type on the exact pass over its maps (a point light's, a spot's or a sun's)."""
-    return _soft_shape(light) and settings.exact
+def sized_mode(light: LightSpec, settings: ShadowSettings) -> SizedMode:
+    """The frame's one answer to how its shadows follow the light's size: the exact pass
+    samples the light itself, other methods filter their maps by it, and a light without a
+    size (or of a shape the maps cannot follow) keeps hard shadows."""
+    if not _follows_size(light):
+        return SizedMode.HARD
+    return SizedMode.EXACT_SOFT if settings.exact else SizedMode.FILTERED
 
 
 def light_reach(shape: LightShape) -> float:
@@ -73,52 +73,49 @@ def light_reach(shape: LightShape) -> float:
 
 
 def spread_tangent(shape: LightShape) -> float:
-    """tan(spread / 2) of an area light whose spread is below 180 degrees, else -1 (no
-    spread: the GLSL's sign for it). Cycles weighs the light an area light sends towards a
+    """tan(spread / 2) of an area light whose spread is below 180 degrees, else NO_SPREAD (no
+    spread: the GLSL's OW_NO_SPREAD). Cycles weighs the light an area light sends towards a
     direction at angle a from its normal by max(tan(spread / 2) - tan a, 0) (a soft box's
     grid of slats), so the shadow's share weighs each light point by it too."""
     if isinstance(shape, Area) and shape.spread < math.pi:
         return math.tan(0.5 * shape.spread)
-    return -1.0
+    return NO_SPREAD
 
 
 def spot_cone(light: LightSpec) -> tuple[float, float]:
     """(cos of the half cone, smoothness) of a spot, as Cycles attenuates the light a sample
     point sends along a direction at angle a from the axis: smoothstep((cos a - cos half) *
     smoothness), smoothness 1 / ((1 - cos half) * blend); 0 for a blend of 0 (a step).
-    (-2, 0) for any other light (lib/spot_cone.glsl's sign for no cone). A hemi sphere is
+    (NO_SPOT, 0) for any other light (lib/spot_cone.glsl's OW_NO_SPOT). A hemi sphere is
     Blender's 180 degree spot: its cone is the half space in front of it."""
     if not (light.emission == "spot" or (light.emission == "hemi" and isinstance(light.shape, Sphere))):
-        return -2.0, 0.0
+        return NO_SPOT, 0.0
     cos_half = math.cos(0.5 * float(light.spot_size))
     width = (1.0 - cos_half) * float(light.spot_blend)
     return cos_half, (1.0 / width if width > 0.0 else 0.0)
 
 
-def soft_shadowed(light: LightSpec, settings: ShadowSettings) -> bool:
-    """True when the frame's shadows follow the light's size (the filter or the exact pass)."""
-    return filters(light, settings) or exact_soft(light, settings)
-
-
 def light_points(light: LightSpec, settings: ShadowSettings) -> int | None:
     """The light's points a view sample's soft shadow follows (the filter's taps, or the
     exact pass's points), or None where the frame's shadows are hard."""
-    if exact_soft(light, settings):
+    mode = sized_mode(light, settings)
+    if mode is SizedMode.EXACT_SOFT:
         return int(settings.exact_samples)
-    return int(settings.light_samples) if filters(light, settings) else None
+    return int(settings.light_samples) if mode is SizedMode.FILTERED else None
 
 
 def soft_uniforms(light: LightSpec, settings: ShadowSettings) -> dict:
     """The shadow test's soft uniforms: the filter's, or the exact pass's weighing of its
     marks; ow_soft_count 0 and no exact points (the hard test) for a hard light."""
-    if exact_soft(light, settings):
+    mode = sized_mode(light, settings)
+    if mode is SizedMode.EXACT_SOFT:
         return {"ow_soft_count": 0, **exact_soft_uniforms(light, settings)}
-    if not filters(light, settings):
+    if mode is SizedMode.HARD:
         return {"ow_soft_count": 0}
     count, search = settings.light_samples, settings.search_samples
     return {"ow_soft_points": _points(light.shape, count, SOFT_MAX_POINTS), "ow_soft_count": count,
             "ow_soft_search_points": _points(light.shape, search, SOFT_MAX_SEARCH), "ow_soft_search": search,
-            "ow_soft_kind": SOFT_KINDS[light.shape.kind], "ow_soft_spread": spread_tangent(light.shape),
+            "ow_soft_kind": LIGHT_KINDS[light.shape.kind], "ow_soft_spread": spread_tangent(light.shape),
             "ow_soft_spot": spot_cone(light)}
 
 
@@ -137,18 +134,18 @@ def sample_far(plan: Plan, light: LightSpec) -> float:
 
 def exact_soft_uniforms(light: LightSpec, settings: ShadowSettings, far: float = 0.0) -> dict:
     """The exact soft pass's uniforms (footprint pass and shadow test alike), or
-    {EXACT_SOFT_KEY: 0} (the hard pass) when `exact_soft` does not hold. `far` is
+    {EXACT_SOFT_KEY: 0} (the hard pass) unless the frame's mode is EXACT_SOFT. `far` is
     `sample_far`'s bound for the footprint pass (0: not known)."""
-    if not exact_soft(light, settings):
+    if sized_mode(light, settings) is not SizedMode.EXACT_SOFT:
         return {EXACT_SOFT_KEY: 0}
     shape = light.shape
     if isinstance(shape, Sphere):
-        described = (EXACT_KINDS["sphere"], shape.radius, 0.0, 0.0)
+        described = (LIGHT_KINDS["sphere"], shape.radius, 0.0, 0.0)
     elif isinstance(shape, SunDisk):
         half = 0.5 * shape.angle
-        described = (EXACT_KINDS["sun_disk"], half, math.sin(half), math.tan(half))
+        described = (LIGHT_KINDS["sun_disk"], half, math.sin(half), math.tan(half))
     else:
-        described = (EXACT_KINDS["area"], shape.size_x, shape.size_y, EXACT_OUTLINES[shape.outline])
+        described = (LIGHT_KINDS["area"], shape.size_x, shape.size_y, OUTLINES[shape.outline])
     count = int(settings.exact_samples)
     return {"ow_exact_light": np.array(described, dtype=np.float64), "ow_exact_reach": light_reach(shape),
             "ow_exact_spread": spread_tangent(shape), "ow_exact_spot": spot_cone(light),
@@ -194,7 +191,7 @@ def _exact_pattern(shape: LightShape, count: int) -> np.ndarray:
 def _exact_bounds(shape: LightShape, count: int) -> np.ndarray:
     """Each cluster's box over its points' table entries: rows 2c (the least x, y, z) and
     2c + 1 (the greatest) for cluster c, the points 16c.. of `_exact_pattern`; zero past
-    the last cluster. footprint.frag turns a box into bounds on the segments' sides."""
+    the last cluster. lib/exact_soft_mark.glsl turns a box into bounds on the segments' sides."""
     table = _exact_pattern(shape, count)
     out = np.zeros((2 * EXACT_SOFT_MAX_POINTS // EXACT_SOFT_CLUSTER, 4))
     for c, first in enumerate(range(0, count, EXACT_SOFT_CLUSTER)):
@@ -211,7 +208,7 @@ def list_resolution(light: LightSpec, settings: ShadowSettings) -> int:
     light's angle, so a texel-fine list grid gives each triangle many fragments over few
     samples; coarser lists hold more samples each, so the same entries are walked by
     fewer fragments. The exact pass's answer does not depend on it."""
-    if not exact_soft(light, settings):
+    if sized_mode(light, settings) is not SizedMode.EXACT_SOFT:
         return settings.resolution
     return max(MIN_RESOLUTION, min(settings.resolution, settings.resolution // EXACT_SOFT_LIST_SHARE))
 
@@ -219,4 +216,4 @@ def list_resolution(light: LightSpec, settings: ShadowSettings) -> int:
 def hit_words(light: LightSpec, settings: ShadowSettings) -> int:
     """32-bit words the exact pass keeps per view sample: one (the hard pass's mark), or one
     bit per light point of a sized light."""
-    return -(-int(settings.exact_samples) // 32) if exact_soft(light, settings) else 1
+    return -(-int(settings.exact_samples) // 32) if sized_mode(light, settings) is SizedMode.EXACT_SOFT else 1

@@ -1,7 +1,7 @@
 // A see-through material's alpha at a surface point (issue 25): the GLSL of
 // addon/core/alpha.py's AlphaMap.sample, its numpy oracle (tests/gl/test_alpha_glsl.py).
 // The image is one R32F channel, row 0 at v = 0; ow_alpha_mode is the interpolation
-// (bit 0: linear) plus twice the extension (0 repeat, 1 extend, 2 clip, 3 mirror). The
+// (OW_INTERPOLATION_*) plus OW_ALPHA_INTERPOLATIONS times the extension (OW_EXTENSION_*). The
 // filtering is done here with texelFetch, not by a sampler, so both backends and every
 // driver give Cycles' lookup exactly. The transfer is a 1-row R32F table over [0, 1].
 
@@ -13,10 +13,10 @@ int ow_alpha_mod(int a, int n)
 
 int ow_alpha_wrap(int i, int n, int extension)
 {
-  if (extension == 0) {
+  if (extension == OW_EXTENSION_REPEAT) {
     return ow_alpha_mod(i, n);
   }
-  if (extension == 3) {
+  if (extension == OW_EXTENSION_MIRROR) {
     int m = ow_alpha_mod(i, 2 * n);
     return (m < n) ? m : 2 * n - 1 - m;
   }
@@ -25,7 +25,7 @@ int ow_alpha_wrap(int i, int n, int extension)
 
 float ow_alpha_texel(ivec2 at, ivec2 size, int extension)
 {
-  if (extension == 2 && (at.x < 0 || at.y < 0 || at.x >= size.x || at.y >= size.y)) {
+  if (extension == OW_EXTENSION_CLIP && (at.x < 0 || at.y < 0 || at.x >= size.x || at.y >= size.y)) {
     return 0.0;  // clip: nothing outside the image
   }
   ivec2 idx = ivec2(ow_alpha_wrap(at.x, size.x, extension), ow_alpha_wrap(at.y, size.y, extension));
@@ -35,12 +35,13 @@ float ow_alpha_texel(ivec2 at, ivec2 size, int extension)
 float ow_alpha_at(vec2 uv)
 {
   ivec2 size = textureSize(ow_alpha_image, 0);
-  int extension = ow_alpha_mode / 2;
+  int extension = ow_alpha_mode / OW_ALPHA_INTERPOLATIONS;
+  int interpolation = ow_alpha_mode % OW_ALPHA_INTERPOLATIONS;
   // Far outside the square the int conversion would overflow; the wrap is periodic anyway
   // only to within float32's resolution there.
   vec2 x = clamp(uv, vec2(-1e6), vec2(1e6)) * vec2(size);
   float value;
-  if ((ow_alpha_mode & 1) == 0) {
+  if (interpolation == OW_INTERPOLATION_CLOSEST) {
     value = ow_alpha_texel(ivec2(floor(x)), size, extension);
   } else {
     x -= 0.5;

@@ -1,17 +1,17 @@
 // Exact soft shadows of a sized light (shaders.exact_soft_of, issue 27): the irregular
 // z-buffer samples the light per view sample. Each sample p (light-centred) sees N fixed
 // points of the light; a triangle over p's texel marks, in N bits of the sample's words,
-// the points whose segment from p it crosses (footprint.frag), and the shadow test weighs
+// the points whose segment from p it crosses (lib/exact_soft_mark.glsl), and the shadow test weighs
 // the unmarked ones (shadow_test.frag). The same points and weights as the numpy oracle
 // (tests/support/soft_oracle.py), which follows how Cycles samples the light:
-// - a sphere (ow_exact_light.x == 1, radius .y): its cap seen from p, uniform in solid
+// - a sphere (ow_exact_light.x OW_LIGHT_SPHERE, radius .y): its cap seen from p, uniform in solid
 //   angle, each point weighted by the cosine at the receiver, and for a spot by its cone
 //   (lib/spot_cone.glsl, ow_exact_spot);
-// - an area light (2; size .y by .z, outline .w: 0 rectangle, 1 ellipse, in the light's
+// - an area light (OW_LIGHT_AREA; size .y by .z, outline .w: OW_OUTLINE_*, in the light's
 //   frame ow_exact_frame): uniform over its surface, weighted by both cosines over the
 //   squared distance, and by max(tan(spread / 2) - tan a, 0) at angle a from its normal
-//   where its spread is below 180 degrees (ow_exact_spread >= 0);
-// - a sun's disk (3; half angle .y, its sine .z and tangent .w): directions towards it
+//   where its spread is below 180 degrees (ow_exact_spread not OW_NO_SPREAD);
+// - a sun's disk (OW_LIGHT_SUN_DISK; half angle .y, its sine .z and tangent .w): directions towards it
 //   (the frame's +Z) within the half angle, uniform in solid angle, each weighted by the
 //   cosine at the receiver. Its "segment" is the unit direction: the ray goes on forever.
 // Point k < ow_exact_points comes from the host's table ow_exact_pattern (render/soft.py,
@@ -70,10 +70,10 @@ float ow_cap_distance(OwLightView view, vec2 polar)
 vec3 ow_light_segment(vec3 p, OwLightView view, int k)
 {
   vec4 pattern = ow_exact_pattern[k];
-  if (int(ow_exact_light.x) == 3) {
+  if (int(ow_exact_light.x) == OW_LIGHT_SUN_DISK) {
     return ow_exact_frame * pattern.xyz;
   }
-  if (int(ow_exact_light.x) == 1) {
+  if (int(ow_exact_light.x) == OW_LIGHT_SPHERE) {
     vec2 polar = ow_cap_polar(view, pattern);
     vec3 d = polar.y * (pattern.y * view.a + pattern.z * view.b) + polar.x * view.w;
     return ow_cap_distance(view, polar) * d;
@@ -89,14 +89,14 @@ float ow_light_weight(vec3 segment, vec3 n)
     return 0.0;
   }
   float cos_r = max(dot(segment, n), 0.0) / len;
-  if (int(ow_exact_light.x) != 2) {
+  if (int(ow_exact_light.x) != OW_LIGHT_AREA) {
     // A spot's cone weighs what each point of its sphere sends the receiver (the light's -Z).
     return cos_r * ow_spot_cone_weight(-segment, -ow_exact_frame[2], ow_exact_spot);
   }
   // An area light emits along its -Z: the segment from the receiver meets it from below.
   float cos_e = max(dot(segment, ow_exact_frame[2]), 0.0) / len;
   float weight = cos_r * cos_e / (len * len);
-  if (ow_exact_spread >= 0.0) {
+  if (ow_exact_spread >= OW_NO_SPREAD_BELOW) {
     // A spread below 180 degrees (render/soft.py's spread_tangent): Cycles' soft-box grid.
     float tan_e = sqrt(max(1.0 - cos_e * cos_e, 0.0)) / max(cos_e, 1e-30);
     weight *= max(ow_exact_spread - tan_e, 0.0);

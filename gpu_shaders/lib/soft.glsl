@@ -7,7 +7,8 @@
 // light the veil lets through to the given depth.
 //
 // The light's points ow_soft_points (core/light_shape.stratified_points, light frame) give
-// the kernel, and a pattern of fewer, ow_soft_search_points, the blocker search: the segment from the receiver p to light point q crosses the sphere of a
+// the kernel, and a pattern of fewer, ow_soft_search_points, the blocker search: the
+// segment from the receiver p to light point q crosses the sphere of a
 // blocker's distance t from the light at x = p + s (q - p), s = 1 - t / |p|; the map is
 // read along x's direction and compared with the receiver's own plane along that ray, so
 // a tilted receiver does not shadow itself. First a blocker search along each segment at
@@ -19,7 +20,7 @@
 // made once per receiver; a sun's own (its points are directions).
 mat3 ow_soft_frame(vec3 p)
 {
-  if (ow_soft_kind != 1) {
+  if (ow_soft_kind != OW_LIGHT_SPHERE) {
     return transpose(ow_light_rot);
   }
   vec3 w = normalize(p);
@@ -39,14 +40,14 @@ float ow_plane_depth(vec3 n, vec3 p, vec3 d, float fallback)
 
 // A tap's weight, with `emitted` from the light point to the receiver: for a spot, its
 // cone's (lib/spot_cone.glsl); for an area light of spread below 180 degrees
-// (ow_soft_spread >= 0, render/soft.py's spread_tangent) max(tan(spread / 2) - tan a, 0),
+// (ow_soft_spread not OW_NO_SPREAD, render/soft.py's spread_tangent) max(tan(spread / 2) - tan a, 0),
 // a the angle from the light's normal, its -Z; else 1.
 float ow_soft_tap_weight(vec3 emitted)
 {
-  if (ow_soft_kind == 1) {
+  if (ow_soft_kind == OW_LIGHT_SPHERE) {
     return ow_spot_cone_weight(emitted, -transpose(ow_light_rot)[2], ow_soft_spot);
   }
-  if (ow_soft_kind != 2 || ow_soft_spread < 0.0) {
+  if (ow_soft_kind != OW_LIGHT_AREA || ow_soft_spread < OW_NO_SPREAD_BELOW) {
     return 1.0;
   }
   float len = length(emitted);

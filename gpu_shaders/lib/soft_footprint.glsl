@@ -208,7 +208,7 @@ vec4 ow_projective_cap_box(mat4 m, vec3 axis, float spread)
 //   own box grown by it, through the map's scale across the light.
 vec4 ow_soft_projective_box(mat4 m, vec3 v0, vec3 v1, vec3 v2, float grow)
 {
-  if (int(ow_exact_light.x) == 3) {
+  if (int(ow_exact_light.x) == OW_LIGHT_SUN_DISK) {
     vec4 box = ow_projective_box(m, v0, v1, v2, 0.0);
     float z_min = min(min((m * vec4(v0, 1.0)).z, (m * vec4(v1, 1.0)).z), (m * vec4(v2, 1.0)).z);
     // Receivers lie in the map's depth range (z <= 1, in clip units of length 1 / |r_z|).

@@ -1,5 +1,5 @@
 // How far a sized light's shadow reaches across its map, for the exact pass's footprints
-// (lib/soft_footprint.glsl) and walk (footprint.frag): no uniforms, so either stage takes it.
+// (lib/soft_footprint.glsl) and walk (lib/exact_soft_mark.glsl): no uniforms, so either stage takes it.
 // A segment from p (D from the centre) to a light point q (|q| <= R) meets the triangle
 // (|x| >= d_min) at x = p + s (q - p) only where s <= (D - d_min) / (D - R), as
 // |x| <= (1 - s) D + s R, and x's direction differs from p's by at most asin(s R / d_min):

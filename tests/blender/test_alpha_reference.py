@@ -22,7 +22,7 @@ from addon.reference.data import ReferenceData  # noqa: E402
 from tests.support.cli_run import SUPPORT, env_with, python_ok  # noqa: E402
 from tests.support.oracle import transmittance  # noqa: E402
 
-pytestmark = pytest.mark.blender
+pytestmark = [pytest.mark.blender, pytest.mark.slow]
 
 # The bound on the shadowed share of the hit pixels, in points.
 MAX_SHARE_POINTS = 1.5

@@ -7,8 +7,6 @@ from __future__ import annotations
 
 import json
 import math
-import subprocess
-import sys
 from pathlib import Path
 
 import numpy as np
@@ -39,6 +37,7 @@ from tests.support.blender_gpu_worker import (  # noqa: E402
 from tests.gl.test_exact_pass import random_scene  # noqa: E402
 from tests.gl.test_izb_lists import _walk  # noqa: E402
 from tests.support.checks import expect  # noqa: E402
+from tests.support.cli_run import python_ok  # noqa: E402
 from tests.support.oracle import view_samples  # noqa: E402
 
 pytestmark = [pytest.mark.blender, pytest.mark.gl]
@@ -46,19 +45,18 @@ WORKER = Path(__file__).resolve().parents[1] / "support" / "blender_gpu_worker.p
 
 
 def _worker(task: str, out: Path, *extra: str) -> None:
-    proc = subprocess.run([sys.executable, str(WORKER), task, str(out), *extra], capture_output=True, text=True,
-                          timeout=600)
-    assert proc.returncode == 0, proc.stderr[-3000:]
+    python_ok(WORKER, task, out, *extra, timeout=600)
 
 
-def test_blender_backend_matches_moderngl(gl_backend, tmp_path, monkeypatch):
+@pytest.mark.slow
+def test_blender_backend_matches_moderngl(gl_backend, tmp_path, monkeypatch, reference_cache):
     """Same GLSL, same results: visibility identical, depth maps equal to float32 rounding;
     and on a cached Cycles reference they agree on at least 99.9 % of evaluated pixels."""
     from addon.compare import light_from_reference, samples_from_reference
     from addon.core import metrics
     from addon.reference.cache import load_or_capture
 
-    monkeypatch.setenv("OMNIWARP_CACHE", str(tmp_path / "cache"))
+    monkeypatch.setenv("OMNIWARP_CACHE", str(reference_cache))
     ref = load_or_capture("room_omni", (160, 120))
     ref_path = ref.save(tmp_path / "ref.npz")
     out = tmp_path / "blender.npz"
@@ -151,6 +149,7 @@ def test_blender_backend_matches_moderngl(gl_backend, tmp_path, monkeypatch):
         assert np.allclose(ours.atlas, theirs[f"cloud_{param}_atlas"], atol=1e-6), param
 
 
+@pytest.mark.slow
 def test_viewport_draw_path_robustness(tmp_path):
     """The viewport's draw path on a registered extension, with explicit matrices:
     a cube+NoTW light gives shadows and finite maps; 200 redraws recompute only when
@@ -187,10 +186,11 @@ def test_viewport_draw_path_robustness(tmp_path):
     assert r["after_load_live"] == 0, "GPU objects held after a file load"
 
 
-def test_preview_command_writes_images_and_error(gl_backend, tmp_path, monkeypatch, capsys):
+@pytest.mark.slow
+def test_preview_command_writes_images_and_error(gl_backend, tmp_path, monkeypatch, capsys, reference_cache):
     """`omniwarp preview` end to end: the three files, and an error against Cycles within
     1.5x of the moderngl pipeline's at the same settings on the same reference."""
-    monkeypatch.setenv("OMNIWARP_CACHE", str(tmp_path / "cache"))
+    monkeypatch.setenv("OMNIWARP_CACHE", str(reference_cache))
     out = tmp_path / "preview"
     assert main(["preview", "--preset", "room_hemi", "--size", "160x120", "--out", str(out)]) == 0, \
         capsys.readouterr().err
@@ -223,12 +223,14 @@ def test_preview_command_writes_images_and_error(gl_backend, tmp_path, monkeypat
 
 
 # The sun's map spans the 30 m lawn: at 256 texels its pickets are a texel wide.
+@pytest.mark.slow
 @pytest.mark.parametrize("preset,method,resolution", [("soft_room", "exact", "256"), ("soft_sun", "psm", "1024")])
-def test_preview_keeps_a_sized_lights_penumbrae(tmp_path, monkeypatch, capsys, preset, method, resolution):
+def test_preview_keeps_a_sized_lights_penumbrae(tmp_path, monkeypatch, capsys, preset, method, resolution,
+                                                reference_cache):
     """A sized preset's light is previewed with its size: `exact` gives its shares of the
     light (a sphere), the filtered PSM a sun's disk, and the report scores them against the
     sized reference, with its noise."""
-    monkeypatch.setenv("OMNIWARP_CACHE", str(tmp_path / "cache"))
+    monkeypatch.setenv("OMNIWARP_CACHE", str(reference_cache))
     out = tmp_path / "preview"
     assert main(["preview", "--preset", preset, "--size", "96x72", "--method", method, "--resolution", resolution,
                  "--out", str(out)]) == 0, capsys.readouterr().err

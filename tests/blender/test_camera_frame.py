@@ -8,8 +8,6 @@ CameraSpec) onto their own pixel centres. Captures are 2 renders of a tiny scene
 from __future__ import annotations
 
 import json
-import subprocess
-import sys
 from pathlib import Path
 
 import numpy as np
@@ -23,6 +21,7 @@ from addon.core.scene import SceneBuilder, look_at  # noqa: E402
 from addon.reference import capture as CAP  # noqa: E402
 from addon.reference.blender_scene import build_blender_scene, remove_blender_scene  # noqa: E402
 from tests.support.checks import expect  # noqa: E402
+from tests.support.cli_run import run_python  # noqa: E402
 from tests.support.oracle import ray_hits  # noqa: E402
 
 pytestmark = pytest.mark.blender
@@ -182,8 +181,7 @@ def test_preview_gbuffer_matches_cycles_pixels(captures, tmp_path):
     viewport's compute path on those matrices gets a camera (culling runs) whose culled
     cube faces change no shadow."""
     out = tmp_path / "gbuffer.json"
-    proc = subprocess.run([sys.executable, str(WORKER), str(out), *(str(p) for _, p in captures.values())],
-                          capture_output=True, text=True, timeout=300)
+    proc = run_python(WORKER, out, *(p for _, p in captures.values()), timeout=300)
     assert proc.returncode == 0, proc.stderr[-3000:]
     report = json.loads(out.read_text())
     for name in E2E:

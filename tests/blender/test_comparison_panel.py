@@ -13,9 +13,6 @@ from __future__ import annotations
 import csv
 import json
 import math
-import os
-import subprocess
-import sys
 from pathlib import Path
 from types import SimpleNamespace
 
@@ -28,6 +25,7 @@ from addon.core import methods as method_registry  # noqa: E402
 from addon.blender import compare_job, compare_ops, compare_props, compare_ui, registration  # noqa: E402
 from addon.core.presets import DEFAULT_PRESET, available_presets  # noqa: E402
 from tests.support.checks import expect  # noqa: E402
+from tests.support.cli_run import env_with, run_python  # noqa: E402
 
 pytestmark = pytest.mark.blender
 
@@ -71,9 +69,7 @@ def worker(shared_cache, tmp_path_factory: pytest.TempPathFactory) -> tuple[dict
     """Run the child once: exec run, exports, modal run, current-scene run, unregister."""
     folder, _ = shared_cache
     out = tmp_path_factory.mktemp("comparison_worker")
-    env = dict(os.environ, OMNIWARP_CACHE=str(folder))
-    proc = subprocess.run([sys.executable, str(WORKER), str(out), str(CAMERA[0]), str(CAMERA[1])],
-                          capture_output=True, text=True, timeout=300, env=env)
+    proc = run_python(WORKER, out, CAMERA[0], CAMERA[1], env=env_with(OMNIWARP_CACHE=folder), timeout=300)
     assert proc.returncode == 0, proc.stdout[-2000:] + proc.stderr[-3000:]
     return json.loads((out / "worker.json").read_text()), out
 

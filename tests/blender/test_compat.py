@@ -5,10 +5,6 @@ what that line really does: a gate that picks the wrong branch fails here, on th
 """
 from __future__ import annotations
 
-import subprocess
-import sys
-from pathlib import Path
-
 import numpy as np
 import pytest
 
@@ -17,10 +13,10 @@ bpy = pytest.importorskip("bpy")
 from addon import cli  # noqa: E402
 from addon.blender import panels  # noqa: E402
 from addon.render import blender_compat  # noqa: E402
+from tests.support.cli_run import REPO, run_python  # noqa: E402
 
 pytestmark = pytest.mark.blender
 
-REPO = Path(__file__).resolve().parents[2]
 LINE = tuple(bpy.app.version[:2])
 
 # What each tested line lacks (docs/versions.md, "What a line lacks"). A new line or a
@@ -170,7 +166,6 @@ print("ok")
 def test_texture_creation_and_read_back():
     """Empty textures (no `data=None` before 5.0) and read-backs in memory order (4.x Buffers
     export Fortran strides), in a child process: one GL owner per process."""
-    proc = subprocess.run([sys.executable, "-c", _GPU_SCRIPT, str(REPO)], capture_output=True, text=True,
-                          timeout=300)
+    proc = run_python("-c", _GPU_SCRIPT, REPO, timeout=300)
     assert proc.returncode == 0 and proc.stdout.strip().endswith("ok"), proc.stderr[-2000:]
 

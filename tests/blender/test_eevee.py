@@ -66,6 +66,7 @@ def measured(tmp_path_factory) -> tuple[ReferenceData, list[dict], Path]:
     return reference, rows, out
 
 
+@pytest.mark.slow
 def test_rows_complete_and_finite(measured) -> None:
     reference, rows, out = measured
     assert [row["eevee_setting"] for row in rows] == list(SETTINGS)
@@ -84,6 +85,7 @@ def test_rows_complete_and_finite(measured) -> None:
         assert (out / row["mismatch_image"]).is_file()
 
 
+@pytest.mark.slow
 def test_agrees_with_cycles(measured) -> None:
     reference, rows, _ = measured
     shadow_share = 1.0 - reference.visibility()[reference.lit_domain()].mean()
@@ -95,6 +97,7 @@ def test_agrees_with_cycles(measured) -> None:
         assert row["error_pct"] == pytest.approx(row["false_shadow_pct"] + row["false_lit_pct"])
 
 
+@pytest.mark.slow
 def test_settings_named_and_ordered(measured) -> None:
     _, rows, _ = measured
     by_name = {row["eevee_setting"]: row for row in rows}
@@ -123,6 +126,7 @@ def test_bad_settings_are_input_errors() -> None:
             parse_settings(bad)
 
 
+@pytest.mark.slow
 def test_child_failure_reports_stderr(measured, tmp_path) -> None:
     reference, _, _ = measured
     missing = tmp_path / "missing.blend"

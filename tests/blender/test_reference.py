@@ -9,9 +9,6 @@ from __future__ import annotations
 import json
 import logging
 import math
-import os
-import subprocess
-import sys
 from pathlib import Path
 
 import numpy as np
@@ -26,6 +23,8 @@ from addon.reference import cache  # noqa: E402
 from addon.reference.blender_scene import build_blender_scene, remove_blender_scene  # noqa: E402
 from addon.reference.capture import capture  # noqa: E402
 from addon.reference.data import ReferenceData  # noqa: E402
+from tests.support.cli_run import env_with, python_ok  # noqa: E402
+from tests.support.oracle import camera_rays, ray_hits  # noqa: E402
 
 pytestmark = pytest.mark.blender
 
@@ -53,42 +52,6 @@ def render(spec: SceneSpec, samples: int = 1) -> ReferenceData:
         return capture(scene, samples=samples)
     finally:
         remove_blender_scene(scene)
-
-
-def pixel_rays(spec: SceneSpec) -> tuple[np.ndarray, np.ndarray]:
-    """World origin and unit direction through every pixel centre, row 0 = top."""
-    width, height = spec.camera.resolution
-    proj = spec.camera.projection()
-    cols, rows = np.meshgrid(np.arange(width) + 0.5, np.arange(height) + 0.5)
-    x_ndc = cols / width * 2.0 - 1.0
-    y_ndc = 1.0 - rows / height * 2.0  # top row is +y in NDC
-    local = np.stack([x_ndc / proj[0, 0], y_ndc / proj[1, 1], -np.ones_like(x_ndc)], axis=-1)
-    m = np.asarray(spec.camera.matrix_world, dtype=np.float64)
-    dirs = local @ m[:3, :3].T
-    dirs /= np.linalg.norm(dirs, axis=-1, keepdims=True)
-    return np.broadcast_to(m[:3, 3], dirs.shape), dirs
-
-
-def ray_cast(origins: np.ndarray, dirs: np.ndarray, tris: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Nearest hit distance (inf on miss) and triangle index per ray (Moller-Trumbore)."""
-    o = origins.reshape(-1, 1, 3)
-    d = dirs.reshape(-1, 1, 3)
-    v0, e1, e2 = tris[:, 0], tris[:, 1] - tris[:, 0], tris[:, 2] - tris[:, 0]
-    p = np.cross(d, e2)
-    det = np.einsum("nij,ij->ni", p, e1)
-    ok = np.abs(det) > 1e-12
-    inv = np.where(ok, 1.0 / np.where(ok, det, 1.0), 0.0)
-    s = o - v0
-    u = np.einsum("nij,nij->ni", s, p) * inv
-    q = np.cross(s, e1)
-    v = np.einsum("nij,nij->ni", d, q) * inv
-    t = np.einsum("ij,nij->ni", e2, q) * inv
-    valid = ok & (u >= 0) & (v >= 0) & (u + v <= 1) & (t > 1e-9)
-    t = np.where(valid, t, np.inf)
-    idx = np.argmin(t, axis=1)
-    best = t[np.arange(len(t)), idx]
-    shape = origins.shape[:-1]
-    return best.reshape(shape), idx.reshape(shape)
 
 
 def convex_hull(points: np.ndarray) -> np.ndarray:
@@ -163,11 +126,12 @@ def omni() -> tuple[SceneSpec, ReferenceData]:
 def oracle(omni) -> dict[str, np.ndarray]:
     """Independent ray cast of every pixel against the spec's triangles."""
     spec, _ = omni
-    origins, dirs = pixel_rays(spec)
-    t, _ = ray_cast(origins, dirs, spec.world_triangles())
+    origins, dirs = camera_rays(spec.camera)
+    t, _ = ray_hits(origins, dirs, spec.world_triangles())
     hit = np.isfinite(t)
-    position = np.where(hit[..., None], origins + dirs * np.where(hit, t, 0.0)[..., None], 0.0)
-    return {"hit": hit, "position": position}
+    position = np.where(hit[:, None], origins + dirs * np.where(hit, t, 0.0)[:, None], 0.0)
+    shape = spec.camera.resolution[::-1]
+    return {"hit": hit.reshape(shape), "position": position.reshape(*shape, 3)}
 
 
 # ----------------------------------------------------------------------------
@@ -702,7 +666,6 @@ def test_cached_load_does_not_import_bpy(omni, tmp_path):
         f"ref = load_or_capture('room_hemi', {size!r}, cache_dir={str(tmp_path)!r})\n"
         "print(json.dumps({'bpy': 'bpy' in sys.modules, 'hit': int(ref.hit.sum())}))\n"
     )
-    out = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True, check=True,
-                         env={**os.environ, "PYTHONPATH": str(REPO_ROOT)})
-    result = json.loads(out.stdout.strip().splitlines()[-1])
+    out = python_ok("-c", script, env=env_with(PYTHONPATH=REPO_ROOT))
+    result = json.loads(out.strip().splitlines()[-1])
     assert result == {"bpy": False, "hit": int(ref.hit.sum())}

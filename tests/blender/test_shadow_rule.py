@@ -9,8 +9,6 @@ the scene really tests every case, and the rule really follows each one.
 from __future__ import annotations
 
 import json
-import subprocess
-import sys
 from pathlib import Path
 
 import numpy as np
@@ -21,6 +19,7 @@ pytest.importorskip("bpy", reason="the feature scene needs bpy")
 from addon.core import metrics  # noqa: E402
 from addon.core.scene import LightSpec  # noqa: E402
 from addon.reference.data import ReferenceData  # noqa: E402
+from tests.support.cli_run import python_ok  # noqa: E402
 from tests.support.oracle import ray_hits  # noqa: E402
 
 pytestmark = pytest.mark.blender
@@ -34,17 +33,12 @@ MIN_PIXELS = 12
 MAX_RULE_MISMATCH_PCT = 0.3
 
 
-def _run(*args: str) -> None:
-    proc = subprocess.run([sys.executable, *args], capture_output=True, text=True, timeout=600, cwd=REPO)
-    assert proc.returncode == 0, proc.stderr[-3000:]
-
-
 @pytest.fixture(scope="module")
 def feature(tmp_path_factory):
     folder = tmp_path_factory.mktemp("features")
     blend = folder / "features.blend"
-    _run(str(SUPPORT / "feature_scene.py"), str(blend), "--size", SIZE)
-    _run(str(SUPPORT / "feature_capture.py"), str(blend), str(folder))
+    python_ok(SUPPORT / "feature_scene.py", blend, "--size", SIZE, timeout=600)
+    python_ok(SUPPORT / "feature_capture.py", blend, folder, timeout=600)
     listing = json.loads((folder / "readings.json").read_text())
     arrays = np.load(folder / "readings.npz")
     readings = {kind: [((name, parent), arrays[f"{kind}_{i}"].astype(np.float64))
@@ -112,6 +106,7 @@ def _rule_groups(feature, light: str) -> list[np.ndarray]:
     return [tris for (owner, tris), keep in zip(feature["readings"]["render"], blocks) if keep]
 
 
+@pytest.mark.slow
 def test_the_rule_keeps_what_the_reference_stores(feature):
     """The capture's triangles are exactly the render reading filtered by the rule."""
     for light in ("LampA", "LampB", "LampC"):
@@ -120,6 +115,7 @@ def test_the_rule_keeps_what_the_reference_stores(feature):
         assert len(feature["refs"][light].triangles) == expected, light
 
 
+@pytest.mark.slow
 def test_lamp_a_matches_cycles(feature):
     oracle = feature["oracles"]["LampA"]
     assert oracle.evaluable.sum() > 10_000
@@ -151,6 +147,7 @@ CASES_A = {
 }
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("case", sorted(CASES_A))
 def test_each_case_matters_for_lamp_a(feature, case):
     """Ignoring one case moves the ray-cast shadows away from Cycles."""
@@ -170,6 +167,7 @@ def test_each_case_matters_for_lamp_a(feature, case):
     assert ignored >= base + MIN_PIXELS, f"{case}: {base} -> {ignored} mismatched pixels of {oracle.evaluable.sum()}"
 
 
+@pytest.mark.slow
 def test_lamp_b_follows_nested_include_linking(feature):
     """Only the pillar (in a nested, included collection) blocks LampB; ignoring the link shadows far more."""
     oracle = feature["oracles"]["LampB"]
@@ -183,6 +181,7 @@ def test_lamp_b_follows_nested_include_linking(feature):
     assert oracle.mismatch([]) >= base + MIN_PIXELS  # and the pillar does block it
 
 
+@pytest.mark.slow
 def test_lamp_b_receivers_exclude_the_slab(feature):
     """Light linking: Cycles gives the excluded slab no LampB light, so it is never evaluated."""
     ref_a, ref_b = feature["refs"]["LampA"], feature["refs"]["LampB"]
@@ -199,6 +198,7 @@ def test_lamp_b_receivers_exclude_the_slab(feature):
     assert not evaluable[on_slab].any()
 
 
+@pytest.mark.slow
 def test_camera_sees_through_indirect_only_objects(feature):
     """Cycles' camera rays pass through the indirect-only box (it still casts, above); `seen` agrees."""
     seen = dict(zip((tuple(o) for o in feature["listing"]["render"]), feature["listing"]["seen"]))
@@ -216,6 +216,7 @@ def test_camera_sees_through_indirect_only_objects(feature):
     assert hits_on("no_shadow_box") > 50
 
 
+@pytest.mark.slow
 def test_the_reference_names_what_the_rule_cannot_follow(feature):
     """The slab is a shadow catcher: captured as a plain surface, and said so in the notes."""
     for light in ("LampA", "LampB", "LampC"):
@@ -223,6 +224,7 @@ def test_the_reference_names_what_the_rule_cannot_follow(feature):
         assert notes == ["shadow catcher rendered as a plain surface: slab"], notes
 
 
+@pytest.mark.slow
 def test_lamp_c_without_shadows_has_no_occluders(feature):
     ref = feature["refs"]["LampC"]
     assert len(ref.triangles) == 0 and ref.meta["light_casts_shadows"] is False
@@ -231,6 +233,7 @@ def test_lamp_c_without_shadows_has_no_occluders(feature):
     assert metrics.reference_visibility(ref.shadowed, ref.unshadowed)[evaluable].all()
 
 
+@pytest.mark.slow
 def test_reference_pixels_lie_on_their_pinhole_rays(feature):
     """The camera has a strong depth of field and pixels 1.2 times wider than tall, at 50 %:
     every hit still projects back, through the stored camera, to its own pixel centre."""
@@ -242,6 +245,7 @@ def test_reference_pixels_lie_on_their_pinhole_rays(feature):
     assert np.abs(pixel[:, 1] - (rows + 0.5)).max() < 0.05
 
 
+@pytest.mark.slow
 def test_light_under_a_scaled_empty(feature):
     """LampA sits at local (0, 0, 1) under an empty at z = 2 scaled by 2: world z = 4, matrix without scale."""
     ref = feature["refs"]["LampA"]

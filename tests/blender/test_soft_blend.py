@@ -19,7 +19,7 @@ pytest.importorskip("bpy", reason="the file and its reference need bpy")
 
 from tests.support.cli_run import SUPPORT, python_ok  # noqa: E402
 
-pytestmark = pytest.mark.blender
+pytestmark = [pytest.mark.blender, pytest.mark.slow]
 
 LIGHTS = ("Sun", "Oval", "Key")
 # The bound: exact's soft error % <= 2 x reference noise % + 0.05.

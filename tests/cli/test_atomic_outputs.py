@@ -5,7 +5,6 @@ from __future__ import annotations
 
 import json
 import signal
-import subprocess
 import sys
 from pathlib import Path
 
@@ -15,7 +14,7 @@ from addon.core.errors import EXIT_INTERRUPTED, InputError
 from addon.core.outputs import StagedOutput
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "support"))
-from cli_run import REPO, env_with, omniwarp, staging_left, stderr_lines, tree_digest  # noqa: E402
+from cli_run import env_with, omniwarp, staging_left, start_python, stderr_lines, tree_digest  # noqa: E402
 
 RUN = ("--size", "160x120", "--methods", "dpsm", "--resolutions", "128", "--frames", "1")
 
@@ -50,10 +49,11 @@ def test_staged_output_moves_everything_at_commit_only(tmp_path):
 
 @pytest.mark.blender
 @pytest.mark.gl
-def test_a_second_run_replaces_the_images_and_a_stopped_run_changes_nothing(tmp_path):
+@pytest.mark.slow
+def test_a_second_run_replaces_the_images_and_a_stopped_run_changes_nothing(tmp_path, reference_cache):
     pytest.importorskip("bpy", reason="the reference capture needs bpy (scripts/setup_env.sh installs it)")
     out = tmp_path / "out"
-    env = env_with(OMNIWARP_CACHE=tmp_path / "cache")
+    env = env_with(OMNIWARP_CACHE=reference_cache)
     first = omniwarp("compare", "--preset", "room_omni", *RUN, "--out", out, env=env)
     assert first.returncode == 0, first.stderr[-3000:]
     assert any(p.name.startswith("room_omni_dpsm_128") for p in (out / "images").iterdir())
@@ -70,9 +70,8 @@ def test_a_second_run_replaces_the_images_and_a_stopped_run_changes_nothing(tmp_
     # Stopped half-way through the rows (Ctrl-C while the maps are drawn): the earlier
     # results stay byte for byte, and the rows measured so far are not kept.
     before = tree_digest(out)
-    proc = subprocess.Popen([sys.executable, "-m", "addon", "compare", "--preset", "room_hemi", "--size", "160x120",
-                             "--methods", "dpsm,cube", "--resolutions", "4096", "--frames", "30", "--out", str(out)],
-                            cwd=REPO, env=env, stderr=subprocess.PIPE, stdout=subprocess.PIPE, text=True)
+    proc = start_python("-m", "addon", "compare", "--preset", "room_hemi", "--size", "160x120", "--methods", "dpsm,cube",
+                        "--resolutions", "4096", "--frames", "30", "--out", out, env=env)
     try:
         for line in proc.stderr:
             if line.startswith("[1/2]"):

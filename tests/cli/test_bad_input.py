@@ -3,7 +3,6 @@ from __future__ import annotations
 
 import json
 import math
-import subprocess
 import sys
 from pathlib import Path
 
@@ -13,23 +12,17 @@ import pytest
 from addon.core import tessellate
 
 pytest.importorskip("bpy", reason="--blend needs bpy (scripts/setup_env.sh installs it)")
-pytestmark = [pytest.mark.blender, pytest.mark.gl]
+pytestmark = [pytest.mark.blender, pytest.mark.gl, pytest.mark.slow]
 
-SUPPORT = Path(__file__).resolve().parents[1] / "support"
-REPO = Path(__file__).resolve().parents[2]
-sys.path.insert(0, str(SUPPORT))
+from tests.support import cli_run  # noqa: E402
+from tests.support.cli_run import run_python  # noqa: E402
+
+sys.path.insert(0, str(cli_run.SUPPORT))
 import make_blend  # noqa: E402
 
 
-def _run(*args: str) -> subprocess.CompletedProcess:
-    return subprocess.run([sys.executable, *args], capture_output=True, text=True, timeout=600, cwd=REPO)
-
-
 def _blend(tmp_path: Path, name: str, *flags: str) -> Path:
-    path = tmp_path / f"{name}.blend"
-    proc = _run(str(SUPPORT / "make_blend.py"), str(path), *flags)
-    assert proc.returncode == 0 and path.is_file(), proc.stderr[-2000:]
-    return path
+    return cli_run.make_blend(tmp_path / f"{name}.blend", *flags)
 
 
 def test_broken_geometry_is_skipped_and_counted(tmp_path):
@@ -37,8 +30,8 @@ def test_broken_geometry_is_skipped_and_counted(tmp_path):
     non-manifold fan and a face-less object draw normally; no map holds NaN or inf."""
     path = _blend(tmp_path, "broken", "--bad-geometry")
     out = tmp_path / "out"
-    proc = _run("-m", "addon", "compare", "--blend", str(path), "--methods", "dpsm,cube,dpsm+notw",
-                "--resolutions", "512", "--frames", "1", "--no-images", "--out", str(out))
+    proc = run_python("-m", "addon", "compare", "--blend", str(path), "--methods", "dpsm,cube,dpsm+notw",
+                      "--resolutions", "512", "--frames", "1", "--no-images", "--out", str(out))
     assert proc.returncode == 0, proc.stderr[-2000:]
     expected = make_blend.BAD_NAN_TRIANGLES + make_blend.BAD_ZERO_AREA_TRIANGLES
     for row in json.loads((out / "results.json").read_text()):
@@ -56,8 +49,8 @@ def test_broken_geometry_is_skipped_and_counted(tmp_path):
 def test_unusable_lights_are_named(tmp_path, flags, needle):
     """Status 2 and one line (the exit contract), before the Cycles render starts."""
     path = _blend(tmp_path, "light", *flags)
-    proc = _run("-m", "addon", "compare", "--blend", str(path), "--methods", "dpsm", "--resolutions", "256",
-                "--out", str(tmp_path / "out"))
+    proc = run_python("-m", "addon", "compare", "--blend", str(path), "--methods", "dpsm", "--resolutions", "256",
+                      "--out", str(tmp_path / "out"))
     lines = [line for line in proc.stderr.splitlines() if line.strip() and "EGL_BAD" not in line]
     assert proc.returncode == 2 and "Traceback" not in proc.stderr, proc.stderr[-2000:]
     assert len(lines) == 1 and needle in lines[0], lines

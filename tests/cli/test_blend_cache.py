@@ -22,6 +22,7 @@ CACHED = "using the cached Cycles reference of"
 SMALL = ("--methods", "dpsm,exact", "--resolutions", "256", "--frames", "1", "--no-images")
 
 
+@pytest.mark.slow
 def test_reference_fills_what_compare_and_preview_read(tmp_path):
     blend = make_blend(tmp_path / "shot.blend")
     env = env_with(OMNIWARP_CACHE=tmp_path / "cache")
@@ -42,6 +43,7 @@ def test_reference_fills_what_compare_and_preview_read(tmp_path):
     assert sorted((tmp_path / "cache").glob("*.npz")) == files
 
 
+@pytest.mark.slow
 def test_a_changed_file_or_light_renders_again(tmp_path):
     env = env_with(OMNIWARP_CACHE=tmp_path / "cache")
     blend = make_blend(tmp_path / "shot.blend")

@@ -14,7 +14,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "support"))
 from cli_run import env_with, omniwarp, stderr_lines  # noqa: E402
 
 pytest.importorskip("bpy", reason="rendering a reference needs bpy (scripts/setup_env.sh installs it)")
-pytestmark = [pytest.mark.blender, pytest.mark.gl]
+pytestmark = [pytest.mark.blender, pytest.mark.gl, pytest.mark.slow]
 
 PRESET = "room_hemi"
 SIZE = "160x120"

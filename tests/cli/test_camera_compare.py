@@ -4,30 +4,23 @@ with an orthographic camera falls back to sm."""
 from __future__ import annotations
 
 import json
-import subprocess
-import sys
 from pathlib import Path
 
 import pytest
 
 pytest.importorskip("bpy", reason="--blend needs bpy (scripts/setup_env.sh installs it)")
-pytestmark = [pytest.mark.blender, pytest.mark.gl]
+pytestmark = [pytest.mark.blender, pytest.mark.gl, pytest.mark.slow]
 
-SUPPORT = Path(__file__).resolve().parents[1] / "support"
-REPO = Path(__file__).resolve().parents[2]
-
-
-def _run(*args: str) -> subprocess.CompletedProcess:
-    return subprocess.run([sys.executable, *args], capture_output=True, text=True, timeout=600, cwd=REPO)
+from tests.support.cli_run import SUPPORT, run_python  # noqa: E402
 
 
 def _compare(tmp_path: Path, kind: str, methods: str, resolution: int = 512) -> list[dict]:
     blend = tmp_path / f"{kind}.blend"
-    proc = _run(str(SUPPORT / "make_camera_blend.py"), str(blend), kind)
+    proc = run_python(SUPPORT / "make_camera_blend.py", blend, kind)
     assert proc.returncode == 0 and blend.is_file(), proc.stderr[-2000:]
     out = tmp_path / kind
-    proc = _run("-m", "addon", "compare", "--blend", str(blend), "--methods", methods, "--resolutions", str(resolution),
-                "--frames", "1", "--no-images", "--out", str(out))
+    proc = run_python("-m", "addon", "compare", "--blend", blend, "--methods", methods, "--resolutions", resolution,
+                      "--frames", "1", "--no-images", "--out", out)
     assert proc.returncode == 0, proc.stderr[-2000:]
     return json.loads((out / "results.json").read_text())
 

@@ -3,13 +3,12 @@ from __future__ import annotations
 
 import json
 import math
-import subprocess
-import sys
 
 import pytest
 
 from addon.cli import main
 from addon.core.errors import EXIT_BAD_INPUT
+from tests.support.cli_run import run_python
 
 ROW_FIELDS = {
     "preset": str, "method": str, "emission": str, "resolution": int, "error_pct": float,
@@ -49,18 +48,17 @@ def test_presets_lists_the_foundation_presets(capsys):
 
 def test_console_entry_point_exits_nonzero_on_bad_input():
     """The module entry (`python -m addon`) gives the same non-zero exit as main()."""
-    proc = subprocess.run([sys.executable, "-m", "addon", "compare", "--preset", "nope"],
-                          capture_output=True, text=True, timeout=120)
+    proc = run_python("-m", "addon", "compare", "--preset", "nope", timeout=120)
     assert proc.returncode == EXIT_BAD_INPUT
     assert "unknown preset 'nope'" in proc.stderr
 
 
 @pytest.mark.blender
 @pytest.mark.gl
-def test_compare_end_to_end_small(tmp_path, monkeypatch, capsys):
+def test_compare_end_to_end_small(tmp_path, monkeypatch, capsys, reference_cache):
     """Cycles reference + both methods at a small size: every output exists, every field is filled."""
     pytest.importorskip("bpy", reason="the reference capture needs bpy (scripts/setup_env.sh installs it)")
-    monkeypatch.setenv("OMNIWARP_CACHE", str(tmp_path / "cache"))
+    monkeypatch.setenv("OMNIWARP_CACHE", str(reference_cache))
     out = tmp_path / "report"
     code = main(["compare", "--preset", "room_hemi", "--methods", "dpsm,cube", "--resolutions", "128,512",
                  "--size", "160x120", "--frames", "1", "--out", str(out)])

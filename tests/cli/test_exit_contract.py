@@ -169,6 +169,7 @@ def blends(tmp_path_factory) -> dict[str, Path]:
 
 
 @pytest.mark.blender
+@pytest.mark.slow
 @pytest.mark.parametrize("command,blend,needle", [
     ("compare", "cut", "Blender cannot load it (Missing DNA block)"),
     ("compare", "nan_light", "its transform is not finite (location nan, 0, 3)"),
@@ -189,6 +190,7 @@ def test_a_bad_blend_is_one_line_before_the_render(blends, tmp_path, earlier_res
 
 @pytest.mark.blender
 @pytest.mark.gl
+@pytest.mark.slow
 def test_stdout_holds_the_result_rows_only(blends, tmp_path):
     """`omniwarp compare --blend F > rows.txt`: Blender's "Read blend" and "Saved:" lines
     (written from C to fd 1) go to stderr's side, never between the rows."""

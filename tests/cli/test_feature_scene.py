@@ -7,37 +7,30 @@ covers about 1 % of the evaluated pixels, see tests/blender/test_shadow_rule.py)
 from __future__ import annotations
 
 import json
-import subprocess
-import sys
 from pathlib import Path
 
 import pytest
 
 pytest.importorskip("bpy", reason="--blend needs bpy (scripts/setup_env.sh installs it)")
-pytestmark = [pytest.mark.blender, pytest.mark.gl]
+pytestmark = [pytest.mark.blender, pytest.mark.gl, pytest.mark.slow]
 
-SUPPORT = Path(__file__).resolve().parents[1] / "support"
-REPO = Path(__file__).resolve().parents[2]
+from tests.support.cli_run import SUPPORT, run_python  # noqa: E402
 SIZE = "160x120"
 # Map errors at this tiny size and 512 texels; a reading that ignores a case is far above.
 MAX_ERROR_PCT = 1.0
 
 
-def _run(*args: str) -> subprocess.CompletedProcess:
-    return subprocess.run([sys.executable, *args], capture_output=True, text=True, timeout=600, cwd=REPO)
-
-
 @pytest.fixture(scope="module")
 def blend(tmp_path_factory) -> Path:
     path = tmp_path_factory.mktemp("feature") / "features.blend"
-    proc = _run(str(SUPPORT / "feature_scene.py"), str(path), "--size", SIZE)
+    proc = run_python(str(SUPPORT / "feature_scene.py"), str(path), "--size", SIZE)
     assert proc.returncode == 0 and path.is_file(), proc.stderr[-2000:]
     return path
 
 
 def _compare(blend: Path, out: Path, *extra: str) -> list[dict]:
-    proc = _run("-m", "addon", "compare", "--blend", str(blend), "--frames", "1", "--no-images",
-                "--out", str(out), *extra)
+    proc = run_python("-m", "addon", "compare", "--blend", str(blend), "--frames", "1", "--no-images",
+                      "--out", str(out), *extra)
     assert proc.returncode == 0, proc.stderr[-2000:]
     return json.loads((out / "results.json").read_text())
 
@@ -68,7 +61,7 @@ def test_preview_agrees_with_compare(blend, tmp_path, light):
     """preview --blend on each light: within 1.5x the compare row of its method (plus 0.05 points at this size)."""
     rows = _compare(blend, tmp_path / "cmp", "--light", light, "--methods", "dpsm+notw", "--resolutions", "1024")
     out = tmp_path / "preview"
-    proc = _run("-m", "addon", "preview", "--blend", str(blend), "--light", light, "--out", str(out))
+    proc = run_python("-m", "addon", "preview", "--blend", str(blend), "--light", light, "--out", str(out))
     assert proc.returncode == 0, proc.stderr[-2000:]
     report = json.loads((out / "preview.json").read_text())
     assert report["lights"][0]["method"] == "dpsm+notw" and report["gbuffer_hit_agreement"] > 0.99

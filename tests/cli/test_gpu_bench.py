@@ -9,7 +9,7 @@ from pathlib import Path
 import pytest
 
 pytest.importorskip("bpy", reason="preparing the references renders them with Cycles")
-pytestmark = [pytest.mark.blender, pytest.mark.gl]
+pytestmark = [pytest.mark.blender, pytest.mark.gl, pytest.mark.slow]
 
 REPO = Path(__file__).resolve().parents[2]
 # Makes bpy, matplotlib and OpenEXR unimportable, as on a bare GPU machine.

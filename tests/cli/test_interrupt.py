@@ -17,7 +17,7 @@ from addon.core import interrupt
 from addon.core.errors import EXIT_INTERRUPTED, Interrupted
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "support"))
-from cli_run import REPO, env_with, omniwarp, staging_left, stderr_lines, tree_digest  # noqa: E402
+from cli_run import env_with, omniwarp, staging_left, start_python, stderr_lines, tree_digest  # noqa: E402
 
 
 def test_a_signal_inside_a_blocking_call_is_raised_when_it_returns():
@@ -45,8 +45,7 @@ def test_a_signal_inside_a_blocking_call_is_raised_when_it_returns():
 
 
 def _start(args: list[str], env: dict[str, str]) -> subprocess.Popen:
-    return subprocess.Popen([sys.executable, "-m", "addon", *args], cwd=REPO, env=env, text=True,
-                            stdout=subprocess.PIPE, stderr=subprocess.PIPE)
+    return start_python("-m", "addon", *args, env=env)
 
 
 def _interrupt_after(proc: subprocess.Popen, marker: str, settle_s: float = 0.0,
@@ -139,11 +138,11 @@ def test_ctrl_c_inside_a_cycles_render_stops_at_once(tmp_path, earlier):
     (["compare", "--preset", "room_hemi", "--size", "160x120", "--methods", "eevee", "--frames", "1",
       "--no-images"], "EEVEE renders in a child process"),
 ], ids=["preview", "eevee"])
-def test_ctrl_c_with_a_child_process_ends_the_child_too(tmp_path, earlier, args, marker):
+def test_ctrl_c_with_a_child_process_ends_the_child_too(tmp_path, earlier, args, marker, reference_cache):
     """The child (Blender's gpu for the preview, EEVEE for its row) is stopped with the
     parent; nothing of it stays behind, not even Blender's session folder."""
     pytest.importorskip("bpy", reason="the children need bpy (scripts/setup_env.sh installs it)")
-    tmpdir, cache = tmp_path / "tmp", tmp_path / "cache"
+    tmpdir, cache = tmp_path / "tmp", reference_cache
     tmpdir.mkdir()
     assert omniwarp("reference", "--preset", "room_hemi", "--size", "160x120",
                     env=env_with(OMNIWARP_CACHE=cache)).returncode == 0

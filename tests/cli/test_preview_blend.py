@@ -8,16 +8,13 @@ import json
 import math
 import re
 import subprocess
-import sys
 from pathlib import Path
 
 import pytest
 
 from addon.cli import main
 from addon.core import methods as method_registry
-
-SUPPORT = Path(__file__).resolve().parents[1] / "support"
-REPO = Path(__file__).resolve().parents[2]
+from tests.support.cli_run import make_blend, run_python
 
 # Saved on the light of the first test file; differs from the preview's default
 # (dpsm+notw at --resolution) in method and resolution, so the test sees which was used.
@@ -27,18 +24,15 @@ PREVIEW_RESOLUTION = "256"  # for the lights without settings: small keeps CI qu
 needs_blender = [
     pytest.mark.blender,
     pytest.mark.gl,
+    pytest.mark.slow,
     pytest.mark.skipif(importlib.util.find_spec("bpy") is None,
                        reason="--blend needs bpy (scripts/setup_env.sh installs it)"),
 ]
 
 
-def _run(*args: str) -> subprocess.CompletedProcess:
-    return subprocess.run([sys.executable, *args], capture_output=True, text=True, timeout=600, cwd=REPO)
-
-
 def _preview(blend: Path, out: Path, *extra: str) -> subprocess.CompletedProcess:
-    return _run("-m", "addon", "preview", "--blend", str(blend), "--out", str(out),
-                "--resolution", PREVIEW_RESOLUTION, *extra)
+    return run_python("-m", "addon", "preview", "--blend", str(blend), "--out", str(out),
+                      "--resolution", PREVIEW_RESOLUTION, *extra)
 
 
 @pytest.fixture(scope="module")
@@ -48,8 +42,7 @@ def blends(tmp_path_factory) -> dict[str, Path]:
     paths = {"settings": folder / "with_settings.blend", "plain": folder / "plain.blend"}
     flags = {"settings": ["--omniwarp", f"{SAVED_METHOD}:{SAVED_RESOLUTION}"], "plain": []}
     for kind, path in paths.items():
-        proc = _run(str(SUPPORT / "make_blend.py"), str(path), *flags[kind])
-        assert proc.returncode == 0 and path.is_file(), proc.stderr[-2000:]
+        make_blend(path, *flags[kind])
     return paths
 
 
@@ -122,7 +115,7 @@ def test_preview_refuses_a_method_before_rendering(tmp_path, method, needle):
     """Unknown, external (eevee) or unfit (psm for room_omni's point light): exit 2 in the
     parent, one line, before any Cycles render (no bpy needed)."""
     out = tmp_path / "out"
-    proc = _run("-m", "addon", "preview", "--preset", "room_omni", "--method", method, "--out", str(out))
+    proc = run_python("-m", "addon", "preview", "--preset", "room_omni", "--method", method, "--out", str(out))
     _one_line_refusal(proc, needle)
     assert not (out / "preview.json").exists()
 

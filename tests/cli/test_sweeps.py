@@ -18,10 +18,21 @@ import pytest
 
 pytest.importorskip("bpy", reason="--blend needs bpy (scripts/setup_env.sh installs it)")
 pytest.importorskip("distributed", reason="the cluster runs need the dask extra (scripts/setup_env.sh installs it)")
-pytestmark = [pytest.mark.blender, pytest.mark.gl, pytest.mark.dask]
+pytestmark = [pytest.mark.blender, pytest.mark.gl, pytest.mark.dask, pytest.mark.slow]
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "support"))
-from cli_run import REPO, SUPPORT, env_with, omniwarp, one_line, staging_left, stderr_lines  # noqa: E402
+from cli_run import (  # noqa: E402
+    REPO,
+    SUPPORT,
+    env_with,
+    omniwarp,
+    one_line,
+    python_ok,
+    run_python,
+    staging_left,
+    start_python,
+    stderr_lines,
+)
 
 SWEEP = ("--lights", "key,rim", "--frame-range", "1-24:8", "--methods", "dpsm,exact", "--resolutions", "256",
          "--repeats", "1")
@@ -31,9 +42,8 @@ EXIT_INTERRUPTED = 130
 @pytest.fixture(scope="module")
 def shot(tmp_path_factory) -> Path:
     path = tmp_path_factory.mktemp("shot") / "shot.blend"
-    proc = subprocess.run([sys.executable, str(SUPPORT / "make_shot_blend.py"), str(path)], capture_output=True,
-                          text=True, timeout=300, cwd=REPO)
-    assert proc.returncode == 0 and path.is_file(), proc.stderr[-2000:]
+    python_ok(SUPPORT / "make_shot_blend.py", path, timeout=300)
+    assert path.is_file()
     return path
 
 
@@ -86,8 +96,7 @@ def test_without_workers_dask_is_not_imported(shot, tmp_path):
             f"rc = main(['compare', '--blend', {str(shot)!r}, '--lights', 'key', '--methods', 'dpsm', "
             f"'--resolutions', '256', '--repeats', '1', '--no-images', '--out', {str(tmp_path / 'out')!r}]); "
             "print('RESULT', rc, sorted(m for m in ('dask', 'distributed') if m in sys.modules))")
-    proc = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=300, cwd=REPO,
-                          env=env_with(OMNIWARP_CACHE=tmp_path / "cache"))
+    proc = run_python("-c", code, env=env_with(OMNIWARP_CACHE=tmp_path / "cache"), timeout=300)
     assert "RESULT 0 []" in proc.stdout, (proc.stdout[-2000:], proc.stderr[-2000:])
 
 
@@ -117,9 +126,8 @@ def test_a_killed_worker_s_job_is_run_again(shot, serial, tmp_path):
         address = json.loads(address_file.read_text())["address"]
         procs += [_dask("worker", address, "--nthreads", "1", "--no-nanny", "--no-dashboard",
                         "--local-directory", str(tmp_path / f"w{i}"), env=env) for i in range(2)]
-        run = subprocess.Popen([sys.executable, "-m", "addon", "compare", "--blend", str(shot), *SWEEP,
-                                "--scheduler", address, "--no-images", "--out", str(tmp_path / "out")],
-                               cwd=REPO, env=env, text=True, stdout=subprocess.PIPE, stderr=subprocess.PIPE)
+        run = start_python("-m", "addon", "compare", "--blend", shot, *SWEEP, "--scheduler", address, "--no-images",
+                           "--out", tmp_path / "out", env=env)
         seen = []
         try:
             for line in run.stderr:
@@ -168,9 +176,8 @@ def _alive(pid: int) -> bool:
 def test_ctrl_c_on_a_cluster_run_exits_130_and_leaves_nothing(shot, tmp_path):
     tmpdir, cache, out = tmp_path / "tmp", tmp_path / "cache", tmp_path / "out"
     tmpdir.mkdir()
-    proc = subprocess.Popen([sys.executable, "-m", "addon", "compare", "--blend", str(shot), *SWEEP, "--workers", "2",
-                             "--out", str(out)], cwd=REPO, env=env_with(OMNIWARP_CACHE=cache, TMPDIR=tmpdir),
-                            text=True, stdout=subprocess.PIPE, stderr=subprocess.PIPE)
+    proc = start_python("-m", "addon", "compare", "--blend", shot, *SWEEP, "--workers", "2", "--out", out,
+                        env=env_with(OMNIWARP_CACHE=cache, TMPDIR=tmpdir))
     seen, workers = [], []
     try:
         for line in proc.stderr:
@@ -201,9 +208,7 @@ def test_a_job_on_bad_input_ends_the_run_with_its_one_line(tmp_path, where):
     frame, and the job of frame 17 refuses it. The run ends with exit 2 and that one line
     (naming the job), and writes nothing."""
     path = tmp_path / "dark.blend"
-    proc = subprocess.run([sys.executable, str(SUPPORT / "make_shot_blend.py"), str(path), "--dark-key-at", "17"],
-                          capture_output=True, text=True, timeout=300, cwd=REPO)
-    assert proc.returncode == 0, proc.stderr[-2000:]
+    python_ok(SUPPORT / "make_shot_blend.py", path, "--dark-key-at", "17", timeout=300)
     out = tmp_path / "out"
     proc = omniwarp("compare", "--blend", path, *SWEEP, *where, "--out", out,
                     env=env_with(OMNIWARP_CACHE=tmp_path / "cache"))

@@ -9,8 +9,8 @@ import numpy as np
 import pytest
 
 from addon.core.alpha import EXTENSIONS, INTERPOLATIONS, TRANSFER_SIZE, AlphaMap
-from addon.render.moderngl_glsl import moderngl_sources
-from addon.render.shaders import SHADER_DIR, ProgramInterface, Uniform
+from addon.render.shaders import Uniform
+from tests.support import glsl
 
 pytestmark = pytest.mark.gl
 
@@ -22,17 +22,9 @@ void main() {
 """
 
 
-def _glsl_alpha(gl_backend, tmp_path, amap: AlphaMap, uv: np.ndarray) -> np.ndarray:
-    shader_dir = tmp_path / "gpu_shaders"
-    (shader_dir / "lib").mkdir(parents=True, exist_ok=True)
-    (shader_dir / "lib" / "alpha.glsl").write_text((SHADER_DIR / "lib" / "alpha.glsl").read_text())
-    (shader_dir / "fullscreen.vert").write_text((SHADER_DIR / "fullscreen.vert").read_text())
-    (shader_dir / "harness.frag").write_text(HARNESS)
-    iface = ProgramInterface(name="alpha_harness", vertex_file="fullscreen.vert", fragment_file="harness.frag",
-                             vertex_in=(("vec2", "ow_corner"),), fragment_out=(("vec4", "ow_out"),),
-                             uniforms=(Uniform("int", "ow_alpha_mode"),),
-                             samplers=("ow_input", "ow_alpha_image", "ow_alpha_transfer"))
-    vs, fs = moderngl_sources(iface, shader_dir)
+def _glsl_alpha(gl_backend, amap: AlphaMap, uv: np.ndarray) -> np.ndarray:
+    vs, fs = glsl.program("alpha_harness", HARNESS, uniforms=(Uniform("int", "ow_alpha_mode"),),
+                          samplers=("ow_input", "ow_alpha_image", "ow_alpha_transfer"))
     ctx = gl_backend.ctx
     with ctx:
         prog = ctx.program(vertex_shader=vs, fragment_shader=fs)
@@ -63,7 +55,7 @@ def _glsl_alpha(gl_backend, tmp_path, amap: AlphaMap, uv: np.ndarray) -> np.ndar
 
 @pytest.mark.parametrize("interpolation", INTERPOLATIONS)
 @pytest.mark.parametrize("extension", EXTENSIONS)
-def test_alpha_lookup_matches_numpy(gl_backend, tmp_path, interpolation, extension):
+def test_alpha_lookup_matches_numpy(gl_backend, interpolation, extension):
     rng = np.random.default_rng(7)
     image = rng.uniform(0.0, 1.0, size=(5, 7)).astype(np.float32)
     transfer = np.linspace(0.0, 1.0, TRANSFER_SIZE) ** 2  # a curve, so the table is read
@@ -74,7 +66,7 @@ def test_alpha_lookup_matches_numpy(gl_backend, tmp_path, interpolation, extensi
     cell = np.array([7.0, 5.0])
     uv += np.where(np.abs((uv * cell) - np.round(uv * cell)) < 1e-3, 2e-3, 0.0) / cell
     expected = amap.sample(uv)
-    got = _glsl_alpha(gl_backend, tmp_path, amap, uv)
+    got = _glsl_alpha(gl_backend, amap, uv)
     assert np.max(np.abs(got - expected)) < 2e-4, (interpolation, extension)
     if extension == "clip":
         outside = np.any((uv < 0.0) | (uv > 1.0), axis=1) & (interpolation == "closest")

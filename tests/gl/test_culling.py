@@ -13,17 +13,14 @@ from tests.support.oracle import view_samples
 pytestmark = pytest.mark.gl
 
 
-@pytest.fixture(scope="module", params=["room_omni", "room_hemi", "courtyard"])
-def preset_case(request):
-    scene = build_preset(request.param, (128, 96))
-    return scene, *view_samples(scene)
+PRESET_CASES, PRESET_CASE_SIZE = ["room_omni", "room_hemi", "courtyard"], (128, 96)  # conftest.preset_case
 
 
 @pytest.mark.parametrize("param", ["dpsm", "cube", "ipsm"])
 def test_culling_changes_no_shadow(gl_backend, preset_case, param):
     """Same resolution with and without culling: every evaluated pixel gets the same
     visibility (ipsm changes the parameterization, so it is only checked to cull)."""
-    scene, samples, _, evaluable = preset_case
+    _, scene, samples, _, evaluable = preset_case
     pipe = ShadowPipeline(gl_backend)
     culled = pipe.render(scene.light, scene.world_triangles(), samples, ShadowSettings(param, 512))
     full = pipe.render(scene.light, scene.world_triangles(), samples, ShadowSettings(param, 512, cull=False))

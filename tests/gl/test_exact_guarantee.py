@@ -27,6 +27,7 @@ PRESETS = [name for name in available_presets()
            if name != "stress_million" and build_preset(name, (8, 6)).light.emission in ("omni", "hemi")]
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("name", PRESETS)
 def test_exact_is_never_worse_than_its_map(gl_backend, name):
     scene = build_preset(name, (64, 48))
@@ -62,6 +63,7 @@ def bumpy_sheet(size: int = 160, seed: int = 3) -> np.ndarray:
     return np.concatenate([quads[:, [0, 1, 2]], quads[:, [0, 2, 3]]])
 
 
+@pytest.mark.slow
 def test_samples_beside_a_neighbours_edge(gl_backend):
     """Samples of a rough sheet under grazing light, at the triangles' centres and at
     points a hair inside or outside a neighbour's edge: the edge sides measured from a

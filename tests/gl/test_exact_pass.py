@@ -20,12 +20,9 @@ pytestmark = pytest.mark.gl
 CASES = [("dpsm", "notw"), ("dpsm", "none"), ("cube", "notw"), ("cube", "none")]
 
 
-@pytest.fixture(scope="module", params=["room_omni", "room_hemi", "courtyard", "stress_seam",
-                                        "stress_light_inside_object", "stress_grazing", "stress_scale_large",
-                                        "stress_scale_small", "stress_vertex_at_light"])
-def preset_case(request):
-    scene = build_preset(request.param, (64, 48))
-    return request.param, scene, *view_samples(scene)
+PRESET_CASES = ["room_omni", "room_hemi", "courtyard", "stress_seam", "stress_light_inside_object",  # conftest
+                "stress_grazing", "stress_scale_large", "stress_scale_small", "stress_vertex_at_light"]
+PRESET_CASE_SIZE = (64, 48)
 
 
 @pytest.mark.parametrize("param,warp", CASES)
@@ -71,7 +68,6 @@ def test_rounds_walk_every_entry_once(gl_backend, monkeypatch, bound):
     """With a first bound of one or two entries every list takes several rounds; the marks,
     see-through optical depths included (summed, so an entry walked twice would show), are
     those of one round, and the entries walked are the same."""
-    from addon.render import parameterizations
     from addon.render.resident import ResidentScene
     from tests.gl.test_alpha_pass import _scene
 
@@ -81,7 +77,8 @@ def test_rounds_walk_every_entry_once(gl_backend, monkeypatch, bound):
     settings = ShadowSettings("dpsm", 128, warp="none", exact=True)  # plain: lists of up to ~10
     resident = ResidentScene.of_triangles(scene.world_triangles(), surface=scene.surface())
     once = pipe.render(scene.light, resident, samples, settings, count_work=True)
-    monkeypatch.setattr(parameterizations, "EXACT_MAX_WALK", bound)
+    from addon.render.passes import exact as exact_pass
+    monkeypatch.setattr(exact_pass, "EXACT_MAX_WALK", bound)  # the first round's bound (passes/exact.py)
     rounds = pipe.render(scene.light, resident, samples, settings, count_work=True)
     gl_backend.release_scene(resident)
     assert once.exact_work["rounds"] == 0 and rounds.exact_work["rounds"] >= 2, rounds.exact_work

@@ -40,16 +40,13 @@ def _wrong(result, lit: np.ndarray, judged: np.ndarray) -> int:
     return int((((result.visibility > 0.5) != (lit > 0.5)) & judged).sum())
 
 
-@pytest.fixture(scope="module", params=["spot_street", "sun_field"])
-def preset_case(request):
-    scene = build_preset(request.param, (64, 48))
-    samples, lit, evaluable = view_samples(scene)
-    return request.param, scene, samples, lit, _judged(scene, samples, evaluable)
+PRESET_CASES, PRESET_CASE_SIZE = ["spot_street", "sun_field"], (64, 48)  # conftest.preset_case
 
 
 def test_exact_pass_equals_the_ray_caster(gl_backend, preset_case):
     """At 128^2 the plain map errs at every shadow edge; the lists do not."""
-    name, scene, samples, lit, judged = preset_case
+    name, scene, samples, lit, evaluable = preset_case
+    judged = _judged(scene, samples, evaluable)
     pipe = ShadowPipeline(gl_backend)
     exact = pipe.render(scene.light, scene.world_triangles(), samples, ShadowSettings("sm", 128, exact=True))
     plain = pipe.render(scene.light, scene.world_triangles(), samples, ShadowSettings("sm", 128))
@@ -60,7 +57,8 @@ def test_exact_pass_equals_the_ray_caster(gl_backend, preset_case):
 
 
 def test_the_map_resolution_does_not_matter(gl_backend, preset_case):
-    name, scene, samples, _, judged = preset_case
+    name, scene, samples, _, evaluable = preset_case
+    judged = _judged(scene, samples, evaluable)
     pipe = ShadowPipeline(gl_backend)
     shadowed = [(pipe.render(scene.light, scene.world_triangles(), samples,
                              ShadowSettings("sm", res, exact=True)).visibility < 0.5)[judged] for res in (64, 512)]
@@ -121,14 +119,14 @@ def test_rounds_walk_every_entry_once(gl_backend, monkeypatch):
     """With a first bound of one entry every list longer than one takes later rounds over
     the map (the scissored redraws of tile 0); the marks and the entries walked are those of
     one round."""
-    from addon.render import parameterizations
 
     scene = build_preset("spot_street", (64, 48))
     samples, _, _ = view_samples(scene)
     pipe = ShadowPipeline(gl_backend)
     settings = ShadowSettings("sm", 64, exact=True)  # coarse: lists of several samples
     once = pipe.render(scene.light, scene.world_triangles(), samples, settings, count_work=True)
-    monkeypatch.setattr(parameterizations, "EXACT_MAX_WALK", 1)
+    from addon.render.passes import exact as exact_pass
+    monkeypatch.setattr(exact_pass, "EXACT_MAX_WALK", 1)  # the first round's bound (passes/exact.py)
     rounds = pipe.render(scene.light, scene.world_triangles(), samples, settings, count_work=True)
     assert once.exact_work["rounds"] == 0 and rounds.exact_work["rounds"] >= 2, rounds.exact_work
     assert np.array_equal(rounds.visibility, once.visibility)
@@ -208,11 +206,13 @@ def test_sized_spots_and_suns_take_the_soft_paths_and_their_rows_no_note():
     sun = LightSpec("sun", look_at((0.0, 0.0, 5.0), (0.0, 0.0, 0.0)), shape=SunDisk(0.1))
     for light in (spot, sun):
         exact = settings_for("exact", 256, light.emission)
-        assert soft.exact_soft(light, exact) and soft.soft_uniforms(light, exact)[EXACT_SOFT_KEY] == EXACT_SAMPLES
+        assert soft.sized_mode(light, exact) is soft.SizedMode.EXACT_SOFT
+        assert soft.soft_uniforms(light, exact)[EXACT_SOFT_KEY] == EXACT_SAMPLES
         assert soft.list_resolution(light, exact) == 64 and soft.hit_words(light, exact) == EXACT_SAMPLES // 32
         for method in ("sm", "psm"):
             filtered = settings_for(method, 256, light.emission)
-            assert soft.filters(light, filtered) and soft.soft_uniforms(light, filtered)["ow_soft_count"] > 0
+            assert soft.sized_mode(light, filtered) is soft.SizedMode.FILTERED
+            assert soft.soft_uniforms(light, filtered)["ow_soft_count"] > 0
             assert _row_note(light, filtered, scene) is None
         assert _row_note(light, exact, scene) is None
     hard = dataclasses.replace(spot, shape=POINT)

@@ -41,6 +41,7 @@ def _reached_image(scene, samples, evaluable: np.ndarray) -> np.ndarray:
     return out
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("name", ["sphere", "area", "area_spread"])
 @pytest.mark.parametrize("param,warp", [("dpsm", "notw"), ("dpsm", "none"), ("cube", "none"), ("cube", "notw")])
 def test_exact_soft_equals_the_integral_over_its_points(gl_backend, name, param, warp):
@@ -60,6 +61,7 @@ def test_exact_soft_equals_the_integral_over_its_points(gl_backend, name, param,
     assert float((diff > 1.5 / 64).mean()) < 1e-3, (name, param, warp)
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("name", ["spot", "spot_blend", "sun"])
 def test_exact_soft_over_a_spot_or_sun_map(gl_backend, name):
     """A sized spot's sphere and a sun's disk, over their own sm map: every pixel's share
@@ -79,6 +81,7 @@ def test_exact_soft_over_a_spot_or_sun_map(gl_backend, name):
         assert ours.plan.parameterization == "sm"
 
 
+@pytest.mark.slow
 def test_exact_soft_converges_with_its_points(gl_backend):
     """The same equality at 16 points, and 256 points come nearer to a 1024-point integral
     than 16 do (the bits of all 256 points, in 8 words, are read)."""
@@ -154,11 +157,11 @@ def test_the_light_points_are_a_square(gl_backend):
 def test_rounds_finish_a_sized_lights_lists(gl_backend, monkeypatch):
     """With a first walk bound of one entry the lists take several rounds, and the shares
     are those of one round."""
-    from addon.render import parameterizations
 
     _, scene, samples, _, _ = _case("area")
     once = _exact(gl_backend, scene, samples, 16, "dpsm", "none", resolution=64, count_work=True)
-    monkeypatch.setattr(parameterizations, "EXACT_MAX_WALK", 1)
+    from addon.render.passes import exact as exact_pass
+    monkeypatch.setattr(exact_pass, "EXACT_MAX_WALK", 1)  # the first round's bound (passes/exact.py)
     rounds = _exact(gl_backend, scene, samples, 16, "dpsm", "none", resolution=64, count_work=True)
     assert once.exact_work["rounds"] == 0 and rounds.exact_work["rounds"] >= 2, rounds.exact_work
     assert np.array_equal(rounds.visibility, once.visibility)

@@ -11,10 +11,9 @@ import numpy as np
 import pytest
 
 from addon.core import footprint as fp
-from addon.render.moderngl_glsl import moderngl_sources
-from addon.render.shaders import SHADER_DIR, SHARED_DEFINES, ProgramInterface, Uniform
+from addon.render.shaders import SHADER_DIR, SHARED_DEFINES, Uniform
 from tests.core.test_footprint import KINDS, _random_rotation, _triangle
-from tests.gl.test_glsl_oracle import _evaluate
+from tests.support import glsl
 
 pytestmark = pytest.mark.gl
 
@@ -39,22 +38,12 @@ void main() {
 """
 
 
-def _run(gl_backend, tmp_path, mode: str, tris: np.ndarray, extra: np.ndarray) -> np.ndarray:
-    shader_dir = tmp_path / "gpu_shaders"
-    (shader_dir / "lib").mkdir(parents=True, exist_ok=True)
-    for lib in (SHADER_DIR / "lib").glob("*.glsl"):
-        (shader_dir / "lib" / lib.name).write_text(lib.read_text())
-    (shader_dir / "fullscreen.vert").write_text((SHADER_DIR / "fullscreen.vert").read_text())
-    (shader_dir / "harness.frag").write_text(HARNESS)
-    iface = ProgramInterface(name="footprint_harness", vertex_file="fullscreen.vert", fragment_file="harness.frag",
-                             vertex_in=(("vec2", "ow_corner"),), fragment_out=(("vec4", "ow_out"),),
-                             uniforms=(Uniform("int", "ow_mode"),), samplers=("ow_input",))
-    vs, fs = moderngl_sources(iface, shader_dir)
+def _run(gl_backend, mode: str, tris: np.ndarray, extra: np.ndarray) -> np.ndarray:
+    vs, fs = glsl.program("footprint_harness", HARNESS, uniforms=(Uniform("int", "ow_mode"),))
     data = np.zeros((4, len(tris), 4), dtype="f4")
     data[:3, :, :3] = np.transpose(tris, (1, 0, 2))
     data[3] = extra
-    with gl_backend.ctx:
-        return _evaluate(gl_backend.ctx, vs, fs, data, (("int", "ow_mode", MODES[mode]),))
+    return glsl.evaluate(gl_backend.ctx, vs, fs, data, (("int", "ow_mode", MODES[mode]),))
 
 
 def _triangles(seed: int, count: int) -> np.ndarray:
@@ -95,34 +84,34 @@ def _contains(got: np.ndarray, want: np.ndarray) -> np.ndarray:
     return ok
 
 
-def test_paraboloid_boxes_hold_the_exact_boxes(gl_backend, tmp_path):
+def test_paraboloid_boxes_hold_the_exact_boxes(gl_backend):
     tris = _triangles(1, 300)
-    got = _run(gl_backend, tmp_path, "paraboloid", tris, np.zeros((len(tris), 4)))
+    got = _run(gl_backend, "paraboloid", tris, np.zeros((len(tris), 4)))
     want = np.array([fp.paraboloid_box(t) for t in tris])
     ok = _contains(got, want)
     assert ok.all(), (np.flatnonzero(~ok)[:5], got[~ok][:3], want[~ok][:3])
     assert (~np.isfinite(want[:, 0])).sum() < len(tris) // 2  # most triangles are seen
 
 
-def test_cube_boxes_match_numpy(gl_backend, tmp_path):
+def test_cube_boxes_match_numpy(gl_backend):
     tris = _triangles(2, 300)
     near = 1e-6 * np.abs(tris).reshape(len(tris), -1).max(axis=1)
     extra = np.zeros((len(tris), 4))
     extra[:, 3] = near
-    got = _run(gl_backend, tmp_path, "cube", tris, extra)
+    got = _run(gl_backend, "cube", tris, extra)
     want = np.array([fp.cube_box(t, z) for t, z in zip(tris, near)])
     ok = _near(got, want)
     assert ok.all(), np.flatnonzero(~ok)[:5]
 
 
-def test_inside_test_matches_numpy(gl_backend, tmp_path):
+def test_inside_test_matches_numpy(gl_backend):
     rng = np.random.default_rng(3)
     tris = np.repeat(_triangles(3, 50), 20, axis=0)
     dirs = rng.normal(size=(len(tris), 3))
     dirs /= np.linalg.norm(dirs, axis=1, keepdims=True)
     extra = np.zeros((len(tris), 4))
     extra[:, :3] = dirs
-    got = _run(gl_backend, tmp_path, "inside", tris, extra)
+    got = _run(gl_backend, "inside", tris, extra)
     normals, sign = fp.edge_planes(tris)
     want = np.array([fp.inside(d[None], n[None], s[None])[0, 0] for d, n, s in zip(dirs, normals, sign)])
     unit = normals / np.maximum(np.linalg.norm(normals, axis=2, keepdims=True), 1e-300)

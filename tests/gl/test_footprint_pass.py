@@ -214,7 +214,7 @@ def test_point_sprites_store_what_quads_store(gl_backend, monkeypatch, param, wa
     """Chunks of small triangles drawn as point sprites give the same atlas, texel for
     texel, as the same triangles drawn as quads; and points are really used (on the
     warped layer only where the warp's global stretch bound allows)."""
-    from addon.render import parameterizations
+    from addon.render import footprint_runs, parameterizations
 
     tris, samples = point_cloud()
     light, pipeline = _light(), ShadowPipeline(gl_backend)
@@ -231,7 +231,7 @@ def test_point_sprites_store_what_quads_store(gl_backend, monkeypatch, param, wa
     monkeypatch.setattr(parameterizations, "footprint_ranges", spy)
     sprites = pipeline.render(light, scene, samples, settings, keep_atlas=True)
     assert any(used) or warp != "none"
-    monkeypatch.setattr(parameterizations, "MAX_POINT_SIZE", 0)  # no chunk fits: all quads
+    monkeypatch.setattr(footprint_runs, "MAX_POINT_SIZE", 0)  # no chunk fits: all quads
     used.clear()
     quads = pipeline.render(light, scene, samples, settings, keep_atlas=True)
     assert not any(used)

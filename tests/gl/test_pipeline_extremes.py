@@ -86,6 +86,7 @@ def case(request):
     return scene, samples, lit, evaluable
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("param,warp", [("dpsm", "none"), ("cube", "none"), ("dpsm", "notw"), ("cube", "notw"),
                                         ("dpsm", "rtw"), ("cube", "rtw"), ("unfold", "none")])
 def test_extreme_case_matches_ray_caster(gl_backend, case, param, warp):

@@ -49,6 +49,7 @@ def _check_agree(gpu: S.SampleStats, host: S.SampleStats, camera: CameraSpec, li
     assert abs(gpu.cull_depth[1] - host.cull_depth[1]) <= 2.5 * width + 1e-5 * span
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("preset", ["room_omni", "room_hemi", "courtyard", "stress_light_inside_object",
                                     "stress_scale_large", "stress_scale_small", "stress_one_texel", "spot_street"])
 def test_gpu_statistics_match_the_oracle_on_presets(gl_backend, preset):

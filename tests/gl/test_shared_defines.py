@@ -7,8 +7,8 @@ import numpy as np
 import pytest
 
 from addon.core import footprint, projection
-from addon.render.moderngl_glsl import moderngl_compute_source
 from addon.render.shaders import PARAM_CODES, SHADER_DIR, SHARED_DEFINES, SLOTS, ComputeInterface
+from tests.support import glsl
 
 pytestmark = pytest.mark.gl
 
@@ -22,16 +22,15 @@ def test_no_shader_file_spells_out_a_shared_constant():
             assert not re.search(rf"#define\s+{name}\b|const\s+\w+\s+{name}\b", text), (path.name, name)
 
 
-def test_a_compiled_shader_sees_the_hosts_values(gl_backend, tmp_path):
+def test_a_compiled_shader_sees_the_hosts_values(gl_backend):
     """A compute shader built from the generated header writes every shared constant out."""
     body = "void main()\n{\n" + "".join(
         f"  imageStore(ow_out, ivec2({i}, 0), uvec4(floatBitsToUint(float({name}))));\n"
         for i, name in enumerate(_NAMES)) + "}\n"
-    (tmp_path / "shared.comp").write_text(body)
-    iface = ComputeInterface(name="shared", compute_file="shared.comp", images=(("r32ui", "ow_out"),), local_size=1)
+    iface = ComputeInterface(name="shared", compute_file=glsl.TEST_SOURCE, images=(("r32ui", "ow_out"),), local_size=1)
     ctx = gl_backend.ctx
     with ctx:
-        program = ctx.compute_shader(moderngl_compute_source(iface, tmp_path))
+        program = ctx.compute_shader(glsl.compute_source(iface, body))
         out = ctx.texture((len(_NAMES), 1), 1, dtype="u4")
         out.bind_to_image(0, read=False, write=True)
         program.run(1)

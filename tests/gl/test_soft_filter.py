@@ -77,6 +77,7 @@ def _visibility(backend, scene, samples, method, light=None, **fields):
     return result.visibility
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("method", (*METHODS, "ipsm+notw", "unfold"))
 def test_the_filter_follows_the_light(gl_backend, case, method):
     """The filtered maps' penumbra is within a few percent of the integral, and at most half
@@ -93,6 +94,7 @@ def test_the_filter_follows_the_light(gl_backend, case, method):
     assert float(np.abs(soft - truth)[penumbra].mean()) < 0.2, (name, method)
 
 
+@pytest.mark.slow
 def test_an_area_lights_spread_weighs_the_taps(gl_backend):
     """A spread of 100 degrees narrows what reaches each receiver (the oracle weighs Cycles'
     soft-box grid): the filter follows the narrowed light, nearer the integral with the
@@ -110,6 +112,7 @@ def test_an_area_lights_spread_weighs_the_taps(gl_backend):
     assert float(np.abs(soft - truth).mean()) < 0.03
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("name", ["spot", "sun"])
 @pytest.mark.parametrize("method", ["sm", "psm"])
 def test_a_spot_or_sun_map_follows_the_light(gl_backend, name, method):

@@ -8,28 +8,20 @@ from addon.core import warping as W
 from addon.core.scene import SceneBuilder
 from addon.render.backend import pack_warp_table
 from addon.render.pipeline import ShadowPipeline, ShadowSettings, ViewSamples
-from addon.render.moderngl_glsl import moderngl_sources
-from addon.render.shaders import SHADER_DIR, ProgramInterface, Uniform
+from addon.render.shaders import Uniform
+from tests.support import glsl
 
 pytestmark = pytest.mark.gl
 
 
-def _harness(gl_backend, tmp_path, body: str, inputs: np.ndarray, warp: W.Warp, slot: int) -> np.ndarray:
+def _harness(gl_backend, body: str, inputs: np.ndarray, warp: W.Warp, slot: int) -> np.ndarray:
     """Evaluate `body` per input row with the warp tables of `warp` stored at `slot`."""
-    shader_dir = tmp_path / "gpu_shaders"
-    (shader_dir / "lib").mkdir(parents=True, exist_ok=True)
-    for name in ("projection.glsl", "warp.glsl", "mapping.glsl"):
-        (shader_dir / "lib" / name).write_text((SHADER_DIR / "lib" / name).read_text())
-    (shader_dir / "fullscreen.vert").write_text((SHADER_DIR / "fullscreen.vert").read_text())
-    (shader_dir / "h.frag").write_text(
-        '#include "lib/mapping.glsl"\nvoid main() {\n'
-        "  vec4 inp = texelFetch(ow_input, ivec2(gl_FragCoord.xy), 0);\n  vec4 outp = vec4(0.0);\n"
-        + body + "\n  ow_out = outp;\n}\n")
-    iface = ProgramInterface("warp_harness", "fullscreen.vert", "h.frag", (("vec2", "ow_corner"),),
-                             (("vec4", "ow_out"),), (Uniform("int", "ow_slot"), Uniform("int", "ow_size"),
-                                                     Uniform("vec4", "ow_crop")),
-                             ("ow_input", "ow_warp_rows", "ow_warp_cols"))
-    vs, fs = moderngl_sources(iface, shader_dir)
+    vs, fs = glsl.program("warp_harness",
+                          '#include "lib/mapping.glsl"\nvoid main() {\n'
+                          "  vec4 inp = texelFetch(ow_input, ivec2(gl_FragCoord.xy), 0);\n  vec4 outp = vec4(0.0);\n"
+                          + body + "\n  ow_out = outp;\n}\n",
+                          uniforms=(Uniform("int", "ow_slot"), Uniform("int", "ow_size"), Uniform("vec4", "ow_crop")),
+                          samplers=("ow_input", "ow_warp_rows", "ow_warp_cols"))
     size = warp.size
     rows = np.zeros((6 * size, size + 1), "f4")
     cols = np.zeros((6 * size, size + 1), "f4")
@@ -75,43 +67,43 @@ def clustered_warp():
     return W.build_notw(uv, 16)
 
 
-def test_glsl_warp_matches_numpy(gl_backend, tmp_path, clustered_warp):
+def test_glsl_warp_matches_numpy(gl_backend, clustered_warp):
     """ow_warp, its slopes, the row-only warp and ow_unwarp agree with Warp in float32 precision."""
     q = np.random.default_rng(4).uniform(-0.05, 1.05, (300, 2))
-    got = _harness(gl_backend, tmp_path,
+    got = _harness(gl_backend,
                    "vec2 s; outp.xy = ow_warp(ow_warp_rows, ow_warp_cols, ow_slot, ow_size, inp.xy, s); outp.zw = s;",
                    q, clustered_warp, slot=3)
     assert np.allclose(got[:, :2], clustered_warp.forward(q), atol=2e-6)
     su, sv = clustered_warp.slopes(q)
     inside = np.all((q > 0.001) & (q < 0.999), axis=1)
     assert np.allclose(got[inside, 2], su[inside], rtol=1e-4) and np.allclose(got[inside, 3], sv[inside], rtol=1e-4)
-    rows_only = _harness(gl_backend, tmp_path, "outp.xy = ow_apply_row_warp(ow_warp_rows, ow_slot, ow_size, inp.xy);",
+    rows_only = _harness(gl_backend, "outp.xy = ow_apply_row_warp(ow_warp_rows, ow_slot, ow_size, inp.xy);",
                          q, clustered_warp, slot=3)
     expected_u = q[:, 0] + W.family_offset(clustered_warp.rows, q[:, 0], q[:, 1])
     assert np.allclose(rows_only[:, 0], expected_u, atol=2e-6)
     w = np.random.default_rng(5).uniform(0.0, 1.0, (300, 2))
-    back = _harness(gl_backend, tmp_path, "outp.xy = ow_unwarp(ow_warp_rows, ow_warp_cols, ow_slot, ow_size, inp.xy);",
+    back = _harness(gl_backend, "outp.xy = ow_unwarp(ow_warp_rows, ow_warp_cols, ow_slot, ow_size, inp.xy);",
                     w, clustered_warp, slot=3)
     assert np.allclose(back[:, :2], clustered_warp.inverse(w), atol=2e-5)
 
 
-def test_glsl_mapping_matches_numpy(gl_backend, tmp_path, clustered_warp):
+def test_glsl_mapping_matches_numpy(gl_backend, clustered_warp):
     """Crop plus warp forward, and back to projection coordinates."""
     mapping = W.LayerMapping(np.array([0.25, 0.5]), np.array([0.75, 0.75]), clustered_warp)
     xy = np.random.default_rng(6).uniform([-0.45, 0.05], [0.45, 0.45], (200, 2))
-    got = _harness(gl_backend, tmp_path,
+    got = _harness(gl_backend,
                    "float m; outp.xy = ow_map_forward(ow_warp_rows, ow_warp_cols, ow_slot, ow_size, ow_crop, inp.xy, m);"
                    " outp.zw = ow_map_inverse(ow_warp_rows, ow_warp_cols, ow_slot, ow_size, ow_crop, outp.xy);",
                    xy, clustered_warp, slot=0)
     assert np.allclose(got[:, :2], mapping.forward(xy), atol=3e-6)
     assert np.allclose(got[:, 2:], xy, atol=3e-5)
-    mag = _harness(gl_backend, tmp_path,
+    mag = _harness(gl_backend,
                    "ow_map_forward(ow_warp_rows, ow_warp_cols, ow_slot, ow_size, ow_crop, inp.xy, outp.x);",
                    xy, clustered_warp, slot=0)
     assert np.allclose(mag[:, 0], mapping.magnification(xy), rtol=1e-4)
 
 
-def test_glsl_texel_reach_matches_numpy(gl_backend, tmp_path, clustered_warp):
+def test_glsl_texel_reach_matches_numpy(gl_backend, clustered_warp):
     """ow_texel_reach on the crop-and-warp Jacobian equals LayerMapping.reach, so the
     GLSL Jacobian is oriented as numpy's (the smallest singular value alone would not
     tell a matrix from its transpose)."""
@@ -120,7 +112,7 @@ def test_glsl_texel_reach_matches_numpy(gl_backend, tmp_path, clustered_warp):
     xy = rng.uniform([-0.45, 0.05], [0.45, 0.45], (300, 2))
     angle = rng.uniform(0.0, 2.0 * np.pi, 300)
     g = np.stack([np.cos(angle), np.sin(angle)], axis=1)
-    got = _harness(gl_backend, tmp_path,
+    got = _harness(gl_backend,
                    "mat2 j; ow_map_forward_jacobian(ow_warp_rows, ow_warp_cols, ow_slot, ow_size, ow_crop, inp.xy, j);"
                    " outp.x = ow_texel_reach(j, inp.zw);",
                    np.concatenate([xy, g], axis=1), clustered_warp, slot=0)

@@ -19,19 +19,31 @@ def env_with(**values: str | os.PathLike) -> dict[str, str]:
     return env
 
 
+def run_python(*args: str | os.PathLike, env: dict[str, str] | None = None, prefix: tuple[str, ...] = (),
+               timeout: float = 600) -> subprocess.CompletedProcess:
+    """Run `python ARGS` from the repository root in a child (it may reset bpy, or own a GL
+    context) and return it finished, with its text output; `prefix` wraps the command
+    (e.g. a mount namespace). Every test's child process starts here."""
+    return subprocess.run([*prefix, sys.executable, *map(str, args)], capture_output=True, text=True,
+                          timeout=timeout, cwd=REPO, env=env)
+
+
+def start_python(*args: str | os.PathLike, env: dict[str, str] | None = None, **popen) -> subprocess.Popen:
+    """Start `python ARGS` from the repository root, its stdout and stderr piped as text,
+    for a test that reads them as they come or signals the child."""
+    return subprocess.Popen([sys.executable, *map(str, args)], cwd=REPO, env=env, text=True,
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, **popen)
+
+
 def omniwarp(*args: str | os.PathLike, env: dict[str, str] | None = None,
              prefix: tuple[str, ...] = (), timeout: float = 600) -> subprocess.CompletedProcess:
-    """Run `python -m addon ARGS` from the repository root; `prefix` wraps the command
-    (e.g. a mount namespace)."""
-    return subprocess.run([*prefix, sys.executable, "-m", "addon", *map(str, args)], capture_output=True,
-                          text=True, timeout=timeout, cwd=REPO, env=env)
+    """Run `python -m addon ARGS` from the repository root."""
+    return run_python("-m", "addon", *args, env=env, prefix=prefix, timeout=timeout)
 
 
 def python_ok(*args: str | os.PathLike, env: dict[str, str] | None = None, timeout: float = 1200) -> str:
-    """Run `python ARGS` from the repository root in a child (it may reset bpy, or own a GL
-    context), assert that it exits 0 and return its stdout."""
-    proc = subprocess.run([sys.executable, *map(str, args)], capture_output=True, text=True, timeout=timeout,
-                          cwd=REPO, env=env)
+    """`run_python`, asserting that the child exits 0; its stdout."""
+    proc = run_python(*args, env=env, timeout=timeout)
     assert proc.returncode == 0, proc.stderr[-3000:]
     return proc.stdout
 
@@ -54,8 +66,7 @@ def one_line(proc: subprocess.CompletedProcess, code: int = 2) -> str:
 
 def make_blend(path: Path, *flags: str) -> Path:
     """Write a small user .blend with tests/support/make_blend.py (a child: it resets bpy)."""
-    proc = subprocess.run([sys.executable, str(SUPPORT / "make_blend.py"), str(path), *flags],
-                          capture_output=True, text=True, timeout=600, cwd=REPO)
+    proc = run_python(SUPPORT / "make_blend.py", path, *flags)
     assert proc.returncode == 0 and path.is_file(), proc.stderr[-2000:]
     return path
 

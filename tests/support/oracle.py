@@ -1,8 +1,12 @@
 """Exact numpy ray casting: the test oracle for tiny scenes (no Cycles, no GPU)."""
 from __future__ import annotations
 
+import functools
+from typing import NamedTuple
+
 import numpy as np
 
+from addon.core.presets import build_preset
 from addon.core.scene import CameraSpec, SceneSpec
 from addon.render.pipeline import ViewSamples
 
@@ -87,6 +91,24 @@ def view_samples(scene: SceneSpec, occluders: np.ndarray | None = None):
     shape = (height, width)
     samples = ViewSamples(pos.reshape(height, width, 3), nrm.reshape(height, width, 3), hit.reshape(shape), camera)
     return samples, lit.reshape(shape), evaluable.reshape(shape)
+
+
+class PresetCase(NamedTuple):
+    """A preset built at one camera size, its view samples and the ray caster's answer: what
+    the exact and culling tests compare against (conftest.py's `preset_case`)."""
+
+    name: str
+    scene: SceneSpec
+    samples: ViewSamples
+    lit: np.ndarray  # (H, W) bool: reached by the light
+    evaluable: np.ndarray  # (H, W) bool
+
+
+@functools.cache
+def preset_case_of(name: str, size: tuple[int, int]) -> PresetCase:
+    """`PresetCase` of preset `name` at `size`, made once per test run (share, never modify)."""
+    scene = build_preset(name, size)
+    return PresetCase(name, scene, *view_samples(scene))
 
 
 def transmittance(light: np.ndarray, points: np.ndarray, tris: np.ndarray, surface) -> np.ndarray:

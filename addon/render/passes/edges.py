@@ -4,9 +4,9 @@ from __future__ import annotations
 
 from ...core.errors import BackendError
 from ..device import UniformValues
-from ..shaders import EDGE_PROGRAM
+from ..shaders import EDGE_PASSES, EDGE_PROGRAM
 
-TARGETS = ("ow_edge_x", "ow_edges")  # pass 0 writes the first, pass 1 the second
+TARGETS = ("ow_edge_x", "ow_edges")  # the along-x pass writes the first, the along-y pass the second
 
 
 def edge_uniforms(edge_pass: int, radius: int, eps: float, resolution: int) -> UniformValues:
@@ -30,9 +30,9 @@ def edge_distance(backend, radius: int, eps: float) -> None:
         for name in TARGETS:
             backend.textures[name] = device.texture(size, "R32F")
         backend.edge_targets = tuple(device.target((backend.textures[name],)) for name in TARGETS)
-    for edge_pass, target in enumerate(backend.edge_targets):
+    for edge_pass, target in zip((EDGE_PASSES["along_x"], EDGE_PASSES["along_y"]), backend.edge_targets):
         textures = dict(backend.textures)
-        if edge_pass == 0:
+        if edge_pass == EDGE_PASSES["along_x"]:
             # Pass 0 writes ow_edge_x: it samples the other target there, so no texture is
             # both read and written (a GL feedback loop), even statically.
             textures["ow_edge_x"] = backend.textures["ow_edges"]

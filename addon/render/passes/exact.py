@@ -8,6 +8,7 @@ round's bound, and `advance_lists` moves the heads on for the next round. The ma
 """
 from __future__ import annotations
 
+import logging
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -15,9 +16,25 @@ import numpy as np
 
 from ...core.errors import BackendError
 from ..device import UniformValues
-from ..shaders import ADVANCE_PROGRAM, WORK_BOX, WORK_CUT, WORK_ENTRIES, WORK_FRAGMENTS, WORK_TEXELS
+from ..shaders import ADVANCE_PROGRAM, EXACT_COUNT_KEY, EXACT_MAX_WALK, WORK_BOX, WORK_CUT, WORK_ENTRIES, WORK_FRAGMENTS, WORK_TEXELS
 from ..shaders import ProgramInterface, link_variant
 from .atlas import AtlasLayout
+
+log = logging.getLogger(__name__)
+
+# The exact pass leaves out an occluder within this share of the segment's length from the
+# sample: the receiver's own surface, and its coplanar neighbours, in float32 rounding.
+EXACT_EPS = 1e-4
+# The exact pass over a spot's or sun's map lifts each sample off its own surface, towards
+# the light, by this share of its distance from the light-centred origin (lib/exact_walk.glsl's
+# ow_exact_lift): about three times float32's rounding of the sample (6e-8), far below a
+# pixel. On sun_field 5e-8 still left 333 samples of a face parallel to the sun shadowed by
+# their own box, 1e-7 to 2e-7 none; from 5e-7 on, the lift moves shadow edges on the
+# ground past Cycles' samples (1 pixel at 5e-7, 5 at 1e-6, 59 at 1e-5).
+EXACT_LIFT = 2e-7
+# Rounds of the exact pass after the first (_finish_lists): the bound doubles each round, so
+# 16 of them walk lists of up to 4096 * 2^17 entries, far more than any frame's samples.
+EXACT_MAX_ROUNDS = 16
 
 WORK_KEYS = ("cut", "entries", "fragments", "moved", "rounds")
 
@@ -138,8 +155,44 @@ def advance_lists(backend, steps: int, layout: AtlasLayout) -> dict[int, tuple[i
     return boxes
 
 
+def map_uniforms(tile: int, count_work: bool) -> UniformValues:
+    """The exact footprint pass's own uniforms over one tile: its lists are strip `tile`
+    (link_samples), its walks start at the first round's bound, and a measurement frame
+    (`count_work`) counts the entries and fragments walked."""
+    return {"ow_exact_tile": tile, "ow_exact_eps": EXACT_EPS, "ow_exact_bound": EXACT_MAX_WALK,
+            EXACT_COUNT_KEY: int(count_work)}
+
+
 def free_lists(backend) -> None:
     """Free the lists (a new size, or the backend's release)."""
     if backend.exact is not None:
         backend.device.free(*backend.exact.all())
         backend.exact = None
+
+
+def finish_lists(backend, layout: AtlasLayout, passes: list) -> None:
+    """Later rounds of the exact pass until every list entry met every triangle over its
+    texel (issue 26). A round whose walks stopped at their bound moves each list's head past
+    the entries walked (backend.advance_lists) and draws the layers again, scissored to the
+    texels whose lists go on, with twice the bound; so a texel of n samples takes about
+    log2(n / EXACT_MAX_WALK) + 1 rounds, each entry is walked once per triangle, and a frame
+    whose lists all fit (every ordinary one) pays one read of the work counters, which
+    also folds the frame's work for `read_hits`."""
+    bound = EXACT_MAX_WALK
+    for _ in range(EXACT_MAX_ROUNDS):
+        if not exact_round(backend):
+            return
+        remaining = advance_lists(backend, bound, layout)
+        bound *= 2
+        for tile, draws, uniforms, scissor in passes:
+            box = remaining.get(tile)
+            if box is not None:
+                clip = box if scissor is None else intersect(box, scissor)
+                backend.draw_footprints(tile, draws, {**uniforms, "ow_exact_bound": bound}, scissor=clip, exact=True)
+    if exact_round(backend):  # the last round's counters
+        log.warning("exact pass: lists still unfinished after %d rounds", EXACT_MAX_ROUNDS)
+
+
+def intersect(a: tuple[int, int, int, int], b: tuple[int, int, int, int]) -> tuple[int, int, int, int]:
+    """The common part of two texel boxes (x0, y0, x1, y1); empty ones have x1 <= x0."""
+    return max(a[0], b[0]), max(a[1], b[1]), min(a[2], b[2]), min(a[3], b[3])

@@ -76,19 +76,18 @@ def pack_warp_table(table: np.ndarray | None) -> np.ndarray:
 def set_warp_tables(backend, rows: np.ndarray | None, cols: np.ndarray | None) -> None:
     """Warp offset tables, (6 * A, A + 1) float32 each (slot-major), or None for no warp,
     uploaded as `pack_warp_table` lays them out (RGBA32F, A x 6A). "No warp" is one zero
-    texel, made once and bound as both."""
+    texel, made once and bound as both; each table's own texture is kept for the next
+    warped frame to write in place (where the device can)."""
     device = backend.device
+    if backend.no_warp is None:
+        backend.no_warp = device.texture((1, 1), "RGBA32F", pack_warp_table(None))
     for name, table in (("ow_warp_rows", rows), ("ow_warp_cols", cols)):
-        old = backend.textures.get(name)
-        old = None if old is backend.no_warp else old  # never written over: both tables share it
         if table is None:
-            if backend.no_warp is None:
-                backend.no_warp = device.texture((1, 1), "RGBA32F", pack_warp_table(None))
-            device.free(old)
             backend.textures[name] = backend.no_warp
             continue
         data = pack_warp_table(table)
-        backend.textures[name] = device.upload(old, (data.shape[1], data.shape[0]), "RGBA32F", data)
+        held = device.upload(backend.warp_tables.get(name), (data.shape[1], data.shape[0]), "RGBA32F", data)
+        backend.textures[name] = backend.warp_tables[name] = held
 
 
 def scatter_counts(backend, size: int, tiles: int, uniforms: UniformValues) -> np.ndarray:

@@ -1,0 +1,36 @@
+"""Every program the backends build: the base interfaces and each variant a frame can ask
+for, so that tests (and Blender's create-infos) compile all of them up front."""
+from __future__ import annotations
+
+from .constants import SCATTER_MODES
+from .interfaces import (ADVANCE_PROGRAM, BARRIER_PROGRAM, DEPTH_PROGRAM, EDGE_PROGRAM, FOOTPRINT_PROGRAM,
+                         GBUFFER_PROGRAM, GBUFFER_SAMPLES_PROGRAM, OVERLAY_PROGRAM, PREVIEW_PROGRAM,
+                         RAY_TABLE_PROGRAM, SAMPLE_STATS_PROGRAM, SCATTER_PROGRAM, SHADOW_TEST_PROGRAM)
+from .variants import (VARIANT_BASES, EXACT_DEFINE, FIXED_KIND_NAMES, POINTS_DEFINE, is_footprint,
+                       is_shadow_test, link_kind_variant, scatter_mode_variant, base_variant, alpha_of, exact_of,
+                       exact_soft_of, soft_of, veil_of)
+
+DEPTH_PLAIN_PROGRAM = base_variant(DEPTH_PROGRAM.name, False, None)
+SHADOW_TEST_PLAIN_PROGRAM = base_variant(SHADOW_TEST_PROGRAM.name, False, None)
+VARIANT_PROGRAMS = tuple(base_variant(base, warped, kind) for base in VARIANT_BASES for warped in (True, False)
+                         for kind in (None, *FIXED_KIND_NAMES)) + tuple(
+    base_variant(FOOTPRINT_PROGRAM.name, warped, kind, True) for warped in (True, False) for kind in FIXED_KIND_NAMES)
+
+_FOOTPRINTS = tuple({iface.name: iface for iface in (FOOTPRINT_PROGRAM, *VARIANT_PROGRAMS)
+                     if is_footprint(iface)}.values())
+_SHADOW_TESTS = tuple(iface for iface in VARIANT_PROGRAMS if is_shadow_test(iface))
+EXACT_PROGRAMS = tuple(exact_of(iface, count) for iface in _FOOTPRINTS for count in (False, True))
+ALPHA_PROGRAMS = tuple(alpha_of(iface) for iface in _FOOTPRINTS) + tuple(
+    exact_of(alpha_of(iface), count) for iface in _FOOTPRINTS for count in (False, True))
+GBUFFER_ALPHA_PROGRAM = alpha_of(GBUFFER_PROGRAM)
+VEIL_PROGRAMS = tuple(veil_of(iface) for iface in _SHADOW_TESTS)
+SOFT_PROGRAMS = tuple(soft_of(iface) for iface in (*_SHADOW_TESTS, *VEIL_PROGRAMS))
+EXACT_SOFT_PROGRAMS = tuple(exact_soft_of(iface) for iface in (*EXACT_PROGRAMS, *ALPHA_PROGRAMS, *VARIANT_PROGRAMS)
+                            if (EXACT_DEFINE in iface.defines and POINTS_DEFINE not in iface.defines)
+                            or is_shadow_test(iface))
+PROGRAMS = (*VARIANT_PROGRAMS, *EXACT_PROGRAMS, *ALPHA_PROGRAMS, *VEIL_PROGRAMS, *SOFT_PROGRAMS,
+            *EXACT_SOFT_PROGRAMS, GBUFFER_ALPHA_PROGRAM, RAY_TABLE_PROGRAM, GBUFFER_PROGRAM,
+            GBUFFER_SAMPLES_PROGRAM, PREVIEW_PROGRAM, OVERLAY_PROGRAM, EDGE_PROGRAM)
+COMPUTE_PROGRAMS = (SCATTER_PROGRAM, SAMPLE_STATS_PROGRAM, BARRIER_PROGRAM, ADVANCE_PROGRAM,
+                    *(scatter_mode_variant(mode, kind) for mode in SCATTER_MODES for kind in (None, *FIXED_KIND_NAMES)),
+                    *(link_kind_variant(kind) for kind in (None, *FIXED_KIND_NAMES)))

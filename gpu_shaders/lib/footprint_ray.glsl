@@ -1,0 +1,45 @@
+// The footprint depth pass's coverage and depth at the texel centre (footprint.frag,
+// footprint_alpha.frag). The centre goes back through the warp and crop to its own ray:
+// read from the layer's ray table (ray_table.frag, the exact inverse) when warped, computed
+// when not; the triangle covers the texel when that ray lies inside its three edge planes
+// (lib/footprint.glsl's inside test), and the depth is where the ray meets the triangle's
+// plane. Nothing is tessellated, so this holds however large the triangle and however
+// curved its image.
+#include "lib/projection.glsl"
+#include "lib/mapping.glsl"
+
+#ifndef OW_FIXED_KIND
+// A spot's or sun's map: as in depth.frag, the map's own depth; an inverted light (PSM)
+// keeps the farthest.
+float ow_projective_z01()
+{
+  return (ow_map_inverted != 0) ? 1.0 - gl_FragCoord.z : gl_FragCoord.z;
+}
+#endif
+
+// The light-centred direction of this texel's centre.
+vec3 ow_texel_ray()
+{
+  vec2 uv = (gl_FragCoord.xy - ow_tile_origin) / ow_resolution;
+#ifdef OW_NO_WARP
+  vec2 xy = ow_map_inverse(ow_warp_rows, ow_warp_cols, ow_layer_slot, ow_warp_size, ow_crop, uv);
+#else
+  vec2 xy = (ow_warp_size > 0) ? texelFetch(ow_ray_table, ivec2(gl_FragCoord.xy), 0).xy
+                               : ow_map_inverse(ow_warp_rows, ow_warp_cols, ow_layer_slot, 0, ow_crop, uv);
+#endif
+  return transpose(ow_layer_rot) * ow_unproject(ow_layer_kind, xy);
+}
+
+// The normalised depth where the ray `dir` meets the triangle; the fragment is discarded
+// where the ray passes beside it.
+float ow_footprint_depth(vec3 dir)
+{
+  if (dot(dir, v_edge0) < 0.0 || dot(dir, v_edge1) < 0.0 || dot(dir, v_edge2) < 0.0) {
+    discard;  // the texel's ray passes beside the triangle
+  }
+  float t = v_plane.w / dot(v_plane.xyz, dir);
+  if (!(t > 0.0)) {
+    discard;  // grazing, in float32 rounding
+  }
+  return clamp((t - ow_near) / (ow_far - ow_near), 0.0, 1.0);
+}
