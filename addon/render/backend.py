@@ -15,12 +15,16 @@ from typing import Any
 import numpy as np
 
 from . import passes
-from .device import FULLSCREEN_CORNERS, Device, Rect, Target, UniformValues  # noqa: F401  (re-exported)
+from .device import FULLSCREEN_CORNERS, Device, Rect, Target, UniformValues
 from .passes.alpha import AlphaStore, Veil
-from .passes.atlas import Atlas, AtlasLayout  # noqa: F401  (AtlasLayout re-exported)
+from .passes.atlas import Atlas, AtlasLayout
 from .passes.exact import ExactLists
-from .passes.footprints import FootprintDraw, corner_capacity, corner_indices  # noqa: F401  (re-exported)
-from .passes.samples import SampleTargets, pack_warp_table  # noqa: F401  (pack_warp_table re-exported)
+from .passes.footprints import FootprintDraw, corner_capacity, corner_indices
+from .passes.samples import SampleTargets, pack_warp_table
+
+# What the pipeline, the parameterizations, the viewport and the tests import from here.
+__all__ = ["FULLSCREEN_CORNERS", "AtlasLayout", "FootprintDraw", "Rect", "ShadowBackend", "UniformValues",
+           "corner_capacity", "corner_indices", "pack_warp_table"]
 
 
 def _on_device(method):

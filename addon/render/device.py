@@ -150,7 +150,8 @@ class Device(ABC):
         """Block until the GPU has finished every submitted command (`target`: one it may read to wait)."""
 
     def timer(self) -> "GPUTimer | None":
-        """A GPU timer query, or None where the API has none (Blender's `gpu`)."""
+        """A GPU timer query, or None where the API has none (Blender's `gpu`). One at a time:
+        a device may hand out the same query again."""
         return None
 
     @abstractmethod

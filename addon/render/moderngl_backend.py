@@ -16,7 +16,8 @@ import numpy as np
 from ..core import interrupt
 from ..core.errors import BackendError
 from .backend import ShadowBackend
-from .device import COMPONENTS, FULLSCREEN_CORNERS, Device, Geometry, GPUTimer, Program, Rect, Target, UniformValues
+from .device import (COMPONENTS, FULLSCREEN, FULLSCREEN_CORNERS, Device, Geometry, GPUTimer, Program, Rect, Target,
+                     UniformValues)
 from .moderngl_glsl import moderngl_compute_source, moderngl_sources
 from .passes.footprints import FOOTPRINT_VERTICES, corner_capacity, corner_indices
 from .shaders import ComputeInterface, ProgramInterface
@@ -38,19 +39,28 @@ def _uniform_bytes(value: object, glsl_type: str = "") -> bytes | None:
 
 
 class _Timer(GPUTimer):
-    def __init__(self, query) -> None:
+    """A time-elapsed query over the work submitted inside `with`, its context bound there."""
+
+    def __init__(self, device: "ModernGLDevice", query) -> None:
+        self._device = device
         self._query = query
+        self._binding = contextlib.ExitStack()
 
     def __enter__(self) -> "_Timer":
+        self._binding.enter_context(self._device.bound())
         self._query.__enter__()
         return self
 
     def __exit__(self, *exc) -> None:
-        self._query.__exit__(*exc)
+        try:
+            self._query.__exit__(*exc)
+        finally:
+            self._binding.close()
 
     @property
     def elapsed_ms(self) -> float:
-        return self._query.elapsed * 1e-6  # nanoseconds; reading it waits for the GPU
+        with self._device.bound():
+            return self._query.elapsed * 1e-6  # nanoseconds; reading it waits for the GPU
 
 
 class ModernGLDevice(Device):
@@ -77,6 +87,7 @@ class ModernGLDevice(Device):
         self._clear_fbos: dict[int, Any] = {}  # id(R32UI image) -> framebuffer that clears it
         self._corners = None  # the footprint pass's corner buffer
         self._corner_triangles = 0
+        self._query = None  # the timer's query (timer)
         with self.bound():
             self._fullscreen = self.ctx.buffer(_FULLSCREEN.tobytes())
 
@@ -242,7 +253,7 @@ class ModernGLDevice(Device):
                 fbo.scissor = None  # the whole framebuffer again
 
     def draw(self, iface: ProgramInterface, uniforms: UniformValues, textures: dict[str, Any],
-             geometry: Geometry = Geometry("fullscreen"), images: dict[str, Any] | None = None) -> None:
+             geometry: Geometry = FULLSCREEN, images: dict[str, Any] | None = None) -> None:
         with self.bound():
             prog = self._use(iface, uniforms, textures, images)
             if geometry.kind == "vertices":
@@ -307,8 +318,11 @@ class ModernGLDevice(Device):
             self.ctx.finish()
 
     def timer(self) -> GPUTimer:
-        with self.bound():
-            return _Timer(self.ctx.query(time=True))
+        # One query, made once and reused: moderngl cannot free a query before the context.
+        if self._query is None:
+            with self.bound():
+                self._query = self.ctx.query(time=True)
+        return _Timer(self, self._query)
 
     def release(self) -> None:
         with self.bound():

@@ -16,8 +16,8 @@ import numpy as np
 
 from ...core.errors import BackendError
 from ..device import UniformValues
-from ..shaders import ADVANCE_PROGRAM, EXACT_COUNT_KEY, EXACT_MAX_WALK, WORK_BOX, WORK_CUT, WORK_ENTRIES, WORK_FRAGMENTS, WORK_TEXELS
-from ..shaders import ProgramInterface, link_variant
+from ..shaders import (ADVANCE_PROGRAM, EXACT_COUNT_KEY, EXACT_MAX_WALK, WORK_BOX, WORK_CUT, WORK_ENTRIES,
+                       WORK_FRAGMENTS, WORK_TEXELS, ProgramInterface, link_variant)
 from .atlas import AtlasLayout
 
 log = logging.getLogger(__name__)
