@@ -90,8 +90,13 @@ def camera_from_reference(ref: ReferenceData) -> CameraSpec:
 
 
 def samples_from_reference(ref: ReferenceData) -> ViewSamples:
-    return ViewSamples(ref.position.astype(np.float64), ref.normal.astype(np.float64), ref.hit,
-                       camera_from_reference(ref))
+    """The reference's view samples as read-only copies: the pipeline keeps read-only
+    samples on the GPU between frames (frame.resident_samples_key), so a row's frames
+    upload them once."""
+    arrays = [ref.position.astype(np.float64), ref.normal.astype(np.float64), np.array(ref.hit, dtype=bool)]
+    for array in arrays:
+        array.flags.writeable = False
+    return ViewSamples(*arrays, camera_from_reference(ref))
 
 
 class Progress:

@@ -201,6 +201,39 @@ class ViewSamples:
         return rounded.astype(np.float32)
 
 
+def _frozen(array: np.ndarray) -> bool:
+    """Whether an array's data cannot change in place: it and every array it views are read-only."""
+    while isinstance(array, np.ndarray):
+        if array.flags.writeable:
+            return False
+        array = array.base
+    return True
+
+
+@dataclass(frozen=True, eq=False)
+class ResidentSamples:
+    """What uploaded samples were: these very arrays (held, so no other array can take their
+    place), centred on this light position. Two keys match by identity, not by value."""
+
+    arrays: tuple[np.ndarray | None, ...]
+    light: bytes
+
+    def matches(self, other: object) -> bool:
+        return (isinstance(other, ResidentSamples) and self.light == other.light
+                and all(a is b for a, b in zip(self.arrays, other.arrays)))
+
+
+def resident_samples_key(samples: ViewSamples, light: LightSpec) -> ResidentSamples | None:
+    """The key under which a frame's uploaded samples stay on the GPU for the next frame;
+    None when an array could change in place (it is writable, or views a writable one),
+    so the samples must be uploaded every frame. `compare` hands its frames read-only
+    samples (`samples_from_reference`), so a row uploads them once."""
+    arrays = (samples.positions, samples.normals, samples.hit, samples.importance)
+    if not all(a is None or _frozen(a) for a in arrays):
+        return None
+    return ResidentSamples(arrays, np.asarray(light.position, dtype=np.float64).tobytes())
+
+
 @dataclass
 class GBufferSamples:
     """View samples that stay on the GPU: a Blender G-buffer's position and normal

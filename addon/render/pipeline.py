@@ -67,6 +67,7 @@ from .frame import (
     ViewSamples,
     analysis_size_for,
     check_light_fits,
+    resident_samples_key,
     settings_for,
 )
 from .footprint_runs import footprint_draws, region_uniforms
@@ -308,8 +309,14 @@ class ShadowPipeline:
         return reduction.stats(camera, shape, hist)
 
     def _upload_samples(self, light: LightSpec, samples: ViewSamples | GBufferSamples) -> None:
+        """Put the frame's samples on the GPU, light-centred. A G-buffer is used where it is;
+        arrays are uploaded, unless the backend already holds these very samples for this
+        light (`resident_samples_key`): then nothing travels."""
         if isinstance(samples, GBufferSamples):
             self.backend.samples_from_gbuffer(samples.textures, light.position)
+            return
+        key = resident_samples_key(samples, light)
+        if key is not None and key.matches(self.backend.samples.source):
             return
         height, width = samples.hit.shape
         # GL textures start at the bottom row and the samples at the top, so the arrays
@@ -326,6 +333,7 @@ class ShadowPipeline:
         pos[~hit] = 0.0
         nrm[~hit] = 0.0
         self.backend.upload_samples(pos, nrm)
+        self.backend.samples.source = key
 
     def _shadow_test(self, light: LightSpec, settings: ShadowSettings, plan: Plan, geometry: PreparedGeometry,
                      layout: AtlasLayout, tile_of_slot: dict[int, int], mappings: dict[int, LayerMapping],

@@ -22,6 +22,9 @@ class SampleTargets:
     test: tuple[Any, Target] | None = None  # (RG32F texture, its target)
     counts: dict[int, Any] = field(default_factory=dict)  # count-map size -> strip of its tiles
     stats: Any = None  # R32UI row of the planning statistics
+    # What the sample textures hold, as the uploader named it (ShadowPipeline's key of a
+    # read-only ViewSamples and its light); None after any other upload or a G-buffer.
+    source: Any = None
 
     def held(self) -> list[Any]:
         """Every GPU object held here, targets before their textures."""
@@ -29,8 +32,10 @@ class SampleTargets:
 
 
 def set_size(backend, size: tuple[int, int]) -> None:
-    """Samples of `size` from now on: the shadow test's target follows them."""
+    """New samples of `size` from now on (their source unnamed): the shadow test's target
+    follows them."""
     held = backend.samples
+    held.source = None
     if held.size != size:
         device = backend.device
         if held.test is not None:
