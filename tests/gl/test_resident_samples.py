@@ -32,24 +32,24 @@ def case():
     return scene, samples, evaluable
 
 
-def _uploads(pipeline, monkeypatch) -> list[int]:
+def _counted(gl_backend, case, monkeypatch):
+    """A pipeline whose backend counts its sample uploads, the case's samples read-only,
+    and its triangles."""
+    scene, samples, _ = case
     calls: list[int] = []
-    real = pipeline.backend.upload_samples
+    real = gl_backend.upload_samples
 
     def spy(positions, normals):
         calls.append(1)
         return real(positions, normals)
 
-    monkeypatch.setattr(pipeline.backend, "upload_samples", spy)
-    return calls
+    monkeypatch.setattr(gl_backend, "upload_samples", spy)
+    return ShadowPipeline(gl_backend), calls, _frozen(samples), scene.world_triangles()
 
 
 def test_read_only_samples_upload_once_and_shadow_alike(gl_backend, case, monkeypatch):
     scene, samples, _ = case
-    pipeline = ShadowPipeline(gl_backend)
-    calls = _uploads(pipeline, monkeypatch)
-    frozen = _frozen(samples)
-    tris = scene.world_triangles()
+    pipeline, calls, frozen, tris = _counted(gl_backend, case, monkeypatch)
     first = pipeline.render(scene.light, tris, frozen, SETTINGS)
     later = [pipeline.render(scene.light, tris, frozen, SETTINGS) for _ in range(3)]
     assert len(calls) == 1
@@ -63,10 +63,7 @@ def test_read_only_samples_upload_once_and_shadow_alike(gl_backend, case, monkey
 
 def test_a_moved_light_or_other_samples_upload_again(gl_backend, case, monkeypatch):
     scene, samples, _ = case
-    pipeline = ShadowPipeline(gl_backend)
-    calls = _uploads(pipeline, monkeypatch)
-    frozen = _frozen(samples)
-    tris = scene.world_triangles()
+    pipeline, calls, frozen, tris = _counted(gl_backend, case, monkeypatch)
     pipeline.render(scene.light, tris, frozen, SETTINGS)
     moved_matrix = scene.light.matrix_world.copy()
     moved_matrix[:3, 3] += (0.05, -0.03, 0.02)
