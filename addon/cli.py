@@ -357,6 +357,7 @@ def cmd_compare(args: argparse.Namespace) -> int:
     varying = [key for key in ("frame", "light", "camera") if len({str(row.get(key)) for row in rows}) > 1]
     for row in rows:
         passes = f"  passes {row['passes']}" if "passes" in row else ""
+        passes += f"  GPU {row['gpu_ms']['total']:7.2f} ms" if "gpu_ms" in row else ""
         shot = "".join(f" {key} {row[key]}" for key in varying if key in row)
         _result(args, f"{row['preset']:12s}{shot} {row_label(row):6s} {row.get('resolution', ''):>5}  "
                       f"error {row['error_pct']:6.3f} %  total {row['time_ms']['total']:8.1f} ms{passes}")

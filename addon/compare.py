@@ -127,6 +127,13 @@ def _median_times(frames: Sequence[dict[str, float]]) -> dict[str, float]:
     return {k: float(statistics.median(f.get(k, 0.0) for f in frames)) for k in keys}
 
 
+def _median_gpu_times(frames: Sequence[dict[str, float] | None]) -> dict[str, float] | None:
+    """Median GPU ms per stage (and total) of frames timed by GPU queries; None unless every frame was."""
+    if not frames or any(f is None for f in frames):
+        return None
+    return {k: float(statistics.median(f[k] for f in frames)) for k in frames[0]}
+
+
 # The one method that does not follow see-through materials: its host-built stream has no UVs.
 UNFOLD_ALPHA_NOTE = "unfold draws see-through materials opaque (its tessellated stream carries no UVs)"
 HARD_SIZED_NOTE = ("the light has a size, but this method's shadows are hard (render/soft.py softens "
@@ -156,7 +163,10 @@ def run_row(pipeline: ShadowPipeline, ref: ReferenceData, preset: str, method: s
     scene = scene if scene is not None else resident_scene(ref)
     pipeline.render(light, scene, samples, settings)  # warm-up: shader compile, allocation, upload
     count = max(1, options.frames)
-    frames = [pipeline.render(light, scene, samples, settings, keep_atlas=(i == count - 1)) for i in range(count)]
+    # Measuring frames: each stage waits for its GPU work, so its wall time holds it. A
+    # frame's visibility is read after it (at the latest when the next frame starts).
+    frames = [pipeline.render(light, scene, samples, settings, keep_atlas=(i == count - 1), sync_stages=True)
+              for i in range(count)]
     last = frames[-1]
     counts = count_statistics(pipeline, light, settings, last, samples)  # measurement, not timed
     ref_lit = metrics.reference_visibility(ref.shadowed, ref.unshadowed)
@@ -170,6 +180,7 @@ def run_row(pipeline: ShadowPipeline, ref: ReferenceData, preset: str, method: s
         len(frames), ref.resolution,
         **(_list_columns(pipeline, light, scene, samples, settings, counts) if settings.exact else {}),
         resolution=resolution,
+        gpu_ms=_median_gpu_times([f.gpu_ms for f in frames]),
         # Mean |visibility - reference| in %: equal to error_pct for binary methods without
         # fractional pixels; the antialiased rows' and see-through shadows' fractions show here.
         **judged.columns(),

@@ -50,6 +50,10 @@ def markdown_table(rows: Sequence[Row]) -> str:
     head = ("| preset |" + "".join(f" {key} |" for key in shot) + " method | res | error % | false shadow % | false lit % | soft error % | evaluated px | total ms | "
             "prepare ms | analysis ms | maps ms | test ms | passes | triangles | tess. added | texels | "
             "max count before | max count after | texel use |")
+    # Rows timed by GPU queries: the GPU's own ms per frame beside the wall time.
+    gpu = any("gpu_ms" in r for r in rows)
+    if gpu:
+        head = head.replace(" total ms |", " total ms | GPU ms |", 1)
     # Scenes with see-through materials: the fractional pixels and their soft error.
     fractional = any("fractional_pixels" in r for r in rows)
     if fractional:
@@ -64,6 +68,7 @@ def markdown_table(rows: Sequence[Row]) -> str:
         cells = [r["preset"], *(_cell(r.get(key)) for key in shot), row_label(r), _cell(r.get("resolution")), f"{r['error_pct']:.3f}",
                  f"{r['false_shadow_pct']:.3f}", f"{r['false_lit_pct']:.3f}",
                  f"{r.get('soft_error_pct', r['error_pct']):.3f}", str(r["evaluated_pixels"]), f"{t['total']:.1f}",
+                 *([_cell(r.get("gpu_ms", {}).get("total"), ".2f")] if gpu else []),
                  *(_cell(t.get(stage), ".1f") for stage in ("prepare", "analysis", "shadow_maps", "shadow_test")),
                  _cell(r.get("passes")), _cell(r.get("triangles_drawn")), _cell(r.get("tessellated_triangles")),
                  _cell(r.get("texels")), _cell(r.get("max_count_before"), ".0f"),
@@ -150,7 +155,8 @@ def _point_label(row: Row) -> str:
 
 
 def write_plot(rows: Sequence[dict], path: Path) -> bool:
-    """Error % against total ms per frame, one colour per preset, a marker per method.
+    """Error % against total ms per frame (plot_time_ms: GPU time where measured), one colour
+    per preset, a marker per method.
 
     Returns False, with one log line, where matplotlib is missing (a bare GPU machine
     runs `scripts/gpu_bench.sh` with numpy and moderngl only): the table still counts.
@@ -176,13 +182,15 @@ def write_plot(rows: Sequence[dict], path: Path) -> bool:
             sel = [r for r in rows if r["preset"] == preset and row_label(r) == method]
             if not sel:
                 continue
-            xs = [r["time_ms"]["total"] for r in sel]
+            xs = [plot_time_ms(r) for r in sel]
             ys = [r["error_pct"] for r in sel]
             pts += list(zip(xs, ys))
             ax.scatter(xs, ys, color=colour, marker=markers[mi % len(markers)], s=40,
                        label=f"{preset} / {method}")
+            mixed = any("gpu_ms" in r for r in rows)
             for r, x, y in zip(sel, xs, ys):
-                ax.annotate(_point_label(r), (x, y), textcoords="offset points", xytext=(4, 3), fontsize=7)
+                wall = " wall" if mixed and "gpu_ms" not in r else ""
+                ax.annotate(_point_label(r) + wall, (x, y), textcoords="offset points", xytext=(4, 3), fontsize=7)
         front = _pareto(pts)
         if len(front) > 1:
             ax.plot(*zip(*front), color=colour, linewidth=1, alpha=0.6)
@@ -190,7 +198,14 @@ def write_plot(rows: Sequence[dict], path: Path) -> bool:
     errors = [r["error_pct"] for r in rows if r["error_pct"] > 0]
     if errors and max(errors) / min(errors) > 30.0:
         ax.set_yscale("log")  # e.g. a uniform sun map at several % next to warped maps at 0.02 %
-    ax.set_xlabel("time per frame, ms (log; median, all stages)")
+    timed = sum("gpu_ms" in r for r in rows)
+    if timed == len(rows):
+        ax.set_xlabel("GPU time per frame, ms (log; median, all stages; timer queries)")
+    elif timed:
+        ax.set_xlabel("time per frame, ms (log; median, all stages): GPU time (timer queries) where "
+                      "measured, wall time for the rows marked 'wall'")
+    else:
+        ax.set_xlabel("time per frame, ms (log; median, all stages; wall)")
     ax.set_ylabel("error % of evaluated pixels vs Cycles")
     ax.set_title("Shadow error against time (lines: Pareto front per preset)")
     ax.grid(True, which="both", alpha=0.3)
@@ -200,6 +215,13 @@ def write_plot(rows: Sequence[dict], path: Path) -> bool:
     fig.savefig(path)
     plt.close(fig)
     return True
+
+
+def plot_time_ms(row: Row) -> float:
+    """A row's time on the Pareto plot: the GPU's total where timer queries measured it (the
+    work itself, not the host's waits), the wall total otherwise."""
+    gpu = row.get("gpu_ms")
+    return float(gpu["total"]) if gpu else float(row["time_ms"]["total"])
 
 
 def write_frame_plot(rows: Sequence[dict], path: Path) -> bool:

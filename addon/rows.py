@@ -28,6 +28,9 @@ class Row(TypedDict, total=False):
     false_lit_pct: float
     evaluated_pixels: int
     time_ms: dict[str, float]  # medians per stage; "total" always
+    # GPU ms per stage from timer queries (medians; "total" their sum), where the backend
+    # has them (moderngl): the work itself, without the host's waits and round trips
+    gpu_ms: dict[str, float]
     renderer: str
     backend: str
     frames: int  # timed repeats (--repeats), not a shot's frames
@@ -132,11 +135,11 @@ def with_shot(row: Row, **shot: Any) -> Row:
 
 
 def flatten_row(row: dict) -> dict:
-    """One CSV line: time_ms.* as their own columns, other lists and dicts as JSON text."""
+    """One CSV line: time_ms.* and gpu_ms.* as their own columns, other lists and dicts as JSON text."""
     flat: dict[str, Any] = {}
     for key, value in row.items():
-        if key == "time_ms":
-            flat.update({f"time_ms.{k}": v for k, v in value.items()})
+        if key in ("time_ms", "gpu_ms"):
+            flat.update({f"{key}.{k}": v for k, v in value.items()})
         elif isinstance(value, (dict, list, tuple)):
             flat[key] = json.dumps(value, sort_keys=True)
         else:

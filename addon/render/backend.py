@@ -10,6 +10,7 @@ pipeline hands it numpy arrays and uniform values keyed by the names in
 from __future__ import annotations
 
 import functools
+import weakref
 from typing import Any
 
 import numpy as np
@@ -61,6 +62,7 @@ class ShadowBackend:
         self.no_warp = None  # the one zero texel bound as both warp tables without a warp
         self.warp_tables: dict[str, Any] = {}  # each table's own texture, kept between warped frames
         self._released = False
+        self._unread: list[weakref.ref] = []  # frame results whose visibility is still on the GPU
         with device.bound():
             passes.samples.set_warp_tables(self, None, None)
             # Read only by warped footprint draws, after build_ray_table replaced it.
@@ -146,6 +148,8 @@ class ShadowBackend:
     advance_lists = _on_device(passes.exact.advance_lists)
     edge_distance = _on_device(passes.edges.edge_distance)
     shadow_test = _on_device(passes.shadow_test.shadow_test)
+    run_shadow_test = _on_device(passes.shadow_test.run_shadow_test)
+    read_shadow_test = _on_device(passes.shadow_test.read_shadow_test)
 
     def samples_from_gbuffer(self, textures: dict, light_position: np.ndarray) -> None:
         """Make a Blender G-buffer's textures the view samples (frame.GBufferSamples); only
@@ -158,10 +162,29 @@ class ShadowBackend:
         """Block until the GPU has finished all submitted work (for timing)."""
         self.device.finish(self.atlas.target if self.atlas is not None else None)
 
+    def hold_unread(self, result) -> None:
+        """Keep track of a frame result (frame.FrameResult) whose visibility is still on the GPU."""
+        self._unread.append(weakref.ref(result))
+
+    def settle(self) -> None:
+        """Read every frame result still held and unread: call before work that overwrites
+        what they read (the next frame, `release`)."""
+        unread, self._unread = self._unread, []
+        for ref in unread:
+            result = ref()
+            if result is not None and result.pending:
+                result.resolve()
+
+    @property
+    def released(self) -> bool:
+        """Whether `release` ran: the backend holds nothing any more."""
+        return self._released
+
     def release(self) -> None:
         """Free every GPU object; the backend is unusable afterwards."""
         if self._released:
             return
+        self.settle()
         device = self.device
         with device.bound():
             # Drain the queue first: a release that an interrupt brings in the middle of a

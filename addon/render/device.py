@@ -149,9 +149,10 @@ class Device(ABC):
     def finish(self, target: Target | None = None) -> None:
         """Block until the GPU has finished every submitted command (`target`: one it may read to wait)."""
 
-    def timer(self) -> "GPUTimer | None":
-        """A GPU timer query, or None where the API has none (Blender's `gpu`). One at a time:
-        a device may hand out the same query again."""
+    def timer(self, key: str = "frame") -> "GPUTimer | None":
+        """The GPU timer query named `key`, or None where the API has none (Blender's `gpu`).
+        Each key has one query, made on first use and handed out again: read a key's
+        `elapsed_ms` before timing with it again. Timers do not nest."""
         return None
 
     @abstractmethod

@@ -289,11 +289,16 @@ class PreparedGeometry:
         return self.skipped_at_upload + (self._counts()[1] if self.measure is not None else 0)
 
 
+# What a frame leaves on the GPU until it is read: (visibility, flags, GPU ms per stage or None).
+FrameReader = Callable[[], tuple[np.ndarray, np.ndarray, "dict[str, float] | None"]]
+
+
 @dataclass
 class FrameResult:
-    visibility: np.ndarray  # (H, W) float32, 1 lit / 0 shadowed, row 0 at the top
-    flags: np.ndarray  # (H, W) int8: 0 tested, 1 no geometry, 2 outside emission, 3 layer not drawn
-    time_ms: dict[str, float]
+    """What `ShadowPipeline.render` made. The visibility stays on the GPU until it is first
+    read (`visibility`, `flags` or `gpu_ms`): a frame itself never waits for it."""
+
+    time_ms: dict[str, float]  # wall ms per stage (docs/design.md section 3)
     plan: Plan
     geometry: PreparedGeometry
     layout: AtlasLayout | None
@@ -307,6 +312,39 @@ class FrameResult:
     # rounds after the first, and on a count_work frame the list entries walked, the
     # fragments that walked them and the later rounds' entries (None for the other methods).
     exact_work: dict[str, int] | None = None
+    reader: FrameReader | None = field(default=None, repr=False)  # reads what is still on the GPU
+    _read: tuple | None = field(default=None, repr=False)
+
+    @property
+    def pending(self) -> bool:
+        """Whether the visibility is still on the GPU, unread."""
+        return self._read is None
+
+    def resolve(self) -> None:
+        """Read what the frame left on the GPU (once; the pipeline does it before the next
+        frame overwrites it)."""
+        if self._read is None:
+            self._read = self.reader()
+            self.reader = None
+
+    @property
+    def visibility(self) -> np.ndarray:
+        """(H, W) float32, 1 lit / 0 shadowed, row 0 at the top."""
+        self.resolve()
+        return self._read[0]
+
+    @property
+    def flags(self) -> np.ndarray:
+        """(H, W) int8: 0 tested, 1 no geometry, 2 outside emission, 3 layer not drawn."""
+        self.resolve()
+        return self._read[1]
+
+    @property
+    def gpu_ms(self) -> dict[str, float] | None:
+        """GPU ms per stage from timer queries, with their `total`; None where the backend has
+        no timer queries (Blender's `gpu`)."""
+        self.resolve()
+        return self._read[2]
 
     @property
     def passes(self) -> int:

@@ -87,7 +87,7 @@ class ModernGLDevice(Device):
         self._clear_fbos: dict[int, Any] = {}  # id(R32UI image) -> framebuffer that clears it
         self._corners = None  # the footprint pass's corner buffer
         self._corner_triangles = 0
-        self._query = None  # the timer's query (timer)
+        self._queries: dict[str, Any] = {}  # timer queries by key (timer)
         with self.bound():
             self._fullscreen = self.ctx.buffer(_FULLSCREEN.tobytes())
 
@@ -317,12 +317,13 @@ class ModernGLDevice(Device):
         with self.bound():
             self.ctx.finish()
 
-    def timer(self) -> GPUTimer:
-        # One query, made once and reused: moderngl cannot free a query before the context.
-        if self._query is None:
+    def timer(self, key: str = "frame") -> GPUTimer:
+        # One query a key, made once and reused: moderngl cannot free a query before the context.
+        query = self._queries.get(key)
+        if query is None:
             with self.bound():
-                self._query = self.ctx.query(time=True)
-        return _Timer(self, self._query)
+                query = self._queries[key] = self.ctx.query(time=True)
+        return _Timer(self, query)
 
     def release(self) -> None:
         with self.bound():

@@ -5,8 +5,11 @@
   -> shadow test per sample.
 
 The scene stays on the GPU (`resident.ResidentScene`): a frame's host work is the
-plan, the warp tables and the uniforms, whatever the scene's size. Each stage is
-timed with a GPU sync; `time_ms` keys:
+plan, the warp tables and the uniforms, whatever the scene's size. The frame does not
+wait for the GPU: its visibility stays there until the result is read
+(`frame.FrameResult`). `time_ms` holds wall ms per stage (stage_clock.py), in a
+measuring frame (`sync_stages`) each with its GPU work; `FrameResult.gpu_ms` holds the
+GPU's own ms per stage where the backend has timer queries. The stages:
 
 - `prepare`: host work of the frame: planning from the samples' statistics (a few
   numbers, core.samples), the resident scene's residency check (and the upload of
@@ -16,9 +19,9 @@ timed with a GPU sync; `time_ms` keys:
   (two dispatches, read back as STAT_TEXELS integers), and for a warp the count-map
   scatters and the tables built from them.
 - `shadow_maps`: the depth pass (ray tables, footprints or the unfold stream, and the
-  edge-distance map), until the GPU has finished it; for `exact`, the list pass over the
-  samples and the footprint pass that walks the lists (no depth is stored).
-- `shadow_test`: uploading the view samples and the shadow test over them, read back.
+  edge-distance map); for `exact`, the list pass over the samples and the footprint
+  pass that walks the lists (no depth is stored).
+- `shadow_test`: uploading the view samples (when they changed) and the shadow test over them.
 - `total`: all of it.
 
 Everything is light-centred before it is turned into float32: the object's offset
@@ -38,7 +41,7 @@ import numpy as np
 
 from ..core import perspective, projection
 from ..core.alpha import hits_visibility
-from ..core.errors import InputError
+from ..core.errors import BackendError, InputError
 from ..core.plan import Plan, hit_points
 from ..core.samples import STAT_COUNT, Reduction, SampleStats, depth_axis
 from ..core.scene import LightSpec
@@ -60,6 +63,7 @@ from .frame import (
     MAX_RESOLUTION,
     MIN_RESOLUTION,
     BiasSettings,
+    FrameReader,
     FrameResult,
     GBufferSamples,
     PreparedGeometry,
@@ -75,6 +79,7 @@ from .parameterizations import DrawInputs, parameterization, slot_rotations_and_
 from .resident import ResidentScene
 from .shaders import NO_TILE, PARAM_CODES, SLOTS, STATS_PASSES
 from .soft import SizedMode, hit_words, list_resolution, sized_mode, soft_uniforms
+from .stage_clock import StageClock
 from .unfold import edge_aa_parameters
 
 log = logging.getLogger(__name__)
@@ -129,7 +134,10 @@ class ShadowPipeline:
         return scene, False
 
     def release(self) -> None:
-        """Free the resident scenes this pipeline made for read-only arrays."""
+        """Read the frames still unread, and free the resident scenes this pipeline made for
+        read-only arrays."""
+        if not self.backend.released:
+            self.backend.settle()
         for _, scene in self._soups.values():
             self.backend.release_scene(scene)
         self._soups.clear()
@@ -187,16 +195,22 @@ class ShadowPipeline:
         return mappings, counts
 
     def render(self, light: LightSpec, scene: ResidentScene | np.ndarray, samples: ViewSamples | GBufferSamples,
-               settings: ShadowSettings, keep_atlas: bool = False, count_work: bool = False) -> FrameResult:
-        """One frame: plan, analysis, maps, test. Times each stage with a GPU sync.
+               settings: ShadowSettings, keep_atlas: bool = False, count_work: bool = False,
+               sync_stages: bool = False) -> FrameResult:
+        """One frame: plan, analysis, maps, test.
 
-        `count_work` makes the exact pass count its work (a measurement frame, slower).
-        `scene` is a `ResidentScene`, whose unchanged objects stay on the GPU between
-        frames, or a (T, 3, 3) world triangle array: a read-only one stays resident for
-        as long as the same array comes back (the viewport's per-light selections), any
-        other is uploaded for this frame only. `samples` are arrays, uploaded, or a
-        Blender G-buffer's textures, used where they are.
+        The frame does not wait for the GPU: its visibility (and, where the backend has
+        timer queries, each stage's GPU ms) stays there until the result is first read,
+        at the latest when the next frame starts. `sync_stages` makes a measuring frame
+        wait at the end of each stage, so that each stage's wall time holds its GPU work
+        (`compare`, `preview`). `count_work` makes the exact pass count its work (a
+        measurement frame, slower). `scene` is a `ResidentScene`, whose unchanged objects
+        stay on the GPU between frames, or a (T, 3, 3) world triangle array: a read-only
+        one stays resident for as long as the same array comes back (the viewport's
+        per-light selections), any other is uploaded for this frame only. `samples` are
+        arrays, uploaded, or a Blender G-buffer's textures, used where they are.
         """
+        self.backend.settle()  # this frame overwrites what an unread earlier one reads
         one_frame = False
         start = time.perf_counter()
         if not isinstance(scene, ResidentScene):
@@ -205,93 +219,79 @@ class ShadowPipeline:
         # frame: it counts in `prepare`.
         scene_ms = (time.perf_counter() - start) * 1e3
         try:
-            return self._render(light, scene, samples, settings, keep_atlas, scene_ms, count_work)
+            result = self._render(light, scene, samples, settings, keep_atlas, scene_ms, count_work, sync_stages)
         finally:
             if one_frame:
                 self.backend.release_scene(scene)
+        self.backend.hold_unread(result)
+        return result
 
     def _render(self, light: LightSpec, scene: ResidentScene, samples: ViewSamples | GBufferSamples,
                 settings: ShadowSettings, keep_atlas: bool, scene_ms: float = 0.0,
-                count_work: bool = False) -> FrameResult:
+                count_work: bool = False, sync_stages: bool = False) -> FrameResult:
         backend = self.backend
         # A sized light's exact pass lists its samples coarser (soft.list_resolution).
         settings = dataclasses.replace(settings, resolution=list_resolution(light, settings))
-        timings: dict[str, float] = {}
-        t0 = time.perf_counter()
-        self._upload_samples(light, samples)
-        backend.finish()
-        t_upload = time.perf_counter() - t0
+        clock = StageClock(backend.device, backend.finish if sync_stages else None)
+        clock.add("prepare", scene_ms)
+        with clock.part("upload", "shadow_test"):
+            self._upload_samples(light, samples)
 
-        t1 = time.perf_counter()
-        check_light_fits(light, settings.parameterization)
-        backend.sync_scene(scene)  # uploads only objects whose geometry changed
-        bounds = scene.bounds()  # per object, from its box and matrix
-        near_far = (projection.depth_range(None, light.position, bounds=bounds) if bounds is not None
-                    else (0.0, 1.0))
-        t_sync = time.perf_counter()
-        stats = self._sample_stats(light, samples)  # a GPU reduction: a few numbers read back
-        t_stats = time.perf_counter()
-        plan = parameterization(settings.parameterization).plan(light, settings, samples.camera, stats,
-                                                                near_far, bounds)
-        # The plan may fall back to another parameterization (ipsm to dpsm, psm to sm).
-        scheme = parameterization(plan.parameterization)
-        t_plan = (t_sync - t1) + (time.perf_counter() - t_stats)
+        with clock.part("sync", "prepare", gpu=False):
+            check_light_fits(light, settings.parameterization)
+            backend.sync_scene(scene)  # uploads only objects whose geometry changed
+            bounds = scene.bounds()  # per object, from its box and matrix
+            near_far = (projection.depth_range(None, light.position, bounds=bounds) if bounds is not None
+                        else (0.0, 1.0))
+        with clock.part("stats", "analysis"):
+            stats = self._sample_stats(light, samples)  # a GPU reduction: a few numbers read back
+        with clock.part("plan", "prepare", gpu=False):
+            plan = parameterization(settings.parameterization).plan(light, settings, samples.camera, stats,
+                                                                    near_far, bounds)
+            # The plan may fall back to another parameterization (ipsm to dpsm, psm to sm).
+            scheme = parameterization(plan.parameterization)
 
-        t2 = time.perf_counter()
         mappings: dict[int, LayerMapping] = {}
         counts: dict[int, np.ndarray] = {}
-        if settings.warp != "none" and plan.drawn:
-            mappings, counts = self._analyse(light, settings, plan)
-        else:
-            backend.set_warp_tables(None, None)
-            mappings = scheme.base_mappings(plan, light, settings)
-        backend.finish()
-        t3 = time.perf_counter()
-        timings["analysis"] = (t3 - t2 + t_stats - t_sync) * 1e3
+        with clock.part("analysis", "analysis"):
+            if settings.warp != "none" and plan.drawn:
+                mappings, counts = self._analyse(light, settings, plan)
+            else:
+                backend.set_warp_tables(None, None)
+                mappings = scheme.base_mappings(plan, light, settings)
 
-        geometry = scheme.prepare(light, scene, plan, settings, near_far)
-        res = settings.resolution
-        size = settings.analysis_size or analysis_size_for(res)
-        tile_of_slot = {layer.slot: i for i, layer in enumerate(plan.drawn)}
-        layout = AtlasLayout.for_tiles(res, len(plan.drawn), backend.max_texture_size())
-        boxes = scheme.scissor(plan, light, settings, mappings)
-        inputs = DrawInputs(plan, settings, geometry, layout, tile_of_slot, mappings, size, boxes,
-                            footprint_draws(scene, light), region_uniforms(plan, light, settings.cull), scene, light,
-                            count_work)
-        t4 = time.perf_counter()
-        timings["prepare"] = (t4 - t3 + t_plan) * 1e3 + scene_ms
+        with clock.part("prepare", "prepare", gpu=False):
+            geometry = scheme.prepare(light, scene, plan, settings, near_far)
+            res = settings.resolution
+            size = settings.analysis_size or analysis_size_for(res)
+            tile_of_slot = {layer.slot: i for i, layer in enumerate(plan.drawn)}
+            layout = AtlasLayout.for_tiles(res, len(plan.drawn), backend.max_texture_size())
+            boxes = scheme.scissor(plan, light, settings, mappings)
+            inputs = DrawInputs(plan, settings, geometry, layout, tile_of_slot, mappings, size, boxes,
+                                footprint_draws(scene, light), region_uniforms(plan, light, settings.cull), scene,
+                                light, count_work)
 
-        # Texels outside a layer's box are neither cleared nor drawn (map-space culling).
-        backend.begin_atlas(layout, {tile_of_slot[slot]: box for slot, box in boxes.items()})
-        if settings.exact:
-            self.link_lists(light, plan, mappings, res, hit_words(light, settings))  # the irregular z-buffer's lists
-        edge_radius = scheme.draw(backend, inputs)
-        backend.finish()
-        t5 = time.perf_counter()
-        timings["shadow_maps"] = (t5 - t4) * 1e3
+        with clock.part("shadow_maps", "shadow_maps"):
+            # Texels outside a layer's box are neither cleared nor drawn (map-space culling).
+            backend.begin_atlas(layout, {tile_of_slot[slot]: box for slot, box in boxes.items()})
+            if settings.exact:
+                self.link_lists(light, plan, mappings, res, hit_words(light, settings))  # the irregular z-buffer's lists
+            edge_radius = scheme.draw(backend, inputs)
 
-        result = self._shadow_test(light, settings, plan, geometry, layout, tile_of_slot, mappings, size,
-                                   edge_radius, boxes)
-        backend.finish()
-        t6 = time.perf_counter()
-        timings["shadow_test"] = (t6 - t5 + t_upload) * 1e3
-        timings["total"] = (t6 - t0) * 1e3 + scene_ms
+        with clock.part("test", "shadow_test"):
+            self._shadow_test(light, settings, plan, geometry, layout, tile_of_slot, mappings, size,
+                              edge_radius, boxes)
+        timings = clock.wall_ms()
 
         atlas = _mask_unread_texels(backend.read_atlas(), layout, tile_of_slot, boxes) if keep_atlas else None
-        exact_work = None
-        if settings.exact:
-            # The atlas holds no depth (every texel empty), so the test lit every tested
-            # sample; the exact pass's marks shadow the ones a triangle crosses.
-            if sized_mode(light, settings) is SizedMode.EXACT_SOFT:
-                exact_work = backend.exact_work()  # the test weighed a sized light's marks itself
-            else:
-                hits, exact_work = backend.read_hits()
-                result[..., 0] *= hits_visibility(hits)  # opaque crossings and see-through ones
-        visibility = result[..., 0][::-1].copy()
-        flags = result[..., 1][::-1].astype(np.int8)
-        return FrameResult(visibility, flags, timings, plan, geometry, layout,
-                           texels=len(plan.drawn) * res * res, atlas=atlas, tile_of_slot=tile_of_slot,
-                           mappings=mappings, count_maps=counts, boxes=boxes, exact_work=exact_work)
+        exact_work = backend.exact_work() if settings.exact else None
+        # The atlas of `exact` holds no depth (every texel empty), so the test lit every
+        # tested sample; the exact pass's marks shadow the ones a triangle crosses, unless
+        # the test weighed a sized light's marks itself.
+        marks = settings.exact and sized_mode(light, settings) is not SizedMode.EXACT_SOFT
+        return FrameResult(timings, plan, geometry, layout, texels=len(plan.drawn) * res * res, atlas=atlas,
+                           tile_of_slot=tile_of_slot, mappings=mappings, count_maps=counts, boxes=boxes,
+                           exact_work=exact_work, reader=_reader(backend, marks, clock.gpu_reader()))
 
     def _sample_stats(self, light: LightSpec, samples: ViewSamples | GBufferSamples) -> SampleStats:
         """The planning statistics of the uploaded samples, reduced on the GPU (core.samples)."""
@@ -338,7 +338,7 @@ class ShadowPipeline:
     def _shadow_test(self, light: LightSpec, settings: ShadowSettings, plan: Plan, geometry: PreparedGeometry,
                      layout: AtlasLayout, tile_of_slot: dict[int, int], mappings: dict[int, LayerMapping],
                      warp_size: int, edge_radius: int = 0,
-                     boxes: dict[int, tuple[int, int, int, int]] | None = None) -> np.ndarray:
+                     boxes: dict[int, tuple[int, int, int, int]] | None = None) -> None:
         rotations, crops = slot_rotations_and_crops(plan, mappings)
         tiles = np.zeros((SLOTS, 4))
         res = float(settings.resolution)
@@ -375,7 +375,7 @@ class ShadowPipeline:
         }
         uniforms.update(parameterization(plan.parameterization).test_uniforms(plan))
         uniforms.update(soft_uniforms(light, settings))
-        return self.backend.shadow_test(uniforms)
+        self.backend.run_shadow_test(uniforms)
 
 def _scatter_uniforms(light: LightSpec, plan: Plan, mappings: dict[int, LayerMapping], size: int, mode: int,
                       weighted: bool) -> dict:
@@ -402,6 +402,22 @@ def _scatter_uniforms(light: LightSpec, plan: Plan, mappings: dict[int, LayerMap
         "ow_projective": int(projective is not None),
         "ow_map_matrix": projective.matrix if projective is not None else np.eye(4),
     }
+
+
+def _reader(backend: ShadowBackend, marks: bool, gpu_ms) -> FrameReader:
+    """Reads a frame's visibility and flags (top row first) and its GPU ms; `marks`: shadow
+    the samples the exact pass marked."""
+
+    def read() -> tuple[np.ndarray, np.ndarray, dict[str, float] | None]:
+        if backend.released:
+            raise BackendError("a frame's result was read after its backend was released")
+        result = backend.read_shadow_test()
+        if marks:
+            hits, _ = backend.read_hits()
+            result[..., 0] *= hits_visibility(hits)  # opaque crossings and see-through ones
+        return result[..., 0][::-1].copy(), result[..., 1][::-1].astype(np.int8), gpu_ms()
+
+    return read
 
 
 def _mask_unread_texels(atlas: np.ndarray, layout: AtlasLayout, tile_of_slot: dict[int, int],

@@ -28,9 +28,9 @@ def test_program(backend, uniforms: UniformValues) -> tuple[ProgramInterface, di
     return iface, images
 
 
-def shadow_test(backend, uniforms: UniformValues) -> np.ndarray:
-    """Run the shadow test on the uploaded samples: (H, W, 2) float32, row 0 at the bottom,
-    visibility and flag per sample."""
+def run_shadow_test(backend, uniforms: UniformValues) -> None:
+    """Run the shadow test on the uploaded samples into the samples' test target; nothing
+    is read back (`read_shadow_test`)."""
     held = backend.samples
     if backend.atlas is None or held.size is None:
         raise BackendError("shadow_test needs an atlas and uploaded samples")
@@ -41,7 +41,20 @@ def shadow_test(backend, uniforms: UniformValues) -> np.ndarray:
     iface, images = test_program(backend, uniforms)
     if images:
         device.barrier()  # the depth pass's image atomics, before the test's loads
-    out, target = held.test
+    target = held.test[1]
     with device.drawing(target, (0, 0) + held.size):
         device.draw(iface, uniforms, backend.textures, images=images)
-    return device.read(out, "RG32F")
+
+
+def read_shadow_test(backend) -> np.ndarray:
+    """The last shadow test's output: (H, W, 2) float32, row 0 at the bottom, visibility and
+    flag per sample (waits for the GPU)."""
+    if backend.samples.test is None:
+        raise BackendError("read_shadow_test called before a shadow test")
+    return backend.device.read(backend.samples.test[0], "RG32F")
+
+
+def shadow_test(backend, uniforms: UniformValues) -> np.ndarray:
+    """Run the shadow test and read it back (`run_shadow_test`, `read_shadow_test`)."""
+    run_shadow_test(backend, uniforms)
+    return read_shadow_test(backend)
