@@ -2,8 +2,12 @@
 // oracle and names the fields (STAT_FIELDS, emitted here as OW_STAT_* defines).
 // ow_stats_pass 0: count, pixel rectangle, view-depth range, light-centred box, the
 // largest coordinate and the occupied slots, as integers at texels [0, OW_STAT_COUNT).
-// ow_stats_pass 1: the histogram of view depths over [ow_depth_lo, ow_depth_hi], at
-// texels OW_STAT_COUNT + bin (log-spaced bins when ow_log_bins != 0).
+// ow_stats_pass 1: the histogram of view depths over the range pass 0 left in the image,
+// grown by rounding as core.samples.depth_slack grows it, at texels OW_STAT_COUNT + bin
+// (log-spaced bins for a perspective view in front of the camera).
+// ow_stats_pass 2 (one invocation): the bins of the percentile cut's samples and the
+// bins' spacing, at the fields cut_lo, cut_hi and cut_log (core.samples.cut_bins).
+// So the host reads the OW_STAT_COUNT fields once, after all three passes.
 // An invocation reduces OW_STAT_SPAN samples in registers and then writes each field
 // with one atomic: a sixteenth of the atomics on the same few texels. Minimums are
 // stored as the maximum of their complement, so the image starts from zeros.
@@ -16,13 +20,78 @@ uint ow_ordered(float v)
   return (bits & 0x80000000u) != 0u ? ~bits : (bits | 0x80000000u);
 }
 
+// The float of an order-preserving key (the inverse of ow_ordered).
+float ow_unordered(uint key)
+{
+  return uintBitsToFloat((key & 0x80000000u) != 0u ? (key & 0x7FFFFFFFu) : ~key);
+}
+
 void ow_put_max(int field, uint value)
 {
   imageAtomicMax(ow_stats, ivec2(field, 0), value);
 }
 
+uint ow_field(int field)
+{
+  return imageLoad(ow_stats, ivec2(field, 0)).x;
+}
+
+// Pass 0's view-depth range, grown by rounding, and whether its bins are log-spaced.
+vec2 ow_depth_range(out bool log_bins)
+{
+  float reach = ow_unordered(ow_field(OW_STAT_reach));
+  vec3 axis = abs(ow_view_axis);
+  float slack = OW_ROUNDING * (3.0 * reach * max(axis.x, max(axis.y, axis.z)) + abs(ow_view_offset));
+  vec2 range = vec2(ow_unordered(~ow_field(OW_STAT_depth_lo)) - slack, ow_unordered(ow_field(OW_STAT_depth_hi)) + slack);
+  log_bins = ow_ortho == 0 && range.x > 0.0;
+  return range;
+}
+
+// The first bin whose running count exceeds `rank` (np.searchsorted(cumsum, rank + 1)).
+int ow_bin_of_rank(uint rank)
+{
+  uint running = 0u;
+  for (int bin = 0; bin < OW_HIST_BINS; bin++) {
+    running += ow_field(OW_STAT_COUNT + bin);
+    if (running > rank) {
+      return bin;
+    }
+  }
+  return OW_HIST_BINS;
+}
+
+// Pass 2: core.samples.cut_ranks in integers (the percentile in OW_CUT_STEPS steps), split
+// so that no product passes 32 bits: last * q / steps = (a q) + (b q) / steps.
+void ow_cut()
+{
+  uint n = ow_field(OW_STAT_count);
+  if (n == 0u || OW_CUT_Q == 0) {
+    return;
+  }
+  uint last = n - 1u, steps = uint(OW_CUT_STEPS), q = uint(OW_CUT_Q);
+  uint a = last / steps, b = last % steps;
+  uint k_lo = a * q + (b * q) / steps;
+  uint k_hi = a * (steps - q) + (b * (steps - q) + steps - 1u) / steps;
+  bool log_bins;
+  ow_depth_range(log_bins);
+  imageStore(ow_stats, ivec2(OW_STAT_cut_lo, 0), uvec4(uint(ow_bin_of_rank(k_lo)) + 1u));
+  imageStore(ow_stats, ivec2(OW_STAT_cut_hi, 0), uvec4(uint(ow_bin_of_rank(k_hi)) + 1u));
+  imageStore(ow_stats, ivec2(OW_STAT_cut_log, 0), uvec4(log_bins ? 2u : 1u));
+}
+
 void main()
 {
+  if (ow_stats_pass == OW_STATS_CUT) {
+    if (gl_GlobalInvocationID.x == 0u) {
+      ow_cut();
+    }
+    return;
+  }
+  bool log_bins = false;
+  vec2 range = vec2(0.0);
+  if (ow_stats_pass == OW_STATS_HISTOGRAM) {
+    range = ow_depth_range(log_bins);
+  }
   ivec2 size = textureSize(ow_positions, 0);
   int total = size.x * size.y;
   int first = int(gl_GlobalInvocationID.x) * OW_STAT_SPAN;
@@ -46,9 +115,9 @@ void main()
     }
     float depth = dot(pw.xyz, ow_view_axis) + ow_view_offset;
     if (ow_stats_pass == OW_STATS_HISTOGRAM) {
-      float t = (ow_log_bins != 0) ? log(max(depth, ow_depth_lo) / ow_depth_lo) / log(ow_depth_hi / ow_depth_lo)
-                                   : (depth - ow_depth_lo) / (ow_depth_hi - ow_depth_lo);
-      int bin = (ow_depth_hi > ow_depth_lo) ? clamp(int(floor(t * float(OW_HIST_BINS))), 0, OW_HIST_BINS - 1) : 0;
+      float t = log_bins ? log(max(depth, range.x) / range.x) / log(range.y / range.x)
+                         : (depth - range.x) / (range.y - range.x);
+      int bin = (range.y > range.x) ? clamp(int(floor(t * float(OW_HIST_BINS))), 0, OW_HIST_BINS - 1) : 0;
       imageAtomicAdd(ow_stats, ivec2(OW_STAT_COUNT + bin, 0), 1u);
       continue;
     }

@@ -4,10 +4,12 @@ Planning (core.plan) never reads the samples themselves. It needs their count, t
 image rectangle that holds them, their view-depth range (strict, and cut at a
 percentile for layer culling), their world box and the layer slots they fall into.
 
-The GPU reduces the uploaded sample texture to these numbers in two dispatches
-(gpu_shaders/sample_stats.comp): pass 0 the integers of STAT_FIELDS, pass 1 a
-histogram of the view depths over the range pass 0 found. `measure` is the numpy
-oracle: it computes the same numbers from arrays, through the same histogram.
+The GPU reduces the uploaded sample texture to these numbers in three dispatches
+(gpu_shaders/sample_stats.comp) and one read of STAT_COUNT integers: pass 0 the
+integers of STAT_FIELDS, pass 1 a histogram of the view depths over the range pass 0
+left in the image, pass 2 the bins of the percentile cut (`cut_bins`), written beside
+the fields. `measure` is the numpy oracle: it computes the same numbers from arrays,
+through the same histogram.
 
 Two things keep the GPU's numbers conservative:
 - it reads float32 light-centred positions, so its depth range and box are grown by
@@ -24,6 +26,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from .errors import InputError
 from .frames import pick_slot
 from .projection import finite_points
 from .scene import CameraSpec, LightSpec
@@ -38,17 +41,23 @@ CULL_DEPTH_PERCENTILE = 0.5
 # Bins of the depth histogram the percentile cut is read from: log-spaced for a
 # perspective camera (a bin is then about 0.14 % of the depth for a 1:100 range).
 HIST_BINS = 1024
+# The percentile is taken in steps of 1/CUT_STEPS of a percent, so that its sample ranks
+# are integers that the GPU computes exactly (cut_ranks).
+CUT_STEPS = 10
 # Samples one GPU invocation reduces in registers before its atomics.
 STAT_SPAN = 16
 # Relative growth of the GPU's depth range and box for float32 rounding.
 ROUNDING = 2.0 ** -20
 
 # The integers of pass 0, in this order, at texels 0.. of the reduction image; the
-# histogram follows at STAT_COUNT. Every field but `count` (a sum) and the two slot
-# masks (bitwise or) is a maximum: a minimum is stored as the maximum of its
+# histogram follows at STAT_COUNT. Every field of pass 0 but `count` (a sum) and the two
+# slot masks (bitwise or) is a maximum: a minimum is stored as the maximum of its
 # complement, so that the image starts from zeros. Floats are stored order-preserving.
+# Pass 2 stores the last three: the histogram bins of the percentile cut's low and high
+# samples and whether the bins are log-spaced, each plus 1 (0: no histogram was taken).
 STAT_FIELDS = ("count", "col_lo", "col_hi", "row_lo", "row_hi", "depth_lo", "depth_hi",
-               "x_lo", "y_lo", "z_lo", "x_hi", "y_hi", "z_hi", "reach", "sides", "faces")
+               "x_lo", "y_lo", "z_lo", "x_hi", "y_hi", "z_hi", "reach", "sides", "faces",
+               "cut_lo", "cut_hi", "cut_log")
 STAT_COUNT = len(STAT_FIELDS)
 STAT_TEXELS = STAT_COUNT + HIST_BINS
 
@@ -104,23 +113,47 @@ def depth_bins(depths: np.ndarray, depth: tuple[float, float], log: bool) -> np.
     return np.clip(np.floor(t * HIST_BINS), 0, HIST_BINS - 1).astype(np.int64)
 
 
+def cut_ranks(n: int, percentile: float) -> tuple[int, int]:
+    """The 0-based ranks of the sorted samples that bound the cut at `percentile` and
+    100 - `percentile` of `n` samples: np.percentile interpolates between ranks floor(r)
+    and ceil(r), r = p (n - 1), so the cut holds both. Integer arithmetic, as on the GPU
+    (sample_stats.comp): the percentile in steps of 1/CUT_STEPS of a percent."""
+    steps = 100 * CUT_STEPS
+    q = int(round(percentile * CUT_STEPS))
+    if not math.isclose(q, percentile * CUT_STEPS, abs_tol=1e-9) or not 0 <= q <= steps // 2:
+        raise InputError(f"the culling percentile must be a multiple of {1 / CUT_STEPS} in [0, 50], "
+                         f"got {percentile}")
+    last = n - 1
+    return last * q // steps, -(-last * (steps - q) // steps)
+
+
+def cut_bins(hist: np.ndarray, percentile: float = CULL_DEPTH_PERCENTILE) -> tuple[int, int] | None:
+    """The histogram bins holding the cut's low and high samples (cut_ranks); None for an
+    empty histogram or a percentile of 0 (no cut)."""
+    hist = np.asarray(hist, dtype=np.int64)
+    n = int(hist.sum())
+    if percentile <= 0.0 or n == 0:
+        return None
+    k_lo, k_hi = cut_ranks(n, percentile)
+    cumulative = np.cumsum(hist)
+    return int(np.searchsorted(cumulative, k_lo + 1)), int(np.searchsorted(cumulative, k_hi + 1))
+
+
+def cut_range(bins: tuple[int, int] | None, depth: tuple[float, float], log: bool) -> tuple[float, float]:
+    """The depth range of the cut's bins, widened by one bin each way (module docstring),
+    within the strict range; the strict range without bins."""
+    if bins is None:
+        return depth
+    low = float(bin_edge(max(bins[0] - 1, 0), depth, log))
+    high = float(bin_edge(min(bins[1] + 2, HIST_BINS), depth, log))
+    return max(low, depth[0]), min(high, depth[1])
+
+
 def percentile_cut(hist: np.ndarray, depth: tuple[float, float], log: bool,
                    percentile: float = CULL_DEPTH_PERCENTILE) -> tuple[float, float]:
     """The depth range at `percentile` and 100 - `percentile` from a histogram, widened
     by one bin each way (module docstring); the strict range when `percentile` is 0."""
-    hist = np.asarray(hist, dtype=np.int64)
-    n = int(hist.sum())
-    if percentile <= 0.0 or n == 0:
-        return depth
-    # np.percentile interpolates between sorted samples floor(r) and ceil(r), r = p (n - 1).
-    k_lo = math.floor(percentile / 100.0 * (n - 1))
-    k_hi = math.ceil((100.0 - percentile) / 100.0 * (n - 1))
-    cumulative = np.cumsum(hist)
-    bin_lo = int(np.searchsorted(cumulative, k_lo + 1))
-    bin_hi = int(np.searchsorted(cumulative, k_hi + 1))
-    low = float(bin_edge(max(bin_lo - 1, 0), depth, log))
-    high = float(bin_edge(min(bin_hi + 2, HIST_BINS), depth, log))
-    return max(low, depth[0]), min(high, depth[1])
+    return cut_range(cut_bins(hist, percentile), depth, log)
 
 
 def sample_window(camera: CameraSpec | None, rows: tuple[int, int] | None, cols: tuple[int, int] | None,
@@ -198,7 +231,7 @@ def _bits(mask: int) -> frozenset[int]:
 
 @dataclass(frozen=True)
 class Reduction:
-    """Pass 0's integers decoded; `stats` finishes them with pass 1's histogram."""
+    """The reduction image's fields decoded: pass 0's integers and pass 2's cut."""
 
     count: int
     rows: tuple[int, int] | None  # top-down image rows
@@ -207,12 +240,14 @@ class Reduction:
     box: tuple[np.ndarray, np.ndarray] | None  # world, grown by rounding
     sides: frozenset[int]
     faces: frozenset[int]
+    cut: tuple[int, int] | None = None  # pass 2's bins of the percentile cut (cut_bins)
+    cut_log: bool = False  # whether pass 1's bins were log-spaced
 
     @classmethod
     def decode(cls, raw: np.ndarray, camera: CameraSpec | None, light: LightSpec,
                shape: tuple[int, int]) -> "Reduction":
-        """Pass 0's integers (the first STAT_COUNT of `raw`) of samples of `shape` (H, W),
-        their texture rows bottom-up."""
+        """The first STAT_COUNT integers of `raw`, of samples of `shape` (H, W), their
+        texture rows bottom-up."""
         field = dict(zip(STAT_FIELDS, np.asarray(raw, dtype=np.uint32)[:STAT_COUNT]))
         count = int(field["count"])
         if count == 0:
@@ -228,20 +263,24 @@ class Reduction:
         depth = None
         if camera is not None:
             axis, offset = depth_axis(camera, light)
-            slack = ROUNDING * (3.0 * reach * float(np.abs(axis).max()) + abs(offset))
-            depth = (float(_unordered(low("depth_lo"))) - slack, float(_unordered(field["depth_hi"])) + slack)
-        return cls(count, rows, cols, depth, (lo, hi), _bits(int(field["sides"])), _bits(int(field["faces"])))
+            depth = (float(_unordered(low("depth_lo"))) - depth_slack(reach, axis, offset),
+                     float(_unordered(field["depth_hi"])) + depth_slack(reach, axis, offset))
+        cut = None
+        if field["cut_lo"] > 0 and field["cut_hi"] > 0:
+            cut = (int(field["cut_lo"]) - 1, int(field["cut_hi"]) - 1)
+        return cls(count, rows, cols, depth, (lo, hi), _bits(int(field["sides"])), _bits(int(field["faces"])),
+                   cut, int(field["cut_log"]) == 2)
 
-    def histogram_uniforms(self, camera: CameraSpec) -> dict[str, object]:
-        """Pass 1's range uniforms; call only with samples and a camera."""
-        return {"ow_depth_lo": self.depth[0], "ow_depth_hi": self.depth[1],
-                "ow_log_bins": int(log_bins(camera, self.depth))}
-
-    def stats(self, camera: CameraSpec | None, shape: tuple[int, int], hist: np.ndarray | None,
-              percentile: float = CULL_DEPTH_PERCENTILE) -> SampleStats:
-        """The statistics, with pass 1's HIST_BINS counts (None: no camera or no sample)."""
+    def stats(self, camera: CameraSpec | None, shape: tuple[int, int]) -> SampleStats:
+        """The statistics; the percentile cut from pass 2's bins, over this range."""
         window = sample_window(camera, self.rows, self.cols, shape)
         cull = None
-        if self.depth is not None and hist is not None:
-            cull = percentile_cut(hist, self.depth, log_bins(camera, self.depth), percentile)
+        if self.depth is not None:
+            cull = cut_range(self.cut, self.depth, self.cut_log)
         return SampleStats(self.count, window, self.depth, cull, self.box, self.sides, self.faces)
+
+
+def depth_slack(reach: float, axis: np.ndarray, offset: float) -> float:
+    """How far float32 rounding of light-centred coordinates up to `reach` may move a view
+    depth p . axis + offset: the GPU's depth range grows by it (pass 1 computes the same)."""
+    return ROUNDING * (3.0 * reach * float(np.abs(axis).max()) + abs(offset))

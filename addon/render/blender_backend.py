@@ -202,8 +202,12 @@ class BlenderDevice(Device):
     def clear_image(self, image) -> None:
         image.clear(format="UINT", value=(0,))
 
-    def read(self, texture, fmt: str) -> np.ndarray:
-        return read_uint(texture) if fmt == "R32UI" else read_texture(texture, fmt)
+    def read(self, texture, fmt: str, rect: Rect | None = None) -> np.ndarray:
+        whole = read_uint(texture) if fmt == "R32UI" else read_texture(texture, fmt)
+        if rect is None:
+            return whole
+        x, y, width, height = rect
+        return whole[y:y + height, x:x + width].copy()
 
     # work ---------------------------------------------------------------------
     @contextlib.contextmanager

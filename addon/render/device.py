@@ -120,8 +120,10 @@ class Device(ABC):
         """Zero an R32UI image, on the GPU."""
 
     @abstractmethod
-    def read(self, texture: Any, fmt: str) -> np.ndarray:
-        """A texture as (height, width[, components]) float32 (uint32 for R32UI), row 0 at the bottom."""
+    def read(self, texture: Any, fmt: str, rect: Rect | None = None) -> np.ndarray:
+        """A texture, or its `rect`, as (height, width[, components]) float32 (uint32 for
+        R32UI), row 0 at the bottom. Where the API reads whole textures only (Blender's
+        `gpu`), a rect is cut from the whole."""
 
     # work ---------------------------------------------------------------------
     @abstractmethod

@@ -16,7 +16,7 @@ GPU's own ms per stage where the backend has timer queries. The stages:
   changed objects, when there are any), the depth range from the objects' boxes, and
   the draw's uniforms. For unfold it also builds the host stream (unfold.py).
 - `analysis`: the GPU's reductions over the view samples: the planning statistics
-  (two dispatches, read back as STAT_TEXELS integers), and for a warp the count-map
+  (three dispatches, read back once as STAT_COUNT integers), and for a warp the count-map
   scatters and the tables built from them.
 - `shadow_maps`: the depth pass (ray tables, footprints or the unfold stream, and the
   edge-distance map); for `exact`, the list pass over the samples and the footprint
@@ -43,7 +43,7 @@ from ..core import perspective, projection
 from ..core.alpha import hits_visibility
 from ..core.errors import BackendError, InputError
 from ..core.plan import Plan, hit_points
-from ..core.samples import STAT_COUNT, Reduction, SampleStats, depth_axis
+from ..core.samples import Reduction, SampleStats, depth_axis
 from ..core.scene import LightSpec
 from ..core.warping import (
     FLOOR_SHARE,
@@ -77,7 +77,7 @@ from .frame import (
 from .footprint_runs import footprint_draws, region_uniforms
 from .parameterizations import DrawInputs, parameterization, slot_rotations_and_crops
 from .resident import ResidentScene
-from .shaders import NO_TILE, PARAM_CODES, SLOTS, STATS_PASSES
+from .shaders import NO_TILE, PARAM_CODES, SLOTS
 from .soft import SizedMode, hit_words, list_resolution, sized_mode, soft_uniforms
 from .stage_clock import StageClock
 from .unfold import edge_aa_parameters
@@ -294,19 +294,15 @@ class ShadowPipeline:
                            exact_work=exact_work, reader=_reader(backend, marks, clock.gpu_reader()))
 
     def _sample_stats(self, light: LightSpec, samples: ViewSamples | GBufferSamples) -> SampleStats:
-        """The planning statistics of the uploaded samples, reduced on the GPU (core.samples)."""
+        """The planning statistics of the uploaded samples, reduced on the GPU and read once
+        (core.samples)."""
         camera = samples.camera
         axis, offset = depth_axis(camera, light) if camera is not None else (np.zeros(3), 0.0)
         uniforms = {"ow_light_rot": light.rotation.T, "ow_view_axis": axis, "ow_view_offset": offset,
-                    "ow_hemi": 1 if light.emission == "hemi" else 0, "ow_stats_pass": STATS_PASSES["fields"],
-                    "ow_depth_lo": 0.0, "ow_depth_hi": 1.0, "ow_log_bins": 0}
-        shape = samples.shape
-        reduction = Reduction.decode(self.backend.reduce_samples(uniforms, clear=True), camera, light, shape)
-        hist = None
-        if reduction.depth is not None:
-            uniforms.update(ow_stats_pass=STATS_PASSES["histogram"], **reduction.histogram_uniforms(camera))
-            hist = self.backend.reduce_samples(uniforms, clear=False)[STAT_COUNT:]
-        return reduction.stats(camera, shape, hist)
+                    "ow_hemi": 1 if light.emission == "hemi" else 0,
+                    "ow_ortho": int(camera is not None and camera.ortho)}
+        raw = self.backend.reduce_samples(uniforms, histogram=camera is not None)
+        return Reduction.decode(raw, camera, light, samples.shape).stats(camera, samples.shape)
 
     def _upload_samples(self, light: LightSpec, samples: ViewSamples | GBufferSamples) -> None:
         """Put the frame's samples on the GPU, light-centred. A G-buffer is used where it is;

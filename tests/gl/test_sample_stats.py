@@ -5,6 +5,7 @@ import numpy as np
 import pytest
 
 from addon.core import samples as S
+from addon.core.errors import InputError
 from addon.core.presets import build_preset
 from addon.core.scene import CameraSpec, LightSpec
 from addon.render.frame import ViewSamples
@@ -110,3 +111,37 @@ def test_percentile_cut_holds_the_exact_percentiles():
         above = np.mean(depths > high)
         assert below <= 0.005 and above <= 0.005
         assert below > 0.002 and above > 0.002  # the cut does leave the stray samples out
+
+
+@pytest.mark.parametrize("preset, size", [("room_omni", (96, 72)), ("courtyard", (160, 120)),
+                                          ("stress_scale_small", (64, 48))])
+def test_gpu_cut_bins_are_the_numpy_bins_of_its_histogram(gl_backend, preset, size):
+    """Pass 2 finds the percentile cut's bins in the histogram pass 1 left in the image, as
+    core.samples.cut_bins finds them there, and says how the bins are spaced; the host reads
+    only the fields."""
+    scene = build_preset(preset, size)
+    samples, _, _ = view_samples(scene)
+    gpu = _gpu_stats(gl_backend, scene.light, samples)
+    image = gl_backend.device.read(gl_backend.samples.stats, "R32UI").ravel()
+    hist = image[S.STAT_COUNT:]
+    reduction = S.Reduction.decode(image, scene.camera, scene.light, samples.shape)
+    assert int(hist.sum()) == gpu.count > 0
+    assert reduction.cut == S.cut_bins(hist)
+    assert reduction.cut_log == S.log_bins(scene.camera, gpu.depth)
+    assert gpu.cull_depth == S.cut_range(reduction.cut, gpu.depth, reduction.cut_log)
+
+
+def test_cut_ranks_are_exact_integer_ranks():
+    """The integer ranks (the GPU's arithmetic) are floor(p (n - 1) / 100) and
+    ceil((100 - p) (n - 1) / 100) taken exactly, up to millions of samples; a percentile
+    off the 1/CUT_STEPS grid is refused."""
+    from fractions import Fraction
+
+    for percentile in (0.5, 0.1, 5.0, 50.0):
+        p = Fraction(str(percentile)) / 100
+        for n in [*range(1, 2000), 4096 * 4096, 3_840 * 2_160 + 7]:
+            k_lo, k_hi = S.cut_ranks(n, percentile)
+            assert k_lo == (p * (n - 1)).__floor__()
+            assert k_hi == ((1 - p) * (n - 1)).__ceil__()
+    with pytest.raises(InputError):
+        S.cut_ranks(100, 0.25)

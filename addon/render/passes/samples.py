@@ -8,9 +8,9 @@ from typing import Any
 import numpy as np
 
 from ...core.errors import BackendError
-from ...core.samples import STAT_SPAN, STAT_TEXELS
+from ...core.samples import STAT_COUNT, STAT_SPAN, STAT_TEXELS
 from ..device import Target, UniformValues
-from ..shaders import SAMPLE_STATS_PROGRAM, scatter_variant
+from ..shaders import SAMPLE_STATS_PROGRAM, STATS_PASSES, scatter_variant
 
 
 @dataclass
@@ -117,12 +117,13 @@ def scatter_counts(backend, size: int, tiles: int, uniforms: UniformValues) -> n
     return device.read(target, "R32UI").astype(np.float32)
 
 
-def reduce_samples(backend, uniforms: UniformValues, clear: bool) -> np.ndarray:
-    """One pass of the planning statistics over the uploaded samples (SAMPLE_STATS_PROGRAM).
+def reduce_samples(backend, uniforms: UniformValues, histogram: bool) -> np.ndarray:
+    """The planning statistics of the uploaded samples (SAMPLE_STATS_PROGRAM), in one read.
 
-    The reduction image (core.samples.STAT_TEXELS R32UI texels) is zeroed first when
-    `clear`; pass 1 adds its histogram beside pass 0's fields. Returns the image as
-    (STAT_TEXELS,) uint32.
+    Zeroes the reduction image (core.samples.STAT_TEXELS R32UI texels) and runs pass 0
+    (the fields); with `histogram`, pass 1 (the depth histogram over pass 0's range) and
+    pass 2 (the percentile cut's bins) too. Returns the first STAT_COUNT texels as uint32:
+    the only read of the planning statistics.
     """
     held = backend.samples
     if held.size is None:
@@ -130,9 +131,11 @@ def reduce_samples(backend, uniforms: UniformValues, clear: bool) -> np.ndarray:
     device = backend.device
     if held.stats is None:
         held.stats = device.texture((STAT_TEXELS, 1), "R32UI")
-    if clear:
-        device.clear_image(held.stats)
+    device.clear_image(held.stats)
     width, height = held.size
-    device.dispatch(SAMPLE_STATS_PROGRAM, uniforms, backend.textures, {"ow_stats": held.stats},
-                    SAMPLE_STATS_PROGRAM.groups(-(-width * height // STAT_SPAN)))
-    return device.read(held.stats, "R32UI").ravel()
+    groups = SAMPLE_STATS_PROGRAM.groups(-(-width * height // STAT_SPAN))
+    passes = ("fields", "histogram", "cut") if histogram else ("fields",)
+    for name in passes:
+        device.dispatch(SAMPLE_STATS_PROGRAM, {**uniforms, "ow_stats_pass": STATS_PASSES[name]}, backend.textures,
+                        {"ow_stats": held.stats}, 1 if name == "cut" else groups)
+    return device.read(held.stats, "R32UI", (0, 0, STAT_COUNT, 1)).ravel()

@@ -190,11 +190,13 @@ SAMPLE_STATS_PROGRAM = ComputeInterface(
     name="omniwarp_sample_stats",
     compute_file="sample_stats.comp",
     uniforms=uniform_list("mat3 ow_light_rot", "vec3 ow_view_axis", "float ow_view_offset", "int ow_hemi",
-                          "int ow_stats_pass", "float ow_depth_lo", "float ow_depth_hi", "int ow_log_bins"),
+                          "int ow_stats_pass", "int ow_ortho"),
     samplers=("ow_positions",),
     images=(("r32ui", "ow_stats"),),
     defines={"OW_STAT_SPAN": str(samples.STAT_SPAN), "OW_HIST_BINS": str(samples.HIST_BINS),
-             "OW_STAT_COUNT": str(samples.STAT_COUNT),
+             "OW_STAT_COUNT": str(samples.STAT_COUNT), "OW_ROUNDING": repr(samples.ROUNDING),
+             "OW_CUT_STEPS": str(100 * samples.CUT_STEPS),
+             "OW_CUT_Q": str(round(samples.CULL_DEPTH_PERCENTILE * samples.CUT_STEPS)),
              **{f"OW_STAT_{name}": str(index) for index, name in enumerate(samples.STAT_FIELDS)}},
 )
 

@@ -1,0 +1,90 @@
+"""A steady frame's traffic between host and GPU (issue 41), counted at moderngl's API
+(tests/support/traffic.py): the frame does not wait for its result, and the methods whose
+plan the GPU reduces to a few numbers wait once, for those numbers."""
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from addon.core.presets import build_preset
+from addon.render.pipeline import ShadowPipeline, ShadowSettings, ViewSamples
+from scripts.frame_traffic import steady_traffic
+from tests.support.oracle import view_samples
+from tests.support.traffic import Traffic
+
+pytestmark = pytest.mark.gl
+
+# Issue 41's bounds for a steady frame.
+MAX_WAITS = 1
+MAX_READ_BYTES = 4096
+MAX_UPLOAD_BYTES = 64 * 1024
+
+
+@pytest.fixture(scope="module")
+def case():
+    scene = build_preset("room_omni", (64, 48))
+    samples, _, _ = view_samples(scene)
+    arrays = [np.array(a) for a in (samples.positions, samples.normals, samples.hit)]
+    for array in arrays:
+        array.flags.writeable = False  # read-only: they stay on the GPU (frame.resident_samples_key)
+    return scene, ViewSamples(*arrays, samples.camera)
+
+
+@pytest.mark.parametrize("method", ["dpsm", "cube"])
+def test_a_steady_unwarped_frame_waits_once_and_uploads_nothing(gl_backend, case, method):
+    scene, samples = case
+    pipeline = ShadowPipeline(gl_backend)
+    triangles = scene.world_triangles()
+    triangles.flags.writeable = False  # the same read-only array: resident across frames
+    settings = ShadowSettings(method, 256)
+    try:
+        traffic = steady_traffic(pipeline, scene.light, triangles, samples, settings)
+    finally:
+        pipeline.release()
+    assert traffic.finishes == 0, traffic.calls
+    assert traffic.waits <= MAX_WAITS, traffic.calls
+    assert traffic.read_bytes <= MAX_READ_BYTES, traffic.calls
+    assert traffic.upload_bytes <= MAX_UPLOAD_BYTES, traffic.calls
+
+
+def test_the_result_is_read_when_first_asked_for_and_equals_a_synced_frame(gl_backend, case):
+    """The frame's visibility stays on the GPU until read; reading it then gives what a
+    measuring frame (a wait after each stage) gives, and a second frame's start reads an
+    earlier result still unread."""
+    scene, samples = case
+    pipeline = ShadowPipeline(gl_backend)
+    triangles = scene.world_triangles()
+    settings = ShadowSettings("dpsm", 256, warp="notw")
+    try:
+        synced = pipeline.render(scene.light, triangles, samples, settings, sync_stages=True).visibility
+        first = pipeline.render(scene.light, triangles, samples, settings)
+        assert first.pending
+        traffic = Traffic()
+        with traffic.counting():
+            visibility = first.visibility
+        assert not first.pending and traffic.reads >= 1
+        assert np.array_equal(visibility, synced)
+        unread = pipeline.render(scene.light, triangles, samples, settings)
+        pipeline.render(scene.light, triangles, samples, ShadowSettings("cube", 256))
+        assert not unread.pending  # read before the cube frame overwrote its target
+        assert np.array_equal(unread.visibility, synced)
+    finally:
+        pipeline.release()
+
+
+def test_gpu_stage_times_come_with_the_result_and_survive_release(case):
+    """moderngl times each GPU stage with a timer query; a result left unread when its
+    backend is released was read first, so it still holds its visibility and times."""
+    from addon.render.moderngl_backend import ModernGLBackend
+
+    scene, samples = case
+    with ModernGLBackend() as backend:
+        result = ShadowPipeline(backend).render(scene.light, scene.world_triangles(), samples,
+                                                ShadowSettings("dpsm", 256, warp="notw"))
+        assert result.pending
+    assert not result.pending
+    gpu = result.gpu_ms
+    assert set(gpu) == {"analysis", "shadow_maps", "shadow_test", "total"}
+    assert all(np.isfinite(v) and v >= 0.0 for v in gpu.values())
+    assert gpu["total"] == pytest.approx(gpu["analysis"] + gpu["shadow_maps"] + gpu["shadow_test"])
+    assert result.visibility.shape == samples.hit.shape

@@ -1,0 +1,112 @@
+"""Counts a frame's traffic between host and GPU at moderngl's API (issue 41's figures).
+
+`Traffic.counting()` wraps, for the calls inside it, moderngl's:
+- waits: `Context.finish`, and every read (a read waits for the GPU);
+- reads: `Texture.read`, `Texture.read_into`, `Framebuffer.read`, `Buffer.read` (bytes);
+- uploads: `Texture.write`, `Buffer.write`, and data given to `Context.texture` and
+  `Context.buffer` (bytes);
+- uniforms: bytes written to uniforms (`Uniform.value`, `Uniform.write`), counted apart.
+"""
+from __future__ import annotations
+
+import contextlib
+from dataclasses import dataclass, field
+from typing import Iterator
+
+
+def _size(data) -> int:
+    if data is None:
+        return 0
+    if isinstance(data, (bytes, bytearray)):
+        return len(data)
+    return memoryview(data).nbytes
+
+
+@dataclass
+class Traffic:
+    """What crossed between host and GPU while counting."""
+
+    finishes: int = 0
+    reads: int = 0
+    read_bytes: int = 0
+    uploads: int = 0
+    upload_bytes: int = 0
+    uniform_bytes: int = 0
+    calls: list[str] = field(default_factory=list)  # every wait and transfer, in order
+
+    @property
+    def waits(self) -> int:
+        """Host waits: finishes and reads."""
+        return self.finishes + self.reads
+
+    def row(self) -> dict[str, int]:
+        return {"waits": self.waits, "finishes": self.finishes, "reads": self.reads,
+                "read_bytes": self.read_bytes, "uploads": self.uploads, "upload_bytes": self.upload_bytes,
+                "uniform_bytes": self.uniform_bytes}
+
+    @contextlib.contextmanager
+    def counting(self) -> Iterator["Traffic"]:
+        import moderngl
+
+        patches: list[tuple[type, str, object]] = []
+
+        def wrap(cls: type, name: str, count) -> None:
+            original = cls.__dict__[name]
+            patches.append((cls, name, original))
+
+            def wrapper(*args, **kwargs):
+                result = original(*args, **kwargs)
+                count(args, kwargs, result)
+                return result
+
+            setattr(cls, name, wrapper)
+
+        def read(label):
+            def count(args, kwargs, result):
+                self.reads += 1
+                nbytes = _size(result) if result is not None else _size(args[1] if len(args) > 1 else None)
+                self.read_bytes += nbytes
+                self.calls.append(f"{label} {nbytes}")
+            return count
+
+        def upload(label, position, key):
+            def count(args, kwargs, result):
+                data = kwargs.get(key, args[position] if len(args) > position else None)
+                if data is None:
+                    return
+                self.uploads += 1
+                self.upload_bytes += _size(data)
+                self.calls.append(f"{label} {_size(data)}")
+            return count
+
+        def finish(args, kwargs, result):
+            self.finishes += 1
+            self.calls.append("finish")
+
+        wrap(moderngl.Context, "finish", finish)
+        wrap(moderngl.Texture, "read", read("Texture.read"))
+        wrap(moderngl.Texture, "read_into", read("Texture.read_into"))
+        wrap(moderngl.Framebuffer, "read", read("Framebuffer.read"))
+        wrap(moderngl.Buffer, "read", read("Buffer.read"))
+        wrap(moderngl.Texture, "write", upload("Texture.write", 1, "data"))
+        wrap(moderngl.Buffer, "write", upload("Buffer.write", 1, "data"))
+        wrap(moderngl.Context, "texture", upload("Context.texture", 3, "data"))
+        wrap(moderngl.Context, "buffer", upload("Context.buffer", 1, "data"))
+
+        def uniform(args, kwargs, result):
+            self.uniform_bytes += _size(args[1]) if isinstance(args[1], (bytes, bytearray)) else 4
+
+        wrap(moderngl.Uniform, "write", uniform)
+        value = moderngl.Uniform.__dict__["value"]
+        patches.append((moderngl.Uniform, "value", value))
+
+        def set_value(this, new):
+            self.uniform_bytes += 4 * max(1, len(new) if isinstance(new, (tuple, list)) else 1)
+            value.fset(this, new)
+
+        moderngl.Uniform.value = property(value.fget, set_value)
+        try:
+            yield self
+        finally:
+            for cls, name, original in reversed(patches):
+                setattr(cls, name, original)
