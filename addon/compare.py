@@ -175,6 +175,8 @@ def run_row(pipeline: ShadowPipeline, ref: ReferenceData, preset: str, method: s
     judged = metrics.judge(last.visibility, ref.shadowed, ref.unshadowed, evaluable, sized=light.sized,
                            noise=ref.visibility_noise)
     times = _median_times([f.time_ms for f in frames])
+    # Read before any later frame: a GPU-built warp's tables stay on the GPU until then.
+    warp, nonfinite = _warp_summary(last), nonfinite_texels(last, counts)
     row = make_row(
         preset, method, light.emission, judged.figure, times, pipeline.backend.renderer(), pipeline.backend.name,
         len(frames), ref.resolution,
@@ -193,9 +195,9 @@ def run_row(pipeline: ShadowPipeline, ref: ReferenceData, preset: str, method: s
         texel_utilization=counts.texel_utilization,
         tessellated_triangles=last.geometry.tessellated_triangles,
         skipped_triangles=last.geometry.skipped_triangles,
-        nonfinite_texels=nonfinite_texels(last, counts),
+        nonfinite_texels=nonfinite,
         layers=[layer.name for layer in last.plan.drawn],
-        warp=_warp_summary(last),
+        warp=warp,
         cull=options.cull,
         light_shape=light.shape.describe() if light.sized else None,
         light_points=soft.light_points(light, settings),

@@ -250,7 +250,8 @@ void main()
   box = (box * 0.5 + 0.5 - ow_crop.xxyy) * ow_crop.zzww;
 #ifndef OW_NO_WARP
   if (ow_warp_size > 0) {
-    box = ow_warp_box(ow_warp_rows, ow_warp_cols, ow_layer_slot, ow_warp_size, box, ow_warp_shear);
+    box = ow_warp_box(ow_warp_rows, ow_warp_cols, ow_layer_slot, ow_warp_size, box,
+                      ow_warp_shears(ow_warp_rows, ow_warp_cols, ow_layer_slot, ow_warp_size));
   }
 #endif
   float grow = ow_dilate / ow_resolution;

@@ -564,11 +564,19 @@ def dv_crop_from_counts(counts: np.ndarray, margin_texels: float = 2.0) -> tuple
     a sample's lookup slightly. An empty map keeps the whole map.
     """
     counts = np.asarray(counts)
-    size = counts.shape[0]
     cols = np.nonzero(counts.sum(axis=0) > 0)[0]
     rows = np.nonzero(counts.sum(axis=1) > 0)[0]
-    if cols.size == 0:
+    bounds = None if cols.size == 0 else (int(cols[0]), int(cols[-1]), int(rows[0]), int(rows[-1]))
+    return dv_crop_from_bounds(bounds, counts.shape[0], margin_texels)
+
+
+def dv_crop_from_bounds(bounds: tuple[int, int, int, int] | None, size: int,
+                        margin_texels: float = 2.0) -> tuple[np.ndarray, np.ndarray]:
+    """DV crop from the first and last occupied column and row (col_lo, col_hi, row_lo,
+    row_hi) of a size x size count map, as the GPU reduces them; None: an empty map."""
+    if bounds is None:
         return np.zeros(2), np.ones(2)
-    lo = np.array([cols[0], rows[0]], dtype=np.float64) - margin_texels
-    hi = np.array([cols[-1] + 1, rows[-1] + 1], dtype=np.float64) + margin_texels
+    col_lo, col_hi, row_lo, row_hi = bounds
+    lo = np.array([col_lo, row_lo], dtype=np.float64) - margin_texels
+    hi = np.array([col_hi + 1, row_hi + 1], dtype=np.float64) + margin_texels
     return np.clip(lo / size, 0.0, 1.0), np.clip(hi / size, 0.0, 1.0)

@@ -22,6 +22,7 @@ from .passes.atlas import Atlas, AtlasLayout
 from .passes.exact import ExactLists
 from .passes.footprints import FootprintDraw, corner_capacity, corner_indices
 from .passes.samples import SampleTargets, pack_warp_table
+from .passes.warp import WarpBuild
 
 # What the pipeline, the parameterizations, the viewport and the tests import from here.
 __all__ = ["FULLSCREEN_CORNERS", "AtlasLayout", "FootprintDraw", "Rect", "ShadowBackend", "UniformValues",
@@ -61,6 +62,7 @@ class ShadowBackend:
         self.ray_target: Target | None = None  # the ray table's, the atlas's size
         self.no_warp = None  # the one zero texel bound as both warp tables without a warp
         self.warp_tables: dict[str, Any] = {}  # each table's own texture, kept between warped frames
+        self.warp_build = WarpBuild()  # the GPU's warp construction (passes/warp.py)
         self._released = False
         self._unread: list[weakref.ref] = []  # frame results whose visibility is still on the GPU
         with device.bound():
@@ -140,6 +142,8 @@ class ShadowBackend:
     set_warp_tables = _on_device(passes.samples.set_warp_tables)
     scatter_counts = _on_device(passes.samples.scatter_counts)
     reduce_samples = _on_device(passes.samples.reduce_samples)
+    warp_crop_bounds = _on_device(passes.warp.crop_bounds)
+    build_warp_family = _on_device(passes.warp.build_family)
     link_samples = _on_device(passes.exact.link_samples)
     read_links = _on_device(passes.exact.read_links)
     read_hits = _on_device(passes.exact.read_hits)
@@ -194,6 +198,8 @@ class ShadowBackend:
             device.free(*self.samples.held(), *self.edge_targets, self.ray_target)
             self.samples = SampleTargets()
             passes.exact.free_lists(self)
+            device.free(*self.warp_build.held())
+            self.warp_build = WarpBuild()
             self.edge_targets, self.ray_target = (), None
             device.free(*(texture for _, texture in self.vertices.values()))
             self.vertices.clear()

@@ -14,7 +14,7 @@ from typing import Any
 import numpy as np
 
 from . import blender_compat
-from .shaders import ComputeInterface, ProgramInterface, load_source, program_defines
+from .shaders import ComputeInterface, ProgramInterface, load_source, image_type, program_defines
 
 log = logging.getLogger(__name__)
 
@@ -112,7 +112,8 @@ def create_info(iface: ProgramInterface) -> Any:
         # Declared where the API has it (4.5+); OpenGL honours gl_FragDepth either way.
         info.depth_write("ANY")
     for unit, (fmt, name) in enumerate(iface.images):
-        info.image(unit, fmt.upper(), "UINT_2D", name, qualifiers={"READ", "WRITE"})
+        info.image(unit, fmt.upper(), "UINT_2D" if image_type(fmt) == "uimage2D" else "FLOAT_2D", name,
+                   qualifiers={"READ", "WRITE"})
     for key, value in program_defines(iface).items():
         info.define(key, value)
     info.vertex_source(load_source(iface.vertex_file))
@@ -131,7 +132,8 @@ def compute_create_info(iface: ComputeInterface) -> Any:
     for slot, sampler in enumerate(iface.samplers):
         info.sampler(slot, "FLOAT_2D", sampler)
     for unit, (fmt, name) in enumerate(iface.images):
-        info.image(unit, fmt.upper(), "UINT_2D", name, qualifiers={"READ", "WRITE"})
+        info.image(unit, fmt.upper(), "UINT_2D" if image_type(fmt) == "uimage2D" else "FLOAT_2D", name,
+                   qualifiers={"READ", "WRITE"})
     for key, value in program_defines(iface).items():
         info.define(key, value)
     info.compute_source(load_source(iface.compute_file))

@@ -4,6 +4,7 @@ uniforms; plus the host's counts of what the pass keeps, for measurement."""
 from __future__ import annotations
 
 import logging
+import math
 
 import numpy as np
 
@@ -14,6 +15,7 @@ from ..core.scene import LightSpec
 from ..core.warping import LayerMapping, max_shear
 from .frame import ShadowSettings
 from .passes.footprints import FootprintDraw
+from .passes.warp import GpuWarp
 from .resident import CHUNK_TRIANGLES, ResidentScene
 from .shaders import FOOTPRINT_VERTICES, MAX_POINT_SIZE, REGION_PLANES
 
@@ -48,6 +50,10 @@ def map_stretch(mapping: LayerMapping) -> float:
     warp = mapping.warp
     if warp is None:
         return scale
+    if isinstance(warp, GpuWarp):
+        # Its tables (and their shear, which the footprint pass reads there) stay on the
+        # GPU, and nothing bounds the shear before it is built: every chunk draws quads.
+        return math.inf
     width = scale * (1.0 + float(_slopes(warp.rows).max()) + max_shear(warp.rows))
     height = scale * (1.0 + float(_slopes(warp.cols).max())) + max_shear(warp.cols) * width
     return max(width, height)

@@ -28,7 +28,7 @@ from ..core.frames import Layer
 from ..core.plan import SCISSOR_EDGE_POINTS, Plan, layer_scissor, plan_frame, plan_projective, sun_upstream_reach
 from ..core.samples import SampleStats
 from ..core.scene import CameraSpec, LightSpec
-from ..core.warping import LayerMapping, max_shear
+from ..core.warping import LayerMapping
 from .backend import AtlasLayout, FootprintDraw, ShadowBackend
 from .footprint_runs import (  # noqa: F401  (map_stretch: the tests')
     FOOTPRINT_DILATE_TEXELS, _chunk_spheres, _measurer, footprint_ranges, map_stretch)
@@ -275,7 +275,6 @@ def layer_uniforms(layer: Layer, geometry: PreparedGeometry, res: int, origin: t
         "ow_layer_slot": layer.slot,
         "ow_mapped": 0 if mapping.is_identity else 1,
         "ow_warp_size": warp_size if warp is not None else 0,
-        "ow_warp_shear": (max_shear(warp.rows), max_shear(warp.cols)) if warp is not None else (0.0, 0.0),
         "ow_dilate": FOOTPRINT_DILATE_TEXELS,
         "ow_edge_on_distance": footprint.EDGE_ON_SCENE * geometry.far,
         "ow_crop": mapping.crop_vec4(),

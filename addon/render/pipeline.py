@@ -45,17 +45,8 @@ from ..core.errors import BackendError, InputError
 from ..core.plan import Plan, hit_points
 from ..core.samples import Reduction, SampleStats, depth_axis
 from ..core.scene import LightSpec
-from ..core.warping import (
-    FLOOR_SHARE,
-    MAX_SLOPE,
-    LayerMapping,
-    Warp,
-    WarpParams,
-    dv_crop_from_counts,
-    notw_cols,
-    notw_rows,
-    rtw_from_counts,
-)
+from ..core.warping import LayerMapping
+from . import analysis
 from .backend import AtlasLayout, ShadowBackend
 from .frame import (
     MAX_IMPORTANCE,
@@ -77,7 +68,7 @@ from .frame import (
 from .footprint_runs import footprint_draws, region_uniforms
 from .parameterizations import DrawInputs, parameterization, slot_rotations_and_crops
 from .resident import ResidentScene
-from .shaders import NO_TILE, PARAM_CODES, SLOTS
+from .shaders import PARAM_CODES, SLOTS
 from .soft import SizedMode, hit_words, list_resolution, sized_mode, soft_uniforms
 from .stage_clock import StageClock
 from .unfold import edge_aa_parameters
@@ -89,16 +80,6 @@ __all__ = ["MAX_IMPORTANCE", "MAX_IMPORTANCE_TOTAL", "MAX_RESOLUTION", "MIN_RESO
            "CountStatistics", "FrameResult", "PreparedGeometry", "ShadowPipeline", "ShadowSettings", "ViewSamples",
            "count_statistics", "edge_aa_parameters", "settings_for"]
 
-
-def _stack_tables(mappings: dict[int, LayerMapping], size: int) -> tuple[np.ndarray, np.ndarray]:
-    """Slot-major (6 * A, A + 1) tables of every layer's row and column offsets."""
-    rows = np.zeros((6 * size, size + 1), dtype=np.float32)
-    cols = np.zeros((6 * size, size + 1), dtype=np.float32)
-    for slot, mapping in mappings.items():
-        if mapping.warp is not None:
-            rows[slot * size:(slot + 1) * size] = mapping.warp.rows
-            cols[slot * size:(slot + 1) * size] = mapping.warp.cols
-    return rows, cols
 
 # Read-only triangle arrays a pipeline keeps resident at once (ShadowPipeline._scene_of):
 # a few lights, each with its own selection of blockers.
@@ -144,55 +125,18 @@ class ShadowPipeline:
 
     def count_maps(self, light: LightSpec, plan: Plan, mappings: dict[int, LayerMapping], size: int,
                    mode: int, weighted: bool = False) -> dict[int, np.ndarray]:
-        """GPU count maps (row 0 = v = 0) of the uploaded samples, one per drawn layer of `plan`.
-
-        mode 0: after each layer's crop only; 1: through the row warps; 2: through the
-        full warp. A layer missing from `mappings` counts uncropped. The warp tables must
-        already be uploaded for modes 1 and 2. All layers share one dispatch.
-        `weighted` sums the samples' importance weights instead of counting them.
-        """
-        slots = plan.drawn_slots
-        uniforms = _scatter_uniforms(light, plan, mappings, size, mode, weighted)
-        strip = self.backend.scatter_counts(size, max(len(slots), 1), uniforms)
-        return {slot: strip[:, tile * size:(tile + 1) * size].copy() for tile, slot in enumerate(slots)}
+        """GPU count maps (row 0 = v = 0) of the uploaded samples, one per drawn layer of `plan`
+        (analysis.count_maps)."""
+        return analysis.count_maps(self.backend, light, plan, mappings, size, mode, weighted)
 
     def link_lists(self, light: LightSpec, plan: Plan, mappings: dict[int, LayerMapping], size: int,
                    words: int = 1) -> None:
         """Link the uploaded samples into per-texel lists through the full mapping of each
         drawn layer, at `size` texels a side (the irregular z-buffer's lists; the backend
         keeps them, `read_links` reads them back), with `words` words of marks a sample
-        (soft.hit_words). The warp tables must be uploaded."""
-        uniforms = _scatter_uniforms(light, plan, mappings, size, 2, False)
+        (soft.hit_words). The warp tables must be bound."""
+        uniforms = analysis.scatter_uniforms(light, plan, mappings, size, 2, False)
         self.backend.link_samples(size, max(len(plan.drawn), 1), uniforms, hit_words=words)
-
-    def _analyse(self, light: LightSpec, settings: ShadowSettings, plan: Plan) -> tuple[dict, dict]:
-        """DV crop and warp construction for every drawn layer (Algorithm 3, steps 2-7).
-
-        Each step scatters all layers at once: 3 dispatches for NoTW, 2 for RTW. The
-        counts sum the samples' importance weights (1 each unless ViewSamples.importance
-        says otherwise); the DV crop only asks which cells are occupied.
-        """
-        size = settings.analysis_size or analysis_size_for(settings.resolution)
-        whole = self.count_maps(light, plan, {}, size, 0)  # mode 0 reads no warp table
-        crops = {slot: LayerMapping(*dv_crop_from_counts(counts), None) for slot, counts in whole.items()}
-        counts = self.count_maps(light, plan, crops, size, 0, weighted=True)
-        mappings: dict[int, LayerMapping] = {}
-        if settings.warp == "rtw":
-            for slot, crop in crops.items():
-                mappings[slot] = LayerMapping(crop.lo, crop.hi, rtw_from_counts(counts[slot]))
-        else:
-            rows = {slot: notw_rows(counts[slot]) for slot in crops}
-            row_only = {slot: LayerMapping(crop.lo, crop.hi, _warp_of(rows[slot][0], None, size))
-                        for slot, crop in crops.items()}
-            self.backend.set_warp_tables(*_stack_tables(row_only, size))
-            after_rows = self.count_maps(light, plan, row_only, size, 1, weighted=True)
-            for slot, crop in crops.items():
-                cols, col_window = notw_cols(after_rows[slot])
-                row_table, row_window = rows[slot]
-                mappings[slot] = LayerMapping(crop.lo, crop.hi,
-                                              _warp_of(row_table, cols, size, row_window, col_window))
-        self.backend.set_warp_tables(*_stack_tables(mappings, size))
-        return mappings, counts
 
     def render(self, light: LightSpec, scene: ResidentScene | np.ndarray, samples: ViewSamples | GBufferSamples,
                settings: ShadowSettings, keep_atlas: bool = False, count_work: bool = False,
@@ -255,7 +199,7 @@ class ShadowPipeline:
         counts: dict[int, np.ndarray] = {}
         with clock.part("analysis", "analysis"):
             if settings.warp != "none" and plan.drawn:
-                mappings, counts = self._analyse(light, settings, plan)
+                mappings, counts = analysis.analyse(backend, light, settings, plan)
             else:
                 backend.set_warp_tables(None, None)
                 mappings = scheme.base_mappings(plan, light, settings)
@@ -373,33 +317,6 @@ class ShadowPipeline:
         uniforms.update(soft_uniforms(light, settings))
         self.backend.run_shadow_test(uniforms)
 
-def _scatter_uniforms(light: LightSpec, plan: Plan, mappings: dict[int, LayerMapping], size: int, mode: int,
-                      weighted: bool) -> dict:
-    """The uniforms of the scatter (and its list-linking variant) over the drawn layers."""
-    slots = plan.drawn_slots
-    rotations, crops = slot_rotations_and_crops(plan, mappings)
-    tiles = np.full(SLOTS, NO_TILE, dtype=np.int64)
-    tiles[slots] = np.arange(len(slots))
-    warp_size = max((m.warp.size for m in mappings.values() if m.warp is not None), default=0)
-    projective = plan.projective
-    return {
-        "ow_light_rot": light.rotation.T,
-        "ow_layer_rot": rotations,
-        "ow_layer_crop": crops,
-        "ow_slot_tile": tiles,
-        "ow_layer_kind": plan.layer_kind,
-        "ow_param": PARAM_CODES[plan.parameterization],
-        "ow_hemi": 1 if light.emission == "hemi" else 0,
-        "ow_warp_size": warp_size,
-        "ow_scatter_mode": mode,
-        "ow_count_size": size,
-        "ow_weighted": int(weighted),
-        # A spot's or sun's one map: the samples through its matrix (scatter.comp).
-        "ow_projective": int(projective is not None),
-        "ow_map_matrix": projective.matrix if projective is not None else np.eye(4),
-    }
-
-
 def _reader(backend: ShadowBackend, marks: bool, gpu_ms) -> FrameReader:
     """Reads a frame's visibility and flags (top row first) and its GPU ms; `marks`: shadow
     the samples the exact pass marked."""
@@ -432,11 +349,6 @@ def _mask_unread_texels(atlas: np.ndarray, layout: AtlasLayout, tile_of_slot: di
         tile = atlas[y:y + res, x:x + res]
         tile[~keep] = 1.0
     return atlas
-
-def _warp_of(rows: np.ndarray, cols: np.ndarray | None, size: int, row_window: int = 0, col_window: int = 0) -> Warp:
-    """A NoTW warp from its tables; no column warps yet means identity columns."""
-    return Warp(rows, np.zeros((size, size + 1)) if cols is None else cols,
-                WarpParams(FLOOR_SHARE, MAX_SLOPE, row_window, col_window), "notw")
 
 @dataclass
 class CountStatistics:

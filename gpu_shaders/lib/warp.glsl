@@ -1,10 +1,18 @@
 // NoTW / RTW warps; mirrors addon/core/warping.py (Warp.forward, .inverse, .slopes).
-// Tables are RGBA32F textures of width A and height 6 * A (backend.pack_warp_table):
+// Tables are RGBA32F textures of width A + 1 and height 6 * A (backend.pack_warp_table):
 // the A functions of layer slot s occupy rows s * A .. s * A + A - 1, and texel (k, i)
 // holds nodes k and k + 1 (at k / A and (k + 1) / A) of function i in .xy and of
 // function i + 1 in .zw, so one fetch serves one evaluation. Offsets are interpolated
 // linearly along the nodes and between neighbouring function centres with mix():
 // fixed-function filtering has too few weight bits.
+
+// Texel (A, s * A) of a table holds slot s's family's largest shear |d offset / d across|
+// (and its smoothing window): the bound the footprint pass's boxes widen by.
+vec2 ow_warp_shears(sampler2D rows, sampler2D cols, int slot, int size)
+{
+  ivec2 info = ivec2(size, slot * size);
+  return vec2(texelFetch(rows, info, 0).x, texelFetch(cols, info, 0).x);
+}
 
 struct OwBlend {
   int i0;

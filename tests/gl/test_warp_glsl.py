@@ -35,8 +35,8 @@ def _harness(gl_backend, body: str, inputs: np.ndarray, warp: W.Warp, slot: int)
     with ctx:
         prog = ctx.program(vertex_shader=vs, fragment_shader=fs)
         textures = [ctx.texture((n, 1), 4, data.tobytes(), dtype="f4"),
-                    ctx.texture((size, 6 * size), 4, rows.tobytes(), dtype="f4"),
-                    ctx.texture((size, 6 * size), 4, cols.tobytes(), dtype="f4")]
+                    ctx.texture((size + 1, 6 * size), 4, rows.tobytes(), dtype="f4"),
+                    ctx.texture((size + 1, 6 * size), 4, cols.tobytes(), dtype="f4")]
         out = ctx.texture((n, 1), 4, dtype="f4")
         fbo = ctx.framebuffer(color_attachments=[out])
         vbo = ctx.buffer(np.array([[-1, -1], [3, -1], [-1, 3]], "f4").tobytes())
@@ -189,12 +189,15 @@ def test_importance_moves_resolution_to_the_weighted_samples(gl_backend):
 
     def mapping(importance):
         samples = ViewSamples(dirs * 2.0, -dirs, hit, scene.camera, importance=importance)
-        return pipe.render(scene.light, scene.world_triangles(), samples, settings).mappings[layer.slot]
+        chosen = pipe.render(scene.light, scene.world_triangles(), samples, settings).mappings[layer.slot]
+        chosen.warp.rows  # read from the GPU before the next frame's warp replaces its tables
+        return chosen
 
     plain = mapping(None)
     tripled = mapping(np.full((48, 48), 3.0))
-    assert np.allclose(plain.warp.rows, tripled.warp.rows, rtol=0, atol=1e-12)
-    assert np.allclose(plain.warp.cols, tripled.warp.cols, rtol=0, atol=1e-12)
+    # Built in float32 on the GPU: the same to float32 rounding.
+    assert np.allclose(plain.warp.rows, tripled.warp.rows, rtol=0, atol=1e-6)
+    assert np.allclose(plain.warp.cols, tripled.warp.cols, rtol=0, atol=1e-6)
     left = xy[..., 0] < 0.0
     weighted = mapping(np.where(left, 40.0, 1.0))
     # Where the border between the halves (x = 0) lands in the map: the share of each
@@ -254,7 +257,8 @@ def test_one_dispatch_counts_every_cube_face_as_numpy_does(gl_backend):
     """The compute scatter fills each drawn layer's tile from one dispatch, cropped and
     warped, as numpy's projection, slot choice and bincount do."""
     from addon.core import frames, projection
-    from addon.render.pipeline import _stack_tables, _warp_of
+    from addon.render.analysis import stack_tables as _stack_tables
+    from addon.render.analysis import warp_of as _warp_of
 
     scene = _light_over_floor((64, 48))
     rng = np.random.default_rng(12)

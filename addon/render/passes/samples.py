@@ -9,6 +9,7 @@ import numpy as np
 
 from ...core.errors import BackendError
 from ...core.samples import STAT_COUNT, STAT_SPAN, STAT_TEXELS
+from ...core.warping import max_shear
 from ..device import Target, UniformValues
 from ..shaders import SAMPLE_STATS_PROGRAM, STATS_PASSES, scatter_variant
 
@@ -57,14 +58,16 @@ def upload_samples(backend, positions: np.ndarray, normals: np.ndarray) -> None:
     set_size(backend, (width, height))
 
 
-def pack_warp_table(table: np.ndarray | None) -> np.ndarray:
-    """The GPU layout of a (6 * A, A + 1) warp table: (6 * A, A, 4) float32.
+def pack_warp_table(table: np.ndarray | None, window: int = 0) -> np.ndarray:
+    """The GPU layout of a (6 * A, A + 1) warp table: (6 * A, A + 1, 4) float32.
 
-    Texel (k, row) holds the four offsets one evaluation needs: nodes k and k + 1 of
-    function i = row and of its neighbour i + 1 (the same function at the last one of a
+    Texel (k, row), k < A, holds the four offsets one evaluation needs: nodes k and k + 1
+    of function i = row and of its neighbour i + 1 (the same function at the last one of a
     slot's A). One fetch instead of four: on a software rasteriser the fetches of the
     warp dominate the warped depth pass, which evaluates it twice per texel (see
-    lib/warp.glsl). None packs to one zero texel.
+    lib/warp.glsl). Texel (A, s * A) holds slot s's family's shear (warping.max_shear) and
+    smoothing `window`, which the footprint pass's boxes read. None packs to one zero texel.
+    The GPU builds the same layout itself (warp_build.comp).
     """
     if table is None:
         return np.zeros((1, 1, 4), dtype=np.float32)
@@ -75,12 +78,16 @@ def pack_warp_table(table: np.ndarray | None) -> np.ndarray:
     following = np.arange(t.shape[0]) + 1
     following[size - 1::size] -= 1  # the last function of each slot has no next one: itself
     nxt = t[following]
-    return np.ascontiguousarray(np.stack([t[:, :-1], t[:, 1:], nxt[:, :-1], nxt[:, 1:]], axis=-1))
+    packed = np.zeros((t.shape[0], size + 1, 4), dtype=np.float32)
+    packed[:, :size] = np.stack([t[:, :-1], t[:, 1:], nxt[:, :-1], nxt[:, 1:]], axis=-1)
+    for slot in range(t.shape[0] // size):
+        packed[slot * size, size, :2] = (max_shear(t[slot * size:(slot + 1) * size].astype(np.float64)), window)
+    return packed
 
 
 def set_warp_tables(backend, rows: np.ndarray | None, cols: np.ndarray | None) -> None:
     """Warp offset tables, (6 * A, A + 1) float32 each (slot-major), or None for no warp,
-    uploaded as `pack_warp_table` lays them out (RGBA32F, A x 6A). "No warp" is one zero
+    uploaded as `pack_warp_table` lays them out (RGBA32F, (A + 1) x 6A). "No warp" is one zero
     texel, made once and bound as both; each table's own texture is kept for the next
     warped frame to write in place (where the device can)."""
     device = backend.device
@@ -91,15 +98,17 @@ def set_warp_tables(backend, rows: np.ndarray | None, cols: np.ndarray | None) -
             backend.textures[name] = backend.no_warp
             continue
         data = pack_warp_table(table)
+        backend.warp_build.generation += 1  # a GPU-built warp's tables are overwritten
         held = device.upload(backend.warp_tables.get(name), (data.shape[1], data.shape[0]), "RGBA32F", data)
         backend.textures[name] = backend.warp_tables[name] = held
 
 
-def scatter_counts(backend, size: int, tiles: int, uniforms: UniformValues) -> np.ndarray:
-    """Count maps of the uploaded samples, all layers in one dispatch (SCATTER_PROGRAM).
+def scatter_counts(backend, size: int, tiles: int, uniforms: UniformValues, read: bool = True) -> np.ndarray | None:
+    """Count maps of the uploaded samples, all layers in one dispatch (SCATTER_PROGRAM),
+    into the strip of `size` (SampleTargets.counts), where the GPU's warp reads them.
 
-    Returns (size, size * tiles) float32, row 0 at the bottom (v = 0); the layer in slot s
-    fills the columns of tile `uniforms["ow_slot_tile"][s]`.
+    With `read`, returns the strip as (size, size * tiles) float32, row 0 at the bottom
+    (v = 0); the layer in slot s fills the columns of tile `uniforms["ow_slot_tile"][s]`.
     """
     held = backend.samples
     if held.size is None:
@@ -114,7 +123,7 @@ def scatter_counts(backend, size: int, tiles: int, uniforms: UniformValues) -> n
     iface = scatter_variant(uniforms)
     width, height = held.size
     device.dispatch(iface, uniforms, backend.textures, {"ow_counts": target}, iface.groups(width * height))
-    return device.read(target, "R32UI").astype(np.float32)
+    return device.read(target, "R32UI").astype(np.float32) if read else None
 
 
 def reduce_samples(backend, uniforms: UniformValues, histogram: bool) -> np.ndarray:

@@ -19,11 +19,13 @@ from .constants import (ALPHA_INTERPOLATIONS, CODES, EDGE_PASSES, EXACT_MAX_WALK
                         LAYER_KINDS, LIGHT_KINDS, MAX_POINT_SIZE, NO_SPLIT, NO_SPOT, NO_SPREAD, NO_TILE, OUTLINES,
                         OVERLAY_MODES, PARAM_CODES, REGION_PLANES, SAMPLE_FLAGS, SCATTER_MODE_CODES, SCATTER_MODES,
                         SHARED_DEFINES, SLOTS, SOFT_MAX_POINTS, SOFT_MAX_SEARCH, SOFT_SEARCH_STEPS, STATS_PASSES,
-                        VERTEX_TEXTURE_WIDTH, WORK_BOX, WORK_CUT, WORK_ENTRIES, WORK_FRAGMENTS, WORK_TEXELS, Codes)
+                        VERTEX_TEXTURE_WIDTH, WARP_FAMILIES, WARP_STEPS, WORK_BOX, WORK_CUT, WORK_ENTRIES,
+                        WORK_FRAGMENTS, WORK_TEXELS, Codes)
 from .interfaces import (ADVANCE_PROGRAM, BARRIER_PROGRAM, DEPTH_PROGRAM, EDGE_PROGRAM, FOOTPRINT_PROGRAM,
                          GBUFFER_PROGRAM, GBUFFER_SAMPLES_PROGRAM, OVERLAY_PROGRAM, PREVIEW_PROGRAM,
                          RAY_TABLE_PROGRAM, SAMPLE_STATS_PROGRAM, SCATTER_PROGRAM, SHADOW_TEST_PROGRAM,
-                         ComputeInterface, ProgramInterface, Uniform, Varying, program_defines)
+                         WARP_BUILD_PROGRAM, ComputeInterface, ProgramInterface, Uniform, Varying, image_type,
+                         program_defines)
 from .loader import GLSL_VERSION, SHADER_DIR, expand_source, load_source
 from .programs import (ALPHA_PROGRAMS, COMPUTE_PROGRAMS, DEPTH_PLAIN_PROGRAM, EXACT_PROGRAMS, EXACT_SOFT_PROGRAMS,
                        GBUFFER_ALPHA_PROGRAM, PROGRAMS, SHADOW_TEST_PLAIN_PROGRAM, SOFT_PROGRAMS, VARIANT_PROGRAMS,
@@ -32,7 +34,8 @@ from .variants import (ALPHA_DEFINE, ALPHA_SAMPLERS, EXACT_COUNT_DEFINE, EXACT_C
                        EXACT_SOFT_DEFINE, EXACT_SOFT_KEY, EXACT_SOFT_UNIFORMS, FIXED_KIND_DEFINE, FIXED_KIND_NAMES,
                        FOOTPRINT_FILES, LINK_DEFINE, NO_WARP_DEFINE, POINTS_DEFINE, SCATTER_MODE_DEFINE, SOFT_DEFINE,
                        SOFT_UNIFORMS, VEIL_DEFINE, VEIL_IMAGES, alpha_of, derive, exact_of, exact_soft_of,
-                       exact_variant, link_variant, program_variant, scatter_variant, soft_of, veil_of)
+                       exact_variant, link_variant, program_variant, scatter_variant, soft_of, veil_of,
+                       warp_step_variant)
 
 __all__ = [
     "ADVANCE_PROGRAM", "ALPHA_DEFINE", "ALPHA_INTERPOLATIONS", "alpha_of", "ALPHA_PROGRAMS", "ALPHA_SAMPLERS",
@@ -50,6 +53,7 @@ __all__ = [
     "SCATTER_PROGRAM", "scatter_variant", "SHADER_DIR", "SHADOW_TEST_PLAIN_PROGRAM", "SHADOW_TEST_PROGRAM",
     "SHARED_DEFINES", "SLOTS", "SOFT_DEFINE", "SOFT_MAX_POINTS", "SOFT_MAX_SEARCH", "soft_of", "SOFT_PROGRAMS",
     "SOFT_SEARCH_STEPS", "SOFT_UNIFORMS", "STATS_PASSES", "Uniform", "VARIANT_PROGRAMS", "Varying", "VEIL_DEFINE",
-    "VEIL_IMAGES", "veil_of", "VEIL_PROGRAMS", "VERTEX_TEXTURE_WIDTH", "WORK_BOX", "WORK_CUT", "WORK_ENTRIES",
+    "VEIL_IMAGES", "veil_of", "VEIL_PROGRAMS", "VERTEX_TEXTURE_WIDTH", "WARP_BUILD_PROGRAM", "WARP_FAMILIES",
+    "WARP_STEPS", "warp_step_variant", "image_type", "WORK_BOX", "WORK_CUT", "WORK_ENTRIES",
     "WORK_FRAGMENTS", "WORK_TEXELS",
 ]

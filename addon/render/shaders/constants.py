@@ -70,6 +70,10 @@ EDGE_PASSES = MappingProxyType({"along_x": 0, "along_y": 1})
 STATS_PASSES = MappingProxyType({"fields": 0, "histogram": 1, "cut": 2})
 SCATTER_MODE_CODES = MappingProxyType({"crop": 0, "rows": 1, "warp": 2})  # after the crop; the row warps; the full warp
 SCATTER_MODES = tuple(SCATTER_MODE_CODES.values())
+# The steps of the warp's construction on the GPU (warp_build.comp, OW_STEP) and the
+# two families of a NoTW warp (ow_family): row offsets along u, then column offsets along v.
+WARP_STEPS = MappingProxyType({"crop": 0, "lines": 1, "smooth": 2, "pack": 3})
+WARP_FAMILIES = MappingProxyType({"rows": 0, "cols": 1})
 
 CODES = (
     Codes("OW_PARAM_", PARAM_CODES, ("ow_param",)),
@@ -87,6 +91,8 @@ CODES = (
     Codes("OW_EDGE_", EDGE_PASSES, ("ow_edge_pass",)),
     Codes("OW_STATS_", STATS_PASSES, ("ow_stats_pass",)),
     Codes("OW_SCATTER_", SCATTER_MODE_CODES, ("ow_scatter_mode", "OW_SCATTER_MODE")),
+    Codes("OW_WARP_", WARP_STEPS, ("OW_STEP",)),
+    Codes("OW_FAMILY_", WARP_FAMILIES, ("ow_family",)),
 )
 
 # Footprints -----------------------------------------------------------------------------

@@ -11,7 +11,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 
-from ...core import samples
+from ...core import samples, warping
 from .constants import (FOOTPRINT_VERTICES, MAX_POINT_SIZE, REGION_PLANES, SHARED_DEFINES, SLOTS,
                         VERTEX_TEXTURE_WIDTH)
 
@@ -55,13 +55,18 @@ class ComputeInterface:
     compute_file: str
     uniforms: tuple[Uniform, ...] = ()
     samplers: tuple[str, ...] = ()  # sampler2D names, binding = index
-    images: tuple[tuple[str, str], ...] = ()  # (format, name) of uimage2D images, unit = index
+    images: tuple[tuple[str, str], ...] = ()  # (format, name) of images, unit = index (image_type)
     local_size: int = 64  # invocations per work group along x
     defines: dict[str, str] = field(default_factory=dict)
 
     def groups(self, invocations: int) -> int:
         """Work groups that cover `invocations` (the body returns past the end)."""
         return max(1, -(-int(invocations) // self.local_size))
+
+
+def image_type(fmt: str) -> str:
+    """The GLSL image type of an image format: uimage2D for r32ui, image2D for float ones."""
+    return "uimage2D" if fmt.lower().endswith("ui") else "image2D"
 
 
 def program_defines(iface: ProgramInterface | ComputeInterface) -> dict[str, str]:
@@ -125,7 +130,7 @@ FOOTPRINT_PROGRAM = ProgramInterface(
     vertex_in=(("float", "ow_corner"),),
     fragment_out=(("float", "ow_depth"),),
     uniforms=(LAYER_UNIFORMS + uniform_list("mat3 ow_object_linear") + LIGHT_POSITION_UNIFORMS
-              + uniform_list("float ow_edge_on_distance", "vec2 ow_warp_shear", "float ow_dilate") + TILE_UNIFORMS
+              + uniform_list("float ow_edge_on_distance", "float ow_dilate") + TILE_UNIFORMS
               + uniform_list(f"vec4 ow_region_planes[{REGION_PLANES}]", "int ow_region_count", "float ow_region_slack")
               + PROJECTIVE_UNIFORMS
               # The exact pass over a spot's or sun's map: a sun's edge planes contain its light's
@@ -210,6 +215,21 @@ ADVANCE_PROGRAM = ComputeInterface(
     compute_file="list_advance.comp",
     uniforms=uniform_list("int ow_advance_steps", "int ow_tile_size"),
     images=(("r32ui", "ow_counts"), ("r32ui", "ow_next"), ("r32ui", "ow_work")),
+)
+
+# The NoTW warp built on the GPU (warp_build.comp; core/warping.py names the constants):
+# the count strip, the crop's bounds, the families' working lines, each tile's window and
+# shear, and the packed table it writes.
+WARP_BUILD_PROGRAM = ComputeInterface(
+    name="omniwarp_warp_build",
+    compute_file="warp_build.comp",
+    uniforms=uniform_list("int ow_family", "int ow_count_size", "int ow_tiles", "int ow_along",
+                          f"int ow_tile_slot[{SLOTS}]"),
+    images=(("r32ui", "ow_counts"), ("r32ui", "ow_bounds"), ("r32ui", "ow_work"), ("r32ui", "ow_info"),
+            ("rgba32f", "ow_table")),
+    defines={"OW_FLOOR_SHARE": repr(float(warping.FLOOR_SHARE)), "OW_MAX_SLOPE": repr(float(warping.MAX_SLOPE)),
+             "OW_SHEAR_LIMIT": repr(float(warping.SHEAR_LIMIT)),
+             "OW_IDENTITY_PRIOR": repr(float(warping.IDENTITY_PRIOR))},
 )
 
 # The viewport ------------------------------------------------------------------------------

@@ -21,9 +21,9 @@ from typing import TypeVar
 from ...core import projection
 from ...core.errors import BackendError
 from .constants import (EXACT_SOFT_CLUSTER, EXACT_SOFT_MAX_POINTS, NO_SPLIT, SCATTER_MODE_CODES, SCATTER_MODES,
-                        SOFT_MAX_POINTS, SOFT_MAX_SEARCH)
-from .interfaces import (DEPTH_PROGRAM, FOOTPRINT_PROGRAM, SCATTER_PROGRAM, SHADOW_TEST_PROGRAM, ComputeInterface,
-                         ProgramInterface, Uniform, Varying, uniform_list)
+                        SOFT_MAX_POINTS, SOFT_MAX_SEARCH, WARP_STEPS)
+from .interfaces import (DEPTH_PROGRAM, FOOTPRINT_PROGRAM, SCATTER_PROGRAM, SHADOW_TEST_PROGRAM, WARP_BUILD_PROGRAM,
+                         ComputeInterface, ProgramInterface, Uniform, Varying, uniform_list)
 
 Interface = TypeVar("Interface", ProgramInterface, ComputeInterface)
 
@@ -46,6 +46,7 @@ VEIL_DEFINE = "OW_VEIL"
 SOFT_DEFINE = "OW_SOFT"
 SCATTER_MODE_DEFINE = "OW_SCATTER_MODE"
 LINK_DEFINE = "OW_LINK"
+WARP_STEP_DEFINE = "OW_STEP"  # the one step a warp_build.comp program runs
 
 # Layer kinds with a fixed-kind variant; the values mirror core.projection's
 # PARABOLOID and CUBE (lib/projection.glsl's OW_KIND_PARABOLOID, OW_KIND_CUBE).
@@ -230,6 +231,14 @@ def scatter_mode_variant(mode: int, kind: int | None) -> ComputeInterface:
         defines[FIXED_KIND_DEFINE] = str(kind)
         name += "_" + FIXED_KIND_NAMES[kind]
     return derive(SCATTER_PROGRAM, name, defines=defines)
+
+
+def warp_step_variant(step: str) -> ComputeInterface:
+    """The GPU warp's step `step` (constants.WARP_STEPS) as a program of its own: the other
+    steps compile out, so a simple step carries none of the smoothing's private arrays
+    (a software rasteriser allocates them for every invocation)."""
+    return derive(WARP_BUILD_PROGRAM, f"{WARP_BUILD_PROGRAM.name}_{step}",
+                  defines={WARP_STEP_DEFINE: str(WARP_STEPS[step])})
 
 
 def link_kind_variant(kind: int | None) -> ComputeInterface:

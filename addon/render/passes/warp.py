@@ -1,0 +1,154 @@
+"""The NoTW warp built on the GPU (warp_build.comp) from the count strip the scatter left:
+the DV crop's bounds, then each family's lines, smoothing and packed table, written where
+the next passes sample it. Nothing but the crop's bounds (16 bytes a layer) is read back;
+`GpuWarp` reads a layer's tables on request, after the frame."""
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+
+from ...core.errors import BackendError
+from ...core.warping import ALONG_BLUR_SHARE, FLOOR_SHARE, MAX_SLOPE, Warp, WarpParams
+from ..shaders import NO_TILE, SLOTS, WARP_BUILD_PROGRAM, WARP_FAMILIES, warp_step_variant
+
+# The largest count-map side the GPU builds a warp for (OW_MAX_A in warp_build.comp).
+MAX_GPU_WARP_SIZE = 256
+# The table each family writes (the samplers every warped pass reads).
+TABLE_OF_FAMILY = {"rows": "ow_warp_rows", "cols": "ow_warp_cols"}
+
+
+@dataclass
+class WarpBuild:
+    """The images of the GPU's warp construction, kept between frames."""
+
+    bounds: Any = None  # R32UI (4 * SLOTS, 1): each tile's occupied columns and rows
+    work: Any = None  # R32UI (A + 4, SLOTS * A): a family's lines (offsets, total, weight, tent) as float bits
+    info: Any = None  # R32UI (8, SLOTS): each tile's window and shear per family, and the smoothing's scratch
+    size: int = 0
+    generation: int = 0  # bumped by every build: a GpuWarp of an earlier one is stale
+
+    def held(self) -> list[Any]:
+        return [self.bounds, self.work, self.info]
+
+
+def _images(backend, size: int) -> WarpBuild:
+    held = backend.warp_build
+    device = backend.device
+    if held.size != size:
+        device.free(*held.held())
+        held.bounds = device.texture((4 * SLOTS, 1), "R32UI")
+        held.work = device.texture((size + 4, SLOTS * size), "R32UI")
+        held.info = device.texture((8, SLOTS), "R32UI")
+        held.size = size
+    for name in TABLE_OF_FAMILY.values():
+        table = backend.warp_tables.get(name)
+        if table is None or device.texture_size(table) != (size + 1, SLOTS * size):
+            device.free(table)
+            table = backend.warp_tables[name] = device.texture((size + 1, SLOTS * size), "RGBA32F")
+        backend.textures[name] = table
+    return held
+
+
+def _uniforms(family: str, size: int, tiles: int, tile_slots: list[int]) -> dict:
+    slots = np.full(SLOTS, NO_TILE, dtype=np.int64)
+    slots[:len(tile_slots)] = tile_slots
+    return {"ow_family": WARP_FAMILIES[family], "ow_count_size": size,
+            "ow_tiles": tiles, "ow_along": int(round(size * ALONG_BLUR_SHARE)), "ow_tile_slot": slots}
+
+
+def _dispatch(backend, step: str, family: str, size: int, tile_slots: list[int], groups: int,
+              table: str | None = None) -> None:
+    held = backend.warp_build
+    counts = backend.samples.counts.get(size)
+    if counts is None:
+        raise BackendError("the GPU warp needs the count strip of a scatter at its size first")
+    images = {"ow_counts": counts, "ow_bounds": held.bounds, "ow_work": held.work, "ow_info": held.info,
+              "ow_table": backend.warp_tables[table or TABLE_OF_FAMILY[family]]}
+    backend.device.dispatch(warp_step_variant(step), _uniforms(family, size, len(tile_slots), tile_slots),
+                            {}, images, groups)
+
+
+def crop_bounds(backend, size: int, tiles: int) -> list[tuple[int, int, int, int] | None]:
+    """Each tile's first and last occupied column and row of the count strip of `size`
+    (warping.dv_crop_from_counts's cells), None for an empty tile: one read of 16 bytes a tile."""
+    if size > MAX_GPU_WARP_SIZE:
+        raise BackendError(f"the GPU warp takes count maps of at most {MAX_GPU_WARP_SIZE}, not {size}")
+    held = _images(backend, size)
+    backend.device.clear_image(held.bounds)
+    _dispatch(backend, "crop", "rows", size, [0] * tiles, WARP_BUILD_PROGRAM.groups(size * size * tiles))
+    raw = backend.device.read(held.bounds, "R32UI", (0, 0, 4 * tiles, 1)).ravel().astype(np.int64)
+    out = []
+    for tile in range(tiles):
+        lo_col, hi_col, lo_row, hi_row = raw[4 * tile:4 * tile + 4]
+        empty = lo_col == 0  # the complement of a column index is never 0 once a cell counted
+        out.append(None if empty else (int(~lo_col & 0xFFFFFFFF), int(hi_col), int(~lo_row & 0xFFFFFFFF), int(hi_row)))
+    return out
+
+
+def build_family(backend, size: int, tile_slots: list[int], family: str) -> None:
+    """One family of every drawn layer's NoTW warp from the count strip of `size` (the
+    rows from the cropped counts, the columns from the counts through the row warps), into
+    its table: lines, smoothing, packing. Nothing is read back."""
+    held = _images(backend, size)
+    tiles = len(tile_slots)
+    _dispatch(backend, "lines", family, size, tile_slots, WARP_BUILD_PROGRAM.groups(size * tiles))
+    _dispatch(backend, "smooth", family, size, tile_slots, tiles)
+    if family == "rows":
+        held.generation += 1  # the tables change from here: a warp of the previous build is stale
+    _dispatch(backend, "pack", family, size, tile_slots, WARP_BUILD_PROGRAM.groups((size + 1) * size * tiles))
+
+
+class GpuWarp:
+    """A layer's NoTW warp as the GPU built it. Its tables stay on the GPU; `rows`, `cols`
+    and `params` read them on first use, which must come before the next warped frame
+    overwrites them (BackendError otherwise)."""
+
+    kind = "notw"
+
+    def __init__(self, backend, slot: int, size: int) -> None:
+        self._backend = backend
+        self._slot = slot
+        self._generation = backend.warp_build.generation
+        self.size = size
+        self._warp: Warp | None = None
+
+    def _read(self) -> Warp:
+        if self._warp is None:
+            backend = self._backend
+            if backend.released or backend.warp_build.generation != self._generation:
+                raise BackendError("a GPU-built warp was read after a later frame replaced its tables")
+            tables, windows = [], []
+            for name in TABLE_OF_FAMILY.values():
+                packed = backend.device.read(backend.warp_tables[name], "RGBA32F")
+                block = packed[self._slot * self.size:(self._slot + 1) * self.size].astype(np.float64)
+                table = np.concatenate([block[:, :self.size, 0], block[:, self.size - 1:self.size, 1]], axis=1)
+                tables.append(table)
+                windows.append(int(round(block[0, self.size, 1])))
+            self._warp = Warp(tables[0], tables[1], WarpParams(FLOOR_SHARE, MAX_SLOPE, *windows), "notw")
+        return self._warp
+
+    @property
+    def rows(self) -> np.ndarray:
+        return self._read().rows
+
+    @property
+    def cols(self) -> np.ndarray:
+        return self._read().cols
+
+    @property
+    def params(self) -> WarpParams:
+        return self._read().params
+
+    def forward(self, uv: np.ndarray) -> np.ndarray:
+        return self._read().forward(uv)
+
+    def inverse(self, uv_warped: np.ndarray) -> np.ndarray:
+        return self._read().inverse(uv_warped)
+
+    def jacobian(self, uv: np.ndarray) -> np.ndarray:
+        return self._read().jacobian(uv)
+
+    def slopes(self, uv: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        return self._read().slopes(uv)

@@ -1,0 +1,341 @@
+// The NoTW analysis on the GPU (thesis Algorithm 3, steps 3-7): the DV crop's bounds and
+// the warp tables are built from the count strip the scatter left (scatter.comp), and
+// written where the next passes read them; addon/core/warping.py is the numpy oracle
+// (dv_crop_from_counts, notw_rows, notw_cols) and names the constants.
+//
+// The strip holds one A x A count map per drawn layer: tile t at columns t A .. t A + A - 1,
+// row = v. Each step is its own program (OW_STEP) and dispatch:
+//  OW_WARP_CROP    one invocation per strip texel: the occupied cells' first and last
+//                  column and row per tile, as maxima (a minimum as the maximum of its
+//                  complement, so the image starts from zeros) at ow_bounds (4 t .. 4 t + 3).
+//  OW_WARP_LINES   one invocation per (tile, line) of the family (ow_family: rows, the map's
+//                  rows; columns, its columns): the line's counts blurred along it, its
+//                  offsets (eq. 4.7, floor share and steepness clamp) at ow_work columns
+//                  0 .. A and its total at column A + 1 (float bits).
+//  OW_WARP_SMOOTH  one work group per tile: the narrowest tent window (1, 2, 4, ... lines)
+//                  whose smoothing leaves the shear under OW_SHEAR_LIMIT (else the first
+//                  past A / 2), the smoothed offsets written back in place, and the window
+//                  and shear at ow_info (tile t, columns 2 family and 2 family + 1).
+//  OW_WARP_PACK    one invocation per texel of the table (ow_table, the layout of
+//                  passes/samples.pack_warp_table): nodes k and k + 1 of function i and of
+//                  function i + 1; column A holds the shear and the window.
+
+#define OW_MAX_A 256
+
+uint ow_bits(float value)
+{
+  return floatBitsToUint(value);
+}
+
+float ow_work_value(int tile, int line, int k)
+{
+  return uintBitsToFloat(imageLoad(ow_work, ivec2(k, tile * ow_count_size + line)).x);
+}
+
+void ow_set_work(int tile, int line, int k, float value)
+{
+  imageStore(ow_work, ivec2(k, tile * ow_count_size + line), uvec4(ow_bits(value)));
+}
+
+// The count at position `k` along line `line` of tile `tile`'s map, in the family's order.
+float ow_count(int tile, int line, int k)
+{
+  int size = ow_count_size;
+  ivec2 cell = (ow_family == OW_FAMILY_ROWS) ? ivec2(k, line) : ivec2(line, k);
+  return float(imageLoad(ow_counts, ivec2(tile * size + cell.x, cell.y)).x);
+}
+
+void ow_crop_bounds(int index)
+{
+  int size = ow_count_size;
+  if (index >= size * size * ow_tiles) {
+    return;
+  }
+  int x = index % (size * ow_tiles);
+  int y = index / (size * ow_tiles);
+  if (imageLoad(ow_counts, ivec2(x, y)).x == 0u) {
+    return;
+  }
+  int tile = x / size;
+  uint col = uint(x % size);
+  imageAtomicMax(ow_bounds, ivec2(4 * tile + 0, 0), ~col);
+  imageAtomicMax(ow_bounds, ivec2(4 * tile + 1, 0), col);
+  imageAtomicMax(ow_bounds, ivec2(4 * tile + 2, 0), ~uint(y));
+  imageAtomicMax(ow_bounds, ivec2(4 * tile + 3, 0), uint(y));
+}
+
+// warping.offsets_from_counts of one line, after warping._one_family's blur along it.
+void ow_line(int index)
+{
+  int size = ow_count_size;
+  if (index >= size * ow_tiles) {
+    return;
+  }
+  int tile = index / size;
+  int line = index % size;
+  float share[OW_MAX_A];
+  // The tent along the line, divided by the tent of ones so that a uniform line stays
+  // uniform up to its ends (warping.tent_filter zero-pads).
+  float total = 0.0;
+  for (int k = 0; k < size; k++) {
+    float sum = 0.0;
+    float weight = 0.0;
+    for (int d = -ow_along; d <= ow_along; d++) {
+      int j = k + d;
+      if (j >= 0 && j < size) {
+        float w = 1.0 - float(abs(d)) / float(ow_along + 1);
+        sum += w * ow_count(tile, line, j);
+        weight += w;
+      }
+    }
+    share[k] = sum / weight;
+    total += share[k];
+  }
+  if (!(total > 0.0)) {
+    for (int k = 0; k <= size; k++) {
+      ow_set_work(tile, line, k, 0.0);  // an empty line: the identity
+    }
+    ow_set_work(tile, line, size + 1, 0.0);
+    return;
+  }
+  for (int k = 0; k < size; k++) {
+    share[k] = (1.0 - OW_FLOOR_SHARE) * (share[k] / total) + OW_FLOOR_SHARE / float(size);
+  }
+  // Water filling (warping._cap_density): cap every share at OW_MAX_SLOPE / A and scale
+  // the others up so that they still sum to 1. The capped set only grows, largest shares
+  // first, so the loop ends at the exact set the sorted version finds.
+  float cap = OW_MAX_SLOPE / float(size);
+  float scale = 1.0;
+  int capped = 0;
+  for (int round = 0; round < size; round++) {
+    float rest = 0.0;
+    int count = 0;
+    for (int k = 0; k < size; k++) {
+      if (share[k] * scale > cap * (1.0 + 1e-6)) {
+        count++;
+      }
+      else {
+        rest += share[k];
+      }
+    }
+    if (count == capped) {
+      break;
+    }
+    capped = count;
+    scale = (1.0 - float(count) * cap) / max(rest, 1e-30);
+  }
+  float running = 0.0;
+  for (int k = 0; k < size; k++) {
+    running += min(share[k] * scale, cap);
+    share[k] = running;  // the cumulative share up to node k + 1
+  }
+  ow_set_work(tile, line, 0, 0.0);
+  for (int k = 1; k < size; k++) {
+    ow_set_work(tile, line, k, share[k - 1] / running - float(k) / float(size));
+  }
+  ow_set_work(tile, line, size, 0.0);
+  ow_set_work(tile, line, size + 1, total);
+}
+
+// The smoothing step shares its per-line numbers through the work image (Blender's `gpu`
+// declares no shared memory): column A + 2 holds each line's total over the tile's
+// largest, column A + 3 the tent of those plus the prior at the window being tried.
+// ow_info's columns 4 .. 6 of a tile hold the group's running shear maximum, its
+// populated lines and their weights' sum.
+#define OW_WEIGHT_COLUMN (ow_count_size + 2)
+#define OW_DEN_COLUMN (ow_count_size + 3)
+#define OW_INFO_SHEAR_MAX 4
+#define OW_INFO_POPULATED 5
+#define OW_INFO_WEIGHT_SUM 6
+
+// Image stores of the group visible to its loads, at a point every invocation reaches.
+void ow_group_sync()
+{
+  memoryBarrierImage();
+  barrier();
+}
+
+uint ow_info_value(int column, int tile)
+{
+  return imageLoad(ow_info, ivec2(column, tile)).x;
+}
+
+// warping.tent_filter of `values` (line-indexed) at half-width `window`: with the lines
+// zero-padded by `window` on each side, a forward box of width n = window + 1 and then a
+// backward one, divided by n (weights 1 - |d| / n), each a running sum.
+void ow_tent(inout float values[OW_MAX_A], int size, int window)
+{
+  int n = window + 1;
+  int padded = size + 2 * window;
+  float forward[2 * OW_MAX_A];  // forward[p] = padded lines p .. p + n - 1
+  float running = 0.0;
+  for (int p = padded - 1; p >= 0; p--) {
+    int entering = p - window;
+    int leaving = p + n - window;
+    running += (entering >= 0 && entering < size) ? values[entering] : 0.0;
+    running -= (leaving >= 0 && leaving < size) ? values[leaving] : 0.0;
+    forward[p] = running;
+  }
+  running = 0.0;
+  for (int p = 0; p < window + size; p++) {
+    running += forward[p];
+    if (p - n >= 0) {
+      running -= forward[p - n];
+    }
+    if (p >= window) {
+      values[p - window] = running / float(n);
+    }
+  }
+}
+
+// The column `k` of the tile's offsets smoothed at `window` (warping.smooth_offsets), and
+// its largest step between neighbouring lines times A.
+float ow_smoothed_column(int tile, int k, int window, out float column[OW_MAX_A])
+{
+  int size = ow_count_size;
+  for (int i = 0; i < size; i++) {
+    column[i] = ow_work_value(tile, i, OW_WEIGHT_COLUMN) * ow_work_value(tile, i, k);
+  }
+  ow_tent(column, size, window);
+  float shear = 0.0;
+  for (int i = 0; i < size; i++) {
+    float den = ow_work_value(tile, i, OW_DEN_COLUMN);
+    column[i] = den > 0.0 ? column[i] / den : 0.0;
+    if (i > 0) {
+      shear = max(shear, abs(column[i] - column[i - 1]) * float(size));
+    }
+  }
+  return shear;
+}
+
+// Every invocation of the group calls this with the same window (it has barriers).
+void ow_prepare_window(int tile, int window)
+{
+  int size = ow_count_size;
+  if (gl_LocalInvocationID.x == 0u) {
+    float den[OW_MAX_A];
+    for (int i = 0; i < size; i++) {
+      den[i] = ow_work_value(tile, i, OW_WEIGHT_COLUMN);
+    }
+    ow_tent(den, size, window);
+    float populated = float(max(ow_info_value(OW_INFO_POPULATED, tile), 1u));
+    float prior = OW_IDENTITY_PRIOR * uintBitsToFloat(ow_info_value(OW_INFO_WEIGHT_SUM, tile)) / populated;
+    for (int i = 0; i < size; i++) {
+      ow_set_work(tile, i, OW_DEN_COLUMN, den[i] + prior);
+    }
+    imageStore(ow_info, ivec2(OW_INFO_SHEAR_MAX, tile), uvec4(0u));
+  }
+  ow_group_sync();
+}
+
+// The tile's largest column shear at `window` (barriers inside: called by the whole group).
+float ow_window_shear(int tile, int window)
+{
+  int size = ow_count_size;
+  ow_prepare_window(tile, window);
+  float column[OW_MAX_A];
+  for (int k = int(gl_LocalInvocationID.x); k <= size; k += int(gl_WorkGroupSize.x)) {
+    // Non-negative floats order as their bits.
+    imageAtomicMax(ow_info, ivec2(OW_INFO_SHEAR_MAX, tile), ow_bits(ow_smoothed_column(tile, k, window, column)));
+  }
+  ow_group_sync();
+  float shear = uintBitsToFloat(ow_info_value(OW_INFO_SHEAR_MAX, tile));
+  ow_group_sync();  // read by all before the next window resets it
+  return shear;
+}
+
+void ow_smooth(int tile)
+{
+  int size = ow_count_size;
+  uint local = gl_LocalInvocationID.x;
+  if (local == 0u) {
+    float top = 0.0;
+    for (int i = 0; i < size; i++) {
+      top = max(top, ow_work_value(tile, i, size + 1));
+    }
+    uint populated = 0u;
+    float sum = 0.0;
+    for (int i = 0; i < size; i++) {
+      float weight = top > 0.0 ? ow_work_value(tile, i, size + 1) / top : 0.0;
+      ow_set_work(tile, i, OW_WEIGHT_COLUMN, weight);
+      if (weight > 0.0) {
+        populated++;
+        sum += weight;
+      }
+    }
+    imageStore(ow_info, ivec2(OW_INFO_POPULATED, tile), uvec4(populated));
+    imageStore(ow_info, ivec2(OW_INFO_WEIGHT_SUM, tile), uvec4(ow_bits(sum)));
+  }
+  ow_group_sync();
+  int window = 0;
+  uint populated = ow_info_value(OW_INFO_POPULATED, tile);
+  if (populated > 0u) {
+    // warping.choose_window: 1, 2, 4, ... below A / 2; the first that keeps the shear under
+    // the limit, else the first past them.
+    window = 1;
+    while (window < size / 2) {
+      if (ow_window_shear(tile, window) <= OW_SHEAR_LIMIT) {
+        break;
+      }
+      window *= 2;
+    }
+  }
+  float shear = 0.0;
+  if (window > 0) {
+    shear = ow_window_shear(tile, window);
+    ow_prepare_window(tile, window);
+    float column[OW_MAX_A];
+    for (int k = int(local); k <= size; k += int(gl_WorkGroupSize.x)) {
+      ow_smoothed_column(tile, k, window, column);
+      for (int i = 0; i < size; i++) {
+        ow_set_work(tile, i, k, column[i]);
+      }
+    }
+  }
+  if (local == 0u) {
+    imageStore(ow_info, ivec2(2 * ow_family, tile), uvec4(uint(window)));
+    imageStore(ow_info, ivec2(2 * ow_family + 1, tile), uvec4(ow_bits(shear)));
+  }
+}
+
+void ow_pack(int index)
+{
+  int size = ow_count_size;
+  int width = size + 1;
+  if (index >= width * size * ow_tiles) {
+    return;
+  }
+  int k = index % width;
+  int row = index / width;
+  int tile = row / size;
+  int i = row % size;
+  int slot = ow_tile_slot[tile];
+  vec4 texel;
+  if (k == size) {
+    texel = i == 0 ? vec4(uintBitsToFloat(imageLoad(ow_info, ivec2(2 * ow_family + 1, tile)).x),
+                          float(imageLoad(ow_info, ivec2(2 * ow_family, tile)).x), 0.0, 0.0)
+                   : vec4(0.0);
+  }
+  else {
+    int next = min(i + 1, size - 1);
+    texel = vec4(ow_work_value(tile, i, k), ow_work_value(tile, i, k + 1), ow_work_value(tile, next, k),
+                 ow_work_value(tile, next, k + 1));
+  }
+  imageStore(ow_table, ivec2(k, slot * size + i), texel);
+}
+
+// Each step is a program of its own (shaders.warp_step_variant defines OW_STEP), so that
+// the simple steps carry none of the others' private arrays.
+void main()
+{
+  int index = int(gl_GlobalInvocationID.x);
+#if OW_STEP == OW_WARP_CROP
+  ow_crop_bounds(index);
+#elif OW_STEP == OW_WARP_LINES
+  ow_line(index);
+#elif OW_STEP == OW_WARP_SMOOTH
+  ow_smooth(int(gl_WorkGroupID.x));
+#else
+  ow_pack(index);
+#endif
+}
