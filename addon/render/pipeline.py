@@ -162,11 +162,14 @@ class ShadowPipeline:
         # Making a scene of an array (sanitising, sorting into chunks) is host work of this
         # frame: it counts in `prepare`.
         scene_ms = (time.perf_counter() - start) * 1e3
-        try:
-            result = self._render(light, scene, samples, settings, keep_atlas, scene_ms, count_work, sync_stages)
-        finally:
-            if one_frame:
-                self.backend.release_scene(scene)
+        # The context is made current once for the frame: every pass inside finds it bound.
+        with self.backend.device.bound():
+            try:
+                result = self._render(light, scene, samples, settings, keep_atlas, scene_ms, count_work,
+                                      sync_stages)
+            finally:
+                if one_frame:
+                    self.backend.release_scene(scene)
         self.backend.hold_unread(result)
         return result
 
