@@ -7,8 +7,10 @@ Each redraw of a 3D view with the preview on:
      the G-buffer at the region's size times the resolution scale, runs the
      pipeline per enabled light on Blender's `gpu` backend, and keeps the result;
      if it is too soon, a one-shot timer asks for a redraw once the throttle passed;
-  3. draws the shadow composite (shadowed surfaces darkened) if the result belongs
-     to the current view, then the map overlay in the chosen corner.
+  3. draws the shadow composite (shadowed surfaces darkened): the result's own if it
+     belongs to the current view; otherwise (the view moved within the throttle) the
+     result reprojected into this view, through a G-buffer of this view (a pixel the
+     result's view did not see is drawn lit); then the map overlay in the chosen corner.
 
 `draw_view` does all of that from explicit matrices and sizes, so tests drive it
 without a window. GPU objects are created lazily (a GL context is current in a
@@ -46,6 +48,9 @@ class _ViewResult:
     lines: list = field(default_factory=list)
     top: float = 1.0
     computed_at: float = 0.0
+    seen: Any = None  # the resident scene its G-buffer drew: a moved view's G-buffer draws it too
+    reprojection: Any = None  # blender_draw.Reprojection of its view
+    moved: Any = None  # the G-buffer of the latest moved view (reused while its size holds)
 
 
 @dataclass
@@ -56,6 +61,7 @@ class _State:
     results: dict[Any, _ViewResult] = field(default_factory=dict)  # by region
     version: int = 0  # bumped by every change that makes all views stale
     timer_pending: bool = False
+    last_drawn: str = ""  # what the last redraw drew: "computed", "cached", "reprojected" or "none"
     last_error: str = ""
     reported: set[str] = field(default_factory=set)  # errors already logged once
 
@@ -189,11 +195,14 @@ def _view_key(view_matrix: np.ndarray, projection: np.ndarray, size: tuple[int, 
             tuple(np.round(np.asarray(projection, float), 6).ravel()), size)
 
 
-def _build_result(key: tuple, gbuffer, lights: list, settings) -> _ViewResult:
-    from ..render.blender_draw import visibility_texture
+def _build_result(key: tuple, gbuffer, lights: list, settings, seen=None, view_proj=None,
+                  projection=None) -> _ViewResult:
+    from ..render.blender_draw import Reprojection, visibility_texture
     from .preview import overlay_panels, stats_line
 
-    entry = _ViewResult(key, _STATE.version, gbuffer, lights, computed_at=time.perf_counter())
+    entry = _ViewResult(key, _STATE.version, gbuffer, lights, computed_at=time.perf_counter(), seen=seen)
+    if view_proj is not None and gbuffer is not None:
+        entry.reprojection = Reprojection.of(view_proj, projection, gbuffer)
     entry.visibility = [visibility_texture(raw) for (*_, raw) in lights]
     for name, _, _, result, stats, _ in lights:
         panels, top = overlay_panels(result, stats, name, set(settings.overlay_maps), settings.overlay_size)
@@ -222,6 +231,7 @@ def draw_view(scene: bpy.types.Scene, depsgraph, view_matrix: np.ndarray, projec
     key = _view_key(view_matrix, projection, size)
     cached = _STATE.results.get(region_key)
     now = time.perf_counter() if now is None else now
+    recomputed = False
     if cached is None or cached.key != key or cached.version != _STATE.version:
         last = max((r.computed_at for r in _STATE.results.values()), default=-1e9)
         if now - last >= settings.throttle_ms / 1000.0 or cached is None:
@@ -235,26 +245,56 @@ def draw_view(scene: bpy.types.Scene, depsgraph, view_matrix: np.ndarray, projec
                 seen, occluders = resident_inputs(CACHE, scene, [name for name, _, _ in lights])
                 gbuffer, results = compute_view(_STATE.backend, _STATE.pipeline, seen, view_matrix,
                                                 projection, size, lights, occluders)
-                cached = _build_result(key, gbuffer, results, settings)
+                cached = _build_result(key, gbuffer, results, settings, seen, projection @ view_matrix, projection)
                 _STATE.results[region_key] = cached
                 _STATE.last_error = ""
+                recomputed = True
             finally:
                 gpu.state.viewport_set(*viewport)
         elif not _STATE.timer_pending and bpy.app.timers is not None:
             _STATE.timer_pending = True
             bpy.app.timers.register(_throttle_elapsed, first_interval=settings.throttle_ms / 1000.0)
     if cached is None:
+        _STATE.last_drawn = "none"
         return False
     current = cached.key == key
     if current and cached.gbuffer is not None:
+        _STATE.last_drawn = "computed" if recomputed else "cached"
         for (_, light, _, _, _, _), texture in zip(cached.lights, cached.visibility):
             draw_shadow_composite(_STATE.backend, cached.gbuffer, texture, light, settings.shadow_strength,
                                   target_size, draw_base=False)
+    elif cached.reprojection is not None and cached.seen is not None and cached.lights:
+        _draw_reprojected(cached, view_matrix, projection, size, target_size, settings.shadow_strength)
+        _STATE.last_drawn = "reprojected"
+    else:
+        _STATE.last_drawn = "none"
     if settings.overlay_enabled and cached.panels:
         shown = {"COUNT", "IMPORTANCE"} & set(settings.overlay_maps)
         draw_overlay(_STATE.backend, cached.panels, target_size, settings.overlay_size, settings.overlay_corner,
                      cached.lines if settings.overlay_stats else [], cached.top if shown else None)
     return current
+
+
+def _draw_reprojected(cached: _ViewResult, view_matrix: np.ndarray, projection: np.ndarray,
+                      size: tuple[int, int], target_size: tuple[int, int], strength: float) -> None:
+    """The cached result drawn over a view it was not computed for: a G-buffer of this view
+    (drawn into the last one of its size), each light's visibility looked up where this
+    view's points land in the result's view."""
+    import gpu
+
+    from ..render.blender_draw import draw_shadow_composite, render_gbuffer
+
+    camera = camera_from_matrices(view_matrix, projection, size)
+    eye = np.linalg.inv(view_matrix)[:3, 3] if camera is None else camera.eye_homogeneous()
+    viewport = gpu.state.viewport_get()
+    try:
+        cached.moved = render_gbuffer(_STATE.backend, cached.seen, projection @ view_matrix, eye, size,
+                                      reuse=cached.moved)
+    finally:
+        gpu.state.viewport_set(*viewport)
+    for (_, light, _, _, _, _), texture in zip(cached.lights, cached.visibility):
+        draw_shadow_composite(_STATE.backend, cached.moved, texture, light, strength, target_size, draw_base=False,
+                              reprojection=cached.reprojection)
 
 
 def safe_draw_view(scene: bpy.types.Scene, depsgraph, view_matrix: np.ndarray, projection: np.ndarray,

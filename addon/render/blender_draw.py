@@ -36,6 +36,7 @@ class GBuffer:
 
     textures: dict[str, Any]  # "ow_gb_position", "ow_gb_normal"
     size: tuple[int, int]  # (W, H)
+    target: Any = None  # its framebuffer (with a depth texture): a later view of this size draws into it
 
     @functools.cached_property
     def positions(self) -> np.ndarray:
@@ -68,21 +69,27 @@ def _homogeneous_eye(camera_position: np.ndarray) -> np.ndarray:
 
 
 def render_gbuffer(backend: BlenderGPUBackend, scene: ResidentScene, view_proj: np.ndarray,
-                   camera_position: np.ndarray, size: tuple[int, int]) -> GBuffer:
+                   camera_position: np.ndarray, size: tuple[int, int], reuse: GBuffer | None = None) -> GBuffer:
     """Rasterise a resident scene's objects into a G-buffer of `size` (W, H).
 
     The objects' vertex textures are the depth pass's (`BlenderGPUBackend.draw_gbuffer`):
     an unchanged scene sends no geometry. `camera_position` turns the normals towards
     the camera: the eye (3,), or homogeneous (4,), w = 0 giving the direction towards
-    an orthographic camera (`CameraSpec.eye_homogeneous`).
+    an orthographic camera (`CameraSpec.eye_homogeneous`). `reuse`, a G-buffer of the
+    same size no longer needed, is drawn into instead of allocating.
     """
     import gpu
 
     width, height = size
-    pos_tex = float_texture((width, height), "RGBA32F")
-    nrm_tex = float_texture((width, height), "RGBA32F")
-    depth = empty_texture((width, height), "DEPTH_COMPONENT32F")
-    target = framebuffer(color_slots=(pos_tex, nrm_tex), depth_slot=depth)
+    if reuse is not None and reuse.size == (width, height) and reuse.target is not None:
+        pos_tex, nrm_tex, target = reuse.textures["ow_gb_position"], reuse.textures["ow_gb_normal"], reuse.target
+        vars(reuse).pop("positions", None)  # its read-backs are of the earlier view
+        vars(reuse).pop("normals", None)
+    else:
+        pos_tex = float_texture((width, height), "RGBA32F")
+        nrm_tex = float_texture((width, height), "RGBA32F")
+        depth = empty_texture((width, height), "DEPTH_COMPONENT32F")
+        target = framebuffer(color_slots=(pos_tex, nrm_tex), depth_slot=depth)
     with target.bind():
         target.clear(color=(0.0, 0.0, 0.0, 0.0), depth=1.0)
         gpu.state.viewport_set(0, 0, width, height)
@@ -95,7 +102,7 @@ def render_gbuffer(backend: BlenderGPUBackend, scene: ResidentScene, view_proj: 
         finally:
             gpu.state.depth_test_set("NONE")
             gpu.state.depth_mask_set(False)
-    return GBuffer({"ow_gb_position": pos_tex, "ow_gb_normal": nrm_tex}, (width, height))
+    return GBuffer({"ow_gb_position": pos_tex, "ow_gb_normal": nrm_tex}, (width, height), target)
 
 
 def _static_batch(backend: BlenderGPUBackend, key: str, shader, corners: list[tuple[float, float]]):
@@ -115,18 +122,49 @@ def visibility_texture(test_result: np.ndarray):
     return float_texture((result.shape[1], result.shape[0]), "RG32F", result[::-1])
 
 
+@dataclass(frozen=True)
+class Reprojection:
+    """Where a visibility computed for an earlier view is looked up from a later one: that
+    view's matrix, its G-buffer's positions, and the world size of one of its pixels at
+    unit view depth (the tolerance for a surface to count as the same)."""
+
+    view_proj: np.ndarray
+    positions: Any
+    pixel: float
+
+    @staticmethod
+    def of(view_proj: np.ndarray, projection: np.ndarray, gbuffer: GBuffer) -> "Reprojection":
+        # Projection row 1 scales view y to clip y: 2 / (P[1][1] H) is a pixel's height
+        # at depth 1 (perspective), or everywhere (orthographic, where clip w = 1).
+        scale = abs(float(np.asarray(projection, dtype=np.float64)[1, 1])) or 1.0
+        return Reprojection(np.asarray(view_proj, dtype=np.float64), gbuffer.textures["ow_gb_position"],
+                            2.0 / (scale * gbuffer.size[1]))
+
+
+# Pixels of the earlier view a surface may lie from where the later view's point lands.
+REPROJECT_PIXELS = 4.0
+
+
 def draw_shadow_composite(backend: BlenderGPUBackend, gbuffer: GBuffer, visibility, light: LightSpec,
-                          strength: float, target_size: tuple[int, int], draw_base: bool) -> None:
+                          strength: float, target_size: tuple[int, int], draw_base: bool,
+                          reprojection: Reprojection | None = None) -> None:
     """Draw one light's shadow into the bound framebuffer, stretched over `target_size`.
 
     `visibility` comes from `visibility_texture`, made once per result so that a
     redraw allocates nothing. Without `draw_base`, shadowed pixels are darkened by
     alpha blending (viewport). A sun shades by its direction, not its lamp position.
+    With a `reprojection`, the visibility belongs to that earlier view: each pixel of
+    `gbuffer` (this view's) takes the earlier pixel its point lands on, where that pixel
+    saw the same surface; a pixel the earlier view did not see is drawn lit.
     """
     import gpu
 
-    textures = dict(gbuffer.textures, ow_visibility=visibility)
+    earlier = reprojection.positions if reprojection is not None else gbuffer.textures["ow_gb_position"]
+    textures = dict(gbuffer.textures, ow_visibility=visibility, ow_old_position=earlier)
     shader = backend.bind_program(PREVIEW_PROGRAM, {
+        "ow_reproject": 0 if reprojection is None else 1,
+        "ow_old_view_proj": np.eye(4) if reprojection is None else reprojection.view_proj,
+        "ow_old_tolerance": 0.0 if reprojection is None else REPROJECT_PIXELS * reprojection.pixel,
         "ow_light_pos": np.asarray(light.position, dtype=np.float64),
         "ow_sun": 1 if light.emission == "sun" else 0,
         "ow_light_dir": -light.axis,

@@ -285,6 +285,46 @@ def viewport(out: str) -> None:
     report["live_first"] = live_after_first
     report["live_after_200"] = vp.live_resources()
     report["bytes_after_200"] = vp._STATE.backend.geometry_bytes  # the scene stayed resident
+    # The view orbits for 30 redraws with a throttle that allows no recompute: each redraw
+    # draws the last result reprojected into its own view. The last one's shadow is then
+    # compared with a fresh compute of that view.
+    from addon.render.blender_gpu import read_texture
+
+    def orbit(step: int) -> np.ndarray:
+        angle = np.radians(0.5 * step)
+        turn = np.eye(4)
+        turn[:2, :2] = [[np.cos(angle), -np.sin(angle)], [np.sin(angle), np.cos(angle)]]
+        centre = np.eye(4)
+        centre[:3, 3] = [0.0, 0.0, 1.0]
+        return np.linalg.inv(centre @ turn @ np.linalg.inv(centre) @ spec.camera.matrix_world)
+
+    def darkened() -> np.ndarray:
+        return read_texture(target, "RGBA32F")[..., 3] > 0.0
+
+    def clear_target() -> None:
+        with target_fb.bind():
+            target_fb.clear(color=(0.0, 0.0, 0.0, 0.0))
+
+    scene.omniwarp.throttle_ms = 0
+    draw(view)
+    scene.omniwarp.throttle_ms = 600000
+    drawn, shadowed = [], []
+    for step in range(1, 31):
+        clear_target()
+        draw(orbit(step))
+        drawn.append(vp._STATE.last_drawn)
+        shadowed.append(float(darkened().mean()))
+    reprojected = darkened()
+    scene.omniwarp.throttle_ms = 0
+    clear_target()
+    draw(orbit(30))
+    fresh = darkened()
+    report["orbit_reprojected"] = drawn == ["reprojected"] * 30 and min(shadowed) > 0.01
+    report["orbit_reprojected_values"] = {"drawn": drawn, "shadowed_share": shadowed}
+    either = reprojected | fresh
+    report["orbit_mismatch"] = float((reprojected != fresh)[either].mean()) if either.any() else 1.0
+    report["orbit_fresh_drawn"] = vp._STATE.last_drawn
+    report["orbit_live"] = vp.live_resources()
     # The first frame again from its G-buffer read back as arrays and uploaded (after the
     # counts above: it holds textures of its own): it shadows the same pixels.
     uploaded = vp._STATE.pipeline.render(light, CACHE.world_triangles(), gbuffer.view_samples(spec.camera), settings)

@@ -262,8 +262,10 @@ PREVIEW_PROGRAM = ProgramInterface(
     fragment_file="preview.frag",
     fragment_out=(("vec4", "ow_color"),),
     uniforms=uniform_list("vec3 ow_light_pos", "float ow_strength", "int ow_draw_base", "vec2 ow_target_size",
-                          "int ow_sun", "vec3 ow_light_dir"),
-    samplers=("ow_gb_position", "ow_gb_normal", "ow_visibility"),
+                          "int ow_sun", "vec3 ow_light_dir",
+                          # An earlier view's visibility looked up from this one (blender_draw.Reprojection).
+                          "int ow_reproject", "mat4 ow_old_view_proj", "float ow_old_tolerance"),
+    samplers=("ow_gb_position", "ow_gb_normal", "ow_visibility", "ow_old_position"),
     **_FULLSCREEN,
 )
 
