@@ -51,6 +51,7 @@ class _ViewResult:
     seen: Any = None  # the resident scene its G-buffer drew: a moved view's G-buffer draws it too
     reprojection: Any = None  # blender_draw.Reprojection of its view
     moved: Any = None  # the G-buffer of the latest moved view (reused while its size holds)
+    overlay: bool = True  # whether the overlay's maps and statistics were read for it
 
 
 @dataclass
@@ -158,12 +159,13 @@ def _throttle_elapsed() -> None:
 # Computation ----------------------------------------------------------------------
 def compute_view(backend, pipeline: ShadowPipeline, seen: ResidentScene, view_matrix: np.ndarray,
                  projection: np.ndarray, size: tuple[int, int], lights: list,
-                 occluders: dict[str, ResidentScene] | None = None) -> tuple[Any, list]:
+                 occluders: dict[str, ResidentScene] | None = None, overlay: bool = True) -> tuple[Any, list]:
     """G-buffer of one view and the pipeline result of every light (explicit inputs).
 
     `seen` is what the camera sees, resident; `occluders` gives, per light name, what
     blocks that light (`scene_cache.resident_inputs`), else `seen` does. The G-buffer
-    stays on the GPU as the frame's samples.
+    stays on the GPU as the frame's samples. Only for the `overlay` are the maps read
+    back and the count statistics scattered (stats None otherwise).
     """
     from ..render.blender_draw import render_gbuffer
 
@@ -175,8 +177,8 @@ def compute_view(backend, pipeline: ShadowPipeline, seen: ResidentScene, view_ma
     samples = gbuffer.samples(camera)  # stays on the GPU
     results = []
     for name, light, settings in lights:
-        result = pipeline.render(light, (occluders or {}).get(name, seen), samples, settings, keep_atlas=True)
-        stats = count_statistics(pipeline, light, settings, result, samples)
+        result = pipeline.render(light, (occluders or {}).get(name, seen), samples, settings, keep_atlas=overlay)
+        stats = count_statistics(pipeline, light, settings, result, samples) if overlay else None
         raw = np.stack([result.visibility, result.flags.astype(np.float32)], axis=-1)
         results.append((name, light, settings, result, stats, raw))
     return gbuffer, results
@@ -200,11 +202,14 @@ def _build_result(key: tuple, gbuffer, lights: list, settings, seen=None, view_p
     from ..render.blender_draw import Reprojection, visibility_texture
     from .preview import overlay_panels, stats_line
 
-    entry = _ViewResult(key, _STATE.version, gbuffer, lights, computed_at=time.perf_counter(), seen=seen)
+    entry = _ViewResult(key, _STATE.version, gbuffer, lights, computed_at=time.perf_counter(), seen=seen,
+                        overlay=bool(settings.overlay_enabled))
     if view_proj is not None and gbuffer is not None:
         entry.reprojection = Reprojection.of(view_proj, projection, gbuffer)
     entry.visibility = [visibility_texture(raw) for (*_, raw) in lights]
     for name, _, _, result, stats, _ in lights:
+        if stats is None:
+            continue  # the overlay was off: its maps were not read
         panels, top = overlay_panels(result, stats, name, set(settings.overlay_maps), settings.overlay_size)
         entry.panels += panels
         entry.top = max(entry.top, top)
@@ -232,7 +237,9 @@ def draw_view(scene: bpy.types.Scene, depsgraph, view_matrix: np.ndarray, projec
     cached = _STATE.results.get(region_key)
     now = time.perf_counter() if now is None else now
     recomputed = False
-    if cached is None or cached.key != key or cached.version != _STATE.version:
+    # A result made with the overlay off lacks its maps: turning the overlay on recomputes.
+    lacks_overlay = cached is not None and settings.overlay_enabled and not cached.overlay
+    if cached is None or cached.key != key or cached.version != _STATE.version or lacks_overlay:
         last = max((r.computed_at for r in _STATE.results.values()), default=-1e9)
         if now - last >= settings.throttle_ms / 1000.0 or cached is None:
             viewport = gpu.state.viewport_get()
@@ -244,7 +251,7 @@ def draw_view(scene: bpy.types.Scene, depsgraph, view_matrix: np.ndarray, projec
                 _STATE.backend.sync_scene(CACHE.resident())
                 seen, occluders = resident_inputs(CACHE, scene, [name for name, _, _ in lights])
                 gbuffer, results = compute_view(_STATE.backend, _STATE.pipeline, seen, view_matrix,
-                                                projection, size, lights, occluders)
+                                                projection, size, lights, occluders, settings.overlay_enabled)
                 cached = _build_result(key, gbuffer, results, settings, seen, projection @ view_matrix, projection)
                 _STATE.results[region_key] = cached
                 _STATE.last_error = ""

@@ -170,7 +170,7 @@ def test_viewport_draw_path_robustness(tmp_path):
            "error_caught", "error_logged_once", "recovered",
            "nan_bias_paused", "nan_bias_panel", "nan_bias_warned_once", "nan_bias_recovered",
            "nan_strength_paused", "nan_strength_recovered",
-           "after_load_draw", "undo_marks_stale", "orbit_reprojected",
+           "after_load_draw", "undo_marks_stale", "orbit_reprojected", "overlay_economy",
            "handler_installed", "handler_removed", "handlers_restored", "pointer_removed")
     assert (r["lights"], r["param"], r["warp"]) == (1, "cube", "notw")
     assert 1 <= r["passes"] <= 5  # hemispherical light

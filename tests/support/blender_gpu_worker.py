@@ -325,6 +325,19 @@ def viewport(out: str) -> None:
     report["orbit_mismatch"] = float((reprojected != fresh)[either].mean()) if either.any() else 1.0
     report["orbit_fresh_drawn"] = vp._STATE.last_drawn
     report["orbit_live"] = vp.live_resources()
+    # With the overlay off a recompute reads no map back and scatters no statistics;
+    # turning it on recomputes with them.
+    scene.omniwarp.overlay_enabled = False
+    vp.request_update("overlay off")
+    draw(view)
+    bare = vp._STATE.results["test-region"].lights[0]
+    scene.omniwarp.overlay_enabled = True
+    draw(view)
+    full = vp._STATE.results["test-region"].lights[0]
+    report["overlay_economy"] = (bare[3].atlas is None and bare[4] is None and full[3].atlas is not None
+                                 and full[4] is not None and bool(vp._STATE.results["test-region"].panels))
+    report["overlay_economy_values"] = {"atlas_off": bare[3].atlas is None, "stats_off": bare[4] is None,
+                                        "atlas_on": full[3].atlas is not None}
     # The first frame again from its G-buffer read back as arrays and uploaded (after the
     # counts above: it holds textures of its own): it shadows the same pixels.
     uploaded = vp._STATE.pipeline.render(light, CACHE.world_triangles(), gbuffer.view_samples(spec.camera), settings)
