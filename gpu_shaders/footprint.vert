@@ -247,7 +247,8 @@ void main()
     return;
   }
   // Projection xy -> uncropped uv -> cropped uv (affine, increasing) -> warped uv.
-  box = (box * 0.5 + 0.5 - ow_crop.xxyy) * ow_crop.zzww;
+  vec4 crop = ow_crop_of(ow_warp_rows, ow_layer_slot, ow_warp_size, ow_crop);
+  box = (box * 0.5 + 0.5 - crop.xxyy) * crop.zzww;
 #ifndef OW_NO_WARP
   if (ow_warp_size > 0) {
     box = ow_warp_box(ow_warp_rows, ow_warp_cols, ow_layer_slot, ow_warp_size, box,

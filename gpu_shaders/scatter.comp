@@ -76,7 +76,8 @@ void main()
   if (tile <= OW_NO_TILE) {
     return;
   }
-  vec4 crop = ow_layer_crop[slot];
+  // A warped layer's crop is in its rows table, even where this mode applies no warp.
+  vec4 crop = ow_crop_of(ow_warp_rows, slot, ow_warp_size, ow_layer_crop[slot]);
   vec2 xy = ow_project(ow_layer_kind, ow_layer_rot[slot] * dir);
   vec2 uv = ((xy * 0.5 + 0.5) - crop.xy) * crop.zw;
   if (OW_MODE == OW_SCATTER_ROWS) {

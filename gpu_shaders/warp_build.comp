@@ -8,6 +8,10 @@
 //  OW_WARP_CROP    one invocation per strip texel: the occupied cells' first and last
 //                  column and row per tile, as maxima (a minimum as the maximum of its
 //                  complement, so the image starts from zeros) at ow_bounds (4 t .. 4 t + 3).
+//  OW_WARP_CROP_STORE  one invocation per tile: the DV crop from those bounds, grown by
+//                  OW_CROP_MARGIN cells (warping.dv_crop_from_bounds), stored as (lo, scale)
+//                  at texel (A, slot A + 1) of the rows table, where every warped pass
+//                  reads it (lib/mapping.glsl's ow_crop_of). Nothing is read back.
 //  OW_WARP_LINES   one invocation per (tile, line) of the family (ow_family: rows, the map's
 //                  rows; columns, its columns): the line's counts blurred along it, its
 //                  offsets (eq. 4.7, floor share and steepness clamp) at ow_work columns
@@ -298,6 +302,25 @@ void ow_smooth(int tile)
   }
 }
 
+void ow_crop_store(int tile)
+{
+  if (tile >= ow_tiles) {
+    return;
+  }
+  float size = float(ow_count_size);
+  vec4 crop = vec4(0.0, 0.0, 1.0, 1.0);  // an empty map keeps the whole map
+  uint lo_col = imageLoad(ow_bounds, ivec2(4 * tile + 0, 0)).x;
+  if (lo_col != 0u) {  // the complement of a column index is never 0 once a cell counted
+    vec2 first = vec2(float(~lo_col), float(~imageLoad(ow_bounds, ivec2(4 * tile + 2, 0)).x));
+    vec2 last = vec2(float(imageLoad(ow_bounds, ivec2(4 * tile + 1, 0)).x),
+                     float(imageLoad(ow_bounds, ivec2(4 * tile + 3, 0)).x));
+    vec2 lo = clamp((first - OW_CROP_MARGIN) / size, 0.0, 1.0);
+    vec2 hi = clamp((last + 1.0 + OW_CROP_MARGIN) / size, 0.0, 1.0);
+    crop = vec4(lo, 1.0 / (hi - lo));
+  }
+  imageStore(ow_table, ivec2(ow_count_size, ow_tile_slot[tile] * ow_count_size + 1), crop);
+}
+
 void ow_pack(int index)
 {
   int size = ow_count_size;
@@ -311,6 +334,9 @@ void ow_pack(int index)
   int i = row % size;
   int slot = ow_tile_slot[tile];
   vec4 texel;
+  if (k == size && i == 1) {
+    return;  // the rows table's crop (ow_crop_store); unused in the columns table
+  }
   if (k == size) {
     texel = i == 0 ? vec4(uintBitsToFloat(imageLoad(ow_info, ivec2(2 * ow_family + 1, tile)).x),
                           float(imageLoad(ow_info, ivec2(2 * ow_family, tile)).x), 0.0, 0.0)
@@ -331,6 +357,8 @@ void main()
   int index = int(gl_GlobalInvocationID.x);
 #if OW_STEP == OW_WARP_CROP
   ow_crop_bounds(index);
+#elif OW_STEP == OW_WARP_CROP_STORE
+  ow_crop_store(index);
 #elif OW_STEP == OW_WARP_LINES
   ow_line(index);
 #elif OW_STEP == OW_WARP_SMOOTH

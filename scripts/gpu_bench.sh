@@ -1,6 +1,8 @@
 #!/usr/bin/env bash
-# The GPU benchmark table: `omniwarp compare` on room_omni, courtyard and stress_million,
-# at 1024 and 2048, for dpsm, cube, dpsm+notw and cube+notw.
+# The GPU benchmark tables: `omniwarp compare` on room_omni, courtyard and stress_million,
+# at 1024 and 2048, for dpsm, cube, dpsm+notw, cube+notw and exact (report.md, with GPU
+# ms from timer queries); then the floor benchmark (floor.md, scripts/floor_bench.py)
+# and a steady frame's traffic (traffic.md, scripts/frame_traffic.py).
 #
 #   bash scripts/gpu_bench.sh prepare   # here, with .venv and bpy: render the Cycles references
 #   bash scripts/gpu_bench.sh [ARGS]    # anywhere: measure, and write $OUT/report.md (ARGS go to
@@ -20,7 +22,7 @@ REPO_ROOT="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
 cd "$REPO_ROOT"
 
 PRESETS="${PRESETS:-room_omni,courtyard,stress_million}"
-METHODS="${METHODS:-dpsm,cube,dpsm+notw,cube+notw}"
+METHODS="${METHODS:-dpsm,cube,dpsm+notw,cube+notw,exact}"
 RESOLUTIONS="${RESOLUTIONS:-1024,2048}"
 FRAMES="${FRAMES:-5}"
 SIZE="${SIZE:-640x480}"
@@ -52,4 +54,6 @@ fi
 echo "gpu_bench: $("$PY" --version) from $PY, references in $OMNIWARP_CACHE" >&2
 "$PY" -m addon compare --preset "$PRESETS" --methods "$METHODS" --resolutions "$RESOLUTIONS" \
     --size "$SIZE" --repeats "$FRAMES" --no-images --out "$OUT" "$@"
-echo "gpu_bench: table in $OUT/report.md" >&2
+"$PY" scripts/floor_bench.py --out "$OUT/floor.md" >&2
+"$PY" scripts/frame_traffic.py --presets room_omni,courtyard --size "$SIZE" > "$OUT/traffic.md"
+echo "gpu_bench: tables in $OUT/report.md, $OUT/floor.md and $OUT/traffic.md" >&2

@@ -32,6 +32,8 @@ FLOOR_SHARE = 0.1  # uniform share mixed into every row's density: slope >= FLOO
 MAX_SLOPE = 8.0  # one cell may grow to at most this many cells (steepness clamp)
 SHEAR_LIMIT = 0.5  # largest |du'/dv| (resp. |dv'/du'|) the smoothing may leave (docs/warping.md)
 IDENTITY_PRIOR = 0.02  # pseudo-count (share of the mean populated row) pulling sparse rows to identity
+# Count-map cells the DV crop grows by on each side (dv_crop_from_counts).
+CROP_MARGIN = 2.0
 ALONG_BLUR_SHARE = 1 / 32  # tent half-width along each row, as a share of A (smooths kinks)
 
 
@@ -557,7 +559,7 @@ class LayerMapping:
         return (self.lo + uv / self.scale) * 2.0 - 1.0
 
 
-def dv_crop_from_counts(counts: np.ndarray, margin_texels: float = 2.0) -> tuple[np.ndarray, np.ndarray]:
+def dv_crop_from_counts(counts: np.ndarray, margin_texels: float = CROP_MARGIN) -> tuple[np.ndarray, np.ndarray]:
     """DV crop from a count map (row = v): first/last occupied column and row, grown by a margin.
 
     The margin (in count-map texels) covers the shadow test's normal offset, which moves
@@ -571,7 +573,7 @@ def dv_crop_from_counts(counts: np.ndarray, margin_texels: float = 2.0) -> tuple
 
 
 def dv_crop_from_bounds(bounds: tuple[int, int, int, int] | None, size: int,
-                        margin_texels: float = 2.0) -> tuple[np.ndarray, np.ndarray]:
+                        margin_texels: float = CROP_MARGIN) -> tuple[np.ndarray, np.ndarray]:
     """DV crop from the first and last occupied column and row (col_lo, col_hi, row_lo,
     row_hi) of a size x size count map, as the GPU reduces them; None: an empty map."""
     if bounds is None:

@@ -1,10 +1,10 @@
 """The analysis of a warped frame (thesis Algorithm 3, steps 2-7): the DV crop and the warp
 of every drawn layer, from count maps of the view samples (docs/design.md section 4).
 
-NoTW is built on the GPU (passes/warp.py): the scatters fill a count strip there, and the
-crop's bounds (16 bytes a layer) are the only read; the tables never leave the GPU. RTW,
-and count maps finer than the GPU build takes, go through numpy (core/warping.py, the
-oracle of both): their count maps are read back and their tables uploaded.
+NoTW is built on the GPU (passes/warp.py): the scatters fill a count strip there, the crop
+and the tables are built from it and stay there, and nothing is read back. RTW, and count
+maps finer than the GPU build takes, go through numpy (core/warping.py, the oracle of
+both): their count maps are read back and their tables uploaded.
 """
 from __future__ import annotations
 
@@ -18,7 +18,6 @@ from ..core.warping import (
     LayerMapping,
     Warp,
     WarpParams,
-    dv_crop_from_bounds,
     dv_crop_from_counts,
     notw_cols,
     notw_rows,
@@ -27,7 +26,7 @@ from ..core.warping import (
 from .backend import ShadowBackend
 from .frame import ShadowSettings, analysis_size_for
 from .parameterizations import slot_rotations_and_crops
-from .passes.warp import MAX_GPU_WARP_SIZE, GpuWarp
+from .passes.warp import MAX_GPU_WARP_SIZE, GpuMapping, GpuWarp
 from .shaders import NO_TILE, PARAM_CODES, SCATTER_MODE_CODES, SLOTS
 
 
@@ -92,23 +91,23 @@ def analyse(backend: ShadowBackend, light: LightSpec, settings: ShadowSettings,
     cells are occupied.
     """
     size = settings.analysis_size or analysis_size_for(settings.resolution)
-    if settings.warp == "notw" and size <= MAX_GPU_WARP_SIZE:
+    if settings.warp == "notw" and 2 <= size <= MAX_GPU_WARP_SIZE:
         return _notw_on_gpu(backend, light, plan, size), {}
     return _on_host(backend, light, settings, plan, size)
 
 
-def _notw_on_gpu(backend: ShadowBackend, light: LightSpec, plan: Plan, size: int) -> dict[int, LayerMapping]:
-    """NoTW: 3 scatters, the crop's bounds read, both families built on the GPU."""
+def _notw_on_gpu(backend: ShadowBackend, light: LightSpec, plan: Plan, size: int) -> dict[int, GpuMapping]:
+    """NoTW: 3 scatters, the crop and both families built on the GPU; nothing read back."""
     slots = plan.drawn_slots
     scatter(backend, light, plan, {}, size, SCATTER_MODE_CODES["crop"], read=False)
-    bounds = backend.warp_crop_bounds(size, len(slots))
-    crops = {slot: LayerMapping(*dv_crop_from_bounds(bounds[tile], size), None) for tile, slot in enumerate(slots)}
-    scatter(backend, light, plan, crops, size, SCATTER_MODE_CODES["crop"], weighted=True, read=False)
+    backend.build_warp_crop(size, slots)
+    # From here on the passes take each layer's crop from its rows table (ow_warp_size = A).
+    mappings = {slot: GpuMapping(GpuWarp(backend, slot, size)) for slot in slots}
+    scatter(backend, light, plan, mappings, size, SCATTER_MODE_CODES["crop"], weighted=True, read=False)
     backend.build_warp_family(size, slots, "rows")
-    row_only = {slot: LayerMapping(crop.lo, crop.hi, GpuWarp(backend, slot, size)) for slot, crop in crops.items()}
-    scatter(backend, light, plan, row_only, size, SCATTER_MODE_CODES["rows"], weighted=True, read=False)
+    scatter(backend, light, plan, mappings, size, SCATTER_MODE_CODES["rows"], weighted=True, read=False)
     backend.build_warp_family(size, slots, "cols")
-    return {slot: LayerMapping(crop.lo, crop.hi, GpuWarp(backend, slot, size)) for slot, crop in crops.items()}
+    return {slot: GpuMapping(GpuWarp(backend, slot, size)) for slot in slots}
 
 
 def _on_host(backend: ShadowBackend, light: LightSpec, settings: ShadowSettings, plan: Plan,
@@ -135,15 +134,18 @@ def _on_host(backend: ShadowBackend, light: LightSpec, settings: ShadowSettings,
     return mappings, counts
 
 
-def stack_tables(mappings: dict[int, LayerMapping], size: int) -> tuple[np.ndarray, np.ndarray]:
-    """Slot-major (6 * A, A + 1) tables of every layer's row and column offsets."""
+def stack_tables(mappings: dict[int, LayerMapping], size: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Slot-major (6 * A, A + 1) tables of every layer's row and column offsets, and the
+    (6, 4) crops that go with the rows table (`set_warp_tables`)."""
     rows = np.zeros((6 * size, size + 1), dtype=np.float32)
     cols = np.zeros((6 * size, size + 1), dtype=np.float32)
+    crops = np.tile(np.array([0.0, 0.0, 1.0, 1.0], dtype=np.float32), (SLOTS, 1))
     for slot, mapping in mappings.items():
+        crops[slot] = mapping.crop_vec4()
         if mapping.warp is not None:
             rows[slot * size:(slot + 1) * size] = mapping.warp.rows
             cols[slot * size:(slot + 1) * size] = mapping.warp.cols
-    return rows, cols
+    return rows, cols, crops
 
 
 def warp_of(rows: np.ndarray, cols: np.ndarray | None, size: int, row_window: int = 0, col_window: int = 0) -> Warp:

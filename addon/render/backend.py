@@ -142,7 +142,7 @@ class ShadowBackend:
     set_warp_tables = _on_device(passes.samples.set_warp_tables)
     scatter_counts = _on_device(passes.samples.scatter_counts)
     reduce_samples = _on_device(passes.samples.reduce_samples)
-    warp_crop_bounds = _on_device(passes.warp.crop_bounds)
+    build_warp_crop = _on_device(passes.warp.build_crop)
     build_warp_family = _on_device(passes.warp.build_family)
     link_samples = _on_device(passes.exact.link_samples)
     read_links = _on_device(passes.exact.read_links)

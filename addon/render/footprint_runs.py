@@ -46,14 +46,14 @@ def map_stretch(mapping: LayerMapping) -> float:
     height and the new width: H <= s d (1 + slope_c) + shear_c W. Bounding the two in turn,
     not their product, keeps more chunks within a point sprite on a warped layer.
     """
-    scale = float(np.max(mapping.scale))
     warp = mapping.warp
+    if isinstance(warp, GpuWarp):
+        # Its crop and tables (and their shear, which the footprint pass reads there) stay
+        # on the GPU, and nothing bounds the shear before it is built: every chunk draws quads.
+        return math.inf
+    scale = float(np.max(mapping.scale))
     if warp is None:
         return scale
-    if isinstance(warp, GpuWarp):
-        # Its tables (and their shear, which the footprint pass reads there) stay on the
-        # GPU, and nothing bounds the shear before it is built: every chunk draws quads.
-        return math.inf
     width = scale * (1.0 + float(_slopes(warp.rows).max()) + max_shear(warp.rows))
     height = scale * (1.0 + float(_slopes(warp.cols).max())) + max_shear(warp.cols) * width
     return max(width, height)

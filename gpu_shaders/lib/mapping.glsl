@@ -1,15 +1,29 @@
 // Layer map transform: projection xy -> DV crop -> warp -> map uv, and back.
-// Mirrors LayerMapping in addon/core/warping.py. `crop` holds (lo.x, lo.y, scale.x, scale.y)
+// Mirrors LayerMapping in addon/core/warping.py. A crop holds (lo.x, lo.y, scale.x, scale.y)
 // with uv_crop = (uv_full - lo) * scale; `warp_size` 0 means no warp.
 // Programs built with OW_NO_WARP (the plain depth and shadow-test variants) compile
 // the warp out: a software rasteriser runs a uniform branch with masked lanes, so
 // dead warp code still costs every fragment.
 #include "lib/warp.glsl"
 
+// A warped layer's DV crop is its rows table's texel (A, slot A + 1), written where the
+// warp is built (warp_build.comp on the GPU, pack_warp_table on the host); the uniform
+// `crop` is an unwarped layer's.
+vec4 ow_crop_of(sampler2D rows, int slot, int warp_size, vec4 crop)
+{
+#ifndef OW_NO_WARP
+  if (warp_size > 0) {
+    return texelFetch(rows, ivec2(warp_size, slot * warp_size + 1), 0);
+  }
+#endif
+  return crop;
+}
+
 // Map uv of projection point xy, and J = d(map uv)/d(uncropped uv) (crop and warp).
 vec2 ow_map_forward_jacobian(sampler2D rows, sampler2D cols, int slot, int warp_size, vec4 crop, vec2 xy,
                              out mat2 jacobian)
 {
+  crop = ow_crop_of(rows, slot, warp_size, crop);
   vec2 uv = ((xy * 0.5 + 0.5) - crop.xy) * crop.zw;
   jacobian = mat2(crop.z, 0.0, 0.0, crop.w);
 #ifndef OW_NO_WARP
@@ -35,6 +49,7 @@ vec2 ow_map_forward(sampler2D rows, sampler2D cols, int slot, int warp_size, vec
 
 vec2 ow_map_inverse(sampler2D rows, sampler2D cols, int slot, int warp_size, vec4 crop, vec2 uv)
 {
+  crop = ow_crop_of(rows, slot, warp_size, crop);
 #ifndef OW_NO_WARP
   if (warp_size > 0) {
     uv = ow_unwarp(rows, cols, slot, warp_size, uv);

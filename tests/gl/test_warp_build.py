@@ -1,6 +1,6 @@
 """The NoTW warp built on the GPU (warp_build.comp) against its numpy oracle (core/warping.py),
-on tiny count maps written straight into the count strip: the crop's bounds, each family's
-offsets and window, and the packed table the passes sample."""
+on tiny count maps written straight into the count strip: the crop, each family's offsets
+and window, and the packed table the passes sample."""
 from __future__ import annotations
 
 import numpy as np
@@ -42,10 +42,18 @@ def test_crop_bounds_are_the_occupied_rows_and_columns(gl_backend, size):
     rng = np.random.default_rng(size)
     maps = _maps(rng, size)
     _strip(gl_backend, maps)
+    slots = [4, 0, 2, 5, 1]
     with gl_backend.device.bound():
-        bounds = PW.crop_bounds(gl_backend, size, len(maps))
-    for counts, got in zip(maps, bounds):
-        assert np.array_equal(np.stack(W.dv_crop_from_bounds(got, size)), np.stack(W.dv_crop_from_counts(counts)))
+        PW.build_crop(gl_backend, size, slots)
+        bounds = PW.read_crop_bounds(gl_backend, len(maps))
+        rows_table = gl_backend.device.read(gl_backend.warp_tables["ow_warp_rows"], "RGBA32F")
+    for counts, got, slot in zip(maps, bounds, slots):
+        lo, hi = W.dv_crop_from_counts(counts)
+        assert np.array_equal(np.stack(W.dv_crop_from_bounds(got, size)), np.stack((lo, hi)))
+        # The crop every warped pass reads: the rows table's texel (A, slot A + 1), as the
+        # host's LayerMapping.crop_vec4 gives it to float32.
+        stored = rows_table[slot * size + 1, size]
+        assert np.allclose(stored, W.LayerMapping(lo, hi).crop_vec4(), rtol=1e-6, atol=0)
     assert bounds[-1] is None and bounds[2] == (1, 1, size - 2, size - 2)
 
 
@@ -59,7 +67,7 @@ def test_each_family_is_the_numpy_offsets_to_float32(gl_backend, size):
     slots = [3, 0, 5, 1]
     _strip(gl_backend, maps)
     with gl_backend.device.bound():
-        PW.crop_bounds(gl_backend, size, len(maps))  # allocates the build's images and tables
+        PW.build_crop(gl_backend, size, slots)  # allocates the build's images and tables
         for family in ("rows", "cols"):
             PW.build_family(gl_backend, size, slots, family)
         warps = {slot: PW.GpuWarp(gl_backend, slot, size) for slot in slots}
@@ -96,7 +104,7 @@ def test_a_later_build_makes_an_earlier_warp_unreadable(gl_backend):
     rng = np.random.default_rng(5)
     _strip(gl_backend, _maps(rng, size)[:2])
     with gl_backend.device.bound():
-        PW.crop_bounds(gl_backend, size, 2)
+        PW.build_crop(gl_backend, size, [0, 1])
         PW.build_family(gl_backend, size, [0, 1], "rows")
         PW.build_family(gl_backend, size, [0, 1], "cols")
         kept, dropped = PW.GpuWarp(gl_backend, 0, size), PW.GpuWarp(gl_backend, 1, size)

@@ -13,6 +13,8 @@ from tests.support import glsl
 
 pytestmark = pytest.mark.gl
 
+CROP = (0.25, 0.5, 2.0, 4.0)  # the harness's crop: (lo, scale)
+
 
 def _harness(gl_backend, body: str, inputs: np.ndarray, warp: W.Warp, slot: int) -> np.ndarray:
     """Evaluate `body` per input row with the warp tables of `warp` stored at `slot`."""
@@ -27,7 +29,9 @@ def _harness(gl_backend, body: str, inputs: np.ndarray, warp: W.Warp, slot: int)
     cols = np.zeros((6 * size, size + 1), "f4")
     rows[slot * size:(slot + 1) * size] = warp.rows
     cols[slot * size:(slot + 1) * size] = warp.cols
-    rows, cols = pack_warp_table(rows), pack_warp_table(cols)
+    crops = np.tile(np.float32([0.0, 0.0, 1.0, 1.0]), (6, 1))
+    crops[slot] = CROP  # a warped layer's passes read its crop from the rows table
+    rows, cols = pack_warp_table(rows, crops=crops), pack_warp_table(cols)
     n = len(inputs)
     data = np.zeros((1, n, 4), "f4")
     data[0, :, :inputs.shape[1]] = inputs
@@ -50,7 +54,7 @@ def _harness(gl_backend, body: str, inputs: np.ndarray, warp: W.Warp, slot: int)
                 if name in prog:
                     prog[name].value = value
             if "ow_crop" in prog:
-                prog["ow_crop"].value = (0.25, 0.5, 2.0, 4.0)
+                prog["ow_crop"].value = CROP
             fbo.use()
             fbo.viewport = (0, 0, n, 1)
             vao.render()

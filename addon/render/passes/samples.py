@@ -58,7 +58,7 @@ def upload_samples(backend, positions: np.ndarray, normals: np.ndarray) -> None:
     set_size(backend, (width, height))
 
 
-def pack_warp_table(table: np.ndarray | None, window: int = 0) -> np.ndarray:
+def pack_warp_table(table: np.ndarray | None, window: int = 0, crops: np.ndarray | None = None) -> np.ndarray:
     """The GPU layout of a (6 * A, A + 1) warp table: (6 * A, A + 1, 4) float32.
 
     Texel (k, row), k < A, holds the four offsets one evaluation needs: nodes k and k + 1
@@ -66,8 +66,10 @@ def pack_warp_table(table: np.ndarray | None, window: int = 0) -> np.ndarray:
     slot's A). One fetch instead of four: on a software rasteriser the fetches of the
     warp dominate the warped depth pass, which evaluates it twice per texel (see
     lib/warp.glsl). Texel (A, s * A) holds slot s's family's shear (warping.max_shear) and
-    smoothing `window`, which the footprint pass's boxes read. None packs to one zero texel.
-    The GPU builds the same layout itself (warp_build.comp).
+    smoothing `window`, which the footprint pass's boxes read; texel (A, s * A + 1) of the
+    rows table holds slot s's DV crop, `crops[s]` (LayerMapping.crop_vec4), which every
+    warped pass reads (lib/mapping.glsl). None packs to one zero texel. The GPU builds the
+    same layout itself (warp_build.comp).
     """
     if table is None:
         return np.zeros((1, 1, 4), dtype=np.float32)
@@ -82,22 +84,26 @@ def pack_warp_table(table: np.ndarray | None, window: int = 0) -> np.ndarray:
     packed[:, :size] = np.stack([t[:, :-1], t[:, 1:], nxt[:, :-1], nxt[:, 1:]], axis=-1)
     for slot in range(t.shape[0] // size):
         packed[slot * size, size, :2] = (max_shear(t[slot * size:(slot + 1) * size].astype(np.float64)), window)
+        if crops is not None and size > 1:
+            packed[slot * size + 1, size] = crops[slot]
     return packed
 
 
-def set_warp_tables(backend, rows: np.ndarray | None, cols: np.ndarray | None) -> None:
+def set_warp_tables(backend, rows: np.ndarray | None, cols: np.ndarray | None,
+                    crops: np.ndarray | None = None) -> None:
     """Warp offset tables, (6 * A, A + 1) float32 each (slot-major), or None for no warp,
-    uploaded as `pack_warp_table` lays them out (RGBA32F, (A + 1) x 6A). "No warp" is one zero
-    texel, made once and bound as both; each table's own texture is kept for the next
-    warped frame to write in place (where the device can)."""
+    uploaded as `pack_warp_table` lays them out (RGBA32F, (A + 1) x 6A), the rows table with
+    each slot's crop vec4 (`crops`, (6, 4); a warped layer's passes read it there). "No
+    warp" is one zero texel, made once and bound as both; each table's own texture is kept
+    for the next warped frame to write in place (where the device can)."""
     device = backend.device
     if backend.no_warp is None:
         backend.no_warp = device.texture((1, 1), "RGBA32F", pack_warp_table(None))
-    for name, table in (("ow_warp_rows", rows), ("ow_warp_cols", cols)):
+    for name, table, crop in (("ow_warp_rows", rows, crops), ("ow_warp_cols", cols, None)):
         if table is None:
             backend.textures[name] = backend.no_warp
             continue
-        data = pack_warp_table(table)
+        data = pack_warp_table(table, crops=crop)
         backend.warp_build.generation += 1  # a GPU-built warp's tables are overwritten
         held = device.upload(backend.warp_tables.get(name), (data.shape[1], data.shape[0]), "RGBA32F", data)
         backend.textures[name] = backend.warp_tables[name] = held

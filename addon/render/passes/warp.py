@@ -1,7 +1,7 @@
 """The NoTW warp built on the GPU (warp_build.comp) from the count strip the scatter left:
-the DV crop's bounds, then each family's lines, smoothing and packed table, written where
-the next passes sample it. Nothing but the crop's bounds (16 bytes a layer) is read back;
-`GpuWarp` reads a layer's tables on request, after the frame."""
+the DV crop (stored in the rows table, where every warped pass reads it), then each
+family's lines, smoothing and packed table. Nothing is read back: `GpuMapping` and
+`GpuWarp` read a layer's crop and tables on request, after the frame."""
 from __future__ import annotations
 
 from dataclasses import dataclass
@@ -10,7 +10,7 @@ from typing import Any
 import numpy as np
 
 from ...core.errors import BackendError
-from ...core.warping import ALONG_BLUR_SHARE, FLOOR_SHARE, MAX_SLOPE, Warp, WarpParams
+from ...core.warping import ALONG_BLUR_SHARE, FLOOR_SHARE, MAX_SLOPE, LayerMapping, Warp, WarpParams
 from ..shaders import NO_TILE, SLOTS, WARP_BUILD_PROGRAM, WARP_FAMILIES, warp_step_variant
 
 # The largest count-map side the GPU builds a warp for (OW_MAX_A in warp_build.comp).
@@ -70,15 +70,22 @@ def _dispatch(backend, step: str, family: str, size: int, tile_slots: list[int],
                             {}, images, groups)
 
 
-def crop_bounds(backend, size: int, tiles: int) -> list[tuple[int, int, int, int] | None]:
-    """Each tile's first and last occupied column and row of the count strip of `size`
-    (warping.dv_crop_from_counts's cells), None for an empty tile: one read of 16 bytes a tile."""
-    if size > MAX_GPU_WARP_SIZE:
-        raise BackendError(f"the GPU warp takes count maps of at most {MAX_GPU_WARP_SIZE}, not {size}")
+def build_crop(backend, size: int, tile_slots: list[int]) -> None:
+    """Each drawn layer's DV crop from the count strip of `size` (the occupied cells of the
+    uncropped counts, warping.dv_crop_from_bounds), stored in the rows table."""
+    if size > MAX_GPU_WARP_SIZE or size < 2:
+        raise BackendError(f"the GPU warp takes count maps of 2 to {MAX_GPU_WARP_SIZE} cells, not {size}")
     held = _images(backend, size)
+    tiles = len(tile_slots)
     backend.device.clear_image(held.bounds)
-    _dispatch(backend, "crop", "rows", size, [0] * tiles, WARP_BUILD_PROGRAM.groups(size * size * tiles))
-    raw = backend.device.read(held.bounds, "R32UI", (0, 0, 4 * tiles, 1)).ravel().astype(np.int64)
+    _dispatch(backend, "crop", "rows", size, tile_slots, WARP_BUILD_PROGRAM.groups(size * size * tiles))
+    _dispatch(backend, "crop_store", "rows", size, tile_slots, WARP_BUILD_PROGRAM.groups(tiles))
+
+
+def read_crop_bounds(backend, tiles: int) -> list[tuple[int, int, int, int] | None]:
+    """The last `build_crop`'s first and last occupied column and row of each tile (None:
+    empty), read back: for tests and diagnostics, never in a frame."""
+    raw = backend.device.read(backend.warp_build.bounds, "R32UI", (0, 0, 4 * tiles, 1)).ravel().astype(np.int64)
     out = []
     for tile in range(tiles):
         lo_col, hi_col, lo_row, hi_row = raw[4 * tile:4 * tile + 4]
@@ -113,6 +120,7 @@ class GpuWarp:
         self._generation = backend.warp_build.generation
         self.size = size
         self._warp: Warp | None = None
+        self._crop: tuple[np.ndarray, np.ndarray] | None = None
 
     def _read(self) -> Warp:
         if self._warp is None:
@@ -126,8 +134,16 @@ class GpuWarp:
                 table = np.concatenate([block[:, :self.size, 0], block[:, self.size - 1:self.size, 1]], axis=1)
                 tables.append(table)
                 windows.append(int(round(block[0, self.size, 1])))
+                if name == TABLE_OF_FAMILY["rows"]:
+                    lo, scale = block[1, self.size, :2], block[1, self.size, 2:]
+                    self._crop = (lo, lo + 1.0 / scale)
             self._warp = Warp(tables[0], tables[1], WarpParams(FLOOR_SHARE, MAX_SLOPE, *windows), "notw")
         return self._warp
+
+    def crop(self) -> tuple[np.ndarray, np.ndarray]:
+        """The layer's DV crop (lo, hi) as the GPU stored it beside the tables."""
+        self._read()
+        return self._crop
 
     @property
     def rows(self) -> np.ndarray:
@@ -152,3 +168,49 @@ class GpuWarp:
 
     def slopes(self, uv: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         return self._read().slopes(uv)
+
+
+class GpuMapping:
+    """A layer's mapping whose DV crop and NoTW warp the GPU built (LayerMapping's interface).
+
+    The passes read the crop from the rows table, so its uniform crop (`crop_vec4`) is the
+    whole map; `lo` and `hi` read the crop the GPU stored, with the tables (GpuWarp)."""
+
+    is_identity = False
+
+    def __init__(self, warp: GpuWarp) -> None:
+        self.warp = warp
+
+    @property
+    def lo(self) -> np.ndarray:
+        return self.warp.crop()[0]
+
+    @property
+    def hi(self) -> np.ndarray:
+        return self.warp.crop()[1]
+
+    @property
+    def scale(self) -> np.ndarray:
+        return 1.0 / (self.hi - self.lo)
+
+    @staticmethod
+    def crop_vec4() -> tuple[float, float, float, float]:
+        return 0.0, 0.0, 1.0, 1.0  # the passes take a warped layer's crop from its rows table
+
+    def _mapping(self) -> LayerMapping:
+        return LayerMapping(self.lo, self.hi, self.warp._read())
+
+    def forward(self, xy: np.ndarray) -> np.ndarray:
+        return self._mapping().forward(xy)
+
+    def inverse(self, uv: np.ndarray) -> np.ndarray:
+        return self._mapping().inverse(uv)
+
+    def jacobian(self, xy: np.ndarray) -> np.ndarray:
+        return self._mapping().jacobian(xy)
+
+    def magnification(self, xy: np.ndarray) -> np.ndarray:
+        return self._mapping().magnification(xy)
+
+    def reach(self, xy: np.ndarray, direction: np.ndarray) -> np.ndarray:
+        return self._mapping().reach(xy, direction)

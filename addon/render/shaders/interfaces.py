@@ -229,7 +229,8 @@ WARP_BUILD_PROGRAM = ComputeInterface(
             ("rgba32f", "ow_table")),
     defines={"OW_FLOOR_SHARE": repr(float(warping.FLOOR_SHARE)), "OW_MAX_SLOPE": repr(float(warping.MAX_SLOPE)),
              "OW_SHEAR_LIMIT": repr(float(warping.SHEAR_LIMIT)),
-             "OW_IDENTITY_PRIOR": repr(float(warping.IDENTITY_PRIOR))},
+             "OW_IDENTITY_PRIOR": repr(float(warping.IDENTITY_PRIOR)),
+             "OW_CROP_MARGIN": repr(float(warping.CROP_MARGIN))},
 )
 
 # The viewport ------------------------------------------------------------------------------
