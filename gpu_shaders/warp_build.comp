@@ -22,7 +22,9 @@
 //                  and shear at ow_info (tile t, columns 2 family and 2 family + 1).
 //  OW_WARP_PACK    one invocation per texel of the table (ow_table, the layout of
 //                  passes/samples.pack_warp_table): nodes k and k + 1 of function i and of
-//                  function i + 1; column A holds the shear and the window.
+//                  function i + 1; column A holds the shear and the window. It also
+//                  reduces the family's steepest slope into ow_info, which with the
+//                  shears and the crop's scale lets a host size point sprites.
 
 #define OW_MAX_A 256
 
@@ -151,6 +153,8 @@ void ow_line(int index)
 #define OW_INFO_SHEAR_MAX 4
 #define OW_INFO_POPULATED 5
 #define OW_INFO_WEIGHT_SUM 6
+#define OW_INFO_CROP_SCALE 8
+#define OW_INFO_SLOPE 10
 
 // Image stores of the group visible to its loads, at a point every invocation reaches.
 void ow_group_sync()
@@ -319,6 +323,11 @@ void ow_crop_store(int tile)
     crop = vec4(lo, 1.0 / (hi - lo));
   }
   imageStore(ow_table, ivec2(ow_count_size, ow_tile_slot[tile] * ow_count_size + 1), crop);
+  // Its scale, beside the families' shears, for a host that sizes point sprites (passes/warp.py).
+  imageStore(ow_info, ivec2(OW_INFO_CROP_SCALE, tile), uvec4(ow_bits(crop.z)));
+  imageStore(ow_info, ivec2(OW_INFO_CROP_SCALE + 1, tile), uvec4(ow_bits(crop.w)));
+  imageStore(ow_info, ivec2(OW_INFO_SLOPE, tile), uvec4(0u));  // each family's steepest slope, from pack
+  imageStore(ow_info, ivec2(OW_INFO_SLOPE + 1, tile), uvec4(0u));
 }
 
 void ow_pack(int index)
@@ -346,6 +355,10 @@ void ow_pack(int index)
     int next = min(i + 1, size - 1);
     texel = vec4(ow_work_value(tile, i, k), ow_work_value(tile, i, k + 1), ow_work_value(tile, next, k),
                  ow_work_value(tile, next, k + 1));
+    // The family's steepest d(offset)/d(along) (footprint_runs._slopes), at least 0: a
+    // non-negative float orders as its bits.
+    float slope = max((texel.y - texel.x) * float(size), 0.0);
+    imageAtomicMax(ow_info, ivec2(OW_INFO_SLOPE + ow_family, tile), ow_bits(slope));
   }
   imageStore(ow_table, ivec2(k, slot * size + i), texel);
 }

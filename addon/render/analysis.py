@@ -102,12 +102,12 @@ def _notw_on_gpu(backend: ShadowBackend, light: LightSpec, plan: Plan, size: int
     scatter(backend, light, plan, {}, size, SCATTER_MODE_CODES["crop"], read=False)
     backend.build_warp_crop(size, slots)
     # From here on the passes take each layer's crop from its rows table (ow_warp_size = A).
-    mappings = {slot: GpuMapping(GpuWarp(backend, slot, size)) for slot in slots}
+    mappings = {slot: GpuMapping(GpuWarp(backend, slot, size, tile)) for tile, slot in enumerate(slots)}
     scatter(backend, light, plan, mappings, size, SCATTER_MODE_CODES["crop"], weighted=True, read=False)
     backend.build_warp_family(size, slots, "rows")
     scatter(backend, light, plan, mappings, size, SCATTER_MODE_CODES["rows"], weighted=True, read=False)
     backend.build_warp_family(size, slots, "cols")
-    return {slot: GpuMapping(GpuWarp(backend, slot, size)) for slot in slots}
+    return {slot: GpuMapping(GpuWarp(backend, slot, size, tile)) for tile, slot in enumerate(slots)}
 
 
 def _on_host(backend: ShadowBackend, light: LightSpec, settings: ShadowSettings, plan: Plan,

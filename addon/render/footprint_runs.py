@@ -4,7 +4,6 @@ uniforms; plus the host's counts of what the pass keeps, for measurement."""
 from __future__ import annotations
 
 import logging
-import math
 
 import numpy as np
 
@@ -25,6 +24,10 @@ log = logging.getLogger(__name__)
 # exact box by rounding (about 1e-4 map units, 2e-3 next to the light), and a texel
 # centre left outside would lose its triangle (lib/footprint.glsl).
 FOOTPRINT_DILATE_TEXELS = 1.0
+
+# Chunked triangles a layer must draw before a GPU-built warp's numbers are read back to
+# size point sprites (GpuWarp.stretch): below it quads cost less than the read's wait.
+GPU_SPRITE_TRIANGLES = 16384
 
 # Most draw calls one object gets per layer (runs of points and quads); beyond it the
 # shortest point runs are drawn as quads, which are right for any triangle.
@@ -48,9 +51,7 @@ def map_stretch(mapping: LayerMapping) -> float:
     """
     warp = mapping.warp
     if isinstance(warp, GpuWarp):
-        # Its crop and tables (and their shear, which the footprint pass reads there) stay
-        # on the GPU, and nothing bounds the shear before it is built: every chunk draws quads.
-        return math.inf
+        return warp.stretch()  # from the shears and crop the GPU left (a small read)
     scale = float(np.max(mapping.scale))
     if warp is None:
         return scale
@@ -157,6 +158,16 @@ def _runs(kinds: np.ndarray) -> list[tuple[int, int, int]]:
             kinds[start[i]:end[i]] = target[i]
     start, end = _run_bounds(kinds)
     return [(int(a), int(b), int(kinds[a])) for a, b in zip(start, end)]
+
+
+def sprites_pay(mapping: LayerMapping, draws: list[FootprintDraw], spheres: dict) -> bool:
+    """Whether a layer's chunked objects may draw point sprites: always under a host-built
+    mapping (its numbers are at hand), under a GPU-built warp only from GPU_SPRITE_TRIANGLES
+    chunked triangles on (its numbers cost a read)."""
+    chunked = sum(draw.count for draw in draws if spheres.get(draw.key) is not None)
+    if not chunked:
+        return False
+    return not isinstance(mapping.warp, GpuWarp) or chunked >= GPU_SPRITE_TRIANGLES
 
 
 def footprint_ranges(draw: FootprintDraw, spheres: tuple[np.ndarray, np.ndarray, np.ndarray] | None,

@@ -31,7 +31,7 @@ from ..core.scene import CameraSpec, LightSpec
 from ..core.warping import LayerMapping
 from .backend import AtlasLayout, FootprintDraw, ShadowBackend
 from .footprint_runs import (  # noqa: F401  (map_stretch: the tests')
-    FOOTPRINT_DILATE_TEXELS, _chunk_spheres, _measurer, footprint_ranges, map_stretch)
+    FOOTPRINT_DILATE_TEXELS, _chunk_spheres, _measurer, footprint_ranges, map_stretch, sprites_pay)
 from .frame import PreparedGeometry, ShadowSettings
 from .passes import exact as exact_rounds
 from .passes.exact import EXACT_LIFT
@@ -117,7 +117,10 @@ class Parameterization:
                 uniforms.update({**exact_rounds.map_uniforms(tile, inputs.count_work), **soft})
             elif mapping.warp is not None:
                 backend.build_ray_table(tile, uniforms)
-            stretch = map_stretch(mapping)
+            # Only objects in chunks may draw point sprites, and only then is the stretch
+            # needed: a GPU-built warp reads its numbers for it (footprint_runs.sprites_pay).
+            sprites = reach == 0.0 and sprites_pay(mapping, inputs.draws, spheres)
+            stretch = map_stretch(mapping) if sprites else math.inf
             draws = [run for draw in inputs.draws
                      for run in footprint_ranges(draw, spheres[draw.key], layer, stretch, res, region, reach)]
             scissor = inputs.boxes.get(layer.slot)

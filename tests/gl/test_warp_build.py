@@ -113,3 +113,24 @@ def test_a_later_build_makes_an_earlier_warp_unreadable(gl_backend):
         with pytest.raises(BackendError, match="later frame"):
             _ = dropped.rows
     assert np.array_equal(kept.rows, rows)
+
+
+def test_the_sprite_stretch_from_the_gpu_bounds_the_hosts_from_its_tables(gl_backend):
+    """GpuWarp.stretch (one read of the build's slopes, shears and crop scales) is the
+    footprint_runs.map_stretch of the same crop and tables, within rounding: point sprites
+    sized from it hold every footprint."""
+    from addon.core.presets import build_preset
+    from addon.render.footprint_runs import map_stretch
+    from addon.render.pipeline import ShadowPipeline, ShadowSettings
+    from tests.support.oracle import view_samples
+
+    scene = build_preset("courtyard", (96, 72))
+    samples, _, _ = view_samples(scene)
+    result = ShadowPipeline(gl_backend).render(scene.light, scene.world_triangles(), samples,
+                                               ShadowSettings("cube", 512, warp="notw"))
+    assert result.mappings
+    for mapping in result.mappings.values():
+        gpu = mapping.warp.stretch()
+        host = map_stretch(W.LayerMapping(mapping.lo, mapping.hi,
+                                          W.Warp(mapping.warp.rows, mapping.warp.cols)))
+        assert host * (1 - 1e-5) <= gpu <= host * 1.01, (gpu, host)

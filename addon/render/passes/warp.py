@@ -15,6 +15,13 @@ from ..shaders import NO_TILE, SLOTS, WARP_BUILD_PROGRAM, WARP_FAMILIES, warp_st
 
 # The largest count-map side the GPU builds a warp for (OW_MAX_A in warp_build.comp).
 MAX_GPU_WARP_SIZE = 256
+# Columns of the build's info image (warp_build.comp's OW_INFO_*).
+INFO_WIDTH = 12
+INFO_SHEAR = {"rows": 1, "cols": 3}
+INFO_CROP_SCALE = 8
+INFO_SLOPE = {"rows": 10, "cols": 11}
+# Relative room on the numbers the GPU reduced in float32, for the host's bound.
+ROUNDING_ROOM = 1e-3
 # The table each family writes (the samplers every warped pass reads).
 TABLE_OF_FAMILY = {"rows": "ow_warp_rows", "cols": "ow_warp_cols"}
 
@@ -25,9 +32,12 @@ class WarpBuild:
 
     bounds: Any = None  # R32UI (4 * SLOTS, 1): each tile's occupied columns and rows
     work: Any = None  # R32UI (A + 4, SLOTS * A): a family's lines (offsets, total, weight, tent) as float bits
-    info: Any = None  # R32UI (8, SLOTS): each tile's window and shear per family, and the smoothing's scratch
+    # R32UI (INFO_WIDTH, SLOTS), a row a tile: each family's window and shear (columns 0-3),
+    # the smoothing's scratch (4-6) and the crop's scale (8, 9)
+    info: Any = None
     size: int = 0
     generation: int = 0  # bumped by every build: a GpuWarp of an earlier one is stale
+    info_read: tuple[int, np.ndarray] | None = None  # (generation, info) once read this build
 
     def held(self) -> list[Any]:
         return [self.bounds, self.work, self.info]
@@ -40,7 +50,7 @@ def _images(backend, size: int) -> WarpBuild:
         device.free(*held.held())
         held.bounds = device.texture((4 * SLOTS, 1), "R32UI")
         held.work = device.texture((size + 4, SLOTS * size), "R32UI")
-        held.info = device.texture((8, SLOTS), "R32UI")
+        held.info = device.texture((INFO_WIDTH, SLOTS), "R32UI")
         held.size = size
     for name in TABLE_OF_FAMILY.values():
         table = backend.warp_tables.get(name)
@@ -114,9 +124,10 @@ class GpuWarp:
 
     kind = "notw"
 
-    def __init__(self, backend, slot: int, size: int) -> None:
+    def __init__(self, backend, slot: int, size: int, tile: int = 0) -> None:
         self._backend = backend
         self._slot = slot
+        self._tile = tile
         self._generation = backend.warp_build.generation
         self.size = size
         self._warp: Warp | None = None
@@ -139,6 +150,26 @@ class GpuWarp:
                     self._crop = (lo, lo + 1.0 / scale)
             self._warp = Warp(tables[0], tables[1], WarpParams(FLOOR_SHARE, MAX_SLOPE, *windows), "notw")
         return self._warp
+
+    def stretch(self) -> float:
+        """How much the crop and warp widen a box of the plain map (footprint_runs.map_stretch),
+        from the slopes, shears and crop scale the build left: one read of its info (a few
+        hundred bytes) shared by every layer of the frame, made only for a draw that may
+        use point sprites (footprint_runs.sprites_pay)."""
+        backend = self._backend
+        held = backend.warp_build
+        if backend.released or held.generation != self._generation:
+            raise BackendError("a GPU-built warp was read after a later frame replaced its tables")
+        if held.info_read is None or held.info_read[0] != held.generation:
+            raw = backend.device.read(held.info, "R32UI")
+            held.info_read = (held.generation, raw.astype(np.uint32).view(np.float32))
+        info = held.info_read[1][self._tile]
+        scale = float(max(info[INFO_CROP_SCALE], info[INFO_CROP_SCALE + 1]))
+        row_slope, col_slope = (float(info[INFO_SLOPE[family]]) for family in ("rows", "cols"))
+        row_shear, col_shear = (float(info[INFO_SHEAR[family]]) for family in ("rows", "cols"))
+        width = scale * (1.0 + row_slope + row_shear)
+        height = scale * (1.0 + col_slope) + col_shear * width
+        return max(width, height) * (1.0 + ROUNDING_ROOM)
 
     def crop(self) -> tuple[np.ndarray, np.ndarray]:
         """The layer's DV crop (lo, hi) as the GPU stored it beside the tables."""
