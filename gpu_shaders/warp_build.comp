@@ -20,6 +20,7 @@
 //                  whose smoothing leaves the shear under OW_SHEAR_LIMIT (else the first
 //                  past A / 2), the smoothed offsets written back in place, and the window
 //                  and shear at ow_info (tile t, columns 2 family and 2 family + 1).
+//  OW_WARP_RTW     one invocation per tile: RTW's one function of the family (no smoothing).
 //  OW_WARP_PACK    one invocation per texel of the table (ow_table, the layout of
 //                  passes/samples.pack_warp_table): nodes k and k + 1 of function i and of
 //                  function i + 1; column A holds the shear and the window. It also
@@ -70,40 +71,11 @@ void ow_crop_bounds(int index)
   imageAtomicMax(ow_bounds, ivec2(4 * tile + 3, 0), uint(y));
 }
 
-// warping.offsets_from_counts of one line, after warping._one_family's blur along it.
-void ow_line(int index)
+// warping.offsets_from_counts of one line of densities `share` (`total` their sum > 0),
+// written to line `line` of the work image (offsets at columns 0 .. A).
+void ow_write_offsets(int tile, int line, inout float share[OW_MAX_A], float total)
 {
   int size = ow_count_size;
-  if (index >= size * ow_tiles) {
-    return;
-  }
-  int tile = index / size;
-  int line = index % size;
-  float share[OW_MAX_A];
-  // The tent along the line, divided by the tent of ones so that a uniform line stays
-  // uniform up to its ends (warping.tent_filter zero-pads).
-  float total = 0.0;
-  for (int k = 0; k < size; k++) {
-    float sum = 0.0;
-    float weight = 0.0;
-    for (int d = -ow_along; d <= ow_along; d++) {
-      int j = k + d;
-      if (j >= 0 && j < size) {
-        float w = 1.0 - float(abs(d)) / float(ow_along + 1);
-        sum += w * ow_count(tile, line, j);
-        weight += w;
-      }
-    }
-    share[k] = sum / weight;
-    total += share[k];
-  }
-  if (!(total > 0.0)) {
-    for (int k = 0; k <= size; k++) {
-      ow_set_work(tile, line, k, 0.0);  // an empty line: the identity
-    }
-    ow_set_work(tile, line, size + 1, 0.0);
-    return;
-  }
   for (int k = 0; k < size; k++) {
     share[k] = (1.0 - OW_FLOOR_SHARE) * (share[k] / total) + OW_FLOOR_SHARE / float(size);
   }
@@ -140,7 +112,94 @@ void ow_line(int index)
     ow_set_work(tile, line, k, share[k - 1] / running - float(k) / float(size));
   }
   ow_set_work(tile, line, size, 0.0);
-  ow_set_work(tile, line, size + 1, total);
+}
+
+void ow_write_identity(int tile, int line)
+{
+  for (int k = 0; k <= ow_count_size; k++) {
+    ow_set_work(tile, line, k, 0.0);  // an empty line: the identity
+  }
+}
+
+// NoTW's line: its counts blurred along it, then its offsets and its total.
+void ow_line(int index)
+{
+  int size = ow_count_size;
+  if (index >= size * ow_tiles) {
+    return;
+  }
+  int tile = index / size;
+  int line = index % size;
+  float share[OW_MAX_A];
+  // The tent along the line, divided by the tent of ones so that a uniform line stays
+  // uniform up to its ends (warping.tent_filter zero-pads).
+  float total = 0.0;
+  for (int k = 0; k < size; k++) {
+    float sum = 0.0;
+    float weight = 0.0;
+    for (int d = -ow_along; d <= ow_along; d++) {
+      int j = k + d;
+      if (j >= 0 && j < size) {
+        float w = 1.0 - float(abs(d)) / float(ow_along + 1);
+        sum += w * ow_count(tile, line, j);
+        weight += w;
+      }
+    }
+    share[k] = sum / weight;
+    total += share[k];
+  }
+  if (total > 0.0) {
+    ow_write_offsets(tile, line, share, total);
+  }
+  else {
+    ow_write_identity(tile, line);
+  }
+  ow_set_work(tile, line, size + 1, max(total, 0.0));
+}
+
+// RTW (warping.rtw_from_counts), one invocation per tile: the family's one function, from
+// the largest count across each position, blurred by a zero-padded tent of half-width
+// ow_along; written to every line, with the window and a shear of 0 (its lines are equal).
+void ow_rtw(int tile)
+{
+  int size = ow_count_size;
+  if (tile >= ow_tiles) {
+    return;
+  }
+  float peak[OW_MAX_A];
+  for (int k = 0; k < size; k++) {
+    float top = 0.0;
+    for (int line = 0; line < size; line++) {
+      top = max(top, ow_count(tile, line, k));
+    }
+    peak[k] = top;
+  }
+  float share[OW_MAX_A];
+  float total = 0.0;
+  for (int k = 0; k < size; k++) {
+    float sum = 0.0;
+    for (int d = -ow_along; d <= ow_along; d++) {
+      int j = k + d;
+      if (j >= 0 && j < size) {
+        sum += (1.0 - float(abs(d)) / float(ow_along + 1)) * peak[j];
+      }
+    }
+    share[k] = sum;
+    total += sum;
+  }
+  if (total > 0.0) {
+    ow_write_offsets(tile, 0, share, total);
+  }
+  else {
+    ow_write_identity(tile, 0);
+  }
+  for (int line = 1; line < size; line++) {
+    for (int k = 0; k <= size; k++) {
+      ow_set_work(tile, line, k, ow_work_value(tile, 0, k));
+    }
+  }
+  imageStore(ow_info, ivec2(2 * ow_family, tile), uvec4(uint(ow_along)));
+  imageStore(ow_info, ivec2(2 * ow_family + 1, tile), uvec4(ow_bits(0.0)));
 }
 
 // The smoothing step shares its per-line numbers through the work image (Blender's `gpu`
@@ -376,6 +435,8 @@ void main()
   ow_line(index);
 #elif OW_STEP == OW_WARP_SMOOTH
   ow_smooth(int(gl_WorkGroupID.x));
+#elif OW_STEP == OW_WARP_RTW
+  ow_rtw(index);
 #else
   ow_pack(index);
 #endif

@@ -478,13 +478,18 @@ def build_notw(uv: np.ndarray, size: int, floor: float = FLOOR_SHARE, max_slope:
     return Warp(rows, cols, WarpParams(floor, max_slope, row_window, col_window), "notw")
 
 
+def rtw_blur(size: int) -> int:
+    """RTW's tent half-width on an A = `size` count map."""
+    return max(1, size // 64)
+
+
 def rtw_from_counts(counts: np.ndarray, floor: float = FLOOR_SHARE, max_slope: float = MAX_SLOPE,
                     blur: int | None = None) -> Warp:
     """RTW: importance collapsed to the max of each column and each row, tent-blurred,
     prefix-summed into two 1D warps shared by all rows and all columns (Rosen 2012)."""
     counts = clean_counts(counts)
     size = counts.shape[0]
-    blur = max(1, size // 64) if blur is None else blur
+    blur = rtw_blur(size) if blur is None else blur
     along_u = tent_filter(counts.max(axis=0)[:, None], blur)[:, 0]  # importance per column -> warps u
     along_v = tent_filter(counts.max(axis=1)[:, None], blur)[:, 0]
     row_fn = offsets_from_counts(along_u[None, :], floor, max_slope)[0]

@@ -1,9 +1,9 @@
 """The analysis of a warped frame (thesis Algorithm 3, steps 2-7): the DV crop and the warp
 of every drawn layer, from count maps of the view samples (docs/design.md section 4).
 
-NoTW is built on the GPU (passes/warp.py): the scatters fill a count strip there, the crop
-and the tables are built from it and stay there, and nothing is read back. RTW, and count
-maps finer than the GPU build takes, go through numpy (core/warping.py, the oracle of
+NoTW and RTW are built on the GPU (passes/warp.py): the scatters fill a count strip
+there, the crop and the tables are built from it and stay there, and nothing is read back.
+Count maps finer than the GPU build takes go through numpy (core/warping.py, the oracle of
 both): their count maps are read back and their tables uploaded.
 """
 from __future__ import annotations
@@ -84,35 +84,40 @@ def count_maps(backend: ShadowBackend, light: LightSpec, plan: Plan, mappings: d
 def analyse(backend: ShadowBackend, light: LightSpec, settings: ShadowSettings,
             plan: Plan) -> tuple[dict[int, LayerMapping], dict[int, np.ndarray]]:
     """DV crop and warp of every drawn layer, the tables bound for the next passes; and
-    the weighted count maps the host read, where it read them (none for the GPU's NoTW).
+    the weighted count maps the host read, where it read them (none for a GPU build).
 
     Each step scatters all layers at once. The counts sum the samples' importance weights
     (1 each unless ViewSamples.importance says otherwise); the DV crop only asks which
     cells are occupied.
     """
     size = settings.analysis_size or analysis_size_for(settings.resolution)
-    if settings.warp == "notw" and 2 <= size <= MAX_GPU_WARP_SIZE:
-        return _notw_on_gpu(backend, light, plan, size), {}
+    if 2 <= size <= MAX_GPU_WARP_SIZE:
+        return _on_gpu(backend, light, plan, size, settings.warp), {}
     return _on_host(backend, light, settings, plan, size)
 
 
-def _notw_on_gpu(backend: ShadowBackend, light: LightSpec, plan: Plan, size: int) -> dict[int, GpuMapping]:
-    """NoTW: 3 scatters, the crop and both families built on the GPU; nothing read back."""
+def _on_gpu(backend: ShadowBackend, light: LightSpec, plan: Plan, size: int, kind: str) -> dict[int, GpuMapping]:
+    """The crop and both families built on the GPU; nothing read back. NoTW scatters three
+    times (the columns from the counts through the row warps), RTW twice."""
     slots = plan.drawn_slots
+
+    def mappings() -> dict[int, GpuMapping]:
+        return {slot: GpuMapping(GpuWarp(backend, slot, size, tile, kind)) for tile, slot in enumerate(slots)}
+
     scatter(backend, light, plan, {}, size, SCATTER_MODE_CODES["crop"], read=False)
     backend.build_warp_crop(size, slots)
     # From here on the passes take each layer's crop from its rows table (ow_warp_size = A).
-    mappings = {slot: GpuMapping(GpuWarp(backend, slot, size, tile)) for tile, slot in enumerate(slots)}
-    scatter(backend, light, plan, mappings, size, SCATTER_MODE_CODES["crop"], weighted=True, read=False)
-    backend.build_warp_family(size, slots, "rows")
-    scatter(backend, light, plan, mappings, size, SCATTER_MODE_CODES["rows"], weighted=True, read=False)
-    backend.build_warp_family(size, slots, "cols")
-    return {slot: GpuMapping(GpuWarp(backend, slot, size, tile)) for tile, slot in enumerate(slots)}
+    scatter(backend, light, plan, mappings(), size, SCATTER_MODE_CODES["crop"], weighted=True, read=False)
+    backend.build_warp_family(size, slots, "rows", kind)
+    if kind == "notw":
+        scatter(backend, light, plan, mappings(), size, SCATTER_MODE_CODES["rows"], weighted=True, read=False)
+    backend.build_warp_family(size, slots, "cols", kind)
+    return mappings()
 
 
 def _on_host(backend: ShadowBackend, light: LightSpec, settings: ShadowSettings, plan: Plan,
              size: int) -> tuple[dict[int, LayerMapping], dict[int, np.ndarray]]:
-    """RTW (2 scatters) and NoTW past the GPU build's size (3), in numpy."""
+    """A warp past the GPU build's size, in numpy: RTW (2 scatters) and NoTW (3)."""
     whole = scatter(backend, light, plan, {}, size, 0)  # mode 0 reads no warp table
     crops = {slot: LayerMapping(*dv_crop_from_counts(counts), None) for slot, counts in whole.items()}
     counts = scatter(backend, light, plan, crops, size, 0, weighted=True)

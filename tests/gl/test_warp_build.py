@@ -134,3 +134,25 @@ def test_the_sprite_stretch_from_the_gpu_bounds_the_hosts_from_its_tables(gl_bac
         host = map_stretch(W.LayerMapping(mapping.lo, mapping.hi,
                                           W.Warp(mapping.warp.rows, mapping.warp.cols)))
         assert host * (1 - 1e-5) <= gpu <= host * 1.01, (gpu, host)
+
+
+@pytest.mark.parametrize("size", [16, 128])
+def test_rtw_is_the_numpy_rtw_to_float32(gl_backend, size):
+    """RTW on the GPU: each family one function from the counts' largest across, blurred,
+    the same on every line; the window is RTW's blur and the shear 0."""
+    rng = np.random.default_rng(size + 7)
+    maps = _maps(rng, size)
+    slots = [2, 5, 0, 1, 3]
+    _strip(gl_backend, maps)
+    with gl_backend.device.bound():
+        PW.build_crop(gl_backend, size, slots)
+        for family in ("rows", "cols"):
+            PW.build_family(gl_backend, size, slots, family, kind="rtw")
+        warps = {slot: PW.GpuWarp(gl_backend, slot, size, tile, "rtw") for tile, slot in enumerate(slots)}
+        for counts, slot in zip(maps, slots):
+            expected = W.rtw_from_counts(counts)
+            got = warps[slot]
+            assert got.kind == "rtw"
+            assert np.abs(got.rows - expected.rows).max() < 5e-6
+            assert np.abs(got.cols - expected.cols).max() < 5e-6
+            assert (got.params.row_window, got.params.col_window) == (W.rtw_blur(size), W.rtw_blur(size))

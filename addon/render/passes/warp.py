@@ -1,7 +1,8 @@
-"""The NoTW warp built on the GPU (warp_build.comp) from the count strip the scatter left:
-the DV crop (stored in the rows table, where every warped pass reads it), then each
-family's lines, smoothing and packed table. Nothing is read back: `GpuMapping` and
-`GpuWarp` read a layer's crop and tables on request, after the frame."""
+"""The NoTW and RTW warps built on the GPU (warp_build.comp) from the count strip the
+scatter left: the DV crop (stored in the rows table, where every warped pass reads it),
+then each family's lines and smoothing (NoTW) or its one function (RTW), and its packed
+table. Nothing is read back: `GpuMapping` and `GpuWarp` read a layer's crop and tables on
+request, after the frame."""
 from __future__ import annotations
 
 from dataclasses import dataclass
@@ -10,7 +11,7 @@ from typing import Any
 import numpy as np
 
 from ...core.errors import BackendError
-from ...core.warping import ALONG_BLUR_SHARE, FLOOR_SHARE, MAX_SLOPE, LayerMapping, Warp, WarpParams
+from ...core.warping import ALONG_BLUR_SHARE, FLOOR_SHARE, MAX_SLOPE, LayerMapping, Warp, WarpParams, rtw_blur
 from ..shaders import NO_TILE, SLOTS, WARP_BUILD_PROGRAM, WARP_FAMILIES, warp_step_variant
 
 # The largest count-map side the GPU builds a warp for (OW_MAX_A in warp_build.comp).
@@ -61,22 +62,25 @@ def _images(backend, size: int) -> WarpBuild:
     return held
 
 
-def _uniforms(family: str, size: int, tiles: int, tile_slots: list[int]) -> dict:
+def _uniforms(family: str, size: int, tiles: int, tile_slots: list[int], kind: str) -> dict:
     slots = np.full(SLOTS, NO_TILE, dtype=np.int64)
     slots[:len(tile_slots)] = tile_slots
+    # The blur's half-width: NoTW's along each line (warping._one_family), RTW's over its
+    # one function (warping.rtw_from_counts).
+    along = rtw_blur(size) if kind == "rtw" else int(round(size * ALONG_BLUR_SHARE))
     return {"ow_family": WARP_FAMILIES[family], "ow_count_size": size,
-            "ow_tiles": tiles, "ow_along": int(round(size * ALONG_BLUR_SHARE)), "ow_tile_slot": slots}
+            "ow_tiles": tiles, "ow_along": along, "ow_tile_slot": slots}
 
 
 def _dispatch(backend, step: str, family: str, size: int, tile_slots: list[int], groups: int,
-              table: str | None = None) -> None:
+              kind: str = "notw") -> None:
     held = backend.warp_build
     counts = backend.samples.counts.get(size)
     if counts is None:
         raise BackendError("the GPU warp needs the count strip of a scatter at its size first")
     images = {"ow_counts": counts, "ow_bounds": held.bounds, "ow_work": held.work, "ow_info": held.info,
-              "ow_table": backend.warp_tables[table or TABLE_OF_FAMILY[family]]}
-    backend.device.dispatch(warp_step_variant(step), _uniforms(family, size, len(tile_slots), tile_slots),
+              "ow_table": backend.warp_tables[TABLE_OF_FAMILY[family]]}
+    backend.device.dispatch(warp_step_variant(step), _uniforms(family, size, len(tile_slots), tile_slots, kind),
                             {}, images, groups)
 
 
@@ -104,27 +108,30 @@ def read_crop_bounds(backend, tiles: int) -> list[tuple[int, int, int, int] | No
     return out
 
 
-def build_family(backend, size: int, tile_slots: list[int], family: str) -> None:
-    """One family of every drawn layer's NoTW warp from the count strip of `size` (the
-    rows from the cropped counts, the columns from the counts through the row warps), into
-    its table: lines, smoothing, packing. Nothing is read back."""
+def build_family(backend, size: int, tile_slots: list[int], family: str, kind: str = "notw") -> None:
+    """One family of every drawn layer's warp from the count strip of `size`, into its
+    table. NoTW (`kind`) takes the rows from the cropped counts and the columns from the
+    counts through the row warps: lines, smoothing, packing. RTW takes both from the
+    cropped counts: one function a family, packing. Nothing is read back."""
     held = _images(backend, size)
     tiles = len(tile_slots)
-    _dispatch(backend, "lines", family, size, tile_slots, WARP_BUILD_PROGRAM.groups(size * tiles))
-    _dispatch(backend, "smooth", family, size, tile_slots, tiles)
     if family == "rows":
         held.generation += 1  # the tables change from here: a warp of the previous build is stale
-    _dispatch(backend, "pack", family, size, tile_slots, WARP_BUILD_PROGRAM.groups((size + 1) * size * tiles))
+    if kind == "rtw":
+        _dispatch(backend, "rtw", family, size, tile_slots, WARP_BUILD_PROGRAM.groups(tiles), kind)
+    else:
+        _dispatch(backend, "lines", family, size, tile_slots, WARP_BUILD_PROGRAM.groups(size * tiles))
+        _dispatch(backend, "smooth", family, size, tile_slots, tiles)
+    _dispatch(backend, "pack", family, size, tile_slots, WARP_BUILD_PROGRAM.groups((size + 1) * size * tiles), kind)
 
 
 class GpuWarp:
-    """A layer's NoTW warp as the GPU built it. Its tables stay on the GPU; `rows`, `cols`
+    """A layer's NoTW or RTW warp as the GPU built it. Its tables stay on the GPU; `rows`, `cols`
     and `params` read them on first use, which must come before the next warped frame
     overwrites them (BackendError otherwise)."""
 
-    kind = "notw"
-
-    def __init__(self, backend, slot: int, size: int, tile: int = 0) -> None:
+    def __init__(self, backend, slot: int, size: int, tile: int = 0, kind: str = "notw") -> None:
+        self.kind = kind
         self._backend = backend
         self._slot = slot
         self._tile = tile
@@ -148,7 +155,7 @@ class GpuWarp:
                 if name == TABLE_OF_FAMILY["rows"]:
                     lo, scale = block[1, self.size, :2], block[1, self.size, 2:]
                     self._crop = (lo, lo + 1.0 / scale)
-            self._warp = Warp(tables[0], tables[1], WarpParams(FLOOR_SHARE, MAX_SLOPE, *windows), "notw")
+            self._warp = Warp(tables[0], tables[1], WarpParams(FLOOR_SHARE, MAX_SLOPE, *windows), self.kind)
         return self._warp
 
     def stretch(self) -> float:

@@ -72,7 +72,7 @@ SCATTER_MODE_CODES = MappingProxyType({"crop": 0, "rows": 1, "warp": 2})  # afte
 SCATTER_MODES = tuple(SCATTER_MODE_CODES.values())
 # The steps of the warp's construction on the GPU (warp_build.comp, OW_STEP) and the
 # two families of a NoTW warp (ow_family): row offsets along u, then column offsets along v.
-WARP_STEPS = MappingProxyType({"crop": 0, "crop_store": 1, "lines": 2, "smooth": 3, "pack": 4})
+WARP_STEPS = MappingProxyType({"crop": 0, "crop_store": 1, "lines": 2, "smooth": 3, "rtw": 4, "pack": 5})
 WARP_FAMILIES = MappingProxyType({"rows": 0, "cols": 1})
 
 CODES = (
