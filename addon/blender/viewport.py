@@ -42,8 +42,10 @@ class _ViewResult:
     key: tuple
     version: int
     gbuffer: Any = None
-    lights: list = field(default_factory=list)  # (name, LightSpec, settings, FrameResult, stats, raw)
-    visibility: list = field(default_factory=list)  # one RG32F texture per light, made once
+    # (name, LightSpec, settings, FrameResult, stats, visibility): the visibility an RG32F
+    # texture of the G-buffer's size (row 0 at the bottom) that stays on the GPU
+    lights: list = field(default_factory=list)
+    visibility: list = field(default_factory=list)  # each light's visibility texture
     panels: list = field(default_factory=list)  # overlay panels (they keep their textures)
     lines: list = field(default_factory=list)
     top: float = 1.0
@@ -164,8 +166,9 @@ def compute_view(backend, pipeline: ShadowPipeline, seen: ResidentScene, view_ma
 
     `seen` is what the camera sees, resident; `occluders` gives, per light name, what
     blocks that light (`scene_cache.resident_inputs`), else `seen` does. The G-buffer
-    stays on the GPU as the frame's samples. Only for the `overlay` are the maps read
-    back and the count statistics scattered (stats None otherwise).
+    stays on the GPU as the frame's samples, and each light's visibility stays there too:
+    drawn into a texture of its own, never read back. Only for the `overlay` are the maps
+    read back and the count statistics scattered (stats None otherwise).
     """
     from ..render.blender_draw import render_gbuffer
 
@@ -179,8 +182,14 @@ def compute_view(backend, pipeline: ShadowPipeline, seen: ResidentScene, view_ma
     for name, light, settings in lights:
         result = pipeline.render(light, (occluders or {}).get(name, seen), samples, settings, keep_atlas=overlay)
         stats = count_statistics(pipeline, light, settings, result, samples) if overlay else None
-        raw = np.stack([result.visibility, result.flags.astype(np.float32)], axis=-1)
-        results.append((name, light, settings, result, stats, raw))
+        texture = backend.device.texture(size, "RG32F")
+        target = backend.device.target((texture,))
+        try:
+            pipeline.visibility_into(result, target)
+        finally:
+            backend.device.free(target)
+        result.discard()  # composited from its texture: nothing is read back
+        results.append((name, light, settings, result, stats, texture))
     return gbuffer, results
 
 
@@ -199,14 +208,14 @@ def _view_key(view_matrix: np.ndarray, projection: np.ndarray, size: tuple[int, 
 
 def _build_result(key: tuple, gbuffer, lights: list, settings, seen=None, view_proj=None,
                   projection=None) -> _ViewResult:
-    from ..render.blender_draw import Reprojection, visibility_texture
+    from ..render.blender_draw import Reprojection
     from .preview import overlay_panels, stats_line
 
     entry = _ViewResult(key, _STATE.version, gbuffer, lights, computed_at=time.perf_counter(), seen=seen,
                         overlay=bool(settings.overlay_enabled))
     if view_proj is not None and gbuffer is not None:
         entry.reprojection = Reprojection.of(view_proj, projection, gbuffer)
-    entry.visibility = [visibility_texture(raw) for (*_, raw) in lights]
+    entry.visibility = [texture for (*_, texture) in lights]
     for name, _, _, result, stats, _ in lights:
         if stats is None:
             continue  # the overlay was off: its maps were not read

@@ -154,6 +154,7 @@ class ShadowBackend:
     shadow_test = _on_device(passes.shadow_test.shadow_test)
     run_shadow_test = _on_device(passes.shadow_test.run_shadow_test)
     read_shadow_test = _on_device(passes.shadow_test.read_shadow_test)
+    resolve_visibility = _on_device(passes.shadow_test.resolve_visibility)
 
     def samples_from_gbuffer(self, textures: dict, light_position: np.ndarray) -> None:
         """Make a Blender G-buffer's textures the view samples (frame.GBufferSamples); only

@@ -150,8 +150,9 @@ def draw_shadow_composite(backend: BlenderGPUBackend, gbuffer: GBuffer, visibili
                           reprojection: Reprojection | None = None) -> None:
     """Draw one light's shadow into the bound framebuffer, stretched over `target_size`.
 
-    `visibility` comes from `visibility_texture`, made once per result so that a
-    redraw allocates nothing. Without `draw_base`, shadowed pixels are darkened by
+    `visibility` is an RG32F texture of the G-buffer's size, row 0 at the bottom (the
+    viewport's own, `ShadowPipeline.visibility_into`, or `visibility_texture`), made once
+    per result so that a redraw allocates nothing. Without `draw_base`, shadowed pixels are darkened by
     alpha blending (viewport). A sun shades by its direction, not its lamp position.
     With a `reprojection`, the visibility belongs to that earlier view: each pixel of
     `gbuffer` (this view's) takes the earlier pixel its point lands on, where that pixel

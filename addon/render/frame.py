@@ -15,7 +15,7 @@ import numpy as np
 
 from ..core import frames, validate
 from ..core import methods as method_registry
-from ..core.errors import InputError
+from ..core.errors import BackendError, InputError
 from ..core.frames import POINT_PARAMETERIZATIONS, PROJECTIVE_PARAMETERIZATIONS, Parameterization
 from ..core.plan import Plan
 from ..core.scene import CameraSpec, LightSpec
@@ -313,6 +313,7 @@ class FrameResult:
     # fragments that walked them and the later rounds' entries (None for the other methods).
     exact_work: dict[str, int] | None = None
     reader: FrameReader | None = field(default=None, repr=False)  # reads what is still on the GPU
+    exact_marks: bool = False  # whether the visibility is the test's times the exact pass's marks
     _read: tuple | None = field(default=None, repr=False)
 
     @property
@@ -327,24 +328,35 @@ class FrameResult:
             self._read = self.reader()
             self.reader = None
 
+    def discard(self) -> None:
+        """Never read what the frame left on the GPU (a caller that keeps the visibility
+        there, `ShadowPipeline.visibility_into`): nothing is read back for it, and asking
+        for its visibility, flags or GPU times afterwards is an error."""
+        if self._read is None:
+            self._read = ()
+            self.reader = None
+
+    def _field(self, index: int, what: str):
+        self.resolve()
+        if not self._read:
+            raise BackendError(f"the frame's {what} was discarded on the GPU (FrameResult.discard)")
+        return self._read[index]
+
     @property
     def visibility(self) -> np.ndarray:
         """(H, W) float32, 1 lit / 0 shadowed, row 0 at the top."""
-        self.resolve()
-        return self._read[0]
+        return self._field(0, "visibility")
 
     @property
     def flags(self) -> np.ndarray:
         """(H, W) int8: 0 tested, 1 no geometry, 2 outside emission, 3 layer not drawn."""
-        self.resolve()
-        return self._read[1]
+        return self._field(1, "flags")
 
     @property
     def gpu_ms(self) -> dict[str, float] | None:
         """GPU ms per stage from timer queries, with their `total`; None where the backend has
         no timer queries (Blender's `gpu`)."""
-        self.resolve()
-        return self._read[2]
+        return self._field(2, "GPU times")
 
     @property
     def passes(self) -> int:

@@ -93,6 +93,7 @@ class ShadowPipeline:
         # Read-only triangle arrays seen lately (the viewport's per-light selections, which
         # stay the same object while the scene is unchanged) -> their resident scenes.
         self._soups: OrderedDict[int, tuple[weakref.ref, ResidentScene]] = OrderedDict()
+        self._latest: weakref.ref | None = None  # the last frame rendered (visibility_into)
 
     def _scene_of(self, triangles: np.ndarray) -> tuple[ResidentScene, bool]:
         """A resident scene for a triangle array, and whether it is for this frame only.
@@ -171,7 +172,18 @@ class ShadowPipeline:
                 if one_frame:
                     self.backend.release_scene(scene)
         self.backend.hold_unread(result)
+        self._latest = weakref.ref(result)
         return result
+
+    def visibility_into(self, result: FrameResult, target) -> None:
+        """Draw `result`'s visibility and flags (row 0 at the bottom) into `target` (a
+        device target of an RG32F texture of the samples' size) on the GPU, the exact pass's
+        marks applied: a compositor samples it there. `result` must be this pipeline's
+        latest frame, its targets not yet overwritten."""
+        latest = self._latest() if self._latest is not None else None
+        if latest is not result or not result.pending:
+            raise BackendError("visibility_into needs the pipeline's latest frame, before it is read")
+        self.backend.resolve_visibility(target, result.exact_marks)
 
     def _render(self, light: LightSpec, scene: ResidentScene, samples: ViewSamples | GBufferSamples,
                 settings: ShadowSettings, keep_atlas: bool, scene_ms: float = 0.0,
@@ -238,7 +250,8 @@ class ShadowPipeline:
         marks = settings.exact and sized_mode(light, settings) is not SizedMode.EXACT_SOFT
         return FrameResult(timings, plan, geometry, layout, texels=len(plan.drawn) * res * res, atlas=atlas,
                            tile_of_slot=tile_of_slot, mappings=mappings, count_maps=counts, boxes=boxes,
-                           exact_work=exact_work, reader=_reader(backend, marks, clock.gpu_reader()))
+                           exact_work=exact_work, reader=_reader(backend, marks, clock.gpu_reader()),
+                           exact_marks=marks)
 
     def _sample_stats(self, light: LightSpec, samples: ViewSamples | GBufferSamples) -> SampleStats:
         """The planning statistics of the uploaded samples, reduced on the GPU and read once

@@ -88,3 +88,42 @@ def test_gpu_stage_times_come_with_the_result_and_survive_release(case):
     assert all(np.isfinite(v) and v >= 0.0 for v in gpu.values())
     assert gpu["total"] == pytest.approx(gpu["analysis"] + gpu["shadow_maps"] + gpu["shadow_test"])
     assert result.visibility.shape == samples.hit.shape
+
+
+@pytest.mark.parametrize("method", ["dpsm+notw", "exact"])
+def test_the_visibility_drawn_into_a_texture_is_the_frames_and_nothing_is_read(gl_backend, case, method):
+    """visibility_into draws the latest frame's visibility and flags (the exact pass's marks
+    applied) into a texture a compositor samples; after `discard` nothing of the frame is
+    read back, and its visibility is refused with a clear error."""
+    from addon.core.errors import BackendError
+    from addon.render.pipeline import settings_for
+
+    scene, samples = case
+    pipeline = ShadowPipeline(gl_backend)
+    device = gl_backend.device
+    settings = settings_for(method, 256, scene.light.emission)
+    triangles = scene.world_triangles()
+    height, width = samples.hit.shape
+    texture = device.texture((width, height), "RG32F")
+    target = device.target((texture,))
+    try:
+        expected = pipeline.render(scene.light, triangles, samples, settings)
+        expected_vis, expected_flags = expected.visibility, expected.flags
+        result = pipeline.render(scene.light, triangles, samples, settings)
+        with pytest.raises(BackendError):
+            pipeline.visibility_into(expected, target)  # not the latest frame
+        traffic = Traffic()
+        with traffic.counting():
+            pipeline.visibility_into(result, target)
+            result.discard()
+            gl_backend.settle()  # what the next frame does first: nothing left to read
+        # At most the one texel that stands in for the marks, made once.
+        assert traffic.reads == 0 and traffic.upload_bytes <= 4, traffic.calls
+        drawn = device.read(texture, "RG32F")[::-1]
+        assert np.array_equal(drawn[..., 0], expected_vis)
+        assert np.array_equal(drawn[..., 1].astype(np.int8), expected_flags)
+        with pytest.raises(BackendError, match="discarded"):
+            _ = result.visibility
+    finally:
+        device.free(target, texture)
+        pipeline.release()

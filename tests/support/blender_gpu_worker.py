@@ -256,7 +256,12 @@ def viewport(out: str) -> None:
     report["first_draw"] = draw(view)
     report["first_draw_values"] = outcome(report["first_draw"])
     cached = vp._STATE.results["test-region"]
-    name, light, settings, result, stats, raw = cached.lights[0]
+    name, light, settings, result, stats, texture = cached.lights[0]
+    from addon.render.blender_gpu import read_texture
+
+    # The viewport's visibility stayed on the GPU, in a texture of its own (row 0 at the
+    # bottom); read here to check it.
+    raw = read_texture(texture, "RG32F")[::-1]
     gbuffer = cached.gbuffer
     # The frame used the G-buffer's textures where they were: nothing was read back.
     report["gbuffer_not_read"] = "positions" not in vars(gbuffer) and "normals" not in vars(gbuffer)
@@ -288,7 +293,6 @@ def viewport(out: str) -> None:
     # The view orbits for 30 redraws with a throttle that allows no recompute: each redraw
     # draws the last result reprojected into its own view. The last one's shadow is then
     # compared with a fresh compute of that view.
-    from addon.render.blender_gpu import read_texture
 
     def orbit(step: int) -> np.ndarray:
         angle = np.radians(0.5 * step)
@@ -348,11 +352,11 @@ def viewport(out: str) -> None:
     light_obj.data.omniwarp.exact = True
     vp.request_update("exact")
     report["exact_draw"] = draw(view)
-    exact_result = vp._STATE.results["test-region"].lights[0][3]
+    exact_visibility = read_texture(vp._STATE.results["test-region"].lights[0][5], "RG32F")[::-1][..., 0]
     from_arrays = vp._STATE.pipeline.render(light, CACHE.world_triangles(), gbuffer.view_samples(spec.camera),
                                             replace(settings, exact=True))
-    report["exact_differ"] = float((exact_result.visibility != from_arrays.visibility).mean())
-    report["exact_shadowed"] = float((exact_result.visibility[gbuffer.hit] < 0.5).mean())
+    report["exact_differ"] = float((exact_visibility != from_arrays.visibility).mean())
+    report["exact_shadowed"] = float((exact_visibility[gbuffer.hit] < 0.5).mean())
     light_obj.data.omniwarp.exact = False
     vp.request_update("exact off")
     # A failure inside the draw path is caught, logged once and shown; drawing goes on.

@@ -5,8 +5,9 @@ from __future__ import annotations
 import numpy as np
 
 from ...core.errors import BackendError
-from ..device import UniformValues
-from ..shaders import EXACT_SOFT_KEY, SHADOW_TEST_PROGRAM, ProgramInterface, exact_soft_of, program_variant
+from ..device import Target, UniformValues
+from ..shaders import (EXACT_SOFT_KEY, RESOLVE_PROGRAM, SHADOW_TEST_PROGRAM, ProgramInterface, exact_soft_of,
+                       program_variant)
 from ..shaders import soft_of, veil_of
 
 
@@ -52,6 +53,31 @@ def read_shadow_test(backend) -> np.ndarray:
     if backend.samples.test is None:
         raise BackendError("read_shadow_test called before a shadow test")
     return backend.device.read(backend.samples.test[0], "RG32F")
+
+
+def resolve_visibility(backend, target: Target, marks: bool) -> None:
+    """The last shadow test's visibility and flags drawn into `target` (RG32F, the samples'
+    size, row 0 at the bottom), times the exact pass's marks where `marks`: the
+    visibility a compositor samples, with nothing read back (RESOLVE_PROGRAM)."""
+    held = backend.samples
+    if held.test is None:
+        raise BackendError("resolve_visibility called before a shadow test")
+    device = backend.device
+    if marks:
+        device.barrier()  # the exact pass's atomics, before the loads
+        hits = _lists_hits(backend)
+    else:
+        if "ow_no_hits" not in backend.textures:
+            backend.textures["ow_no_hits"] = device.texture((1, 1), "R32UI", np.zeros(1, np.uint32))
+        hits = backend.textures["ow_no_hits"]
+    with device.drawing(target, (0, 0) + held.size):
+        device.draw(RESOLVE_PROGRAM, {"ow_marks": int(marks)}, {"ow_test": held.test[0]}, images={"ow_hits": hits})
+
+
+def _lists_hits(backend):
+    if backend.exact is None:
+        raise BackendError("the exact pass's marks are gone (link_samples ran again or the lists were freed)")
+    return backend.exact.hits
 
 
 def shadow_test(backend, uniforms: UniformValues) -> np.ndarray:

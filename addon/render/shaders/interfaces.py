@@ -177,6 +177,18 @@ EDGE_PROGRAM = ProgramInterface(
     **_FULLSCREEN,
 )
 
+# A frame's visibility copied where a compositor samples it, the exact pass's marks applied
+# (passes/shadow_test.resolve_visibility).
+RESOLVE_PROGRAM = ProgramInterface(
+    name="omniwarp_visibility_resolve",
+    fragment_file="visibility_resolve.frag",
+    fragment_out=(("vec2", "ow_visibility"),),
+    uniforms=uniform_list("int ow_marks"),
+    samplers=("ow_test",),
+    images=(("r32ui", "ow_hits"),),
+    **_FULLSCREEN,
+)
+
 # Compute passes ---------------------------------------------------------------------------
 SCATTER_PROGRAM = ComputeInterface(
     name="omniwarp_scatter",

@@ -5,7 +5,8 @@ from __future__ import annotations
 from .constants import SCATTER_MODES, WARP_STEPS
 from .interfaces import (ADVANCE_PROGRAM, BARRIER_PROGRAM, DEPTH_PROGRAM, EDGE_PROGRAM, FOOTPRINT_PROGRAM,
                          GBUFFER_PROGRAM, GBUFFER_SAMPLES_PROGRAM, OVERLAY_PROGRAM, PREVIEW_PROGRAM,
-                         RAY_TABLE_PROGRAM, SAMPLE_STATS_PROGRAM, SCATTER_PROGRAM, SHADOW_TEST_PROGRAM)
+                         RAY_TABLE_PROGRAM, RESOLVE_PROGRAM, SAMPLE_STATS_PROGRAM, SCATTER_PROGRAM,
+                         SHADOW_TEST_PROGRAM)
 from .variants import (VARIANT_BASES, EXACT_DEFINE, FIXED_KIND_NAMES, POINTS_DEFINE, is_footprint,
                        is_shadow_test, link_kind_variant, scatter_mode_variant, base_variant, alpha_of, exact_of,
                        exact_soft_of, soft_of, veil_of, warp_step_variant)
@@ -30,7 +31,7 @@ EXACT_SOFT_PROGRAMS = tuple(exact_soft_of(iface) for iface in (*EXACT_PROGRAMS, 
                             or is_shadow_test(iface))
 PROGRAMS = (*VARIANT_PROGRAMS, *EXACT_PROGRAMS, *ALPHA_PROGRAMS, *VEIL_PROGRAMS, *SOFT_PROGRAMS,
             *EXACT_SOFT_PROGRAMS, GBUFFER_ALPHA_PROGRAM, RAY_TABLE_PROGRAM, GBUFFER_PROGRAM,
-            GBUFFER_SAMPLES_PROGRAM, PREVIEW_PROGRAM, OVERLAY_PROGRAM, EDGE_PROGRAM)
+            GBUFFER_SAMPLES_PROGRAM, PREVIEW_PROGRAM, OVERLAY_PROGRAM, EDGE_PROGRAM, RESOLVE_PROGRAM)
 COMPUTE_PROGRAMS = (SCATTER_PROGRAM, SAMPLE_STATS_PROGRAM, BARRIER_PROGRAM, ADVANCE_PROGRAM,
                     *(warp_step_variant(step) for step in WARP_STEPS),
                     *(scatter_mode_variant(mode, kind) for mode in SCATTER_MODES for kind in (None, *FIXED_KIND_NAMES)),
