@@ -16,7 +16,9 @@
 # wheels, they are installed from there into a temporary folder first.
 #
 # Environment: OUT (default out/gpu_bench), PRESETS, METHODS, RESOLUTIONS, FRAMES (5),
-# SIZE (640x480), OMNIWARP_PYTHON (the interpreter), OMNIWARP_WHEELS.
+# SIZE (640x480), FLOOR_FRAMES (60, the floor benchmark's), OMNIWARP_PYTHON (the
+# interpreter), OMNIWARP_WHEELS. The traffic table takes the presets, the methods and the
+# first resolution.
 set -euo pipefail
 REPO_ROOT="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
 cd "$REPO_ROOT"
@@ -25,6 +27,7 @@ PRESETS="${PRESETS:-room_omni,courtyard,stress_million}"
 METHODS="${METHODS:-dpsm,cube,dpsm+notw,cube+notw,exact}"
 RESOLUTIONS="${RESOLUTIONS:-1024,2048}"
 FRAMES="${FRAMES:-5}"
+FLOOR_FRAMES="${FLOOR_FRAMES:-60}"
 SIZE="${SIZE:-640x480}"
 OUT="${OUT:-out/gpu_bench}"
 export OMNIWARP_CACHE="${OMNIWARP_CACHE:-$REPO_ROOT/.cache/bench}"
@@ -54,6 +57,7 @@ fi
 echo "gpu_bench: $("$PY" --version) from $PY, references in $OMNIWARP_CACHE" >&2
 "$PY" -m addon compare --preset "$PRESETS" --methods "$METHODS" --resolutions "$RESOLUTIONS" \
     --size "$SIZE" --repeats "$FRAMES" --no-images --out "$OUT" "$@"
-"$PY" scripts/floor_bench.py --out "$OUT/floor.md" >&2
-"$PY" scripts/frame_traffic.py --presets room_omni,courtyard --size "$SIZE" > "$OUT/traffic.md"
+"$PY" scripts/floor_bench.py --frames "$FLOOR_FRAMES" --out "$OUT/floor.md" >&2
+"$PY" scripts/frame_traffic.py --presets "$PRESETS" --methods "$METHODS" --size "$SIZE" \
+    --resolution "${RESOLUTIONS%%,*}" > "$OUT/traffic.md"
 echo "gpu_bench: tables in $OUT/report.md, $OUT/floor.md and $OUT/traffic.md" >&2

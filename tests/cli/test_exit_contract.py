@@ -24,7 +24,8 @@ from cli_run import env_with, make_blend, omniwarp, staging_left, tree_digest  #
 from cli_run import one_line as refused  # noqa: E402
 
 SMALL = ("--size", "160x120", "--frames", "1", "--no-images", "--resolutions", "512")
-ROW = re.compile(r"^\S+\s+\S+\s+\d+\s+error\s+[\d.]+ %\s+total\s+[\d.]+ ms\s+passes \d+$")
+# A row's line; moderngl's rows end with the GPU's own ms (timer queries).
+ROW = re.compile(r"^\S+\s+\S+\s+\d+\s+error\s+[\d.]+ %\s+total\s+[\d.]+ ms\s+passes \d+(\s+GPU\s+[\d.]+ ms)?$")
 FLT_MAX = float(np.finfo(np.float32).max)
 
 

@@ -21,7 +21,7 @@ for name in ("bpy", "matplotlib", "OpenEXR"):
 
 def test_the_bench_runs_bare_from_prepared_references(tmp_path):
     env = dict(os.environ, OMNIWARP_CACHE=str(tmp_path / "refs"), PRESETS="room_omni", METHODS="dpsm,cube+notw",
-               RESOLUTIONS="512", FRAMES="1", SIZE="160x120", OUT=str(tmp_path / "out"))
+               RESOLUTIONS="512", FRAMES="1", SIZE="160x120", FLOOR_FRAMES="3", OUT=str(tmp_path / "out"))
     prepared = subprocess.run(["bash", "scripts/gpu_bench.sh", "prepare"], cwd=REPO, env=env,
                               capture_output=True, text=True, timeout=600)
     assert prepared.returncode == 0, prepared.stderr[-2000:]
@@ -40,3 +40,6 @@ def test_the_bench_runs_bare_from_prepared_references(tmp_path):
     assert "matplotlib is not installed" in measured.stderr  # the bare run really lacked it
     assert not (tmp_path / "out" / "error_vs_time.png").exists()
     assert "| room_omni | cube+notw | 512 |" in (tmp_path / "out" / "report.md").read_text()
+    # The floor benchmark and the steady frame's traffic ran bare too.
+    assert "| cube+notw |" in (tmp_path / "out" / "floor.md").read_text()
+    assert "| room_omni | cube+notw | 1 |" in (tmp_path / "out" / "traffic.md").read_text()
