@@ -69,15 +69,19 @@ def _viewport(backend, ref, camera) -> dict:
                                     np.linalg.inv(camera.matrix_world),
                                     camera.projection(), camera.resolution, [("light", light, settings)])
     culled = results[0][3]
+    # The viewport keeps the visibility on the GPU in a texture of its own: read it here.
+    from addon.render.blender_gpu import read_texture
+
+    culled_visibility = read_texture(results[0][5], "RG32F")[::-1][..., 0]
     plain = ViewSamples(gbuffer.positions[..., :3].astype(np.float64), gbuffer.normals[..., :3].astype(np.float64),
                         gbuffer.hit, None)  # read back: no camera, so every face
     unculled = pipeline.render(light, triangles, plain, settings)
     hit = gbuffer.hit
     # The pixels behind viewport_same_shadows (tests/support/checks.py shows them when it fails).
-    differ = int(np.count_nonzero((culled.visibility[hit] >= 0.5) != (unculled.visibility[hit] >= 0.5)))
+    differ = int(np.count_nonzero((culled_visibility[hit] >= 0.5) != (unculled.visibility[hit] >= 0.5)))
     return {"viewport_frustum": culled.plan.frustum_corners is not None,  # a camera, so culling ran
             "viewport_faces_drawn": len(culled.plan.drawn), "viewport_faces_unculled": len(unculled.plan.drawn),
-            "viewport_same_shadows": bool(np.array_equal(culled.visibility[hit] >= 0.5,
+            "viewport_same_shadows": bool(np.array_equal(culled_visibility[hit] >= 0.5,
                                                          unculled.visibility[hit] >= 0.5)),
             "viewport_same_shadows_values": {"differing_pixels": differ, "hit_pixels": int(hit.sum())}}
 
