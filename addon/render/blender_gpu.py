@@ -14,7 +14,7 @@ from typing import Any
 import numpy as np
 
 from . import blender_compat
-from .shaders import ComputeInterface, ProgramInterface, load_source, image_type, program_defines
+from .shaders import ComputeInterface, ProgramInterface, image_type, load_source, program_defines
 
 log = logging.getLogger(__name__)
 

@@ -6,7 +6,8 @@ from __future__ import annotations
 from pathlib import Path
 
 from ..core.errors import BackendError
-from .shaders import GLSL_VERSION, SHADER_DIR, ComputeInterface, ProgramInterface, Uniform, load_source, image_type, program_defines
+from .shaders import (GLSL_VERSION, SHADER_DIR, ComputeInterface, ProgramInterface, Uniform, image_type, load_source,
+                      program_defines)
 
 
 def _decl_uniform(u: Uniform) -> str:
@@ -41,7 +42,8 @@ def compute_header(iface: ComputeInterface) -> str:
     lines.append(f"layout(local_size_x = {iface.local_size}) in;")
     lines += [_decl_uniform(u) for u in iface.uniforms]
     lines += [f"uniform sampler2D {name};" for name in iface.samplers]
-    lines += [f"layout({fmt}, binding = {unit}) uniform {image_type(fmt)} {name};"
+    coherent = "coherent " if iface.coherent else ""
+    lines += [f"layout({fmt}, binding = {unit}) {coherent}uniform {image_type(fmt)} {name};"
               for unit, (fmt, name) in enumerate(iface.images)]
     return "\n".join(lines) + "\n#line 1\n"
 

@@ -126,9 +126,9 @@ def build_family(backend, size: int, tile_slots: list[int], family: str, kind: s
 
 
 class GpuWarp:
-    """A layer's NoTW or RTW warp as the GPU built it. Its tables stay on the GPU; `rows`, `cols`
-    and `params` read them on first use, which must come before the next warped frame
-    overwrites them (BackendError otherwise)."""
+    """A layer's NoTW or RTW warp as the GPU built it. Its tables stay on the GPU; `rows`,
+    `cols` and `params` read them on first use, which must come before the next warped
+    frame overwrites them (BackendError otherwise)."""
 
     def __init__(self, backend, slot: int, size: int, tile: int = 0, kind: str = "notw") -> None:
         self.kind = kind
@@ -209,7 +209,7 @@ class GpuWarp:
 
 
 class GpuMapping:
-    """A layer's mapping whose DV crop and NoTW warp the GPU built (LayerMapping's interface).
+    """A layer's mapping whose DV crop and warp the GPU built (LayerMapping's interface).
 
     The passes read the crop from the rows table, so its uniform crop (`crop_vec4`) is the
     whole map; `lo` and `hi` read the crop the GPU stored, with the tables (GpuWarp)."""

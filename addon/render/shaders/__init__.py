@@ -24,8 +24,8 @@ from .constants import (ALPHA_INTERPOLATIONS, CODES, EDGE_PASSES, EXACT_MAX_WALK
 from .interfaces import (ADVANCE_PROGRAM, BARRIER_PROGRAM, DEPTH_PROGRAM, EDGE_PROGRAM, FOOTPRINT_PROGRAM,
                          GBUFFER_PROGRAM, GBUFFER_SAMPLES_PROGRAM, OVERLAY_PROGRAM, PREVIEW_PROGRAM,
                          RAY_TABLE_PROGRAM, RESOLVE_PROGRAM, SAMPLE_STATS_PROGRAM, SCATTER_PROGRAM,
-                         SHADOW_TEST_PROGRAM, WARP_BUILD_PROGRAM, ComputeInterface, ProgramInterface, Uniform, Varying, image_type,
-                         program_defines)
+                         SHADOW_TEST_PROGRAM, WARP_BUILD_PROGRAM, ComputeInterface, ProgramInterface, Uniform, Varying,
+                         image_type, program_defines)
 from .loader import GLSL_VERSION, SHADER_DIR, expand_source, load_source
 from .programs import (ALPHA_PROGRAMS, COMPUTE_PROGRAMS, DEPTH_PLAIN_PROGRAM, EXACT_PROGRAMS, EXACT_SOFT_PROGRAMS,
                        GBUFFER_ALPHA_PROGRAM, PROGRAMS, SHADOW_TEST_PLAIN_PROGRAM, SOFT_PROGRAMS, VARIANT_PROGRAMS,
@@ -48,7 +48,8 @@ __all__ = [
     "GBUFFER_SAMPLES_PROGRAM", "GLSL_VERSION", "INTERPOLATIONS", "LAYER_KINDS", "LIGHT_KINDS", "LINK_DEFINE",
     "link_variant", "load_source", "MAX_POINT_SIZE", "NO_SPLIT", "NO_SPOT", "NO_SPREAD", "NO_TILE", "NO_WARP_DEFINE",
     "OUTLINES", "OVERLAY_MODES", "OVERLAY_PROGRAM", "PARAM_CODES", "POINTS_DEFINE", "PREVIEW_PROGRAM",
-    "program_defines", "program_variant", "ProgramInterface", "PROGRAMS", "RAY_TABLE_PROGRAM", "REGION_PLANES", "RESOLVE_PROGRAM",
+    "program_defines", "program_variant", "ProgramInterface", "PROGRAMS", "RAY_TABLE_PROGRAM", "REGION_PLANES",
+    "RESOLVE_PROGRAM",
     "SAMPLE_FLAGS", "SAMPLE_STATS_PROGRAM", "SCATTER_MODE_CODES", "SCATTER_MODE_DEFINE", "SCATTER_MODES",
     "SCATTER_PROGRAM", "scatter_variant", "SHADER_DIR", "SHADOW_TEST_PLAIN_PROGRAM", "SHADOW_TEST_PROGRAM",
     "SHARED_DEFINES", "SLOTS", "SOFT_DEFINE", "SOFT_MAX_POINTS", "SOFT_MAX_SEARCH", "soft_of", "SOFT_PROGRAMS",

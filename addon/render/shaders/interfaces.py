@@ -58,6 +58,10 @@ class ComputeInterface:
     images: tuple[tuple[str, str], ...] = ()  # (format, name) of images, unit = index (image_type)
     local_size: int = 64  # invocations per work group along x
     defines: dict[str, str] = field(default_factory=dict)
+    # Whether a work group's invocations read each other's image stores (after a barrier):
+    # declared `coherent` where the backend's GLSL can say so (moderngl; Blender's
+    # create-info has no such qualifier).
+    coherent: bool = False
 
     def groups(self, invocations: int) -> int:
         """Work groups that cover `invocations` (the body returns past the end)."""
@@ -239,6 +243,7 @@ WARP_BUILD_PROGRAM = ComputeInterface(
                           f"int ow_tile_slot[{SLOTS}]"),
     images=(("r32ui", "ow_counts"), ("r32ui", "ow_bounds"), ("r32ui", "ow_work"), ("r32ui", "ow_info"),
             ("rgba32f", "ow_table")),
+    coherent=True,  # the smoothing step's group shares its numbers through ow_work and ow_info
     defines={"OW_FLOOR_SHARE": repr(float(warping.FLOOR_SHARE)), "OW_MAX_SLOPE": repr(float(warping.MAX_SLOPE)),
              "OW_SHEAR_LIMIT": repr(float(warping.SHEAR_LIMIT)),
              "OW_IDENTITY_PRIOR": repr(float(warping.IDENTITY_PRIOR)),
