@@ -18,8 +18,8 @@
 //                  0 .. A and its total at column A + 1 (float bits).
 //  OW_WARP_SMOOTH  one work group per tile: the narrowest tent window (1, 2, 4, ... lines)
 //                  whose smoothing leaves the shear under OW_SHEAR_LIMIT (else the first
-//                  past A / 2), the smoothed offsets written back in place, and the window
-//                  and shear at ow_info (tile t, columns 2 family and 2 family + 1).
+//                  past A / 2), the smoothed offsets written to the output columns, and
+//                  the window and shear at ow_info (tile t, columns 2 family and 2 family + 1).
 //  OW_WARP_RTW     one invocation per tile: RTW's one function of the family (no smoothing).
 //  OW_WARP_PACK    one invocation per texel of the table (ow_table, the layout of
 //                  passes/samples.pack_warp_table): nodes k and k + 1 of function i and of
@@ -27,7 +27,6 @@
 //                  reduces the family's steepest slope into ow_info, which with the
 //                  shears and the crop's scale lets a host size point sprites.
 
-#define OW_MAX_A 256
 
 uint ow_bits(float value)
 {
@@ -71,13 +70,20 @@ void ow_crop_bounds(int index)
   imageAtomicMax(ow_bounds, ivec2(4 * tile + 3, 0), uint(y));
 }
 
-// warping.offsets_from_counts of one line of densities `share` (`total` their sum > 0),
-// written to line `line` of the work image (offsets at columns 0 .. A).
-void ow_write_offsets(int tile, int line, inout float share[OW_MAX_A], float total)
+// Every step keeps its per-line numbers in the work image, never in private arrays: a
+// software rasteriser (llvmpipe) takes tens of seconds to compile a float[256] indexed at
+// run time. A line's columns 0 .. A hold its densities, then its offsets; column A + 1
+// its total; the smoothed (or RTW's) offsets go to columns OW_OUT_COLUMN .. + A.
+#define OW_OUT_COLUMN (ow_count_size + 4)
+
+// warping.offsets_from_counts of line `line`, whose densities columns 0 .. A - 1 hold
+// (`total` their sum > 0): its offsets replace them at columns 0 .. A.
+void ow_write_offsets(int tile, int line, float total)
 {
   int size = ow_count_size;
   for (int k = 0; k < size; k++) {
-    share[k] = (1.0 - OW_FLOOR_SHARE) * (share[k] / total) + OW_FLOOR_SHARE / float(size);
+    float share = ow_work_value(tile, line, k);
+    ow_set_work(tile, line, k, (1.0 - OW_FLOOR_SHARE) * (share / total) + OW_FLOOR_SHARE / float(size));
   }
   // Water filling (warping._cap_density): cap every share at OW_MAX_SLOPE / A and scale
   // the others up so that they still sum to 1. The capped set only grows, largest shares
@@ -89,11 +95,12 @@ void ow_write_offsets(int tile, int line, inout float share[OW_MAX_A], float tot
     float rest = 0.0;
     int count = 0;
     for (int k = 0; k < size; k++) {
-      if (share[k] * scale > cap * (1.0 + 1e-6)) {
+      float share = ow_work_value(tile, line, k);
+      if (share * scale > cap * (1.0 + 1e-6)) {
         count++;
       }
       else {
-        rest += share[k];
+        rest += share;
       }
     }
     if (count == capped) {
@@ -104,13 +111,15 @@ void ow_write_offsets(int tile, int line, inout float share[OW_MAX_A], float tot
   }
   float running = 0.0;
   for (int k = 0; k < size; k++) {
-    running += min(share[k] * scale, cap);
-    share[k] = running;  // the cumulative share up to node k + 1
+    running += min(ow_work_value(tile, line, k) * scale, cap);
+    ow_set_work(tile, line, k, running);  // the cumulative share up to node k + 1
+  }
+  // Node k's offset from the cumulative share up to it (column k - 1): downwards, so that
+  // each read comes before its column is overwritten.
+  for (int k = size - 1; k >= 1; k--) {
+    ow_set_work(tile, line, k, ow_work_value(tile, line, k - 1) / running - float(k) / float(size));
   }
   ow_set_work(tile, line, 0, 0.0);
-  for (int k = 1; k < size; k++) {
-    ow_set_work(tile, line, k, share[k - 1] / running - float(k) / float(size));
-  }
   ow_set_work(tile, line, size, 0.0);
 }
 
@@ -130,7 +139,6 @@ void ow_line(int index)
   }
   int tile = index / size;
   int line = index % size;
-  float share[OW_MAX_A];
   // The tent along the line, divided by the tent of ones so that a uniform line stays
   // uniform up to its ends (warping.tent_filter zero-pads).
   float total = 0.0;
@@ -145,11 +153,11 @@ void ow_line(int index)
         weight += w;
       }
     }
-    share[k] = sum / weight;
-    total += share[k];
+    ow_set_work(tile, line, k, sum / weight);
+    total += sum / weight;
   }
   if (total > 0.0) {
-    ow_write_offsets(tile, line, share, total);
+    ow_write_offsets(tile, line, total);
   }
   else {
     ow_write_identity(tile, line);
@@ -158,44 +166,43 @@ void ow_line(int index)
 }
 
 // RTW (warping.rtw_from_counts), one invocation per tile: the family's one function, from
-// the largest count across each position, blurred by a zero-padded tent of half-width
-// ow_along; written to every line, with the window and a shear of 0 (its lines are equal).
+// the largest count across each position (kept in line 1's columns), blurred by a
+// zero-padded tent of half-width ow_along into line 0's; written to every line's output,
+// with the window and a shear of 0 (its lines are equal).
 void ow_rtw(int tile)
 {
   int size = ow_count_size;
   if (tile >= ow_tiles) {
     return;
   }
-  float peak[OW_MAX_A];
   for (int k = 0; k < size; k++) {
     float top = 0.0;
     for (int line = 0; line < size; line++) {
       top = max(top, ow_count(tile, line, k));
     }
-    peak[k] = top;
+    ow_set_work(tile, 1, k, top);
   }
-  float share[OW_MAX_A];
   float total = 0.0;
   for (int k = 0; k < size; k++) {
     float sum = 0.0;
     for (int d = -ow_along; d <= ow_along; d++) {
       int j = k + d;
       if (j >= 0 && j < size) {
-        sum += (1.0 - float(abs(d)) / float(ow_along + 1)) * peak[j];
+        sum += (1.0 - float(abs(d)) / float(ow_along + 1)) * ow_work_value(tile, 1, j);
       }
     }
-    share[k] = sum;
+    ow_set_work(tile, 0, k, sum);
     total += sum;
   }
   if (total > 0.0) {
-    ow_write_offsets(tile, 0, share, total);
+    ow_write_offsets(tile, 0, total);
   }
   else {
     ow_write_identity(tile, 0);
   }
-  for (int line = 1; line < size; line++) {
+  for (int line = 0; line < size; line++) {
     for (int k = 0; k <= size; k++) {
-      ow_set_work(tile, line, k, ow_work_value(tile, 0, k));
+      ow_set_work(tile, line, OW_OUT_COLUMN + k, ow_work_value(tile, 0, k));
     }
   }
   imageStore(ow_info, ivec2(2 * ow_family, tile), uvec4(uint(ow_along)));
@@ -227,49 +234,70 @@ uint ow_info_value(int column, int tile)
   return imageLoad(ow_info, ivec2(column, tile)).x;
 }
 
-// warping.tent_filter of `values` (line-indexed) at half-width `window`: with the lines
-// zero-padded by `window` on each side, a forward box of width n = window + 1 and then a
-// backward one, divided by n (weights 1 - |d| / n), each a running sum.
-void ow_tent(inout float values[OW_MAX_A], int size, int window)
+// A compensated running sum: (sum, its lost low part) plus `value`.
+vec2 ow_kahan_add(vec2 sum, float value)
 {
-  int n = window + 1;
-  int padded = size + 2 * window;
-  float forward[2 * OW_MAX_A];  // forward[p] = padded lines p .. p + n - 1
-  float running = 0.0;
-  for (int p = padded - 1; p >= 0; p--) {
-    int entering = p - window;
-    int leaving = p + n - window;
-    running += (entering >= 0 && entering < size) ? values[entering] : 0.0;
-    running -= (leaving >= 0 && leaving < size) ? values[leaving] : 0.0;
-    forward[p] = running;
-  }
-  running = 0.0;
-  for (int p = 0; p < window + size; p++) {
-    running += forward[p];
-    if (p - n >= 0) {
-      running -= forward[p - n];
-    }
-    if (p >= window) {
-      values[p - window] = running / float(n);
-    }
-  }
+  float y = value - sum.y;
+  float t = sum.x + y;
+  return vec2(t, (t - sum.x) - y);
 }
 
-// The column `k` of the tile's offsets smoothed at `window` (warping.smooth_offsets), and
-// its largest step between neighbouring lines times A.
-float ow_smoothed_column(int tile, int k, int window, out float column[OW_MAX_A])
+// What ow_tent_pass does with the tent at each line.
+#define OW_TENT_DEN 0
+#define OW_TENT_SHEAR 1
+#define OW_TENT_STORE 2
+
+// The tent's input at line j: the line's weight (k < 0) or its weight times its offset at
+// node k; 0 outside the tile's lines (warping.tent_filter zero-pads).
+float ow_tent_value(int tile, int j, int k)
+{
+  if (j < 0 || j >= ow_count_size) {
+    return 0.0;
+  }
+  float weight = ow_work_value(tile, j, OW_WEIGHT_COLUMN);
+  return k < 0 ? weight : weight * ow_work_value(tile, j, k);
+}
+
+// warping.tent_filter across lines at half-width `window` (weights 1 - |d| / n, n = window
+// + 1) of the weights (k < 0) or of node k's weighted offsets, by running sums: f is the
+// forward box of width n at padded line p, g the same box n lines back, b the backward box
+// of f. Then by `mode`: OW_TENT_DEN stores the tent plus `prior` (the smoothing's
+// denominator); OW_TENT_SHEAR returns the largest step of the smoothed column between
+// neighbouring lines times A (warping.max_shear); OW_TENT_STORE writes the smoothed column
+// to node k's output (warping.smooth_offsets).
+float ow_tent_pass(int tile, int k, int window, int mode, float prior)
 {
   int size = ow_count_size;
-  for (int i = 0; i < size; i++) {
-    column[i] = ow_work_value(tile, i, OW_WEIGHT_COLUMN) * ow_work_value(tile, i, k);
-  }
-  ow_tent(column, size, window);
+  int n = window + 1;
+  // Each running sum carries its rounding error (Kahan), so that float32 keeps the
+  // numpy oracle's offsets to a few 1e-6 over hundreds of lines.
+  vec2 f = vec2(0.0);
+  vec2 g = vec2(0.0);
+  vec2 b = vec2(0.0);
+  float previous = 0.0;
   float shear = 0.0;
-  for (int i = 0; i < size; i++) {
+  for (int p = 0; p < size + window; p++) {
+    float lagged = ow_tent_value(tile, p - n, k);
+    f = ow_kahan_add(ow_kahan_add(f, ow_tent_value(tile, p, k)), -lagged);
+    g = ow_kahan_add(ow_kahan_add(g, lagged), -ow_tent_value(tile, p - 2 * n, k));
+    b = ow_kahan_add(ow_kahan_add(b, f.x), -g.x);
+    int i = p - window;
+    if (i < 0) {
+      continue;
+    }
+    float tent = b.x / float(n);
+    if (mode == OW_TENT_DEN) {
+      ow_set_work(tile, i, OW_DEN_COLUMN, tent + prior);
+      continue;
+    }
     float den = ow_work_value(tile, i, OW_DEN_COLUMN);
-    column[i] = den > 0.0 ? column[i] / den : 0.0;
+    float smoothed = den > 0.0 ? tent / den : 0.0;
     if (i > 0) {
-      shear = max(shear, abs(column[i] - column[i - 1]) * float(size));
+      shear = max(shear, abs(smoothed - previous) * float(size));
+    }
+    previous = smoothed;
+    if (mode == OW_TENT_STORE) {
+      ow_set_work(tile, i, OW_OUT_COLUMN + k, smoothed);
     }
   }
   return shear;
@@ -278,18 +306,10 @@ float ow_smoothed_column(int tile, int k, int window, out float column[OW_MAX_A]
 // Every invocation of the group calls this with the same window (it has barriers).
 void ow_prepare_window(int tile, int window)
 {
-  int size = ow_count_size;
   if (gl_LocalInvocationID.x == 0u) {
-    float den[OW_MAX_A];
-    for (int i = 0; i < size; i++) {
-      den[i] = ow_work_value(tile, i, OW_WEIGHT_COLUMN);
-    }
-    ow_tent(den, size, window);
     float populated = float(max(ow_info_value(OW_INFO_POPULATED, tile), 1u));
     float prior = OW_IDENTITY_PRIOR * uintBitsToFloat(ow_info_value(OW_INFO_WEIGHT_SUM, tile)) / populated;
-    for (int i = 0; i < size; i++) {
-      ow_set_work(tile, i, OW_DEN_COLUMN, den[i] + prior);
-    }
+    ow_tent_pass(tile, -1, window, OW_TENT_DEN, prior);
     imageStore(ow_info, ivec2(OW_INFO_SHEAR_MAX, tile), uvec4(0u));
   }
   ow_group_sync();
@@ -300,10 +320,9 @@ float ow_window_shear(int tile, int window)
 {
   int size = ow_count_size;
   ow_prepare_window(tile, window);
-  float column[OW_MAX_A];
   for (int k = int(gl_LocalInvocationID.x); k <= size; k += int(gl_WorkGroupSize.x)) {
     // Non-negative floats order as their bits.
-    imageAtomicMax(ow_info, ivec2(OW_INFO_SHEAR_MAX, tile), ow_bits(ow_smoothed_column(tile, k, window, column)));
+    imageAtomicMax(ow_info, ivec2(OW_INFO_SHEAR_MAX, tile), ow_bits(ow_tent_pass(tile, k, window, OW_TENT_SHEAR, 0.0)));
   }
   ow_group_sync();
   float shear = uintBitsToFloat(ow_info_value(OW_INFO_SHEAR_MAX, tile));
@@ -351,11 +370,14 @@ void ow_smooth(int tile)
   if (window > 0) {
     shear = ow_window_shear(tile, window);
     ow_prepare_window(tile, window);
-    float column[OW_MAX_A];
     for (int k = int(local); k <= size; k += int(gl_WorkGroupSize.x)) {
-      ow_smoothed_column(tile, k, window, column);
+      ow_tent_pass(tile, k, window, OW_TENT_STORE, 0.0);
+    }
+  }
+  else {
+    for (int k = int(local); k <= size; k += int(gl_WorkGroupSize.x)) {
       for (int i = 0; i < size; i++) {
-        ow_set_work(tile, i, k, column[i]);
+        ow_set_work(tile, i, OW_OUT_COLUMN + k, ow_work_value(tile, i, k));  // every line empty: as they are
       }
     }
   }
@@ -412,8 +434,8 @@ void ow_pack(int index)
   }
   else {
     int next = min(i + 1, size - 1);
-    texel = vec4(ow_work_value(tile, i, k), ow_work_value(tile, i, k + 1), ow_work_value(tile, next, k),
-                 ow_work_value(tile, next, k + 1));
+    texel = vec4(ow_work_value(tile, i, OW_OUT_COLUMN + k), ow_work_value(tile, i, OW_OUT_COLUMN + k + 1),
+                 ow_work_value(tile, next, OW_OUT_COLUMN + k), ow_work_value(tile, next, OW_OUT_COLUMN + k + 1));
     // The family's steepest d(offset)/d(along) (footprint_runs._slopes), at least 0: a
     // non-negative float orders as its bits.
     float slope = max((texel.y - texel.x) * float(size), 0.0);

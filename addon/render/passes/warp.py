@@ -14,7 +14,7 @@ from ...core.errors import BackendError
 from ...core.warping import ALONG_BLUR_SHARE, FLOOR_SHARE, MAX_SLOPE, LayerMapping, Warp, WarpParams, rtw_blur
 from ..shaders import NO_TILE, SLOTS, WARP_BUILD_PROGRAM, WARP_FAMILIES, warp_step_variant
 
-# The largest count-map side the GPU builds a warp for (OW_MAX_A in warp_build.comp).
+# The largest count-map side the GPU builds a warp for (the analysis' largest, 256).
 MAX_GPU_WARP_SIZE = 256
 # Columns of the build's info image (warp_build.comp's OW_INFO_*).
 INFO_WIDTH = 12
@@ -32,7 +32,9 @@ class WarpBuild:
     """The images of the GPU's warp construction, kept between frames."""
 
     bounds: Any = None  # R32UI (4 * SLOTS, 1): each tile's occupied columns and rows
-    work: Any = None  # R32UI (A + 4, SLOTS * A): a family's lines (offsets, total, weight, tent) as float bits
+    # R32UI (2 A + 5, SLOTS * A): a family's lines as float bits (offsets, total, weight,
+    # the smoothing's denominator, then the smoothed offsets: warp_build.comp)
+    work: Any = None
     # R32UI (INFO_WIDTH, SLOTS), a row a tile: each family's window and shear (columns 0-3),
     # the smoothing's scratch (4-6) and the crop's scale (8, 9)
     info: Any = None
@@ -50,7 +52,7 @@ def _images(backend, size: int) -> WarpBuild:
     if held.size != size:
         device.free(*held.held())
         held.bounds = device.texture((4 * SLOTS, 1), "R32UI")
-        held.work = device.texture((size + 4, SLOTS * size), "R32UI")
+        held.work = device.texture((2 * size + 5, SLOTS * size), "R32UI")
         held.info = device.texture((INFO_WIDTH, SLOTS), "R32UI")
         held.size = size
     for name in TABLE_OF_FAMILY.values():
