@@ -152,9 +152,12 @@ def run_jobs(jobs: Sequence[Job], options: CompareOptions, image_dir: Path | Non
             send = cache_dir is None
             run = uuid.uuid4().hex[:8]
             plugin = f"omniwarp-{run}"
-            client.register_plugin(RunPlugin(), name=plugin)
-            futures = [client.submit(remote_job, job, options, cache_dir, send, key=f"omniwarp-{run}-{i}", pure=False)
-                       for i, job in enumerate(jobs)]
+            # A Ctrl-C inside one of Dask's blocking calls can reach its event loop half done
+            # (distributed's sync() then prints a NameError traceback): it is raised after them.
+            with interrupt.deferred():
+                client.register_plugin(RunPlugin(), name=plugin)
+                futures = [client.submit(remote_job, job, options, cache_dir, send, key=f"omniwarp-{run}-{i}",
+                                         pure=False) for i, job in enumerate(jobs)]
             results = _gather(jobs, futures, image_dir, cache_dir)
         except BaseException:
             # Bad input, Ctrl-C or a bug: nothing more runs for this run.
