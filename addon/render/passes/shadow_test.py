@@ -6,6 +6,7 @@ import numpy as np
 
 from ...core.errors import BackendError
 from ..device import Target, UniformValues
+from .exact import _lists
 from ..shaders import (EXACT_SOFT_KEY, RESOLVE_PROGRAM, SHADOW_TEST_PROGRAM, ProgramInterface, exact_soft_of,
                        program_variant)
 from ..shaders import soft_of, veil_of
@@ -65,19 +66,13 @@ def resolve_visibility(backend, target: Target, marks: bool) -> None:
     device = backend.device
     if marks:
         device.barrier()  # the exact pass's atomics, before the loads
-        hits = _lists_hits(backend)
+        hits = _lists(backend, "resolve_visibility").hits
     else:
         if "ow_no_hits" not in backend.textures:
             backend.textures["ow_no_hits"] = device.texture((1, 1), "R32UI", np.zeros(1, np.uint32))
         hits = backend.textures["ow_no_hits"]
     with device.drawing(target, (0, 0) + held.size):
         device.draw(RESOLVE_PROGRAM, {"ow_marks": int(marks)}, {"ow_test": held.test[0]}, images={"ow_hits": hits})
-
-
-def _lists_hits(backend):
-    if backend.exact is None:
-        raise BackendError("the exact pass's marks are gone (link_samples ran again or the lists were freed)")
-    return backend.exact.hits
 
 
 def shadow_test(backend, uniforms: UniformValues) -> np.ndarray:

@@ -185,29 +185,11 @@ class GpuWarp:
         self._read()
         return self._crop
 
-    @property
-    def rows(self) -> np.ndarray:
-        return self._read().rows
-
-    @property
-    def cols(self) -> np.ndarray:
-        return self._read().cols
-
-    @property
-    def params(self) -> WarpParams:
-        return self._read().params
-
-    def forward(self, uv: np.ndarray) -> np.ndarray:
-        return self._read().forward(uv)
-
-    def inverse(self, uv_warped: np.ndarray) -> np.ndarray:
-        return self._read().inverse(uv_warped)
-
-    def jacobian(self, uv: np.ndarray) -> np.ndarray:
-        return self._read().jacobian(uv)
-
-    def slopes(self, uv: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        return self._read().slopes(uv)
+    def __getattr__(self, name: str):
+        # rows, cols, params, forward, inverse, jacobian, slopes: the Warp read back.
+        if name.startswith("_"):
+            raise AttributeError(name)
+        return getattr(self._read(), name)
 
 
 class GpuMapping:
@@ -237,20 +219,8 @@ class GpuMapping:
     def crop_vec4() -> tuple[float, float, float, float]:
         return 0.0, 0.0, 1.0, 1.0  # the passes take a warped layer's crop from its rows table
 
-    def _mapping(self) -> LayerMapping:
-        return LayerMapping(self.lo, self.hi, self.warp._read())
-
-    def forward(self, xy: np.ndarray) -> np.ndarray:
-        return self._mapping().forward(xy)
-
-    def inverse(self, uv: np.ndarray) -> np.ndarray:
-        return self._mapping().inverse(uv)
-
-    def jacobian(self, xy: np.ndarray) -> np.ndarray:
-        return self._mapping().jacobian(xy)
-
-    def magnification(self, xy: np.ndarray) -> np.ndarray:
-        return self._mapping().magnification(xy)
-
-    def reach(self, xy: np.ndarray, direction: np.ndarray) -> np.ndarray:
-        return self._mapping().reach(xy, direction)
+    def __getattr__(self, name: str):
+        # forward, inverse, jacobian, magnification, reach: the LayerMapping read back.
+        if name.startswith("_"):
+            raise AttributeError(name)
+        return getattr(LayerMapping(self.lo, self.hi, self.warp._read()), name)
