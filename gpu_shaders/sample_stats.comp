@@ -7,7 +7,9 @@
 // (log-spaced bins for a perspective view in front of the camera).
 // ow_stats_pass 2 (one invocation): the bins of the percentile cut's samples and the
 // bins' spacing, at the fields cut_lo, cut_hi and cut_log (core.samples.cut_bins).
-// So the host reads the OW_STAT_COUNT fields once, after all three passes.
+// The last pass (2, or 3 "copy" without a histogram; one invocation) copies the
+// OW_STAT_COUNT fields into ow_stats_out, which the host reads once: a texture of the
+// fields alone, since Blender's gpu reads whole textures (the histogram is 4 KB).
 // An invocation reduces OW_STAT_SPAN samples in registers and then writes each field
 // with one atomic: a sixteenth of the atomics on the same few texels. Minimums are
 // stored as the maximum of their complement, so the image starts from zeros.
@@ -79,11 +81,23 @@ void ow_cut()
   imageStore(ow_stats, ivec2(OW_STAT_cut_log, 0), uvec4(log_bins ? 2u : 1u));
 }
 
+// The fields into the texture the host reads (one invocation; its own stores are visible
+// to its own loads).
+void ow_copy_fields()
+{
+  for (int field = 0; field < OW_STAT_COUNT; field++) {
+    imageStore(ow_stats_out, ivec2(field, 0), uvec4(ow_field(field)));
+  }
+}
+
 void main()
 {
-  if (ow_stats_pass == OW_STATS_CUT) {
+  if (ow_stats_pass == OW_STATS_CUT || ow_stats_pass == OW_STATS_COPY) {
     if (gl_GlobalInvocationID.x == 0u) {
-      ow_cut();
+      if (ow_stats_pass == OW_STATS_CUT) {
+        ow_cut();
+      }
+      ow_copy_fields();
     }
     return;
   }

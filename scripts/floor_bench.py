@@ -12,6 +12,9 @@ into a 64x64 target) and one wait, in the same process and context. Each is time
 the median wall time of `--frames` frames, interleaved, each ending with its result on
 the host: the trivial frame reads its visibility. Prints a markdown table with the
 renderer and date; their ratio is the host work a frame adds above its GPU calls.
+In further frames, timed apart, the wall time inside moderngl's calls ("in GL calls")
+is split from the rest ("host": Python and numpy). On llvmpipe the GPU's work runs on
+the CPU inside those calls, so there the split, not the ratio, says what is host work.
 """
 from __future__ import annotations
 
@@ -70,6 +73,48 @@ class _Counted:
     def __exit__(self, *exc) -> None:
         for name in self._saved:
             delattr(self.device, name)
+
+
+class _GLClock:
+    """Sums the wall time spent inside moderngl's calls while installed (every public
+    method of its classes). What a frame spends outside them is host work: Python,
+    numpy. On llvmpipe the GPU's work runs inside those calls (a compute dispatch is
+    synchronous there, and a pass that reads the one before it waits for it)."""
+
+    CLASSES = ("Context", "Texture", "Framebuffer", "VertexArray", "ComputeShader", "Program", "Buffer",
+               "Uniform", "Query", "Scope", "Sampler")
+
+    def __init__(self) -> None:
+        self.seconds = 0.0
+        self._saved: list[tuple[type, str, object]] = []
+        self._depth = 0
+
+    def __enter__(self) -> "_GLClock":
+        import moderngl
+
+        for cls in (getattr(moderngl, name) for name in self.CLASSES):
+            for name, original in list(vars(cls).items()):
+                if name.startswith("_") or not callable(original):
+                    continue
+                self._saved.append((cls, name, original))
+                setattr(cls, name, self._timed(original))
+        return self
+
+    def _timed(self, original):
+        def timed(*args, **kwargs):
+            self._depth += 1
+            start = time.perf_counter()
+            try:
+                return original(*args, **kwargs)
+            finally:
+                self._depth -= 1
+                if self._depth == 0:  # a call inside a call counts once
+                    self.seconds += time.perf_counter() - start
+        return timed
+
+    def __exit__(self, *exc) -> None:
+        for cls, name, original in reversed(self._saved):
+            setattr(cls, name, original)
 
 
 class BareFrame:
@@ -159,8 +204,15 @@ def main(argv: list[str] | None = None) -> int:
                 trivial_ms.append(_median_ms(frame, 1))
                 bare_ms.append(_median_ms(bare.run, 1))
             t, b = statistics.median(trivial_ms), statistics.median(bare_ms)
-            lines.append(f"| {method} | {t:.2f} | {b:.3f} | {t / b:.1f} | {calls['dispatch']} | {calls['draw']} | "
-                         f"{calls['clear'] + calls['clear_image']} |")
+            host_ms, gl_ms = [], []
+            for _ in range(args.frames):  # apart: timing each call slows the frame a little
+                with _GLClock() as gl:
+                    frame_ms = _median_ms(frame, 1)
+                gl_ms.append(gl.seconds * 1e3)
+                host_ms.append(frame_ms - gl.seconds * 1e3)
+            g, h = statistics.median(gl_ms), statistics.median(host_ms)
+            lines.append(f"| {method} | {t:.2f} | {b:.3f} | {t / b:.1f} | {g:.2f} | {h:.2f} | {calls['dispatch']} | "
+                         f"{calls['draw']} | {calls['clear'] + calls['clear_image']} |")
         pipeline.release()
     stamp = datetime.datetime.now(datetime.timezone.utc).strftime("%Y-%m-%d %H:%M UTC")
     text = "\n".join([
@@ -169,8 +221,8 @@ def main(argv: list[str] | None = None) -> int:
         f"Renderer: {renderer}. Measured {stamp}. Command: `python scripts/floor_bench.py "
         f"{' '.join(argv if argv is not None else sys.argv[1:])}`".rstrip() + "",
         "",
-        "| method | trivial frame ms | bare frame ms | ratio | dispatches | draws | clears |",
-        "|---|---|---|---|---|---|---|",
+        "| method | trivial frame ms | bare frame ms | ratio | in GL calls ms | host ms | dispatches | draws | clears |",
+        "|---|---|---|---|---|---|---|---|---|",
         *lines, ""])
     print(text)
     if args.out is not None:

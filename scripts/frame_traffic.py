@@ -2,6 +2,7 @@
 
     python scripts/frame_traffic.py [--presets room_omni,courtyard] [--methods dpsm,cube,...]
                                     [--resolution 1024] [--size 640x480] [--cache-dir DIR]
+                                    [--backend moderngl|blender]
 
 For each preset (its cached Cycles reference, rendered once when missing) and method, two
 frames of `ShadowPipeline.render` on the same read-only samples, each read, then a third
@@ -21,14 +22,16 @@ sys.path.insert(0, str(REPO))
 METHODS = ("dpsm", "cube", "dpsm+notw", "cube+notw", "exact")
 
 
-def steady_traffic(pipeline, light, scene, samples, settings, warm: int = 2):
-    """The Traffic of a frame after `warm` frames of the same inputs (each read)."""
-    from tests.support.traffic import Traffic
+def steady_traffic(pipeline, light, scene, samples, settings, warm: int = 2, device_calls: bool = False):
+    """The Traffic of a frame after `warm` frames of the same inputs (each read), counted
+    at moderngl's API or, with `device_calls`, at the pipeline's device."""
+    from tests.support.traffic import Traffic, counting_device
 
     for _ in range(warm):
         _ = pipeline.render(light, scene, samples, settings).visibility
     traffic = Traffic()
-    with traffic.counting():
+    counter = counting_device(pipeline.backend.device, traffic) if device_calls else traffic.counting()
+    with counter:
         result = pipeline.render(light, scene, samples, settings)
     _ = result.visibility  # read after the count, as a viewport's compositor or compare would
     return traffic
@@ -41,17 +44,17 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--resolution", type=int, default=1024)
     parser.add_argument("--size", default="640x480")
     parser.add_argument("--cache-dir", type=Path, default=None)
+    parser.add_argument("--backend", choices=("moderngl", "blender"), default="moderngl")
     args = parser.parse_args(argv)
 
     from addon import compare
     from addon.reference.cache import load_or_capture
-    from addon.render.moderngl_backend import ModernGLBackend
     from addon.render.pipeline import ShadowPipeline, settings_for
 
     size = tuple(int(v) for v in args.size.split("x"))
     print("| preset | method | host waits | finishes | reads | bytes read | uploads | bytes uploaded | uniform bytes |")
     print("|---|---|---|---|---|---|---|---|---|")
-    with ModernGLBackend() as backend:
+    with _backend(args.backend) as backend:
         pipeline = ShadowPipeline(backend)
         for preset in [p for p in args.presets.split(",") if p]:
             ref = load_or_capture(preset, size, cache_dir=args.cache_dir)
@@ -60,11 +63,26 @@ def main(argv: list[str] | None = None) -> int:
             scene = compare.resident_scene(ref)
             for method in [m for m in args.methods.split(",") if m]:
                 settings = settings_for(method, args.resolution, light.emission)
-                row = steady_traffic(pipeline, light, scene, samples, settings).row()
+                row = steady_traffic(pipeline, light, scene, samples, settings,
+                                     device_calls=args.backend == "blender").row()
                 print(f"| {preset} | {method} | {row['waits']} | {row['finishes']} | {row['reads']} | "
                       f"{row['read_bytes']:,} | {row['uploads']} | {row['upload_bytes']:,} | {row['uniform_bytes']:,} |")
         pipeline.release()
     return 0
+
+
+def _backend(name: str):
+    if name == "moderngl":
+        from addon.render.moderngl_backend import ModernGLBackend
+
+        return ModernGLBackend()
+    import bpy  # noqa: F401  (Blender owns GL in this process)
+
+    from addon.render.blender_backend import BlenderGPUBackend
+    from addon.render.blender_gpu import ensure_gpu
+
+    ensure_gpu()
+    return BlenderGPUBackend()
 
 
 if __name__ == "__main__":

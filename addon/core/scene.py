@@ -116,9 +116,15 @@ class LightSpec:
 
     @property
     def rotation(self) -> np.ndarray:
-        """Orthonormal 3x3 light-to-world rotation (scale removed)."""
+        """Orthonormal 3x3 light-to-world rotation (scale removed). Kept for the matrix it
+        came from (a frame asks for it several times; the SVD is most of its cost)."""
         m = np.asarray(self.matrix_world, dtype=np.float64)[:3, :3]
-        return orthonormalize(m)
+        key = m.tobytes()
+        cached = self.__dict__.get("_rotation")
+        if cached is None or cached[0] != key:
+            cached = self.__dict__["_rotation"] = (key, orthonormalize(m))
+            cached[1].flags.writeable = False
+        return cached[1]
 
     @property
     def axis(self) -> np.ndarray:

@@ -149,6 +149,7 @@ class ShadowBackend:
     read_hits = _on_device(passes.exact.read_hits)
     exact_work = _on_device(passes.exact.exact_work)
     exact_round = _on_device(passes.exact.exact_round)
+    finish_lists = _on_device(passes.exact.finish_lists)
     advance_lists = _on_device(passes.exact.advance_lists)
     edge_distance = _on_device(passes.edges.edge_distance)
     shadow_test = _on_device(passes.shadow_test.shadow_test)

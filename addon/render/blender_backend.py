@@ -81,6 +81,7 @@ class BlenderDevice(Device):
     reference goes, so `free` has nothing to do: the holders drop their references."""
 
     name = "blender-gpu"
+    reads_whole = True  # GPUTexture.read has no rectangle
 
     def __init__(self) -> None:
         try:

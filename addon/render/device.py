@@ -74,6 +74,8 @@ class Device(ABC):
     name: str = "abstract"
     # Whether CORNERS draws may be point sprites (the shader sets the point size).
     point_sprites: bool = True
+    # Whether `read` of a rect reads the whole texture back first (Blender's `gpu`).
+    reads_whole: bool = False
 
     @contextlib.contextmanager
     def bound(self) -> Iterator[None]:

@@ -308,13 +308,32 @@ class FrameResult:
     mappings: dict[int, LayerMapping] = field(default_factory=dict)
     count_maps: dict[int, np.ndarray] = field(default_factory=dict)  # analysis count map per slot
     boxes: dict[int, tuple[int, int, int, int]] = field(default_factory=dict)  # slot -> readable texel box
-    # The exact pass's work (backend.read_hits): walks that went on into a later round, the
-    # rounds after the first, and on a count_work frame the list entries walked, the
-    # fragments that walked them and the later rounds' entries (None for the other methods).
-    exact_work: dict[str, int] | None = None
+    # The exact pass's counters as the backend folds them (passes.exact.exact_work; None for
+    # the other methods): read them through `exact_work`, which completes the frame first.
+    exact_counts: dict[str, int] | None = field(default=None, repr=False)
     reader: FrameReader | None = field(default=None, repr=False)  # reads what is still on the GPU
     exact_marks: bool = False  # whether the visibility is the test's times the exact pass's marks
+    # What the frame left to its first read: the exact pass's later rounds, whose need only
+    # the GPU's counters tell (passes.exact.finish_lists). None once done, or when nothing is.
+    completer: Callable[[], None] | None = field(default=None, repr=False)
     _read: tuple | None = field(default=None, repr=False)
+
+    @property
+    def exact_work(self) -> dict[str, int] | None:
+        """The exact pass's work (passes.exact.exact_work): walks that went on into a later
+        round, the rounds after the first, and on a count_work frame the list entries
+        walked, the fragments that walked them and the later rounds' entries."""
+        if self.exact_counts is None:
+            return None
+        self.complete()
+        return dict(self.exact_counts)
+
+    def complete(self) -> None:
+        """Do what the frame left to its first read (a read of a few counters, and the exact
+        pass's later rounds when its lists overflowed their first)."""
+        if self.completer is not None:
+            completer, self.completer = self.completer, None
+            completer()
 
     @property
     def pending(self) -> bool:
@@ -325,6 +344,7 @@ class FrameResult:
         """Read what the frame left on the GPU (once; the pipeline does it before the next
         frame overwrites it)."""
         if self._read is None:
+            self.complete()
             self._read = self.reader()
             self.reader = None
 
@@ -334,7 +354,7 @@ class FrameResult:
         for its visibility, flags or GPU times afterwards is an error."""
         if self._read is None:
             self._read = ()
-            self.reader = None
+            self.reader = self.completer = None
 
     def _field(self, index: int, what: str):
         self.resolve()

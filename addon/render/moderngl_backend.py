@@ -8,6 +8,7 @@ module or renders EEVEE.
 from __future__ import annotations
 
 import contextlib
+import struct
 import logging
 from typing import Any, Iterator
 
@@ -36,6 +37,41 @@ def _uniform_bytes(value: object, glsl_type: str = "") -> bytes | None:
     if arr.ndim == 2:
         return np.ascontiguousarray(arr, dtype="f4").tobytes()
     return None
+
+
+_INT = struct.Struct("i")
+_FLOAT = struct.Struct("f")
+
+
+class _Uniforms:
+    """A program's uniforms and the bytes each was last given.
+
+    A uniform keeps its value in the program between draws, so a value that did not
+    change since the last write is not sent again (a steady frame sends few).
+    """
+
+    def __init__(self, prog, iface: Program) -> None:
+        types = {u.name: u.glsl_type for u in iface.uniforms}
+        # Only what can be written: moderngl lists attributes and blocks among the members.
+        self._members = {name: (prog[name], types.get(name, "")) for name in prog
+                         if hasattr(prog[name], "write")}
+        self._last: dict[str, bytes] = {}
+
+    def write(self, name: str, value: object) -> None:
+        found = self._members.get(name)
+        if found is None:
+            return  # not declared, or optimised away by the GLSL compiler
+        member, glsl_type = found
+        integer = glsl_type == "int"
+        if isinstance(value, (int, float, np.generic)):
+            raw = (_INT if integer else _FLOAT).pack(int(value) if integer else float(value))
+        else:
+            raw = _uniform_bytes(value, glsl_type)
+            if raw is None:  # a vector, or an array of scalars
+                raw = np.ascontiguousarray(value, dtype="i4" if integer else "f4").tobytes()
+        if self._last.get(name) != raw:
+            member.write(raw)
+            self._last[name] = raw
 
 
 class _Timer(GPUTimer):
@@ -83,6 +119,7 @@ class ModernGLDevice(Device):
             ) from exc
         self._bound = False
         self.programs: dict[str, Any] = {}
+        self._uniforms: dict[str, _Uniforms] = {}  # per program: its members and what they hold
         self._vaos: dict[str, Any] = {}  # a vertex array renders with the program it was made for
         self._clear_fbos: dict[int, Any] = {}  # id(texture) -> framebuffer that clears or reads it
         self._corners = None  # the footprint pass's corner buffer
@@ -145,18 +182,12 @@ class ModernGLDevice(Device):
     def _use(self, iface: Program, uniforms: UniformValues, textures: dict[str, Any],
              images: dict[str, Any] | None):
         prog = self.program(iface)
-        types = {u.name: u.glsl_type for u in iface.uniforms}
+        written = self._uniforms.get(iface.name)
+        if written is None:
+            # moderngl's `name in prog` walks every member; look them up once a program.
+            written = self._uniforms[iface.name] = _Uniforms(prog, iface)
         for name, value in uniforms.items():
-            if name not in prog:
-                continue  # not declared, or optimised away by the GLSL compiler
-            raw = _uniform_bytes(value, types.get(name, ""))
-            if raw is not None:
-                prog[name].write(raw)
-            elif isinstance(value, (tuple, list, np.ndarray)):
-                cast = int if types.get(name) == "int" else float
-                prog[name].value = tuple(cast(v) for v in np.asarray(value).ravel())
-            else:
-                prog[name].value = value
+            written.write(name, value)
         for binding, sampler in enumerate(iface.samplers):
             texture = textures.get(sampler)
             if texture is None:
@@ -341,6 +372,7 @@ class ModernGLDevice(Device):
             self._vaos.clear()
             self._clear_fbos.clear()
             self.programs.clear()
+            self._uniforms.clear()
             self._fullscreen.release()
             if self._corners is not None:
                 self._corners.release()

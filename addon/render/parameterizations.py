@@ -31,7 +31,7 @@ from ..core.scene import CameraSpec, LightSpec
 from ..core.warping import LayerMapping
 from .backend import AtlasLayout, FootprintDraw, ShadowBackend
 from .footprint_runs import (  # noqa: F401  (map_stretch: the tests')
-    FOOTPRINT_DILATE_TEXELS, _chunk_spheres, _measurer, footprint_ranges, map_stretch, sprites_pay)
+    FOOTPRINT_DILATE_TEXELS, RunMemo, _chunk_spheres, _measurer, footprint_ranges, map_stretch, sprites_pay)
 from .frame import PreparedGeometry, ShadowSettings
 from .passes import exact as exact_rounds
 from .passes.exact import EXACT_LIFT
@@ -67,6 +67,7 @@ class DrawInputs:
     scene: ResidentScene
     light: LightSpec
     count_work: bool = False  # exact pass: count the list entries walked (a measurement frame)
+    runs: RunMemo | None = None  # the pipeline's kept chunk runs (footprint_runs.RunMemo)
 
 
 class Parameterization:
@@ -121,13 +122,14 @@ class Parameterization:
             # needed: a GPU-built warp reads its numbers for it (footprint_runs.sprites_pay).
             sprites = reach == 0.0 and sprites_pay(mapping, inputs.draws, spheres)
             stretch = map_stretch(mapping) if sprites else math.inf
+            ranges = inputs.runs.ranges if inputs.runs is not None else footprint_ranges
             draws = [run for draw in inputs.draws
-                     for run in footprint_ranges(draw, spheres[draw.key], layer, stretch, res, region, reach)]
+                     for run in ranges(draw, spheres[draw.key], layer, stretch, res, region, reach)]
             scissor = inputs.boxes.get(layer.slot)
             backend.draw_footprints(tile, draws, uniforms, scissor=scissor, exact=exact)
             passes.append((tile, draws, uniforms, scissor))
         if exact:
-            exact_rounds.finish_lists(backend, inputs.layout, passes)
+            exact_rounds.hold_rounds(backend, inputs.layout, passes)
         return 0
 
     def test_uniforms(self, plan: Plan) -> dict:
@@ -241,7 +243,7 @@ class Projective(Parameterization):
         if not inputs.draws:
             return
         backend.draw_footprints(0, inputs.draws, uniforms, exact=True)
-        exact_rounds.finish_lists(backend, inputs.layout, [(0, inputs.draws, uniforms, None)])
+        exact_rounds.hold_rounds(backend, inputs.layout, [(0, inputs.draws, uniforms, None)])
 
     def test_uniforms(self, plan: Plan) -> dict:
         return {"ow_projective": 1, "ow_map_inverted": int(plan.projective.inverted),

@@ -34,6 +34,7 @@ import logging
 import math
 import time
 import weakref
+from collections.abc import Callable
 from collections import OrderedDict
 from dataclasses import dataclass
 
@@ -43,7 +44,7 @@ from ..core import perspective, projection
 from ..core.alpha import hits_visibility
 from ..core.errors import BackendError, InputError
 from ..core.plan import Plan, hit_points
-from ..core.samples import Reduction, SampleStats, depth_axis
+from ..core.samples import Reduction, depth_axis
 from ..core.scene import LightSpec
 from ..core.warping import LayerMapping
 from . import analysis
@@ -65,8 +66,9 @@ from .frame import (
     resident_samples_key,
     settings_for,
 )
-from .footprint_runs import footprint_draws, region_uniforms
+from .footprint_runs import RunMemo, footprint_draws, region_uniforms
 from .parameterizations import DrawInputs, parameterization, slot_rotations_and_crops
+from .plan_memo import PlanMemo
 from .resident import ResidentScene
 from .shaders import PARAM_CODES, SLOTS
 from .soft import SizedMode, hit_words, list_resolution, sized_mode, soft_uniforms
@@ -94,6 +96,8 @@ class ShadowPipeline:
         # stay the same object while the scene is unchanged) -> their resident scenes.
         self._soups: OrderedDict[int, tuple[weakref.ref, ResidentScene]] = OrderedDict()
         self._latest: weakref.ref | None = None  # the last frame rendered (visibility_into)
+        self._plans = PlanMemo()  # a steady frame's plan is the last one
+        self._runs = RunMemo()  # and its chunk runs, the last ones
 
     def _scene_of(self, triangles: np.ndarray) -> tuple[ResidentScene, bool]:
         """A resident scene for a triangle array, and whether it is for this frame only.
@@ -150,7 +154,8 @@ class ShadowPipeline:
         wait at the end of each stage, so that each stage's wall time holds its GPU work
         (`compare`, `preview`). `count_work` makes the exact pass count its work (a
         measurement frame, slower). `scene` is a `ResidentScene`, whose unchanged objects
-        stay on the GPU between frames, or a (T, 3, 3) world triangle array: a read-only
+        stay on the GPU between frames (keep it there until the result is read: the exact
+        pass's later rounds draw it then), or a (T, 3, 3) world triangle array: a read-only
         one stays resident for as long as the same array comes back (the viewport's
         per-light selections), any other is uploaded for this frame only. `samples` are
         arrays, uploaded, or a Blender G-buffer's textures, used where they are.
@@ -168,6 +173,8 @@ class ShadowPipeline:
             try:
                 result = self._render(light, scene, samples, settings, keep_atlas, scene_ms, count_work,
                                       sync_stages)
+                if one_frame:
+                    result.complete()  # its later exact rounds draw this scene, freed below
             finally:
                 if one_frame:
                     self.backend.release_scene(scene)
@@ -183,6 +190,7 @@ class ShadowPipeline:
         latest = self._latest() if self._latest is not None else None
         if latest is not result or not result.pending:
             raise BackendError("visibility_into needs the pipeline's latest frame, before it is read")
+        result.complete()  # the exact pass's later rounds, where its lists need them
         self.backend.resolve_visibility(target, result.exact_marks)
 
     def _render(self, light: LightSpec, scene: ResidentScene, samples: ViewSamples | GBufferSamples,
@@ -203,10 +211,17 @@ class ShadowPipeline:
             near_far = (projection.depth_range(None, light.position, bounds=bounds) if bounds is not None
                         else (0.0, 1.0))
         with clock.part("stats", "analysis"):
-            stats = self._sample_stats(light, samples)  # a GPU reduction: a few numbers read back
+            raw_stats = self._reduce_samples(light, samples)  # a GPU reduction: a few numbers read back
         with clock.part("plan", "prepare", gpu=False):
-            plan = parameterization(settings.parameterization).plan(light, settings, samples.camera, stats,
-                                                                    near_far, bounds)
+            camera = samples.camera
+
+            def make_plan() -> Plan:
+                stats = Reduction.decode(raw_stats, camera, light, samples.shape).stats(camera, samples.shape)
+                return parameterization(settings.parameterization).plan(light, settings, camera, stats,
+                                                                        near_far, bounds)
+
+            plan = self._plans.plan(raw_stats, (light, camera, settings, samples.shape, near_far, bounds),
+                                    make_plan)
             # The plan may fall back to another parameterization (ipsm to dpsm, psm to sm).
             scheme = parameterization(plan.parameterization)
 
@@ -228,7 +243,7 @@ class ShadowPipeline:
             boxes = scheme.scissor(plan, light, settings, mappings)
             inputs = DrawInputs(plan, settings, geometry, layout, tile_of_slot, mappings, size, boxes,
                                 footprint_draws(scene, light), region_uniforms(plan, light, settings.cull), scene,
-                                light, count_work)
+                                light, count_work, self._runs)
 
         with clock.part("shadow_maps", "shadow_maps"):
             # Texels outside a layer's box are neither cleared nor drawn (map-space culling).
@@ -236,33 +251,36 @@ class ShadowPipeline:
             if settings.exact:
                 self.link_lists(light, plan, mappings, res, hit_words(light, settings))  # the irregular z-buffer's lists
             edge_radius = scheme.draw(backend, inputs)
+            if settings.exact and (sync_stages or count_work):
+                # A measuring frame draws the exact pass's later rounds in its own time; any
+                # other leaves the check of their need (a read) to its first read.
+                backend.finish_lists()
 
         with clock.part("test", "shadow_test"):
-            self._shadow_test(light, settings, plan, geometry, layout, tile_of_slot, mappings, size,
-                              edge_radius, boxes)
+            test = self._shadow_test(light, settings, plan, geometry, layout, tile_of_slot, mappings, size,
+                                     edge_radius, boxes)
         timings = clock.wall_ms()
 
         atlas = _mask_unread_texels(backend.read_atlas(), layout, tile_of_slot, boxes) if keep_atlas else None
-        exact_work = backend.exact_work() if settings.exact else None
         # The atlas of `exact` holds no depth (every texel empty), so the test lit every
         # tested sample; the exact pass's marks shadow the ones a triangle crosses, unless
         # the test weighed a sized light's marks itself.
         marks = settings.exact and sized_mode(light, settings) is not SizedMode.EXACT_SOFT
         return FrameResult(timings, plan, geometry, layout, texels=len(plan.drawn) * res * res, atlas=atlas,
                            tile_of_slot=tile_of_slot, mappings=mappings, count_maps=counts, boxes=boxes,
-                           exact_work=exact_work, reader=_reader(backend, marks, clock.gpu_reader()),
-                           exact_marks=marks)
+                           exact_counts=backend.exact_work() if settings.exact else None,
+                           reader=_reader(backend, marks, clock.gpu_reader()), exact_marks=marks,
+                           completer=_completer(backend, None if marks else test) if settings.exact else None)
 
-    def _sample_stats(self, light: LightSpec, samples: ViewSamples | GBufferSamples) -> SampleStats:
-        """The planning statistics of the uploaded samples, reduced on the GPU and read once
-        (core.samples)."""
+    def _reduce_samples(self, light: LightSpec, samples: ViewSamples | GBufferSamples) -> np.ndarray:
+        """The planning statistics of the uploaded samples, reduced on the GPU and read once:
+        the raw integers `core.samples.Reduction` decodes."""
         camera = samples.camera
         axis, offset = depth_axis(camera, light) if camera is not None else (np.zeros(3), 0.0)
         uniforms = {"ow_light_rot": light.rotation.T, "ow_view_axis": axis, "ow_view_offset": offset,
                     "ow_hemi": 1 if light.emission == "hemi" else 0,
                     "ow_ortho": int(camera is not None and camera.ortho)}
-        raw = self.backend.reduce_samples(uniforms, histogram=camera is not None)
-        return Reduction.decode(raw, camera, light, samples.shape).stats(camera, samples.shape)
+        return self.backend.reduce_samples(uniforms, histogram=camera is not None)
 
     def _upload_samples(self, light: LightSpec, samples: ViewSamples | GBufferSamples) -> None:
         """Put the frame's samples on the GPU, light-centred. A G-buffer is used where it is;
@@ -294,7 +312,9 @@ class ShadowPipeline:
     def _shadow_test(self, light: LightSpec, settings: ShadowSettings, plan: Plan, geometry: PreparedGeometry,
                      layout: AtlasLayout, tile_of_slot: dict[int, int], mappings: dict[int, LayerMapping],
                      warp_size: int, edge_radius: int = 0,
-                     boxes: dict[int, tuple[int, int, int, int]] | None = None) -> None:
+                     boxes: dict[int, tuple[int, int, int, int]] | None = None) -> dict:
+        """Run the shadow test; returns its uniforms (a test that weighs the exact pass's
+        marks runs again after later rounds)."""
         rotations, crops = slot_rotations_and_crops(plan, mappings)
         tiles = np.zeros((SLOTS, 4))
         res = float(settings.resolution)
@@ -332,6 +352,21 @@ class ShadowPipeline:
         uniforms.update(parameterization(plan.parameterization).test_uniforms(plan))
         uniforms.update(soft_uniforms(light, settings))
         self.backend.run_shadow_test(uniforms)
+        return uniforms
+
+
+def _completer(backend: ShadowBackend, test: dict | None) -> Callable[[], None]:
+    """What an exact frame leaves to its first read: the check of the exact pass's counters
+    and its later rounds (passes.exact.finish_lists), then, where the shadow test weighed
+    the marks itself (`test`, its uniforms), the test again over the finished marks."""
+
+    def complete() -> None:
+        if backend.released:
+            raise BackendError("a frame's result was read after its backend was released")
+        if backend.finish_lists() and test is not None:
+            backend.run_shadow_test(test)
+
+    return complete
 
 def _reader(backend: ShadowBackend, marks: bool, gpu_ms) -> FrameReader:
     """Reads a frame's visibility and flags (top row first) and its GPU ms; `marks`: shadow

@@ -27,6 +27,7 @@ from tests.support.blender_gpu_worker import (  # noqa: E402
     POINT_CASES,
     PROJECTIVE_CASES,
     PROJECTIVE_EXACT_CASES,
+    TRAFFIC_METHODS,
     alpha_frames,
     boxed_scene,
     case_key,
@@ -140,6 +141,11 @@ def test_blender_backend_matches_moderngl(gl_backend, tmp_path, monkeypatch, ref
                                ShadowSettings("sm", 128, exact=True))
         assert np.array_equal(ours.visibility, theirs[f"exact_{light}_visibility"]), light
         assert (ours.visibility < 0.5).any(), light
+    # A steady frame on Blender's gpu, counted at the device: one wait, the statistics' 76
+    # bytes (a texture of their own: Blender reads whole textures), nothing uploaded.
+    for method in TRAFFIC_METHODS:
+        waits, read_bytes, upload_bytes = (int(v) for v in theirs[f"traffic_{method}"])
+        assert waits == 1 and read_bytes <= 4096 and upload_bytes == 0, (method, waits, read_bytes, upload_bytes)
     # Point sprites: Blender draws them on OpenGL (this machine), and stores what moderngl stores.
     assert bool(theirs["point_sprites"])
     cloud, cloud_samples = point_cloud()

@@ -80,9 +80,14 @@ def test_rounds_walk_every_entry_once(gl_backend, monkeypatch, bound):
     from addon.render.passes import exact as exact_pass
     monkeypatch.setattr(exact_pass, "EXACT_MAX_WALK", bound)  # the first round's bound (passes/exact.py)
     rounds = pipe.render(scene.light, resident, samples, settings, count_work=True)
-    gl_backend.release_scene(resident)
     assert once.exact_work["rounds"] == 0 and rounds.exact_work["rounds"] >= 2, rounds.exact_work
     assert np.array_equal(rounds.visibility, once.visibility)
+    # A frame that does not wait draws its later rounds at its first read, with the same marks.
+    deferred = pipe.render(scene.light, resident, samples, settings)
+    assert deferred.pending and deferred.completer is not None
+    assert np.array_equal(deferred.visibility, once.visibility)
+    assert deferred.exact_work["rounds"] == rounds.exact_work["rounds"]
+    gl_backend.release_scene(resident)
     assert rounds.exact_work["entries"] == once.exact_work["entries"] > rounds.exact_work["moved"] > 0
 
 

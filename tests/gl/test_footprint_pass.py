@@ -9,6 +9,8 @@ except texels whose ray lies within float32 rounding of one of the triangle's ed
 """
 from __future__ import annotations
 
+import dataclasses
+
 import numpy as np
 import pytest
 
@@ -214,29 +216,61 @@ def test_point_sprites_store_what_quads_store(gl_backend, monkeypatch, param, wa
     """Chunks of small triangles drawn as point sprites give the same atlas, texel for
     texel, as the same triangles drawn as quads; and points are really used (on the
     warped layer only where the warp's global stretch bound allows)."""
-    from addon.render import footprint_runs, parameterizations
+    from addon.render import footprint_runs
 
     tris, samples = point_cloud()
     light, pipeline = _light(), ShadowPipeline(gl_backend)
     scene = ResidentScene.of_triangles(tris, key="cloud")
     settings = ShadowSettings(param, 256, cull=False, warp=warp)
     used = []
-    real = parameterizations.footprint_ranges
+    real = footprint_runs.footprint_ranges
 
     def spy(*args, **kwargs):
         runs = real(*args, **kwargs)
         used.extend(run.points for run in runs)
         return runs
 
-    monkeypatch.setattr(parameterizations, "footprint_ranges", spy)
+    monkeypatch.setattr(footprint_runs, "footprint_ranges", spy)  # what RunMemo calls
     sprites = pipeline.render(light, scene, samples, settings, keep_atlas=True)
     assert any(used) or warp != "none"
     monkeypatch.setattr(footprint_runs, "MAX_POINT_SIZE", 0)  # no chunk fits: all quads
     used.clear()
+    pipeline = ShadowPipeline(gl_backend)  # its own kept runs: the constant changed
     quads = pipeline.render(light, scene, samples, settings, keep_atlas=True)
-    assert not any(used)
+    assert used and not any(used)
     assert np.array_equal(sprites.atlas, quads.atlas)
     assert np.count_nonzero(sprites.atlas < 1.0) > 1000
+    gl_backend.release_scene(scene)
+
+
+def test_a_steady_frame_draws_the_runs_it_kept(gl_backend, monkeypatch):
+    """The chunk runs of a frame whose inputs did not change are the last frame's, without
+    the host's chunk tests (footprint_runs.RunMemo); a moved light tests again."""
+    from addon.render import footprint_runs
+
+    tris, samples = point_cloud()
+    pipeline = ShadowPipeline(gl_backend)
+    scene = ResidentScene.of_triangles(tris, key="cloud")
+    settings = ShadowSettings("dpsm", 256)
+    calls = []
+    real = footprint_runs.footprint_ranges
+
+    def spy(*args, **kwargs):
+        calls.append(args[2].slot)
+        return real(*args, **kwargs)
+
+    monkeypatch.setattr(footprint_runs, "footprint_ranges", spy)
+    light = _light()
+    first = pipeline.render(light, scene, samples, settings, keep_atlas=True)
+    assert calls
+    calls.clear()
+    again = pipeline.render(light, scene, samples, settings, keep_atlas=True)
+    assert not calls and np.array_equal(again.atlas, first.atlas)
+    matrix = np.array(light.matrix_world, dtype=np.float64)
+    matrix[:3, 3] += (0.05, 0.0, 0.0)
+    moved = dataclasses.replace(light, matrix_world=matrix)
+    pipeline.render(moved, scene, samples, settings)
+    assert calls
     gl_backend.release_scene(scene)
 
 

@@ -18,7 +18,8 @@ pytestmark = pytest.mark.gl
 def _gpu_stats(backend, light: LightSpec, samples: ViewSamples) -> S.SampleStats:
     pipe = ShadowPipeline(backend)
     pipe._upload_samples(light, samples)
-    return pipe._sample_stats(light, samples)
+    raw = pipe._reduce_samples(light, samples)
+    return S.Reduction.decode(raw, samples.camera, light, samples.shape).stats(samples.camera, samples.shape)
 
 
 def _bin_width(stats: S.SampleStats, camera: CameraSpec) -> float:

@@ -26,6 +26,7 @@ PROJECTIVE_EXACT_CASES = ("spot", "sun")
 # preset at test size, light outside the view, after an ipsm frame fills the atlas.
 BOXED_CASES = ("dpsm", "cube")
 POINT_CASES = ("dpsm", "cube")  # the point-sprite cloud (tests/gl/test_footprint_pass.point_cloud)
+TRAFFIC_METHODS = ("dpsm", "cube+notw", "exact")  # a steady frame's waits and bytes (issue 41)
 
 
 def boxed_scene():
@@ -105,7 +106,7 @@ def backends(out: str, reference: str | None = None) -> None:
     from addon.reference.data import ReferenceData
     from addon.render.blender_backend import BlenderGPUBackend
     from addon.render.blender_gpu import ensure_gpu
-    from addon.render.pipeline import ShadowPipeline, ShadowSettings
+    from addon.render.pipeline import ShadowPipeline, ShadowSettings, settings_for
     from addon.core.scene import LightSpec
     from tests.gl.test_footprint_pass import point_cloud
     from tests.gl.test_exact_pass import random_scene
@@ -181,6 +182,19 @@ def backends(out: str, reference: str | None = None) -> None:
         result = pipeline.render(LightSpec("omni", np.eye(4)), cloud, cloud_samples,
                                  ShadowSettings(param, 256, cull=False), keep_atlas=True)
         arrays[f"cloud_{param}_atlas"] = result.atlas
+    # A steady frame's traffic at the device (scripts/frame_traffic.py --backend blender).
+    from scripts.frame_traffic import steady_traffic
+
+    triangles = scene.world_triangles()
+    triangles.flags.writeable = False  # resident, as the viewport's are
+    resident_samples = replace(samples, **{name: np.array(getattr(samples, name)) for name in
+                                           ("positions", "normals", "hit")})
+    for name in ("positions", "normals", "hit"):
+        getattr(resident_samples, name).flags.writeable = False
+    for method in TRAFFIC_METHODS:
+        traffic = steady_traffic(pipeline, scene.light, triangles, resident_samples,
+                                 settings_for(method, 256, scene.light.emission), device_calls=True)
+        arrays[f"traffic_{method}"] = np.array([traffic.waits, traffic.read_bytes, traffic.upload_bytes])
     if reference:
         ref = ReferenceData.load(reference)
         for param, warp, aa in CASES:

@@ -1,4 +1,5 @@
-"""Counts a frame's traffic between host and GPU at moderngl's API (issue 41's figures).
+"""Counts a frame's traffic between host and GPU at moderngl's API (issue 41's figures),
+or, for any backend (Blender's `gpu` among them), at the `render.device.Device` calls.
 
 `Traffic.counting()` wraps, for the calls inside it, moderngl's:
 - waits: `Context.finish`, and every read (a read waits for the GPU);
@@ -110,3 +111,88 @@ class Traffic:
         finally:
             for cls, name, original in reversed(patches):
                 setattr(cls, name, original)
+
+
+def _nbytes(value) -> int:
+    import numpy as np
+
+    return int(np.asarray(value).size) * 4  # a uniform is float32 or int32 a component
+
+
+@contextlib.contextmanager
+def counting_device(device, traffic: Traffic) -> Iterator[Traffic]:
+    """Count, into `traffic`, the transfers a `Device` is asked for while inside:
+    - waits: `finish`, and every `read` (a read waits for the GPU);
+    - reads: the bytes read back, the whole texture's where the device reads whole ones
+      (`Device.reads_whole`: Blender's `gpu` has no rectangle read);
+    - uploads: `texture` with data, `upload`, and the vertex arrays of a `vertices` draw;
+    - uniforms: every uniform value handed to a draw or dispatch (Blender's `gpu` sends
+      them all each time).
+    Calls the device makes to itself are counted once."""
+    import numpy as np
+
+    saved = {}
+    depth = [0]
+
+    def wrap(name, count):
+        real = getattr(device, name)
+        saved[name] = real
+
+        def counted(*args, **kwargs):
+            depth[0] += 1
+            try:
+                result = real(*args, **kwargs)
+            finally:
+                depth[0] -= 1
+            if depth[0] == 0:
+                count(args, kwargs, result)
+            return result
+
+        setattr(device, name, counted)
+
+    def read(args, kwargs, result):
+        traffic.reads += 1
+        nbytes = int(result.nbytes)
+        if device.reads_whole:
+            width, height = device.texture_size(args[0])
+            nbytes = int(result.nbytes) // max(1, result.shape[0] * result.shape[1]) * width * height
+        traffic.read_bytes += nbytes
+        traffic.calls.append(f"read {nbytes}")
+
+    def finish(args, kwargs, result):
+        traffic.finishes += 1
+        traffic.calls.append("finish")
+
+    def upload(position):
+        def count(args, kwargs, result):
+            data = kwargs.get("data", args[position] if len(args) > position else None)
+            if data is not None:
+                traffic.uploads += 1
+                nbytes = int(np.asarray(data).nbytes)
+                traffic.upload_bytes += nbytes
+                traffic.calls.append(f"upload {nbytes}")
+        return count
+
+    def work(uniform_position, geometry_position):
+        def count(args, kwargs, result):
+            uniforms = args[uniform_position] if len(args) > uniform_position else kwargs.get("uniforms", {})
+            traffic.uniform_bytes += sum(_nbytes(v) for v in uniforms.values())
+            geometry = kwargs.get("geometry", args[geometry_position] if len(args) > geometry_position else None)
+            if getattr(geometry, "kind", None) == "vertices":
+                nbytes = sum(int(np.asarray(a).nbytes) for a in geometry.arrays.values())
+                traffic.uploads += 1
+                traffic.upload_bytes += nbytes
+                traffic.calls.append(f"vertices {nbytes}")
+        return count
+
+    wrap("read", read)
+    wrap("finish", finish)
+    wrap("texture", upload(2))
+    wrap("upload", upload(3))
+    wrap("draw", work(1, 3))
+    wrap("dispatch", work(1, 99))
+    try:
+        yield traffic
+    finally:
+        for name in saved:
+            delattr(device, name)  # the class's methods again

@@ -4,7 +4,10 @@
 exact footprint pass (footprints.draw_footprints with `exact`) walks those lists and
 marks the samples whose segment to the light a triangle crosses; a walk stops at its
 round's bound, and `advance_lists` moves the heads on for the next round. The marks
-(`read_hits`) and the work counters (`exact_work`) are read after the last round.
+(`read_hits`) and the work counters (`exact_work`) are read after the last round. Whether
+there is a later round is known only from the GPU's counters: `hold_rounds` keeps the
+first round's passes and `finish_lists` checks, at the end of a measuring frame or at the
+first read of a frame that does not wait (pipeline.FrameResult.complete).
 """
 from __future__ import annotations
 
@@ -53,6 +56,9 @@ class ExactLists:
     hits: Any
     work: Any
     work_done: dict[str, int] = field(default_factory=lambda: dict.fromkeys(WORK_KEYS, 0))
+    # The first round's passes, (layout, [(tile, draws, uniforms, scissor)]), until
+    # finish_lists has seen whether later rounds are needed (hold_rounds).
+    rounds: tuple | None = None
 
     def images(self, iface: ProgramInterface) -> dict[str, Any]:
         """The images a program of the exact pass binds, by the names it declares."""
@@ -84,7 +90,8 @@ def link_samples(backend, size: int, tiles: int, uniforms: UniformValues, hit_wo
         held = backend.exact = ExactLists(*(device.texture(s, "R32UI") for s in sizes))
     for image in held.all():
         device.clear_image(image)
-    held.work_done = dict.fromkeys(WORK_KEYS, 0)
+    held.work_done = dict.fromkeys(WORK_KEYS, 0)  # a new dict: an earlier frame keeps its own
+    held.rounds = None
     iface = link_variant(uniforms)
     device.dispatch(iface, uniforms, backend.textures, held.images(iface), iface.groups(width * height))
 
@@ -106,11 +113,12 @@ def read_hits(backend) -> tuple[np.ndarray, dict[str, int]]:
 
 
 def exact_work(backend) -> dict[str, int]:
-    """The exact pass's work since the last `link_samples`, as `exact_round` folded it round by
-    round: `cut`, the walks that stopped at their round's bound and went on in the next;
-    `rounds`, the rounds after the first; and on a measurement frame (shaders.EXACT_COUNT_KEY)
-    `entries` and `fragments` walked, and `moved`, the entries the later rounds walked."""
-    return dict(_lists(backend, "exact_work").work_done)
+    """The exact pass's work since the last `link_samples`, as `exact_round` folds it round by
+    round (the dict itself: `finish_lists` goes on filling it): `cut`, the walks that stopped
+    at their round's bound and went on in the next; `rounds`, the rounds after the first; and
+    on a measurement frame (shaders.EXACT_COUNT_KEY) `entries` and `fragments` walked, and
+    `moved`, the entries the later rounds walked."""
+    return _lists(backend, "exact_work").work_done
 
 
 def _take_work(backend) -> np.ndarray:
@@ -170,18 +178,30 @@ def free_lists(backend) -> None:
         backend.exact = None
 
 
-def finish_lists(backend, layout: AtlasLayout, passes: list) -> None:
+def hold_rounds(backend, layout: AtlasLayout, passes: list) -> None:
+    """Keep the first round's passes, [(tile, draws, uniforms, scissor)], for
+    `finish_lists`: whether later rounds are needed is known only from the GPU's counters,
+    so a frame that does not wait leaves the check to the first read of its result."""
+    _lists(backend, "hold_rounds").rounds = (layout, passes)
+
+
+def finish_lists(backend) -> int:
     """Later rounds of the exact pass until every list entry met every triangle over its
-    texel (issue 26). A round whose walks stopped at their bound moves each list's head past
-    the entries walked (backend.advance_lists) and draws the layers again, scissored to the
+    texel (issue 26); returns the rounds drawn after the first (0 when `hold_rounds` kept
+    nothing). A round whose walks stopped at their bound moves each list's head past the
+    entries walked (backend.advance_lists) and draws the layers again, scissored to the
     texels whose lists go on, with twice the bound; so a texel of n samples takes about
     log2(n / EXACT_MAX_WALK) + 1 rounds, each entry is walked once per triangle, and a frame
     whose lists all fit (every ordinary one) pays one read of the work counters, which
     also folds the frame's work for `read_hits`."""
+    held = _lists(backend, "finish_lists")
+    if held.rounds is None:
+        return 0
+    (layout, passes), held.rounds = held.rounds, None
     bound = EXACT_MAX_WALK
-    for _ in range(EXACT_MAX_ROUNDS):
+    for drawn in range(EXACT_MAX_ROUNDS):
         if not exact_round(backend):
-            return
+            return drawn
         remaining = advance_lists(backend, bound, layout)
         bound *= 2
         for tile, draws, uniforms, scissor in passes:
@@ -191,6 +211,7 @@ def finish_lists(backend, layout: AtlasLayout, passes: list) -> None:
                 backend.draw_footprints(tile, draws, {**uniforms, "ow_exact_bound": bound}, scissor=clip, exact=True)
     if exact_round(backend):  # the last round's counters
         log.warning("exact pass: lists still unfinished after %d rounds", EXACT_MAX_ROUNDS)
+    return EXACT_MAX_ROUNDS
 
 
 def intersect(a: tuple[int, int, int, int], b: tuple[int, int, int, int]) -> tuple[int, int, int, int]:

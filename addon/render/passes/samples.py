@@ -23,13 +23,14 @@ class SampleTargets:
     test: tuple[Any, Target] | None = None  # (RG32F texture, its target)
     counts: dict[int, Any] = field(default_factory=dict)  # count-map size -> strip of its tiles
     stats: Any = None  # R32UI row of the planning statistics
+    stats_out: Any = None  # R32UI row of their STAT_COUNT fields alone, the one the host reads
     # What the sample textures hold, as the uploader named it (ShadowPipeline's key of a
     # read-only ViewSamples and its light); None after any other upload or a G-buffer.
     source: Any = None
 
     def held(self) -> list[Any]:
         """Every GPU object held here, targets before their textures."""
-        return [*(reversed(self.test) if self.test else ()), *self.counts.values(), self.stats]
+        return [*(reversed(self.test) if self.test else ()), *self.counts.values(), self.stats, self.stats_out]
 
 
 def set_size(backend, size: tuple[int, int]) -> None:
@@ -137,8 +138,9 @@ def reduce_samples(backend, uniforms: UniformValues, histogram: bool) -> np.ndar
 
     Zeroes the reduction image (core.samples.STAT_TEXELS R32UI texels) and runs pass 0
     (the fields); with `histogram`, pass 1 (the depth histogram over pass 0's range) and
-    pass 2 (the percentile cut's bins) too. Returns the first STAT_COUNT texels as uint32:
-    the only read of the planning statistics.
+    pass 2 (the percentile cut's bins) too. The last pass copies the STAT_COUNT fields
+    into a texture of their own, read as uint32: the only read of the planning
+    statistics, 76 bytes on every device (Blender's `gpu` reads whole textures).
     """
     held = backend.samples
     if held.size is None:
@@ -146,11 +148,13 @@ def reduce_samples(backend, uniforms: UniformValues, histogram: bool) -> np.ndar
     device = backend.device
     if held.stats is None:
         held.stats = device.texture((STAT_TEXELS, 1), "R32UI")
+        held.stats_out = device.texture((STAT_COUNT, 1), "R32UI")
     device.clear_image(held.stats)
     width, height = held.size
     groups = SAMPLE_STATS_PROGRAM.groups(-(-width * height // STAT_SPAN))
-    passes = ("fields", "histogram", "cut") if histogram else ("fields",)
+    passes = ("fields", "histogram", "cut") if histogram else ("fields", "copy")
+    images = {"ow_stats": held.stats, "ow_stats_out": held.stats_out}
     for name in passes:
         device.dispatch(SAMPLE_STATS_PROGRAM, {**uniforms, "ow_stats_pass": STATS_PASSES[name]}, backend.textures,
-                        {"ow_stats": held.stats}, 1 if name == "cut" else groups)
-    return device.read(held.stats, "R32UI", (0, 0, STAT_COUNT, 1)).ravel()
+                        images, groups if name in ("fields", "histogram") else 1)
+    return device.read(held.stats_out, "R32UI").ravel()

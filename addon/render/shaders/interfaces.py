@@ -213,7 +213,7 @@ SAMPLE_STATS_PROGRAM = ComputeInterface(
     uniforms=uniform_list("mat3 ow_light_rot", "vec3 ow_view_axis", "float ow_view_offset", "int ow_hemi",
                           "int ow_stats_pass", "int ow_ortho"),
     samplers=("ow_positions",),
-    images=(("r32ui", "ow_stats"),),
+    images=(("r32ui", "ow_stats"), ("r32ui", "ow_stats_out")),
     defines={"OW_STAT_SPAN": str(samples.STAT_SPAN), "OW_HIST_BINS": str(samples.HIST_BINS),
              "OW_STAT_COUNT": str(samples.STAT_COUNT), "OW_ROUNDING": repr(samples.ROUNDING),
              "OW_CUT_STEPS": str(100 * samples.CUT_STEPS),
