@@ -128,10 +128,12 @@ def _median_times(frames: Sequence[dict[str, float]]) -> dict[str, float]:
 
 
 def _median_gpu_times(frames: Sequence[dict[str, float] | None]) -> dict[str, float] | None:
-    """Median GPU ms per stage (and total) of frames timed by GPU queries; None unless every frame was."""
-    if not frames or any(f is None for f in frames):
+    """Median GPU ms per stage (and total) of the frames timed by GPU queries (a frame whose
+    queries gave no true time has none: stage_clock); None when no frame was."""
+    timed = [f for f in frames if f is not None]
+    if not timed:
         return None
-    return {k: float(statistics.median(f[k] for f in frames)) for k in frames[0]}
+    return {k: float(statistics.median(f[k] for f in timed)) for k in timed[0]}
 
 
 # The one method that does not follow see-through materials: its host-built stream has no UVs.

@@ -10,10 +10,13 @@ comes from the queries, read after the frame.
 from __future__ import annotations
 
 import contextlib
+import logging
 import time
 from collections.abc import Callable, Iterator
 
 from .device import Device, GPUTimer
+
+log = logging.getLogger(__name__)
 
 # The report's stages, in the order of a frame.
 STAGES = ("prepare", "analysis", "shadow_maps", "shadow_test")
@@ -52,15 +55,24 @@ class StageClock:
         return {**self.wall, "total": (time.perf_counter() - self._start) * 1e3 + before_ms}
 
     def gpu_reader(self) -> Callable[[], dict[str, float] | None]:
-        """Reads the GPU ms per stage and their `total` (waits for the GPU); None without queries."""
+        """Reads the GPU ms per stage and their `total` (waits for the GPU); None without
+        queries, or when a query's time cannot be true: longer than the wall time from the
+        frame's start to the read, within which all of its work began and ended (llvmpipe
+        gave 2^32 ns for the first queries of a new context)."""
         timers = list(self._timers)
+        start = self._start
 
         def read() -> dict[str, float] | None:
             if not timers:
                 return None
             out = {stage: 0.0 for stage in STAGES[1:]}
-            for stage, timer in timers:
-                out[stage] += timer.elapsed_ms
+            elapsed = [(stage, timer.elapsed_ms) for stage, timer in timers]
+            bound = (time.perf_counter() - start) * 1e3
+            if any(not 0.0 <= ms <= bound for _, ms in elapsed):
+                log.debug("a GPU timer query gave a time outside the frame: %s", elapsed)
+                return None
+            for stage, ms in elapsed:
+                out[stage] += ms
             out["total"] = sum(out.values())
             return out
 
