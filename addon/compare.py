@@ -203,7 +203,7 @@ def run_row(pipeline: ShadowPipeline, ref: ReferenceData, preset: str, method: s
         cull=options.cull,
         light_shape=light.shape.describe() if light.sized else None,
         light_points=soft.light_points(light, settings),
-        note=_row_note(light, settings, scene),
+        note=_row_note(light, settings, scene, ref),
     )
     if image_dir is not None:
         image_dir.mkdir(parents=True, exist_ok=True)
@@ -215,9 +215,12 @@ def run_row(pipeline: ShadowPipeline, ref: ReferenceData, preset: str, method: s
     return row
 
 
-def _row_note(light: LightSpec, settings: ShadowSettings, scene: ResidentScene) -> str | None:
-    """What a row leaves out of the scene as the reference renders it, or None."""
-    notes = []
+def _row_note(light: LightSpec, settings: ShadowSettings, scene: ResidentScene,
+              ref: ReferenceData | None = None) -> str | None:
+    """What a row leaves out of the scene as the reference renders it, or None: the
+    geometry no method draws that blocks the reference's light (its `left_out` notes,
+    reference/left_out.py), and this method's own limits."""
+    notes = list(ref.meta.get("left_out", ())) if ref is not None else []
     if settings.parameterization == "unfold" and scene_has_alpha(scene):
         notes.append(UNFOLD_ALPHA_NOTE)
     if light.sized and soft.sized_mode(light, settings) is soft.SizedMode.HARD:

@@ -100,14 +100,18 @@ def list_table(rows: Sequence[Row]) -> str:
 
 def _scene_notes(rows: Sequence[dict]) -> list[str]:
     """One line per scene and note: what its rows cannot follow (see shadow_rule.unfollowed),
-    and each distinct row note (a method's own limit there)."""
+    then the rows' notes: once for a note every OmniWarp row of the scene carries (what no
+    method draws, reference/left_out.py), else per method (a method's own limit there)."""
     lines = []
     for preset in sorted({r["preset"] for r in rows}):
         notes = next((r["scene_notes"] for r in rows if r["preset"] == preset and r.get("scene_notes")), [])
         lines += [f"- note on {preset}: {note}" for note in notes]
-        row_notes = sorted({f"{r['method']}: {r['note']}" for r in rows
-                            if r["preset"] == preset and r.get("note") and r["method"] != "eevee"})
-        lines += [f"- note on {preset}: {note}" for note in row_notes]
+        ours = [r for r in rows if r["preset"] == preset and r["method"] != "eevee"]
+        split = [(r["method"], (r.get("note") or "").split("; ")) for r in ours]
+        everywhere = [n for n in split[0][1] if n and all(n in parts for _, parts in split)] if split else []
+        lines += [f"- note on {preset} (every OmniWarp row): {note}" for note in everywhere]
+        own = sorted({f"{method}: {n}" for method, parts in split for n in parts if n and n not in everywhere})
+        lines += [f"- note on {preset}: {note}" for note in own]
     return lines
 
 

@@ -272,6 +272,7 @@ def _store_row(settings: OMNIWARP_PG_comparison, row: dict) -> None:
     item.test_ms = times["shadow_test"]
     item.passes = int(row["passes"])
     item.mismatch_image = row.get("mismatch_image", "")
+    item.note = row.get("note") or ""
 
 
 def _drop_unfit_tasks(job: _Job) -> str:
@@ -407,4 +408,5 @@ def stored_row(item: Any) -> Row:
     return make_row(item.preset, item.method, None, figure,
                     {"total": item.total_ms, "analysis": item.analysis_ms, "shadow_maps": item.maps_ms,
                      "shadow_test": item.test_ms}, None, None, None, None,
-                    resolution=item.resolution, passes=item.passes, mismatch_image=item.mismatch_image or None)
+                    resolution=item.resolution, passes=item.passes, mismatch_image=item.mismatch_image or None,
+                    note=item.note or None)

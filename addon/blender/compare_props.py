@@ -178,6 +178,8 @@ class OMNIWARP_PG_result_row(bpy.types.PropertyGroup):
     passes: IntProperty(name="Passes", description="Shadow-map passes drawn (paraboloid sides or cube faces)")
     mismatch_image: StringProperty(name="Mismatch image", subtype="FILE_PATH", options=_BLEND_RELATIVE,
                                    description="PNG of the pixels where this row disagrees with Cycles")
+    note: StringProperty(name="Note", description="What this row leaves out of the scene as Cycles renders "
+                                                  "it (geometry no method draws, the method's own limits)")
 
 
 SOURCE_ITEMS = (

@@ -39,15 +39,15 @@ class OMNIWARP_UL_results(bpy.types.UIList):
         row.label(text=str(item.resolution))
         row.label(text=f"{item.error_pct:.3f} %")
         row.label(text=f"{item.total_ms:.1f} ms")
-        row.label(text=f"{item.passes} p")
+        row.label(text=f"{item.passes} p", icon="ERROR" if item.note else "NONE")
 
 
-def _wrapped(layout: bpy.types.UILayout, text: str, width: int) -> None:
-    """Labels of about `width` characters each (Blender's labels do not wrap)."""
+def _wrapped(layout: bpy.types.UILayout, text: str, width: int, icon: str = "NONE") -> None:
+    """Labels of about `width` characters each (Blender's labels do not wrap); `icon` on the first."""
     column = layout.column(align=True)
     column.scale_y = 0.8
-    for line in textwrap.wrap(text, max(width, 20)):
-        column.label(text=line)
+    for index, line in enumerate(textwrap.wrap(text, max(width, 20))):
+        column.label(text=line, icon=icon if index == 0 else "BLANK1" if icon != "NONE" else "NONE")
 
 
 def _draw_image(layout: bpy.types.UILayout, image: bpy.types.Image | None, title: str) -> None:
@@ -127,6 +127,8 @@ class OMNIWARP_PT_compare(bpy.types.Panel):
             col.label(text=f"false shadow {item.false_shadow_pct:.3f} %, false lit {item.false_lit_pct:.3f} %")
             col.label(text=f"analysis {item.analysis_ms:.1f}, maps {item.maps_ms:.1f}, "
                            f"test {item.test_ms:.1f} ms")
+            for note in filter(None, item.note.split("; ")):
+                _wrapped(col, note, chars, icon="ERROR")
         _draw_image(layout, settings.plot_image, "Error vs time")
         _draw_image(layout, settings.mismatch_preview, "Mismatch of the selected row")
 

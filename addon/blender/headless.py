@@ -102,7 +102,11 @@ def main(argv: list[str] | None = None) -> int:
                 # With the see-through materials, for the G-buffer and each light's blockers.
                 return ResidentScene.of_triangles(found.select(keep), surface=found.select_surface(keep))
 
-            seen, occluders = shadow_inputs(resident, rules_for(scene, [name for name, _, _ in lights]))
+            rules = rules_for(scene, [name for name, _, _ in lights])
+            for name, rule in rules.items():  # what blocks the light in Cycles but is not drawn
+                for note in found.left_out.notes(rule.blocks):
+                    log.warning("light %r: %s", name, note)
+            seen, occluders = shadow_inputs(resident, rules)
             report = run(reference, lights, seen, Path(args.out), occluders=occluders)
         finally:
             registration.unregister()

@@ -635,7 +635,12 @@ def capture(scene: "bpy.types.Scene", samples: int = DEFAULT_SAMPLES, *, light: 
         "scene_triangles": int(sum(len(t) for t in scene_triangles.triangles)),
         "light_casts_shadows": rule.casts_shadows,
         "notes": list(rule.notes) + material_notes + scene_triangles.alpha_notes(),
+        # What blocks the light in Cycles but no method draws (left_out.py): every
+        # pipeline row's note.
+        "left_out": scene_triangles.left_out.notes(rule.blocks),
     }
+    for note in meta["left_out"]:
+        log.warning("scene %r, light %r: %s", scene.name, light_obj.name, note)
     if light_obj.data.type == "SPOT":
         meta["spot_size_deg"] = math.degrees(light_obj.data.spot_size)
         meta["spot_blend"] = float(light_obj.data.spot_blend)

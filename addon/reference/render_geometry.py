@@ -11,18 +11,21 @@ reads `depsgraph.object_instances` inside its `render` call.
 
 Every instance is kept with the names of its original object and instancer
 (`Owner`), so one read serves any light's `ShadowRule`, and with its see-through
-materials (`material_alpha.mesh_surface`: per-triangle UVs and alpha maps).
+materials (`material_alpha.mesh_surface`: per-triangle UVs and alpha maps). What the
+walk meets that the methods do not draw (hair, points, volumes, true displacement) is
+kept apart, by owner (`left_out.py`).
 """
 from __future__ import annotations
 
 import logging
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import TYPE_CHECKING, Any, Callable
 
 import numpy as np
 
 from ..core.alpha import Surface
 from ..core.errors import ReferenceCaptureError
+from .left_out import LeftOut, scan_instance
 from .material_alpha import MaterialAlpha, mesh_surface
 
 if TYPE_CHECKING:  # pragma: no cover - typing only
@@ -52,6 +55,7 @@ class SceneTriangles:
     triangles: list[np.ndarray]
     surfaces: list[Surface] | None = None  # one a batch; None: all opaque
     notes: dict[str, str] | None = None  # material -> why its alpha was not followed
+    left_out: LeftOut = field(default_factory=LeftOut)  # what Cycles renders that no method draws
 
     def select_surface(self, keep: Callable[[str, str | None], bool]) -> Surface:
         """The surfaces of the triangles `select(keep)` returns, in the same order."""
@@ -126,7 +130,10 @@ def collect(depsgraph: Any) -> SceneTriangles:
     notes: dict[str, str] = {}
     materials: dict[str, MaterialAlpha] = {}
     local_cache: dict[Any, tuple[np.ndarray, Surface]] = {}
+    left = LeftOut()
+    left_materials: dict[str, tuple[str, ...]] = {}
     for inst in depsgraph.object_instances:
+        scan_instance(left, inst, left_materials)
         obj = inst.object
         # Cycles renders evaluated meshes only. A curve, text, surface or metaball
         # object comes twice: as itself (skipped) and as the mesh instance of its
@@ -152,7 +159,7 @@ def collect(depsgraph: Any) -> SceneTriangles:
         owners.append(Owner(obj.original.name_full, None if parent is None else parent.original.name_full))
         triangles.append(corners.reshape(-1, 3, 3).astype(np.float32))
         surfaces.append(surface)
-    return SceneTriangles(owners, triangles, surfaces, notes)
+    return SceneTriangles(owners, triangles, surfaces, notes, left)
 
 
 def render_triangles(scene: "bpy.types.Scene", view_layer: "bpy.types.ViewLayer") -> SceneTriangles:

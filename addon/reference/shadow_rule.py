@@ -28,10 +28,10 @@ preview and the comparison panel. The rule follows Cycles 5.2:
   (`render_geometry.py`), so it needs no rule here.
 
 What the rule cannot follow is reported in `notes`: shadow catchers and holdout
-objects (the capture renders them as plain surfaces), materials that let shadow
-rays through (the capture replaces every material by an opaque white one), hair
-curves, point clouds and volumes (no triangles; Cycles lets them shadow), and
-true displacement.
+objects (the capture renders them as plain surfaces) and materials that let shadow
+rays through (the capture replaces every material by an opaque white one). What the
+methods do not draw (hair, point clouds, volumes, true displacement) is found in the
+evaluated geometry itself, by `left_out.py`.
 """
 from __future__ import annotations
 
@@ -54,8 +54,6 @@ INCLUDE = "INCLUDE"
 EXCLUDE = "EXCLUDE"
 # Object types whose surfaces Cycles renders (the maps get triangles from the first five).
 _SURFACE_TYPES = {"MESH", "CURVE", "SURFACE", "META", "FONT", "CURVES", "POINTCLOUD", "VOLUME"}
-# Object types Cycles renders but that give the maps no triangles.
-_UNSUPPORTED_TYPES = {"CURVES": "hair curves", "POINTCLOUD": "a point cloud", "VOLUME": "a volume"}
 # Shader nodes that make a surface (partly) transparent to shadow rays.
 _SEE_THROUGH_NODES = {"BSDF_TRANSPARENT", "BSDF_REFRACTION", "BSDF_GLASS", "HOLDOUT"}
 
@@ -179,10 +177,6 @@ def _see_through_material(material: "bpy.types.Material") -> str | None:
                     continue
                 if socket.is_linked or float(socket.default_value) > 0.0:
                     return f"Principled {socket_name.lower()}"
-    if getattr(material, "displacement_method", "BUMP") in ("DISPLACEMENT", "BOTH"):
-        output = tree.get_output_node("CYCLES") if hasattr(tree, "get_output_node") else None
-        if output is not None and output.inputs["Displacement"].is_linked:
-            return "true displacement"
     return None
 
 
@@ -297,16 +291,11 @@ def unfollowed(scene: "bpy.types.Scene") -> list[str]:
     catchers = sorted(o.name for o in surfaces if getattr(o, "is_shadow_catcher", False))
     if catchers:
         notes.append(f"shadow catcher rendered as a plain surface: {', '.join(catchers)}")
+    # Holdout collections are followed: they cast shadows, and their pixels (alpha 0 in the
+    # reference) are not evaluated (docs/comparison.md).
     holdouts = sorted(o.name for o in surfaces if getattr(o, "is_holdout", False))
     if holdouts:
         notes.append(f"holdout rendered as a plain surface: {', '.join(holdouts)}")
-    kinds: dict[str, list[str]] = {}
-    for obj in scene.objects:
-        kind = _UNSUPPORTED_TYPES.get(obj.type)
-        if kind is not None and not obj.hide_render:
-            kinds.setdefault(kind, []).append(obj.name)
-    for kind, names in sorted(kinds.items()):
-        notes.append(f"{kind} casts no shadow here (no triangles), but does in Cycles: {', '.join(sorted(names))}")
     see_through: dict[str, str] = {}
     for obj in scene.objects:
         if obj.hide_render:

@@ -341,6 +341,8 @@ class RecordingLayout:
 
     def label(self, text: str = "", **kwargs) -> None:
         self.record.append(("label", text))
+        if kwargs.get("icon", "NONE") != "NONE":
+            self.record.append(("icon", kwargs["icon"]))
 
     def template_list(self, listtype: str, list_id: str, data, propname: str, active_data, active_prop: str,
                       **kwargs) -> None:
@@ -403,6 +405,29 @@ def test_results_list_draws_a_row(registered) -> None:
     compare_ui.OMNIWARP_UL_results.draw_item(SimpleNamespace(layout_type="DEFAULT"), bpy.context, layout, settings,
                                              item, 0, settings, "active_result", 0)
     assert layout.of("label") == ["cube+notw", "1024", "0.125 %", "33.3 ms", "5 p"]
+
+
+def test_the_selected_rows_note_is_drawn_and_kept(registered) -> None:
+    """A row's note (what no method draws, reference/left_out.py) shows under the selected
+    row, flagged in the list, and survives the stored copy the export reads."""
+    settings = registered
+    settings.results.clear()
+    item = settings.results.add()
+    item.method, item.resolution, item.preset = "dpsm", 1024, "groom"
+    item.note = "hair curves that Cycles shadows with, not drawn by OmniWarp's methods: Strands; true displacement"
+    settings.active_result = 0
+    try:
+        layout = _draw(settings, "CURRENT")
+        labels = layout.of("label")
+        assert any(text.startswith("hair curves that Cycles") for text in labels), labels
+        assert "true displacement" in labels and layout.of("icon").count("ERROR") == 2
+        row = RecordingLayout()
+        compare_ui.OMNIWARP_UL_results.draw_item(SimpleNamespace(layout_type="DEFAULT"), bpy.context, row,
+                                                 settings, item, 0, settings, "active_result", 0)
+        assert row.of("icon") == ["ERROR"]
+        assert compare_job.stored_row(item)["note"] == item.note
+    finally:
+        settings.results.clear()
 
 
 def test_unfit_methods_are_dropped_after_the_reference(registered) -> None:

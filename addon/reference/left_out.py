@@ -1,0 +1,133 @@
+"""What Cycles renders but OmniWarp's methods do not draw, found in the evaluated geometry.
+
+The render depsgraph (`render_geometry.collect`) hands over every instance Cycles
+renders. Most become triangles. These do not, or not as Cycles renders them, and the
+rows, the report, the comparison panel and the log must say so:
+
+- **hair curves**: Curves geometry (hair objects, curves from geometry nodes on any
+  object), and **particle hair** (a mesh's hair particle system drawn as strands);
+- **point clouds**: PointCloud geometry (objects, or geometry nodes' points);
+- **volumes**: Volume geometry (OpenVDB grids, geometry nodes' volumes), and a
+  **volume material** on a mesh without a surface shader (a smoke or fog box): Cycles
+  renders a medium, the maps an opaque surface, and the reference a white one;
+- **true displacement**: a material that displaces its surface at render time (the
+  maps draw the undisplaced triangles, and so does the reference, whose white
+  materials displace nothing).
+
+The type of an instance is what geometry nodes made it, not the type of the object
+that carries it: a mesh object whose modifier outputs points gives a point cloud
+instance, named here by that object. Shadow catchers and holdouts, and see-through
+materials, are the shadow rule's notes (`shadow_rule.unfollowed`).
+"""
+from __future__ import annotations
+
+import logging
+from dataclasses import dataclass, field
+from typing import Any, Callable
+
+from ..render import blender_compat
+
+log = logging.getLogger(__name__)
+
+# Each kind's note, in the order notes are given; the owners' names follow it.
+KINDS = {
+    "curves": "hair curves that Cycles shadows with, not drawn by OmniWarp's methods",
+    "particle_hair": "particle hair that Cycles shadows with, not drawn by OmniWarp's methods",
+    "points": "point clouds that Cycles shadows with, not drawn by OmniWarp's methods",
+    "volume": "volumes that Cycles shadows with, not drawn by OmniWarp's methods",
+    "volume_material": ("volume materials without a surface shader, a medium in Cycles, drawn as opaque "
+                        "surfaces by OmniWarp's methods and white in the reference"),
+    "displacement": ("true displacement, which OmniWarp's methods and the reference (its white materials "
+                     "displace nothing) leave out"),
+}
+# Instance types (`Object.type` of a depsgraph instance) that give no triangles. Curves
+# that geometry nodes make on a mesh come as a legacy CURVE instance, which Cycles does
+# not render (measured on 5.2.3), so they are not named.
+_INSTANCE_KINDS = {"CURVES": "curves", "POINTCLOUD": "points", "VOLUME": "volume"}
+
+
+@dataclass
+class LeftOut:
+    """The owners (object, instancer or None) of each kind of geometry the methods leave out."""
+
+    found: dict[str, set[tuple[str, str | None]]] = field(default_factory=dict)
+
+    def add(self, kind: str, name: str, parent: str | None = None) -> None:
+        self.found.setdefault(kind, set()).add((name, parent))
+
+    def notes(self, keep: Callable[[str, str | None], bool] | None = None) -> list[str]:
+        """One note per kind, naming the objects whose geometry `keep(name, parent)` (a
+        light's `ShadowRule.blocks`) accepts; every owner without `keep`."""
+        out = []
+        for kind, note in KINDS.items():
+            owners = self.found.get(kind, set())
+            names = sorted({parent or name for name, parent in owners if keep is None or keep(name, parent)})
+            if names:
+                out.append(f"{note}: {', '.join(names)}")
+        return out
+
+
+def scan_instance(left: LeftOut, inst: Any, materials: dict[str, tuple[str, ...]]) -> None:
+    """Record what of one depsgraph instance the methods leave out. `materials` caches
+    each material's kinds by name."""
+    obj = inst.object
+    parent = inst.parent if inst.is_instance else None
+    name = obj.original.name_full
+    parent_name = None if parent is None else parent.original.name_full
+    kind = _INSTANCE_KINDS.get(obj.type)
+    if kind is not None:
+        left.add(kind, name, parent_name)
+        return
+    if obj.type != "MESH":
+        return
+    if parent is None and _draws_particle_hair(obj):
+        left.add("particle_hair", name)  # drawn whether or not its emitter is
+    if parent is None and obj.is_instancer and not obj.original.show_instancer_for_render:
+        return  # an emitter Cycles does not draw: its surface, materials and all
+    for slot in getattr(obj, "material_slots", ()):
+        material = slot.material
+        if material is None:
+            continue
+        kinds = materials.get(material.name_full)
+        if kinds is None:
+            kinds = materials[material.name_full] = material_kinds(material)
+        for found in kinds:
+            left.add(found, name, parent_name)
+
+
+def _draws_particle_hair(obj: Any) -> bool:
+    """Whether a mesh's hair particle system is rendered as strands (Cycles' curves)."""
+    for modifier in obj.original.modifiers:
+        if modifier.type != "PARTICLE_SYSTEM" or not modifier.show_render:
+            continue
+        settings = modifier.particle_system.settings
+        if settings.type == "HAIR" and settings.render_type == "PATH":
+            return True
+    return False
+
+
+def _output(material: Any) -> Any | None:
+    """The material output Cycles renders, or None."""
+    tree = getattr(material, "node_tree", None)
+    if tree is None or not blender_compat.uses_nodes(material):
+        return None
+    if hasattr(tree, "get_output_node"):
+        return tree.get_output_node("CYCLES")
+    return next((n for n in tree.nodes if n.type == "OUTPUT_MATERIAL" and n.is_active_output), None)
+
+
+def material_kinds(material: Any) -> tuple[str, ...]:
+    """The kinds a material makes of its surface: a volume without a surface shader
+    (Cycles renders the surface transparent, the medium inside), true displacement."""
+    output = _output(material)
+    if output is None:
+        return ()
+    kinds = []
+    volume, surface = output.inputs.get("Volume"), output.inputs.get("Surface")
+    if volume is not None and volume.is_linked and (surface is None or not surface.is_linked):
+        kinds.append("volume_material")
+    displacement = output.inputs.get("Displacement")
+    if (getattr(material, "displacement_method", "BUMP") in ("DISPLACEMENT", "BOTH")
+            and displacement is not None and displacement.is_linked):
+        kinds.append("displacement")
+    return tuple(kinds)

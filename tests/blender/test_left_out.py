@@ -1,0 +1,67 @@
+"""Nothing Cycles draws is left out in silence (issue 42): the render depsgraph's geometry
+that no method draws is named in the log, in every OmniWarp row's note and in report.md.
+
+tests/support/make_left_out_blend.py builds the file (hair curves from geometry nodes,
+particle hair, points from a mesh's geometry nodes, a volume, a fog box, true
+displacement, a holdout, and decoys that Cycles does not render or that do not block
+the light); `omniwarp compare --blend` runs on it in a child process.
+"""
+from __future__ import annotations
+
+import json
+
+import pytest
+
+pytest.importorskip("bpy", reason="the file and its reference need bpy")
+
+from tests.support.cli_run import SUPPORT, run_python  # noqa: E402
+
+pytestmark = pytest.mark.blender
+
+# Each kind's note must name exactly these objects, for every light and for the light.
+NAMED = {"hair curves": {"Strands", "Unseen"}, "particle hair": {"Groom"}, "point clouds": {"Pebbles"},
+         "volumes that": {"Cloud"}, "volume materials": {"Fog"}, "true displacement": {"Bumps"}}
+# Rendered and drawn (Ivy's hair is instanced leaves), not rendered by Cycles (Wire's
+# curves from a mesh's geometry nodes) or not rendered at all (Hidden).
+NEVER = ("Ivy", "Wire", "Hidden", "Leaf", "Ground")
+
+
+def _named(notes: list[str]) -> dict[str, set[str]]:
+    out = {}
+    for note in notes:
+        (kind,) = [k for k in NAMED if note.startswith(k)]
+        out[kind] = set(note.rsplit(": ", 1)[1].split(", "))
+    return out
+
+
+@pytest.fixture(scope="module")
+def made(tmp_path_factory):
+    folder = tmp_path_factory.mktemp("left_out")
+    blend, notes = folder / "left_out.blend", folder / "notes.json"
+    proc = run_python(SUPPORT / "make_left_out_blend.py", blend, "--notes", notes)
+    assert proc.returncode == 0, proc.stderr[-3000:]
+    run = run_python("-m", "addon.cli", "compare", "--blend", blend, "--methods", "dpsm+notw,exact",
+                     "--resolutions", "256", "--repeats", "1", "--no-images", "--out", folder / "out",
+                     "--cache-dir", folder / "cache")
+    assert run.returncode == 0, run.stderr[-3000:]
+    return (json.loads(notes.read_text()), json.loads((folder / "out" / "results.json").read_text()),
+            (folder / "out" / "report.md").read_text(), run.stderr)
+
+
+def test_the_walk_names_each_kind_and_nothing_else(made):
+    notes, _, _, _ = made
+    assert _named(notes["all"]) == NAMED
+    light = _named(notes["light"])
+    assert light == {**NAMED, "hair curves": {"Strands"}}  # Unseen casts no shadow (visible_shadow off)
+    assert not any(name in note.rsplit(": ", 1)[1].split(", ") for note in notes["all"] for name in NEVER)
+
+
+def test_every_row_the_report_and_the_log_name_what_is_not_drawn(made):
+    notes, rows, report, stderr = made
+    assert {row["method"] for row in rows} == {"dpsm+notw", "exact"}
+    for row in rows:
+        assert row["note"].split("; ") == notes["light"], row["note"]
+        assert any("holdout" in note and "Cutout" in note for note in row["scene_notes"])
+    for note in notes["light"]:
+        assert report.count(f"(every OmniWarp row): {note}") == 1
+        assert note in stderr  # the capture's warning

@@ -1,0 +1,203 @@
+"""A small file with what Cycles renders but OmniWarp's methods do not draw (issue 42):
+
+    python tests/support/make_left_out_blend.py OUT.blend [--notes OUT.json]
+
+Built the way an artist builds it, on a ground plane under a point light and a camera:
+- `Pebbles`: a mesh whose geometry nodes turn its vertices into points (Mesh to Points);
+- `Strands`: a hair curves object whose geometry nodes make its strand (a Curve Line of
+  radius 0.05); `Wire`: a mesh whose geometry nodes output the same curve, which Cycles
+  does not render (no note: the walk must not report what Cycles leaves out too);
+- `Groom`: a mesh with a hair particle system drawn as strands; `Ivy`: one whose hair
+  particles are drawn as instanced objects (meshes: drawn, so no note);
+- `Cloud`: a mesh whose geometry nodes output a volume (Volume Cube);
+- `Fog`: a box with a Principled Volume and no surface shader;
+- `Bumps`: a plane with true displacement;
+- `Hidden`: points like the pebbles, but hidden from renders (no note);
+- `Unseen`: a strand like the strands, but with `visible_shadow` off (no note for the light);
+- `Cutout`: a holdout object (the shadow rule's note: the reference renders it plain).
+With --notes, also reads the render depsgraph (render_geometry.render_triangles) and
+writes every left-out note, and those of the light's shadow rule, as JSON.
+"""
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+from pathlib import Path
+
+REPO = Path(__file__).resolve().parents[2]
+sys.path.insert(0, str(REPO))
+
+
+def _geometry_nodes(name: str, build) -> "bpy.types.NodeTree":
+    """A geometry node group: Group Input's geometry -> build(tree, geometry socket) -> Group Output."""
+    import bpy
+
+    tree = bpy.data.node_groups.new(name, "GeometryNodeTree")
+    tree.interface.new_socket("Geometry", in_out="INPUT", socket_type="NodeSocketGeometry")
+    tree.interface.new_socket("Geometry", in_out="OUTPUT", socket_type="NodeSocketGeometry")
+    group_in = tree.nodes.new("NodeGroupInput")
+    group_out = tree.nodes.new("NodeGroupOutput")
+    tree.links.new(build(tree, group_in.outputs[0]), group_out.inputs[0])
+    return tree
+
+
+def _points(tree, geometry):
+    node = tree.nodes.new("GeometryNodeMeshToPoints")
+    node.inputs["Radius"].default_value = 0.04
+    tree.links.new(geometry, node.inputs["Mesh"])
+    return node.outputs["Points"]
+
+
+def _curve(tree, geometry):
+    node = tree.nodes.new("GeometryNodeCurvePrimitiveLine")
+    node.inputs["End"].default_value = (0.0, 0.0, 1.0)
+    radius = tree.nodes.new("GeometryNodeSetCurveRadius")
+    radius.inputs["Radius"].default_value = 0.05
+    tree.links.new(node.outputs["Curve"], radius.inputs["Curve"])
+    return radius.outputs["Curve"]
+
+
+def _hair(name: str, location) -> "bpy.types.Object":
+    """A hair curves object (Blender's Curves type) whose one strand geometry nodes make."""
+    import bpy
+
+    obj = bpy.data.objects.new(name, bpy.data.hair_curves.new(name))
+    obj.location = location
+    bpy.context.scene.collection.objects.link(obj)
+    _with_nodes(obj, _geometry_nodes(f"{name} strand", _curve))
+    return obj
+
+
+def _volume(tree, geometry):
+    node = tree.nodes.new("GeometryNodeVolumeCube")
+    return node.outputs["Volume"]
+
+
+def _mesh(name: str, size: float, location) -> "bpy.types.Object":
+    import bmesh
+    import bpy
+
+    mesh = bpy.data.meshes.new(name)
+    made = bmesh.new()
+    bmesh.ops.create_cube(made, size=size)
+    made.to_mesh(mesh)
+    made.free()
+    obj = bpy.data.objects.new(name, mesh)
+    obj.location = location
+    bpy.context.scene.collection.objects.link(obj)
+    return obj
+
+
+def _with_nodes(obj, tree) -> None:
+    modifier = obj.modifiers.new("nodes", "NODES")
+    modifier.node_group = tree
+
+
+def _material(name: str):
+    import bpy
+
+    from addon.render import blender_compat
+
+    material = bpy.data.materials.new(name)
+    tree = blender_compat.ensure_node_tree(material)
+    tree.nodes.clear()
+    output = tree.nodes.new("ShaderNodeOutputMaterial")
+    return material, tree, output
+
+
+def build(out: Path) -> None:
+    import bpy
+
+    bpy.ops.wm.read_factory_settings(use_empty=True)
+    scene = bpy.context.scene
+    scene.render.resolution_x, scene.render.resolution_y = 96, 72
+    scene.render.resolution_percentage = 100
+
+    ground = bpy.data.objects.new("Ground", bpy.data.meshes.new("Ground"))
+    ground.data.from_pydata([(-4, -4, 0), (4, -4, 0), (4, 4, 0), (-4, 4, 0)], [], [(0, 1, 2, 3)])
+    scene.collection.objects.link(ground)
+
+    light = bpy.data.objects.new("Lamp", bpy.data.lights.new("Lamp", "POINT"))
+    light.data.energy = 1000.0
+    light.data.shadow_soft_size = 0.0
+    light.location = (0.5, -0.5, 4.0)
+    scene.collection.objects.link(light)
+    camera = bpy.data.objects.new("Camera", bpy.data.cameras.new("Camera"))
+    camera.location = (0.0, -7.0, 5.0)
+    camera.rotation_euler = (0.9, 0.0, 0.0)
+    scene.collection.objects.link(camera)
+    scene.camera = camera
+
+    pebbles = _mesh("Pebbles", 0.8, (-1.5, 0.0, 0.5))
+    _with_nodes(pebbles, _geometry_nodes("to points", _points))
+    _hair("Strands", (1.5, 0.0, 0.2))
+    wire = _mesh("Wire", 0.2, (1.0, -2.5, 0.2))
+    _with_nodes(wire, _geometry_nodes("to curve", _curve))
+    groom = _mesh("Groom", 0.5, (0.0, 1.5, 0.3))
+    hair = groom.modifiers.new("hair", "PARTICLE_SYSTEM").particle_system.settings
+    hair.type, hair.count, hair.render_type, hair.hair_length = "HAIR", 50, "PATH", 0.6
+    ivy = _mesh("Ivy", 0.5, (-1.5, 1.5, 0.3))
+    leaf = _mesh("Leaf", 0.05, (0.0, 0.0, -10.0))
+    leaf.hide_render = True  # the particles' instance object, drawn only as instances
+    ivy_settings = ivy.modifiers.new("leaves", "PARTICLE_SYSTEM").particle_system.settings
+    ivy_settings.type, ivy_settings.count, ivy_settings.render_type = "HAIR", 20, "OBJECT"
+    ivy_settings.instance_object = leaf
+    cloud = _mesh("Cloud", 0.5, (1.5, 1.5, 0.5))
+    _with_nodes(cloud, _geometry_nodes("to volume", _volume))
+
+    fog = _mesh("Fog", 1.0, (0.0, -1.5, 0.6))
+    material, tree, output = _material("Smoke")
+    volume = tree.nodes.new("ShaderNodeVolumePrincipled")
+    volume.inputs["Density"].default_value = 1.5
+    tree.links.new(volume.outputs[0], output.inputs["Volume"])
+    fog.data.materials.append(material)
+
+    bumps = _mesh("Bumps", 0.6, (-1.5, -1.5, 0.3))
+    material, tree, output = _material("Bumpy")
+    diffuse = tree.nodes.new("ShaderNodeBsdfDiffuse")
+    tree.links.new(diffuse.outputs[0], output.inputs["Surface"])
+    displace = tree.nodes.new("ShaderNodeDisplacement")
+    noise = tree.nodes.new("ShaderNodeTexNoise")
+    tree.links.new(noise.outputs[0], displace.inputs["Height"])
+    tree.links.new(displace.outputs[0], output.inputs["Displacement"])
+    material.displacement_method = "DISPLACEMENT"
+    bumps.data.materials.append(material)
+
+    hidden = _mesh("Hidden", 0.4, (2.5, -1.5, 0.3))
+    _with_nodes(hidden, _geometry_nodes("hidden points", _points))
+    hidden.hide_render = True
+    _hair("Unseen", (2.5, 1.5, 0.2)).visible_shadow = False
+    _mesh("Cutout", 0.3, (2.5, 0.0, 0.2)).is_holdout = True
+
+    bpy.ops.wm.save_as_mainfile(filepath=str(out))
+
+
+def notes(out: Path) -> None:
+    """Every left-out note of the saved file's render geometry, and the light's."""
+    import bpy
+
+    from addon.reference.render_geometry import render_triangles
+    from addon.reference.shadow_rule import ShadowRule
+
+    scene = bpy.context.scene
+    layer = scene.view_layers[0]
+    found = render_triangles(scene, layer)
+    rule = ShadowRule.for_light(scene, bpy.data.objects["Lamp"], notes=False, view_layer=layer)
+    out.write_text(json.dumps({"all": found.left_out.notes(), "light": found.left_out.notes(rule.blocks),
+                               "names": sorted(found.names)}, indent=1))
+
+
+def main() -> int:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("out", type=Path)
+    parser.add_argument("--notes", type=Path, default=None)
+    args = parser.parse_args()
+    build(args.out)
+    if args.notes is not None:
+        notes(args.notes)
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
