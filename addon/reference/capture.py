@@ -565,6 +565,8 @@ def capture(scene: "bpy.types.Scene", samples: int = DEFAULT_SAMPLES, *, light: 
                 log.warning("spot light %r has non-uniform scale %s: its cone is not circular", light_obj.name, scale)
             triangles = scene_triangles.select(rule.blocks)
             surface = scene_triangles.select_surface(rule.blocks)
+            spheres = scene_triangles.select_spheres(rule.blocks)
+            strands = scene_triangles.select_strands(rule.blocks)
             empty = {o.name for o in scene.objects
                      if o.type in GEOMETRY_TYPES and o.name_full in visible} - scene_triangles.names
             if empty:
@@ -632,6 +634,8 @@ def capture(scene: "bpy.types.Scene", samples: int = DEFAULT_SAMPLES, *, light: 
         "light_energy": float(light_obj.data.energy),
         # What blocks the light (ShadowRule), and what the rule could not follow.
         "occluder_triangles": int(len(triangles)),
+        "occluder_spheres": int(len(spheres)),
+        "occluder_strands": int(len(strands)),
         "scene_triangles": int(sum(len(t) for t in scene_triangles.triangles)),
         "light_casts_shadows": rule.casts_shadows,
         "notes": list(rule.notes) + material_notes + scene_triangles.alpha_notes(),
@@ -669,4 +673,6 @@ def capture(scene: "bpy.types.Scene", samples: int = DEFAULT_SAMPLES, *, light: 
         camera_clip=camera_clip,
         surface=surface if surface.see_through else None,
         visibility_noise=noise,
+        spheres=spheres if len(spheres) else None,
+        strands=strands if len(strands) else None,
     )

@@ -29,6 +29,9 @@ Conventions (verified in tests/blender/test_reference.py):
   as the file has it meta["light_shape_file"]; files without them are hard. A sized light's
   reference also stores `visibility_noise` (H, W): half the difference of the two halves'
   visibility (capture.py), the reference's own noise per pixel; a hard one has none.
+- `spheres` and `strands` (core/blockers.py): the point clouds and hair curves that block
+  the light, world space, as `sphere_centres`/`sphere_radii` and `strand_points`/
+  `strand_radii`/`strand_offsets`/`strand_linear`; a file without them has none (issue 42).
 """
 from __future__ import annotations
 
@@ -45,6 +48,7 @@ from typing import Any
 import numpy as np
 
 from ..core.alpha import AlphaMap, Surface
+from ..core.blockers import Spheres, Strands
 from ..core.camera import CameraSpec, Window
 from ..core.errors import ReferenceCaptureError
 from ..core.light_shape import LightShape, shape_from_dict
@@ -85,6 +89,8 @@ class ReferenceData:
     camera_clip: tuple[float, float] | None = None  # (start, end); None: CameraSpec's defaults
     surface: Surface | None = None  # see-through materials of `triangles`; None: all opaque
     visibility_noise: np.ndarray | None = None  # (H, W) float32, a sized light's; None: noise-free
+    spheres: Spheres | None = None  # point clouds that block the light; None: none
+    strands: Strands | None = None  # hair curves that block the light; None: none
 
     def __post_init__(self) -> None:
         self.position = np.asarray(self.position, dtype=np.float32)
@@ -209,6 +215,16 @@ class ReferenceData:
                               for m in self.surface.maps]
         return arrays
 
+    def _blocker_arrays(self) -> dict[str, np.ndarray]:
+        """The point clouds and hair curves as arrays (none when the scene has none)."""
+        arrays = {}
+        if self.spheres is not None and len(self.spheres):
+            arrays.update(sphere_centres=self.spheres.centres, sphere_radii=self.spheres.radii)
+        if self.strands is not None and len(self.strands):
+            arrays.update(strand_points=self.strands.points, strand_radii=self.strands.radii,
+                          strand_offsets=self.strands.offsets, strand_linear=self.strands.linear)
+        return arrays
+
     def save(self, path: str | os.PathLike) -> Path:
         """Write a compressed .npz atomically (a temp file renamed into place)."""
         path = Path(path)
@@ -236,6 +252,7 @@ class ReferenceData:
                     **self._camera_arrays(),
                     **self._surface_arrays(meta),
                     **({} if self.visibility_noise is None else {"visibility_noise": self.visibility_noise}),
+                    **self._blocker_arrays(),
                     meta=np.array(json.dumps(meta, sort_keys=True)),
                 )
             os.replace(tmp, path)
@@ -274,9 +291,21 @@ class ReferenceData:
                     surface=_stored_surface(npz, meta),
                     visibility_noise=npz["visibility_noise"] if "visibility_noise" in npz.files else None,
                     **_stored_camera(npz),
+                    **_stored_blockers(npz),
                 )
         except _UNREADABLE as exc:
             raise ReferenceCaptureError(f"cannot read reference file {path}: {_reason(exc)}") from exc
+
+
+def _stored_blockers(npz) -> dict[str, Any]:
+    """The point clouds and hair curves of a loaded file (older files have none)."""
+    fields: dict[str, Any] = {}
+    if "sphere_centres" in npz.files:
+        fields["spheres"] = Spheres(npz["sphere_centres"], npz["sphere_radii"])
+    if "strand_points" in npz.files:
+        fields["strands"] = Strands(npz["strand_points"], npz["strand_radii"], npz["strand_offsets"],
+                                    npz["strand_linear"] if "strand_linear" in npz.files else None)
+    return fields
 
 
 def _stored_camera(npz) -> dict[str, Any]:

@@ -24,7 +24,9 @@ from typing import TYPE_CHECKING, Any, Callable
 import numpy as np
 
 from ..core.alpha import Surface
+from ..core.blockers import Spheres, Strands
 from ..core.errors import ReferenceCaptureError
+from ..render import blender_compat
 from .left_out import LeftOut, scan_instance
 from .material_alpha import MaterialAlpha, mesh_surface
 
@@ -56,6 +58,17 @@ class SceneTriangles:
     surfaces: list[Surface] | None = None  # one a batch; None: all opaque
     notes: dict[str, str] | None = None  # material -> why its alpha was not followed
     left_out: LeftOut = field(default_factory=LeftOut)  # what Cycles renders that no method draws
+    # Point clouds and hair curves, world space, by owner (core/blockers.py).
+    spheres: list[tuple[Owner, Spheres]] = field(default_factory=list)
+    strands: list[tuple[Owner, Strands]] = field(default_factory=list)
+
+    def select_spheres(self, keep: Callable[[str, str | None], bool]) -> Spheres:
+        """The point clouds of the owners `keep(name, parent)` accepts, as one set."""
+        return Spheres.concatenate([s for owner, s in self.spheres if keep(owner.name, owner.parent)])
+
+    def select_strands(self, keep: Callable[[str, str | None], bool]) -> Strands:
+        """The hair curves of the owners `keep(name, parent)` accepts, as one set."""
+        return Strands.concatenate([s for owner, s in self.strands if keep(owner.name, owner.parent)])
 
     def select_surface(self, keep: Callable[[str, str | None], bool]) -> Surface:
         """The surfaces of the triangles `select(keep)` returns, in the same order."""
@@ -132,9 +145,19 @@ def collect(depsgraph: Any) -> SceneTriangles:
     local_cache: dict[Any, tuple[np.ndarray, Surface]] = {}
     left = LeftOut()
     left_materials: dict[str, tuple[str, ...]] = {}
+    spheres: list[tuple[Owner, Spheres]] = []
+    strands: list[tuple[Owner, Strands]] = []
+    linear_shape = getattr(getattr(depsgraph.scene, "cycles_curves", None), "shape", "") == "THICK_LINEAR"
     for inst in depsgraph.object_instances:
         scan_instance(left, inst, left_materials)
         obj = inst.object
+        if obj.type in ("POINTCLOUD", "CURVES"):
+            parent = inst.parent if inst.is_instance else None
+            owner = Owner(obj.original.name_full, None if parent is None else parent.original.name_full)
+            found = _points_or_strands(obj, np.array(inst.matrix_world, dtype=np.float64), linear_shape)
+            if found is not None and len(found):
+                (spheres if obj.type == "POINTCLOUD" else strands).append((owner, found))
+            continue
         # Cycles renders evaluated meshes only. A curve, text, surface or metaball
         # object comes twice: as itself (skipped) and as the mesh instance of its
         # evaluated geometry, whose instancer is the object itself.
@@ -159,7 +182,63 @@ def collect(depsgraph: Any) -> SceneTriangles:
         owners.append(Owner(obj.original.name_full, None if parent is None else parent.original.name_full))
         triangles.append(corners.reshape(-1, 3, 3).astype(np.float32))
         surfaces.append(surface)
-    return SceneTriangles(owners, triangles, surfaces, notes, left)
+    return SceneTriangles(owners, triangles, surfaces, notes, left, spheres, strands)
+
+
+# Radii Cycles gives points and curve points without a radius attribute (its Blender sync).
+DEFAULT_POINT_RADIUS = 0.01
+DEFAULT_CURVE_RADIUS = 0.005
+
+
+def _attribute(data: Any, name: str, width: int, count: int) -> np.ndarray | None:
+    """A float attribute of a point cloud's or curves' points, (count, width), or None."""
+    attribute = data.attributes.get(name)
+    if attribute is None or attribute.domain != "POINT":
+        return None
+    values = np.empty(count * width, dtype=np.float32)
+    attribute.data.foreach_get("vector" if width == 3 else "value", values)
+    return values.reshape(count, width) if width > 1 else values
+
+
+def _points_or_strands(obj: Any, matrix: np.ndarray, linear_shape: bool = False) -> "Spheres | Strands | None":
+    """An evaluated point cloud's spheres, or hair curves' strands, in world space. Radii
+    scale with the matrix's mean scale (a non-uniform scale would make ellipsoids and
+    elliptic tubes in Cycles, which these are not). As Cycles does, an object's strands
+    are straight between their points when its first curve is a poly curve (5.x), or when
+    the scene's curve shape is "Linear 3D Curves" (`linear_shape`); else Catmull-Rom."""
+    data = obj.data
+    count = len(data.points)
+    positions = _attribute(data, "position", 3, count)
+    if positions is None or not count:
+        return None
+    world = positions.astype(np.float64) @ matrix[:3, :3].T + matrix[:3, 3]
+    scale = abs(float(np.linalg.det(matrix[:3, :3]))) ** (1.0 / 3.0)
+    radii = _attribute(data, "radius", 1, count)
+    if obj.type == "POINTCLOUD":
+        radii = np.full(count, DEFAULT_POINT_RADIUS) if radii is None else radii.astype(np.float64)
+        return Spheres(world, radii * scale)
+    radii = np.full(count, DEFAULT_CURVE_RADIUS) if radii is None else radii.astype(np.float64)
+    offsets = np.empty(len(data.curve_offset_data), dtype=np.int32)
+    data.curve_offset_data.foreach_get("value", offsets)
+    curves = len(offsets) - 1
+    linear = linear_shape or (blender_compat.has_linear_curves() and _first_curve_type(data, curves) == CURVE_POLY)
+    return Strands(world, radii * scale, offsets, np.full(curves, linear))
+
+
+# Blender's curve types (the `curve_type` attribute; absent: all Catmull-Rom, hair's own).
+# Cycles reads the control points of every type (Bezier and NURBS too) as those of a
+# Catmull-Rom spline, or of straight pieces.
+CURVE_CATMULL_ROM, CURVE_POLY = 0, 1
+
+
+def _first_curve_type(data: Any, curves: int) -> int:
+    """The type of an object's first curve, which Cycles takes for all of them."""
+    attribute = data.attributes.get("curve_type")
+    if attribute is None or attribute.domain != "CURVE" or not curves:
+        return CURVE_CATMULL_ROM
+    types = np.empty(curves, dtype=np.int32)
+    attribute.data.foreach_get("value", types)
+    return int(types[0])
 
 
 def render_triangles(scene: "bpy.types.Scene", view_layer: "bpy.types.ViewLayer") -> SceneTriangles:

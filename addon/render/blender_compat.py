@@ -91,6 +91,19 @@ def set_multilayer_exr(image_settings: Any, setter: Callable[[Any, str, Any], No
     setter(image_settings, "file_format", "OPEN_EXR_MULTILAYER")
 
 
+@functools.cache
+def has_linear_curves() -> bool:
+    """Whether Cycles draws poly hair curves straight between their points (5.x, with its
+    "Linear 3D Curves" shape); 4.2-4.5 draw every hair curve as a Catmull-Rom spline."""
+    import bpy
+
+    curves = bpy.types.Scene.bl_rna.properties.get("cycles_curves")  # Cycles' own settings
+    if curves is None:
+        return False
+    shapes = curves.fixed_type.properties["shape"].enum_items
+    return "THICK_LINEAR" in {item.identifier for item in shapes}
+
+
 @functools.cache  # the shadow rule asks once per object
 def has_light_linking() -> bool:
     """Light and shadow linking (`Object.light_linking`, 4.0+)."""

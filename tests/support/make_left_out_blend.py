@@ -17,6 +17,14 @@ Built the way an artist builds it, on a ground plane under a point light and a c
 - `Cutout`: a holdout object (the shadow rule's note: the reference renders it plain).
 With --notes, also reads the render depsgraph (render_geometry.render_triangles) and
 writes every left-out note, and those of the light's shadow rule, as JSON.
+
+    python tests/support/make_left_out_blend.py OUT.blend --blockers
+
+builds instead a file of points and hair alone over the ground, for the oracle of
+core/blockers.py against Cycles: pebbles of three radii (geometry nodes' Mesh to Points
+on a grid), a hair curves object with spiral strands of a few control points each (so
+that Cycles' interpolation between them shows) and one straight strand of tapering
+radius; a mesh box among them.
 """
 from __future__ import annotations
 
@@ -106,12 +114,13 @@ def _material(name: str):
     return material, tree, output
 
 
-def build(out: Path) -> None:
+def _stage(size: tuple[int, int]) -> "bpy.types.Scene":
+    """An empty file with a ground, a hard point light and a camera."""
     import bpy
 
     bpy.ops.wm.read_factory_settings(use_empty=True)
     scene = bpy.context.scene
-    scene.render.resolution_x, scene.render.resolution_y = 96, 72
+    scene.render.resolution_x, scene.render.resolution_y = size
     scene.render.resolution_percentage = 100
 
     ground = bpy.data.objects.new("Ground", bpy.data.meshes.new("Ground"))
@@ -128,7 +137,78 @@ def build(out: Path) -> None:
     camera.rotation_euler = (0.9, 0.0, 0.0)
     scene.collection.objects.link(camera)
     scene.camera = camera
+    return scene
 
+
+def _spiral(tree, geometry):
+    """Spiral strands: a few control points a turn, so that the curve between them shows."""
+    node = tree.nodes.new("GeometryNodeCurveSpiral")
+    node.inputs["Resolution"].default_value = 5
+    node.inputs["Rotations"].default_value = 1.5
+    node.inputs["Start Radius"].default_value = 0.5
+    node.inputs["End Radius"].default_value = 0.2
+    node.inputs["Height"].default_value = 1.2
+    radius = tree.nodes.new("GeometryNodeSetCurveRadius")
+    radius.inputs["Radius"].default_value = 0.03
+    tree.links.new(node.outputs["Curve"], radius.inputs["Curve"])
+    return radius.outputs["Curve"]
+
+
+def _catmull_rom_spiral(tree, geometry):
+    """The spiral, its curve type set to Catmull-Rom (hair's own type)."""
+    kind = tree.nodes.new("GeometryNodeCurveSplineType")
+    kind.spline_type = "CATMULL_ROM"
+    tree.links.new(_spiral(tree, geometry), kind.inputs["Curve"])
+    return kind.outputs["Curve"]
+
+
+def _grid_points(tree, geometry):
+    """A grid of points, their radius cycling through three sizes."""
+    grid = tree.nodes.new("GeometryNodeMeshGrid")
+    grid.inputs["Size X"].default_value = 2.0
+    grid.inputs["Size Y"].default_value = 1.5
+    grid.inputs["Vertices X"].default_value = 7
+    grid.inputs["Vertices Y"].default_value = 5
+    index = tree.nodes.new("GeometryNodeInputIndex")
+    modulo = tree.nodes.new("ShaderNodeMath")
+    modulo.operation = "MODULO"
+    modulo.inputs[1].default_value = 3.0
+    tree.links.new(index.outputs[0], modulo.inputs[0])
+    scale = tree.nodes.new("ShaderNodeMath")
+    scale.operation = "MULTIPLY_ADD"
+    scale.inputs[1].default_value = 0.03
+    scale.inputs[2].default_value = 0.04
+    tree.links.new(modulo.outputs[0], scale.inputs[0])
+    points = tree.nodes.new("GeometryNodeMeshToPoints")
+    tree.links.new(grid.outputs["Mesh"], points.inputs["Mesh"])
+    tree.links.new(scale.outputs[0], points.inputs["Radius"])
+    return points.outputs["Points"]
+
+
+def build_blockers(out: Path) -> None:
+    """Points and hair over the ground (the module docstring's --blockers)."""
+    import bpy
+
+    _stage((160, 120))
+    pebbles = _mesh("Pebbles", 0.1, (-1.0, 0.0, 0.6))
+    _with_nodes(pebbles, _geometry_nodes("pebble grid", _grid_points))
+    hair = bpy.data.objects.new("Spirals", bpy.data.hair_curves.new("Spirals"))
+    hair.location = (1.2, 0.5, 0.1)
+    bpy.context.scene.collection.objects.link(hair)
+    _with_nodes(hair, _geometry_nodes("spirals", _spiral))
+    _hair("Straight", (0.3, -1.2, 0.1))
+    rounded = bpy.data.objects.new("Rounded", bpy.data.hair_curves.new("Rounded"))
+    rounded.location = (-1.6, -1.4, 0.1)
+    bpy.context.scene.collection.objects.link(rounded)
+    _with_nodes(rounded, _geometry_nodes("rounded spirals", _catmull_rom_spiral))
+    _mesh("Box", 0.4, (0.8, -0.5, 0.2))
+    bpy.ops.wm.save_as_mainfile(filepath=str(out))
+
+
+def build(out: Path) -> None:
+    import bpy
+
+    scene = _stage((96, 72))
     pebbles = _mesh("Pebbles", 0.8, (-1.5, 0.0, 0.5))
     _with_nodes(pebbles, _geometry_nodes("to points", _points))
     _hair("Strands", (1.5, 0.0, 0.2))
@@ -192,7 +272,11 @@ def main() -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("out", type=Path)
     parser.add_argument("--notes", type=Path, default=None)
+    parser.add_argument("--blockers", action="store_true")
     args = parser.parse_args()
+    if args.blockers:
+        build_blockers(args.out)
+        return 0
     build(args.out)
     if args.notes is not None:
         notes(args.notes)

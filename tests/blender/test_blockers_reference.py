@@ -1,0 +1,98 @@
+"""Point clouds and hair as Cycles shadows with them (issue 42): the reference stores them,
+and core/blockers.py's spheres and strands, ray cast with the triangles, give Cycles'
+visibility.
+
+tests/support/make_left_out_blend.py --blockers builds the file: pebbles of three radii
+from a mesh's geometry nodes, spiral strands of a few control points a turn (a poly
+curve and a Catmull-Rom one), a straight strand, a box. The reference is captured by
+`omniwarp compare --blend` in a child process, once with the file's curve shape
+(ribbons) and once with 3D curves. A pixel whose own surface is a pebble or a strand is
+left out: Cycles never shadows a point with the primitive it lies on, and a ribbon's
+points lie inside the swept tube the oracle tests.
+"""
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pytest
+
+pytest.importorskip("bpy", reason="the file and its reference need bpy")
+
+from addon.compare import light_from_reference  # noqa: E402
+from addon.core import metrics  # noqa: E402
+from addon.core.blockers import Spheres, Strands  # noqa: E402
+from addon.reference.data import ReferenceData  # noqa: E402
+from tests.support.cli_run import SUPPORT, python_ok  # noqa: E402
+from tests.support.oracle import ray_hits  # noqa: E402
+
+pytestmark = pytest.mark.blender
+
+# Off the blockers' own surfaces, the oracle and Cycles may differ on this share of the
+# evaluated pixels (5.2.3: 2 and 7 of 17,490 pixels, 3D curves and ribbons; 4.5.15: 2 of
+# 17,537 with 3D curves). 4.2-4.5's ribbons differ from the swept tube, by 43 of 17,531
+# pixels (0.25 %) on 4.5.15, for a reason not found: they get a looser bound.
+MAX_MISMATCH_PCT = 0.05
+OLD_RIBBONS_MAX_MISMATCH_PCT = 0.5
+
+
+def _set_shape(path, shape: str) -> None:
+    python_ok("-c", "import bpy, sys; bpy.ops.wm.open_mainfile(filepath=sys.argv[1]); "
+                    "bpy.context.scene.cycles_curves.shape = sys.argv[2]; "
+                    "bpy.ops.wm.save_as_mainfile(filepath=sys.argv[1])", path, shape)
+
+
+@pytest.fixture(scope="module", params=["RIBBONS", "THICK"])
+def reference(request, tmp_path_factory):
+    """(reference, rows, shape) of the file captured with the curve shape `param`."""
+    folder = tmp_path_factory.mktemp(f"blockers_{request.param.lower()}")
+    blend = folder / "blockers.blend"
+    python_ok(SUPPORT / "make_left_out_blend.py", blend, "--blockers")
+    _set_shape(blend, request.param)
+    python_ok("-m", "addon.cli", "compare", "--blend", blend, "--methods", "dpsm", "--resolutions", "256",
+              "--repeats", "1", "--no-images", "--out", folder / "out", "--cache-dir", folder / "cache")
+    (path,) = (folder / "cache").glob("*.npz")
+    rows = json.loads((folder / "out" / "results.json").read_text())
+    return ReferenceData.load(path), rows, request.param
+
+
+def _on_blockers(points: np.ndarray, spheres: Spheres, strands: Strands) -> np.ndarray:
+    """Points on (or within a hair's width of) a pebble or a strand."""
+    grown = Strands(strands.points, strands.radii * 1.5 + 1e-3, strands.offsets, strands.linear)
+    near = grown.crossed(points, points + 1e-9, eps=0.0)
+    return near | Spheres(spheres.centres, spheres.radii * 1.02 + 1e-3).crossed(points, points + 1e-9, eps=0.0)
+
+
+def test_the_reference_keeps_the_points_and_strands(reference):
+    from addon.render import blender_compat
+
+    ref, rows, _ = reference
+    assert len(ref.spheres) == 35 and sorted(np.round(np.unique(ref.spheres.radii), 3)) == [0.04, 0.07, 0.1]
+    # The two poly curves are straight pieces where Cycles draws them so (5.x).
+    linear = 2 if blender_compat.has_linear_curves() else 0
+    assert len(ref.strands) == 3 and ref.strands.linear.tolist().count(True) == linear
+    assert ref.meta["occluder_spheres"] == 35 and ref.meta["occluder_strands"] == 3
+    assert rows[0]["note"] and "Pebbles" in rows[0]["note"]  # the maps still draw neither
+
+
+def test_spheres_and_strands_cast_cycles_shadows(reference):
+    from addon.render import blender_compat
+
+    ref, _, shape = reference
+    bound = OLD_RIBBONS_MAX_MISMATCH_PCT if shape == "RIBBONS" and not blender_compat.has_linear_curves() \
+        else MAX_MISMATCH_PCT
+    light = light_from_reference(ref)
+    evaluable = metrics.evaluable_mask(ref.position, ref.normal, ref.hit, ref.unshadowed, light)
+    lit = metrics.reference_visibility(ref.shadowed, ref.unshadowed)[evaluable]
+    points = ref.position[evaluable].astype(np.float64)
+    normals = ref.normal[evaluable].astype(np.float64)
+    to_light = np.broadcast_to(light.position, points.shape)
+    lifted = points + 1e-4 * normals
+    t, _ = ray_hits(lifted, light.position - lifted, ref.triangles, t_max=np.full(len(points), 1.0 - 1e-6))
+    by_triangles = np.isfinite(t)
+    blocked = by_triangles | ref.spheres.crossed(points, to_light) | ref.strands.crossed(points, to_light)
+    judged = ~_on_blockers(points, ref.spheres, ref.strands)
+    mismatch = np.count_nonzero(((~blocked) != lit) & judged)
+    assert mismatch <= bound / 100.0 * judged.sum(), (mismatch, int(judged.sum()))
+    # Without them the triangles alone miss the points' and the hair's shadows.
+    assert np.count_nonzero(((~by_triangles) != lit) & judged) > 20 * max(mismatch, 10)
