@@ -164,6 +164,9 @@ def collect(depsgraph: Any) -> SceneTriangles:
         if obj.type != "MESH":
             continue
         parent = inst.parent if inst.is_instance else None
+        if parent is None:
+            for found in _particle_strands(obj, linear_shape):
+                strands.append((Owner(obj.original.name_full), found))
         if parent is None and obj.is_instancer and not obj.original.show_instancer_for_render:
             continue  # an emitter that Cycles does not draw itself
         # Geometry-nodes instance geometry has no object of its own: key on its data.
@@ -223,6 +226,53 @@ def _points_or_strands(obj: Any, matrix: np.ndarray, linear_shape: bool = False)
     curves = len(offsets) - 1
     linear = linear_shape or (blender_compat.has_linear_curves() and _first_curve_type(data, curves) == CURVE_POLY)
     return Strands(world, radii * scale, offsets, np.full(curves, linear))
+
+
+def _shape_radius(shape: float, root: float, tip: float, time: np.ndarray) -> np.ndarray:
+    """A particle strand's radius along its length (time 0 at the root, 1 at the tip): from
+    root to tip, bent by the settings' shape in (-1, 1), as Cycles' particle hair has it."""
+    radius = 1.0 - np.asarray(time, dtype=np.float64)
+    if shape < 0.0:
+        radius = radius ** (1.0 + shape)
+    elif shape > 0.0:
+        radius = radius ** (1.0 / (1.0 - shape))
+    return radius * (root - tip) + tip
+
+
+def _particle_strands(obj: Any, linear_shape: bool) -> list[Strands]:
+    """The strands of an evaluated mesh's hair particle systems drawn as paths, in world
+    space, as Cycles reads them: 2^render_step + 1 keys a strand (more for a spiral kink),
+    the children alone when there are any, the radius from the settings' root, tip and
+    shape along the strand's length (0 at a closed tip); Catmull-Rom through the keys."""
+    out = []
+    for modifier in obj.modifiers:
+        if modifier.type != "PARTICLE_SYSTEM" or not modifier.show_render:
+            continue
+        system = modifier.particle_system
+        settings = system.settings
+        if settings.type != "HAIR" or settings.render_type != "PATH":
+            continue
+        steps = 2 ** int(settings.render_step) + 1
+        if settings.kink == "SPIRAL":
+            steps += int(settings.kink_extra_steps)
+        parents, children = len(system.particles), len(system.child_particles)
+        first = parents if settings.child_type != "NONE" and children else 0
+        indices = range(first, parents + (children if first else 0))
+        if not len(indices):
+            continue
+        points = np.array([[system.co_hair(object=obj, particle_no=index, step=step) for step in range(steps)]
+                           for index in indices], dtype=np.float64)  # (curves, steps, 3)
+        lengths = np.concatenate([np.zeros((len(points), 1)),
+                                  np.cumsum(np.linalg.norm(np.diff(points, axis=1), axis=2), axis=1)], axis=1)
+        time = np.divide(lengths, lengths[:, -1:], out=np.zeros_like(lengths), where=lengths[:, -1:] > 0.0)
+        scale = 0.5 * float(settings.radius_scale)
+        radii = _shape_radius(float(settings.shape), scale * float(settings.root_radius),
+                              scale * float(settings.tip_radius), time)
+        if settings.use_close_tip:
+            radii[:, -1] = 0.0
+        offsets = np.arange(len(points) + 1) * steps
+        out.append(Strands(points.reshape(-1, 3), radii.reshape(-1), offsets, np.full(len(points), linear_shape)))
+    return out
 
 
 # Blender's curve types (the `curve_type` attribute; absent: all Catmull-Rom, hair's own).

@@ -22,9 +22,10 @@ writes every left-out note, and those of the light's shadow rule, as JSON.
 
 builds instead a file of points and hair alone over the ground, for the oracle of
 core/blockers.py against Cycles: pebbles of three radii (geometry nodes' Mesh to Points
-on a grid), a hair curves object with spiral strands of a few control points each (so
-that Cycles' interpolation between them shows) and one straight strand of tapering
-radius; a mesh box among them.
+on a grid), hair curves objects with spiral strands of a few control points each (so
+that Cycles' interpolation between them shows: one poly, one Catmull-Rom) and one
+straight strand, particle hair on a box (40 strands, tapering, leaning at random); a
+mesh box among them.
 """
 from __future__ import annotations
 
@@ -197,6 +198,12 @@ def build_blockers(out: Path) -> None:
     bpy.context.scene.collection.objects.link(hair)
     _with_nodes(hair, _geometry_nodes("spirals", _spiral))
     _hair("Straight", (0.3, -1.2, 0.1))
+    fur = _mesh("Fur", 0.6, (-0.4, 1.2, 0.3))
+    fur_hair = fur.modifiers.new("fur", "PARTICLE_SYSTEM").particle_system.settings
+    fur_hair.type, fur_hair.count, fur_hair.render_type, fur_hair.hair_length = "HAIR", 40, "PATH", 0.8
+    fur_hair.radius_scale, fur_hair.root_radius, fur_hair.tip_radius = 0.06, 1.0, 0.3
+    fur_hair.use_advanced_hair = True
+    fur_hair.factor_random = 0.4  # strands that lean and cross, so their keys' curve shows
     rounded = bpy.data.objects.new("Rounded", bpy.data.hair_curves.new("Rounded"))
     rounded.location = (-1.6, -1.4, 0.1)
     bpy.context.scene.collection.objects.link(rounded)
