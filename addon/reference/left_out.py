@@ -67,9 +67,9 @@ class LeftOut:
         return out
 
 
-def scan_instance(left: LeftOut, inst: Any, materials: dict[str, tuple[str, ...]]) -> None:
+def scan_instance(left: LeftOut, inst: Any, materials: dict[str, tuple[str, ...]], hair: bool = True) -> None:
     """Record what of one depsgraph instance the methods leave out. `materials` caches
-    each material's kinds by name."""
+    each material's kinds by name; `hair`: the view layer renders strands."""
     obj = inst.object
     parent = inst.parent if inst.is_instance else None
     name = obj.original.name_full
@@ -80,7 +80,7 @@ def scan_instance(left: LeftOut, inst: Any, materials: dict[str, tuple[str, ...]
         return
     if obj.type != "MESH":
         return
-    if parent is None and _draws_particle_hair(obj):
+    if hair and parent is None and _draws_particle_hair(obj):
         left.add("particle_hair", name)  # drawn whether or not its emitter is
     if parent is None and obj.is_instancer and not obj.original.show_instancer_for_render:
         return  # an emitter Cycles does not draw: its surface, materials and all

@@ -148,9 +148,13 @@ def collect(depsgraph: Any) -> SceneTriangles:
     spheres: list[tuple[Owner, Spheres]] = []
     strands: list[tuple[Owner, Strands]] = []
     linear_shape = getattr(getattr(depsgraph.scene, "cycles_curves", None), "shape", "") == "THICK_LINEAR"
+    # A view layer with "Strands" off renders no hair (Cycles' view_layer.use_hair).
+    hair = bool(getattr(depsgraph.view_layer, "use_strand", True))
     for inst in depsgraph.object_instances:
-        scan_instance(left, inst, left_materials)
         obj = inst.object
+        if not hair and obj.type == "CURVES":
+            continue
+        scan_instance(left, inst, left_materials, hair)
         if obj.type in ("POINTCLOUD", "CURVES"):
             parent = inst.parent if inst.is_instance else None
             owner = Owner(obj.original.name_full, None if parent is None else parent.original.name_full)
@@ -164,7 +168,7 @@ def collect(depsgraph: Any) -> SceneTriangles:
         if obj.type != "MESH":
             continue
         parent = inst.parent if inst.is_instance else None
-        if parent is None:
+        if parent is None and hair:
             for found in _particle_strands(obj, linear_shape):
                 strands.append((Owner(obj.original.name_full), found))
         if parent is None and obj.is_instancer and not obj.original.show_instancer_for_render:

@@ -54,6 +54,9 @@ def test_the_walk_names_each_kind_and_nothing_else(made):
     light = _named(notes["light"])
     assert light == {**NAMED, "hair curves": {"Strands"}}  # Unseen casts no shadow (visible_shadow off)
     assert not any(name in note.rsplit(": ", 1)[1].split(", ") for note in notes["all"] for name in NEVER)
+    # A view layer with Strands off renders no hair: neither kind is named, nor kept.
+    assert _named(notes["no_strands"]) == {k: v for k, v in NAMED.items() if k not in ("hair curves", "particle hair")}
+    assert notes["strands"][0] > 0 and notes["strands"][1] == 0
 
 
 def test_every_row_the_report_and_the_log_name_what_is_not_drawn(made):

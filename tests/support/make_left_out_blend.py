@@ -271,8 +271,11 @@ def notes(out: Path) -> None:
     layer = scene.view_layers[0]
     found = render_triangles(scene, layer)
     rule = ShadowRule.for_light(scene, bpy.data.objects["Lamp"], notes=False, view_layer=layer)
+    layer.use_strand = False  # the view layer's Strands off: Cycles renders no hair
+    no_strands = render_triangles(scene, layer)
     out.write_text(json.dumps({"all": found.left_out.notes(), "light": found.left_out.notes(rule.blocks),
-                               "names": sorted(found.names)}, indent=1))
+                               "names": sorted(found.names), "no_strands": no_strands.left_out.notes(),
+                               "strands": [len(found.strands), len(no_strands.strands)]}, indent=1))
 
 
 def main() -> int:
