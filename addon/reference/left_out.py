@@ -23,6 +23,7 @@ from __future__ import annotations
 
 import logging
 from dataclasses import dataclass, field
+from collections.abc import Iterator
 from typing import Any, Callable
 
 from ..render import blender_compat
@@ -80,7 +81,7 @@ def scan_instance(left: LeftOut, inst: Any, materials: dict[str, tuple[str, ...]
         return
     if obj.type != "MESH":
         return
-    if hair and parent is None and _draws_particle_hair(obj):
+    if hair and parent is None and any(True for _ in path_hair_systems(obj)):
         left.add("particle_hair", name)  # drawn whether or not its emitter is
     if parent is None and obj.is_instancer and not obj.original.show_instancer_for_render:
         return  # an emitter Cycles does not draw: its surface, materials and all
@@ -95,15 +96,15 @@ def scan_instance(left: LeftOut, inst: Any, materials: dict[str, tuple[str, ...]
             left.add(found, name, parent_name)
 
 
-def _draws_particle_hair(obj: Any) -> bool:
-    """Whether a mesh's hair particle system is rendered as strands (Cycles' curves)."""
-    for modifier in obj.original.modifiers:
+def path_hair_systems(obj: Any) -> Iterator[Any]:
+    """An evaluated mesh's hair particle systems that render draws as strands (Cycles'
+    curves): hair, drawn as paths, its modifier shown in renders."""
+    for modifier in obj.modifiers:
         if modifier.type != "PARTICLE_SYSTEM" or not modifier.show_render:
             continue
         settings = modifier.particle_system.settings
         if settings.type == "HAIR" and settings.render_type == "PATH":
-            return True
-    return False
+            yield modifier.particle_system
 
 
 def _output(material: Any) -> Any | None:

@@ -27,7 +27,7 @@ from ..core.alpha import Surface
 from ..core.blockers import Spheres, Strands
 from ..core.errors import ReferenceCaptureError
 from ..render import blender_compat
-from .left_out import LeftOut, scan_instance
+from .left_out import LeftOut, path_hair_systems, scan_instance
 from .material_alpha import MaterialAlpha, mesh_surface
 
 if TYPE_CHECKING:  # pragma: no cover - typing only
@@ -249,13 +249,8 @@ def _particle_strands(obj: Any, linear_shape: bool) -> list[Strands]:
     the children alone when there are any, the radius from the settings' root, tip and
     shape along the strand's length (0 at a closed tip); Catmull-Rom through the keys."""
     out = []
-    for modifier in obj.modifiers:
-        if modifier.type != "PARTICLE_SYSTEM" or not modifier.show_render:
-            continue
-        system = modifier.particle_system
+    for system in path_hair_systems(obj):
         settings = system.settings
-        if settings.type != "HAIR" or settings.render_type != "PATH":
-            continue
         steps = 2 ** int(settings.render_step) + 1
         if settings.kink == "SPIRAL":
             steps += int(settings.kink_extra_steps)
