@@ -17,12 +17,14 @@ from typing import TYPE_CHECKING, Any, Callable
 
 from .cache import blender_version, cache_dir_path, cache_key, cache_path, check_cache_dir, load_cached, store
 from .capture import CAPTURE_VERSION, DEFAULT_SAMPLES, SOFT_SAMPLES, capture, output_size
-
-NOTES_VERSION = 2
 from .data import ReferenceData
 
 if TYPE_CHECKING:  # pragma: no cover - typing only
     import bpy
+
+# The notes of what no method draws (left_out.py) and the points and strands came with
+# version 2 of a file's reference: one cached before has neither, so it is captured again.
+NOTES_VERSION = 2
 
 log = logging.getLogger(__name__)
 
@@ -74,8 +76,6 @@ def blend_key_fields(path: Path, scene: "bpy.types.Scene", light: str | None, sa
         "soft_samples": int(soft_samples),
         "blender": blender_version(),
         "capture_version": CAPTURE_VERSION,
-        # The notes of what no method draws (left_out.py) came with version 2 of a file's
-        # reference; a reference cached before has none.
         "notes_version": NOTES_VERSION,
     }
 
