@@ -142,9 +142,31 @@ class Strands:
     def crossed(self, starts: np.ndarray, ends: np.ndarray, eps: float = 1e-4,
                 pieces: int = PIECES_PER_SPAN) -> np.ndarray:
         """(M,) whether each segment start -> end meets a strand beyond `eps` of its length
-        from the start."""
+        from the start. Each curve's pieces are tested only against the segments that pass
+        through its bounding sphere."""
+        p = np.asarray(starts, dtype=np.float64).reshape(-1, 3)
+        q = np.asarray(ends, dtype=np.float64).reshape(-1, 3)
+        out = np.zeros(len(p), dtype=bool)
         a, b, ra, rb = self.capsules(pieces)
-        return _crossed(starts, ends, a, b, ra, rb, eps)
+        if not len(a) or not len(p):
+            return out
+        first = 0
+        for k in range(len(self)):
+            points = int(self.offsets[k + 1] - self.offsets[k])
+            count = (points - 1) * pieces if points > 1 else 1  # capsules() gives a point one sphere
+            rows = slice(first, first + count)
+            first += count
+            ends_k = np.concatenate([a[rows], b[rows]])
+            lo, hi = ends_k.min(axis=0), ends_k.max(axis=0)
+            centre = 0.5 * (lo + hi)
+            radius = np.full(len(p), float(np.linalg.norm(hi - lo)) * 0.5 + float(max(ra[rows].max(),
+                                                                                   rb[rows].max())))
+            # The segments that pass through the curve's bounding sphere: a sphere's own test.
+            centres = np.broadcast_to(centre, p.shape)
+            near = np.flatnonzero(_segment_capsule(p, q, centres, centres, radius, radius, 0.0))
+            if len(near):
+                out[near] |= _crossed(p[near], q[near], a[rows], b[rows], ra[rows], rb[rows], eps)
+        return out
 
 
 def catmull_rom_basis(t: np.ndarray) -> np.ndarray:

@@ -4,7 +4,8 @@ visibility.
 
 tests/support/make_left_out_blend.py --blockers builds the file: pebbles of three radii
 from a mesh's geometry nodes, spiral strands of a few control points a turn (a poly
-curve and a Catmull-Rom one), a straight strand, particle hair on a box, a box. The reference is captured by
+curve and a Catmull-Rom one), a straight strand, particle hair with interpolated children
+on a box, a box. The reference is captured by
 `omniwarp compare --blend` in a child process, once with the file's curve shape
 (ribbons) and once with 3D curves. A pixel whose own surface is a pebble or a strand is
 left out: Cycles never shadows a point with the primitive it lies on, and a ribbon's
@@ -29,10 +30,10 @@ from tests.support.oracle import ray_hits  # noqa: E402
 pytestmark = pytest.mark.blender
 
 # Off the blockers' own surfaces, the share of the evaluated pixels where the oracle and
-# Cycles may differ, by curve shape. Measured on 5.2.3: 3 of 16,940 pixels with 3D
-# curves, 11 of 16,944 with ribbons (flat, facing the ray: 6 to 50 with the spline cut
-# into 2-16 straight pieces a span, none exact); 4.5.15 with 3D curves: 2 of 17,537
-# (without the particle hair). 4.2-4.5's ribbons differ from the swept tube by 43 of
+# Cycles may differ, by curve shape. Measured on 5.2.3: 2 of 16,526 pixels with 3D
+# curves, 10 of 16,531 with ribbons (flat, facing the ray: 6 to 50 with the spline cut
+# into 2-16 straight pieces a span, none exact; before the children); 4.5.15 with 3D
+# curves: 2 of 17,537 (without the particle hair). 4.2-4.5's ribbons differ from the swept tube by 43 of
 # 17,531 pixels (0.25 %) on 4.5.15, for a reason not found.
 MAX_MISMATCH_PCT = {"THICK": 0.05, "RIBBONS": 0.1}
 OLD_RIBBONS_MAX_MISMATCH_PCT = 0.5
@@ -72,16 +73,17 @@ def test_the_reference_keeps_the_points_and_strands(reference):
     assert len(ref.spheres) == 35 and sorted(np.round(np.unique(ref.spheres.radii), 3)) == [0.04, 0.07, 0.1]
     # The two poly curves are straight pieces where Cycles draws them so (5.x).
     linear = 2 if blender_compat.has_linear_curves() else 0
-    # Three hair curves objects' strands, then the particle hair's 40: 2^3 + 1 keys each,
-    # tapering from 0.03 to 0.009 (radius scale 0.06, tip 0.3), closed at the tip.
-    assert len(ref.strands) == 43 and ref.strands.linear.tolist().count(True) == linear
+    # Three hair curves objects' strands, and the particle hair's 40 x 3 children (Cycles
+    # draws the children alone): 2^3 + 1 keys each, tapering from 0.03 to 0.009 (radius
+    # scale 0.06, tip 0.3), closed at the tip.
+    assert len(ref.strands) == 123 and ref.strands.linear.tolist().count(True) == linear
     sizes = np.diff(ref.strands.offsets)
-    assert sorted(sizes.tolist()) == [2, 8, 8] + [9] * 40
+    assert sorted(sizes.tolist()) == [2, 8, 8] + [9] * 120
     fur = np.array([ref.strands.radii[a:b] for a, b in zip(ref.strands.offsets[:-1], ref.strands.offsets[1:])
-                    if b - a == 9])  # (40, 9): root to tip
+                    if b - a == 9])  # (120, 9): root to tip
     assert np.allclose(fur[:, 0], 0.03) and np.all(fur[:, -1] == 0.0) and np.all(np.diff(fur, axis=1) <= 1e-9)
     assert np.all(fur[:, -2] > 0.009)  # the taper ends at 0.03 x 0.3 at the tip, which is closed
-    assert ref.meta["occluder_spheres"] == 35 and ref.meta["occluder_strands"] == 43
+    assert ref.meta["occluder_spheres"] == 35 and ref.meta["occluder_strands"] == 123
     assert rows[0]["note"] and "Pebbles" in rows[0]["note"]  # the maps still draw neither
 
 

@@ -24,8 +24,8 @@ builds instead a file of points and hair alone over the ground, for the oracle o
 core/blockers.py against Cycles: pebbles of three radii (geometry nodes' Mesh to Points
 on a grid), hair curves objects with spiral strands of a few control points each (so
 that Cycles' interpolation between them shows: one poly, one Catmull-Rom) and one
-straight strand, particle hair on a box (40 strands, tapering, leaning at random); a
-mesh box among them.
+straight strand, particle hair on a box (40 strands, tapering, leaning at random, with
+3 interpolated children each in renders); a mesh box among them.
 """
 from __future__ import annotations
 
@@ -204,6 +204,8 @@ def build_blockers(out: Path) -> None:
     fur_hair.radius_scale, fur_hair.root_radius, fur_hair.tip_radius = 0.06, 1.0, 0.3
     fur_hair.use_advanced_hair = True
     fur_hair.factor_random = 0.4  # strands that lean and cross, so their keys' curve shows
+    # Three interpolated children a strand in renders: Cycles then draws the children alone.
+    fur_hair.child_type, fur_hair.rendered_child_count, fur_hair.child_radius = "INTERPOLATED", 3, 0.3
     rounded = bpy.data.objects.new("Rounded", bpy.data.hair_curves.new("Rounded"))
     rounded.location = (-1.6, -1.4, 0.1)
     bpy.context.scene.collection.objects.link(rounded)
