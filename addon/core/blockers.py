@@ -108,36 +108,33 @@ class Strands:
         return cls(np.concatenate([p.points for p in parts]), np.concatenate([p.radii for p in parts]),
                    np.concatenate(offsets), np.concatenate([p.linear for p in parts]))
 
-    def capsules(self, pieces: int = PIECES_PER_SPAN) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
-        """(a, b, ra, rb): the strands' spans sampled into `pieces` pieces each, from a to b
+    def curve_capsules(self, k: int, pieces: int = PIECES_PER_SPAN
+                       ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        """(a, b, ra, rb): curve k's spans sampled into `pieces` pieces each, from a to b
         (K, 3) with radii ra to rb (K,). A curve of one point is a sphere (a == b)."""
-        starts, ends, r_starts, r_ends = [], [], [], []
+        lo, hi = int(self.offsets[k]), int(self.offsets[k + 1])
+        points, radii = self.points[lo:hi], self.radii[lo:hi]
+        if len(points) == 1:
+            return points, points, radii, radii
         t = np.linspace(0.0, 1.0, pieces + 1)
-        basis = catmull_rom_basis(t)  # (pieces + 1, 4)
-        straight = np.stack([np.zeros_like(t), 1.0 - t, t, np.zeros_like(t)], axis=1)
-        for k in range(len(self)):
-            lo, hi = int(self.offsets[k]), int(self.offsets[k + 1])
-            points, radii = self.points[lo:hi], self.radii[lo:hi]
-            if len(points) == 1:
-                starts.append(points)
-                ends.append(points)
-                r_starts.append(radii)
-                r_ends.append(radii)
-                continue
-            index = np.arange(len(points) - 1)
-            controls = np.stack([np.maximum(index - 1, 0), index, index + 1, np.minimum(index + 2, len(points) - 1)],
-                                axis=1)  # (S, 4): the ends repeated
-            weights = straight if self.linear[k] else basis
-            curve = np.einsum("tj,sjc->stc", weights, points[controls])  # (S, pieces + 1, 3)
-            width = np.einsum("tj,sj->st", weights, radii[controls])
-            starts.append(curve[:, :-1].reshape(-1, 3))
-            ends.append(curve[:, 1:].reshape(-1, 3))
-            r_starts.append(width[:, :-1].reshape(-1))
-            r_ends.append(width[:, 1:].reshape(-1))
-        if not starts:
+        if self.linear[k]:
+            weights = np.stack([np.zeros_like(t), 1.0 - t, t, np.zeros_like(t)], axis=1)
+        else:
+            weights = catmull_rom_basis(t)  # (pieces + 1, 4)
+        index = np.arange(len(points) - 1)
+        controls = np.stack([np.maximum(index - 1, 0), index, index + 1, np.minimum(index + 2, len(points) - 1)],
+                            axis=1)  # (S, 4): the ends repeated
+        curve = np.einsum("tj,sjc->stc", weights, points[controls])  # (S, pieces + 1, 3)
+        width = np.maximum(np.einsum("tj,sj->st", weights, radii[controls]), 0.0)
+        return (curve[:, :-1].reshape(-1, 3), curve[:, 1:].reshape(-1, 3), width[:, :-1].reshape(-1),
+                width[:, 1:].reshape(-1))
+
+    def capsules(self, pieces: int = PIECES_PER_SPAN) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        """Every curve's `curve_capsules`, concatenated."""
+        parts = [self.curve_capsules(k, pieces) for k in range(len(self))]
+        if not parts:
             return np.zeros((0, 3)), np.zeros((0, 3)), np.zeros(0), np.zeros(0)
-        return (np.concatenate(starts), np.concatenate(ends), np.maximum(np.concatenate(r_starts), 0.0),
-                np.maximum(np.concatenate(r_ends), 0.0))
+        return tuple(np.concatenate(column) for column in zip(*parts))  # type: ignore[return-value]
 
     def crossed(self, starts: np.ndarray, ends: np.ndarray, eps: float = 1e-4,
                 pieces: int = PIECES_PER_SPAN) -> np.ndarray:
@@ -147,25 +144,16 @@ class Strands:
         p = np.asarray(starts, dtype=np.float64).reshape(-1, 3)
         q = np.asarray(ends, dtype=np.float64).reshape(-1, 3)
         out = np.zeros(len(p), dtype=bool)
-        a, b, ra, rb = self.capsules(pieces)
-        if not len(a) or not len(p):
-            return out
-        first = 0
-        for k in range(len(self)):
-            points = int(self.offsets[k + 1] - self.offsets[k])
-            count = (points - 1) * pieces if points > 1 else 1  # capsules() gives a point one sphere
-            rows = slice(first, first + count)
-            first += count
-            ends_k = np.concatenate([a[rows], b[rows]])
+        for k in range(len(self) if len(p) else 0):
+            a, b, ra, rb = self.curve_capsules(k, pieces)
+            ends_k = np.concatenate([a, b])
             lo, hi = ends_k.min(axis=0), ends_k.max(axis=0)
-            centre = 0.5 * (lo + hi)
-            radius = np.full(len(p), float(np.linalg.norm(hi - lo)) * 0.5 + float(max(ra[rows].max(),
-                                                                                   rb[rows].max())))
+            centre = np.broadcast_to(0.5 * (lo + hi), p.shape)
+            reach = np.full(len(p), 0.5 * float(np.linalg.norm(hi - lo)) + float(max(ra.max(), rb.max())))
             # The segments that pass through the curve's bounding sphere: a sphere's own test.
-            centres = np.broadcast_to(centre, p.shape)
-            near = np.flatnonzero(_segment_capsule(p, q, centres, centres, radius, radius, 0.0))
+            near = np.flatnonzero(_segment_capsule(p, q, centre, centre, reach, reach, 0.0))
             if len(near):
-                out[near] |= _crossed(p[near], q[near], a[rows], b[rows], ra[rows], rb[rows], eps)
+                out[near] |= _crossed(p[near], q[near], a, b, ra, rb, eps)
         return out
 
 

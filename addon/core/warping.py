@@ -385,6 +385,22 @@ def max_shear(offsets: np.ndarray) -> float:
     return float(np.abs(np.diff(offsets, axis=0)).max() * offsets.shape[0])
 
 
+def box_stretch(scale: float, row_slope: float, row_shear: float, col_slope: float, col_shear: float) -> float:
+    """An upper bound of how much a crop of larger scale `scale` and a warp widen a box of
+    the plain map (map uv per plain uv, on the box's longer side), as footprint.warp_box
+    widens it, from each family's steepest slope and largest shear.
+
+    A plain box of side d is at most s d a side after the crop. The row warp widens it by
+    its offsets' steepest slope along the rows and by the shear across them: W <= s d
+    (1 + slope_r + shear_r). The column warp then takes the box's height and the new
+    width: H <= s d (1 + slope_c) + shear_c W. Bounding the two in turn, not their
+    product, keeps more chunks within a point sprite on a warped layer.
+    """
+    width = scale * (1.0 + row_slope + row_shear)
+    height = scale * (1.0 + col_slope) + col_shear * width
+    return max(width, height)
+
+
 def choose_window(offsets: np.ndarray, totals: np.ndarray, shear_limit: float = SHEAR_LIMIT) -> int:
     """Narrowest smoothing half-width (1, 2, 4, ... rows) that brings the shear under the limit.
 

@@ -11,7 +11,7 @@ from ..core import footprint, projection
 from ..core.frames import Layer
 from ..core.plan import REGION_SLACK, Plan, outside_region
 from ..core.scene import LightSpec
-from ..core.warping import LayerMapping, max_shear
+from ..core.warping import LayerMapping, box_stretch, max_shear
 from .frame import ShadowSettings
 from .passes.footprints import FootprintDraw
 from .passes.warp import GpuWarp
@@ -40,24 +40,16 @@ def _slopes(table: np.ndarray) -> np.ndarray:
 
 
 def map_stretch(mapping: LayerMapping) -> float:
-    """An upper bound of how much the crop and warp widen a box of the plain map (map uv
-    per plain uv, on the box's longer side), as footprint.warp_box widens it.
-
-    A plain box of side d is at most s d a side after the crop (s: its larger scale).
-    The row warp widens it by its offsets' steepest slope along the rows and by the shear
-    across them: W <= s d (1 + slope_r + shear_r). The column warp then takes the box's
-    height and the new width: H <= s d (1 + slope_c) + shear_c W. Bounding the two in turn,
-    not their product, keeps more chunks within a point sprite on a warped layer.
-    """
+    """An upper bound of how much the crop and warp widen a box of the plain map
+    (core.warping.box_stretch): from the host's tables, or from the numbers a GPU build left."""
     warp = mapping.warp
     if isinstance(warp, GpuWarp):
         return warp.stretch()  # from the shears and crop the GPU left (a small read)
     scale = float(np.max(mapping.scale))
     if warp is None:
         return scale
-    width = scale * (1.0 + float(_slopes(warp.rows).max()) + max_shear(warp.rows))
-    height = scale * (1.0 + float(_slopes(warp.cols).max())) + max_shear(warp.cols) * width
-    return max(width, height)
+    return box_stretch(scale, float(_slopes(warp.rows).max()), max_shear(warp.rows),
+                       float(_slopes(warp.cols).max()), max_shear(warp.cols))
 
 
 def _chunk_spheres(obj, light: LightSpec) -> tuple[np.ndarray, np.ndarray, np.ndarray] | None:
@@ -187,11 +179,12 @@ class RunMemo:
         """`footprint_ranges`, kept."""
         if spheres is None:
             return [draw]
-        planes = (region or {}).get("ow_region_planes")
+        region = region or {}
+        planes = region.get("ow_region_planes")
         key = (draw.key, draw.first, draw.count, *(a.tobytes() for a in spheres), layer.kind,
                np.asarray(layer.rotation).tobytes(), float(stretch), int(res), float(reach),
                None if planes is None else np.asarray(planes).tobytes(),
-               int((region or {}).get("ow_region_count", 0)), float((region or {}).get("ow_region_slack", 0.0)))
+               int(region.get("ow_region_count", 0)), float(region.get("ow_region_slack", 0.0)))
         runs = self._runs.get(key)
         if runs is None:
             if len(self._runs) >= self.MAX_ENTRIES:

@@ -51,20 +51,36 @@ def _geometry_nodes(name: str, build) -> "bpy.types.NodeTree":
     return tree
 
 
+def _node(tree, idname: str, **values):
+    """A new node of `tree`, its inputs set by name (spaces as underscores) or by index
+    (`_0`, `_1`, ...), its other properties by name."""
+    node = tree.nodes.new(idname)
+    for key, value in values.items():
+        if key.startswith("_") and key[1:].isdigit():
+            node.inputs[int(key[1:])].default_value = value
+        elif key.replace("_", " ") in node.inputs:
+            node.inputs[key.replace("_", " ")].default_value = value
+        else:
+            setattr(node, key, value)
+    return node
+
+
+def _with_radius(tree, curve, radius: float):
+    """`curve` (a socket) with every point's radius set."""
+    node = _node(tree, "GeometryNodeSetCurveRadius", Radius=radius)
+    tree.links.new(curve, node.inputs["Curve"])
+    return node.outputs["Curve"]
+
+
 def _points(tree, geometry):
-    node = tree.nodes.new("GeometryNodeMeshToPoints")
-    node.inputs["Radius"].default_value = 0.04
+    node = _node(tree, "GeometryNodeMeshToPoints", Radius=0.04)
     tree.links.new(geometry, node.inputs["Mesh"])
     return node.outputs["Points"]
 
 
 def _curve(tree, geometry):
-    node = tree.nodes.new("GeometryNodeCurvePrimitiveLine")
-    node.inputs["End"].default_value = (0.0, 0.0, 1.0)
-    radius = tree.nodes.new("GeometryNodeSetCurveRadius")
-    radius.inputs["Radius"].default_value = 0.05
-    tree.links.new(node.outputs["Curve"], radius.inputs["Curve"])
-    return radius.outputs["Curve"]
+    return _with_radius(tree, _node(tree, "GeometryNodeCurvePrimitiveLine", End=(0.0, 0.0, 1.0)).outputs["Curve"],
+                        0.05)
 
 
 def _hair(name: str, location) -> "bpy.types.Object":
@@ -79,8 +95,7 @@ def _hair(name: str, location) -> "bpy.types.Object":
 
 
 def _volume(tree, geometry):
-    node = tree.nodes.new("GeometryNodeVolumeCube")
-    return node.outputs["Volume"]
+    return _node(tree, "GeometryNodeVolumeCube").outputs["Volume"]
 
 
 def _mesh(name: str, size: float, location) -> "bpy.types.Object":
@@ -143,44 +158,27 @@ def _stage(size: tuple[int, int]) -> "bpy.types.Scene":
 
 def _spiral(tree, geometry):
     """Spiral strands: a few control points a turn, so that the curve between them shows."""
-    node = tree.nodes.new("GeometryNodeCurveSpiral")
-    node.inputs["Resolution"].default_value = 5
-    node.inputs["Rotations"].default_value = 1.5
-    node.inputs["Start Radius"].default_value = 0.5
-    node.inputs["End Radius"].default_value = 0.2
-    node.inputs["Height"].default_value = 1.2
-    radius = tree.nodes.new("GeometryNodeSetCurveRadius")
-    radius.inputs["Radius"].default_value = 0.03
-    tree.links.new(node.outputs["Curve"], radius.inputs["Curve"])
-    return radius.outputs["Curve"]
+    node = _node(tree, "GeometryNodeCurveSpiral", Resolution=5, Rotations=1.5, Start_Radius=0.5, End_Radius=0.2,
+                 Height=1.2)
+    return _with_radius(tree, node.outputs["Curve"], 0.03)
 
 
 def _catmull_rom_spiral(tree, geometry):
     """The spiral, its curve type set to Catmull-Rom (hair's own type)."""
-    kind = tree.nodes.new("GeometryNodeCurveSplineType")
-    kind.spline_type = "CATMULL_ROM"
+    kind = _node(tree, "GeometryNodeCurveSplineType", spline_type="CATMULL_ROM")
     tree.links.new(_spiral(tree, geometry), kind.inputs["Curve"])
     return kind.outputs["Curve"]
 
 
 def _grid_points(tree, geometry):
-    """A grid of points, their radius cycling through three sizes."""
-    grid = tree.nodes.new("GeometryNodeMeshGrid")
-    grid.inputs["Size X"].default_value = 2.0
-    grid.inputs["Size Y"].default_value = 1.5
-    grid.inputs["Vertices X"].default_value = 7
-    grid.inputs["Vertices Y"].default_value = 5
-    index = tree.nodes.new("GeometryNodeInputIndex")
-    modulo = tree.nodes.new("ShaderNodeMath")
-    modulo.operation = "MODULO"
-    modulo.inputs[1].default_value = 3.0
+    """A grid of points, their radius cycling through three sizes: 0.04 + 0.03 (index % 3)."""
+    grid = _node(tree, "GeometryNodeMeshGrid", Size_X=2.0, Size_Y=1.5, Vertices_X=7, Vertices_Y=5)
+    index = _node(tree, "GeometryNodeInputIndex")
+    modulo = _node(tree, "ShaderNodeMath", operation="MODULO", _1=3.0)
     tree.links.new(index.outputs[0], modulo.inputs[0])
-    scale = tree.nodes.new("ShaderNodeMath")
-    scale.operation = "MULTIPLY_ADD"
-    scale.inputs[1].default_value = 0.03
-    scale.inputs[2].default_value = 0.04
+    scale = _node(tree, "ShaderNodeMath", operation="MULTIPLY_ADD", _1=0.03, _2=0.04)
     tree.links.new(modulo.outputs[0], scale.inputs[0])
-    points = tree.nodes.new("GeometryNodeMeshToPoints")
+    points = _node(tree, "GeometryNodeMeshToPoints")
     tree.links.new(grid.outputs["Mesh"], points.inputs["Mesh"])
     tree.links.new(scale.outputs[0], points.inputs["Radius"])
     return points.outputs["Points"]
@@ -237,17 +235,16 @@ def build(out: Path) -> None:
 
     fog = _mesh("Fog", 1.0, (0.0, -1.5, 0.6))
     material, tree, output = _material("Smoke")
-    volume = tree.nodes.new("ShaderNodeVolumePrincipled")
-    volume.inputs["Density"].default_value = 1.5
+    volume = _node(tree, "ShaderNodeVolumePrincipled", Density=1.5)
     tree.links.new(volume.outputs[0], output.inputs["Volume"])
     fog.data.materials.append(material)
 
     bumps = _mesh("Bumps", 0.6, (-1.5, -1.5, 0.3))
     material, tree, output = _material("Bumpy")
-    diffuse = tree.nodes.new("ShaderNodeBsdfDiffuse")
+    diffuse = _node(tree, "ShaderNodeBsdfDiffuse")
     tree.links.new(diffuse.outputs[0], output.inputs["Surface"])
-    displace = tree.nodes.new("ShaderNodeDisplacement")
-    noise = tree.nodes.new("ShaderNodeTexNoise")
+    displace = _node(tree, "ShaderNodeDisplacement")
+    noise = _node(tree, "ShaderNodeTexNoise")
     tree.links.new(noise.outputs[0], displace.inputs["Height"])
     tree.links.new(displace.outputs[0], output.inputs["Displacement"])
     material.displacement_method = "DISPLACEMENT"

@@ -11,7 +11,8 @@ from typing import Any
 import numpy as np
 
 from ...core.errors import BackendError
-from ...core.warping import ALONG_BLUR_SHARE, FLOOR_SHARE, MAX_SLOPE, LayerMapping, Warp, WarpParams, rtw_blur
+from ...core.warping import (ALONG_BLUR_SHARE, FLOOR_SHARE, MAX_SLOPE, LayerMapping, Warp, WarpParams, box_stretch,
+                             rtw_blur)
 from ..shaders import NO_TILE, SLOTS, WARP_BUILD_PROGRAM, WARP_FAMILIES, warp_step_variant
 
 # The largest count-map side the GPU builds a warp for (the analysis' largest, 256).
@@ -142,11 +143,15 @@ class GpuWarp:
         self._warp: Warp | None = None
         self._crop: tuple[np.ndarray, np.ndarray] | None = None
 
+    def _check_current(self) -> None:
+        backend = self._backend
+        if backend.released or backend.warp_build.generation != self._generation:
+            raise BackendError("a GPU-built warp was read after a later frame replaced its tables")
+
     def _read(self) -> Warp:
         if self._warp is None:
+            self._check_current()
             backend = self._backend
-            if backend.released or backend.warp_build.generation != self._generation:
-                raise BackendError("a GPU-built warp was read after a later frame replaced its tables")
             tables, windows = [], []
             for name in TABLE_OF_FAMILY.values():
                 packed = backend.device.read(backend.warp_tables[name], "RGBA32F")
@@ -161,24 +166,19 @@ class GpuWarp:
         return self._warp
 
     def stretch(self) -> float:
-        """How much the crop and warp widen a box of the plain map (footprint_runs.map_stretch),
+        """How much the crop and warp widen a box of the plain map (core.warping.box_stretch),
         from the slopes, shears and crop scale the build left: one read of its info (a few
         hundred bytes) shared by every layer of the frame, made only for a draw that may
         use point sprites (footprint_runs.sprites_pay)."""
-        backend = self._backend
-        held = backend.warp_build
-        if backend.released or held.generation != self._generation:
-            raise BackendError("a GPU-built warp was read after a later frame replaced its tables")
+        self._check_current()
+        held = self._backend.warp_build
         if held.info_read is None or held.info_read[0] != held.generation:
-            raw = backend.device.read(held.info, "R32UI")
+            raw = self._backend.device.read(held.info, "R32UI")
             held.info_read = (held.generation, raw.astype(np.uint32).view(np.float32))
         info = held.info_read[1][self._tile]
         scale = float(max(info[INFO_CROP_SCALE], info[INFO_CROP_SCALE + 1]))
-        row_slope, col_slope = (float(info[INFO_SLOPE[family]]) for family in ("rows", "cols"))
-        row_shear, col_shear = (float(info[INFO_SHEAR[family]]) for family in ("rows", "cols"))
-        width = scale * (1.0 + row_slope + row_shear)
-        height = scale * (1.0 + col_slope) + col_shear * width
-        return max(width, height) * (1.0 + ROUNDING_ROOM)
+        return box_stretch(scale, float(info[INFO_SLOPE["rows"]]), float(info[INFO_SHEAR["rows"]]),
+                           float(info[INFO_SLOPE["cols"]]), float(info[INFO_SHEAR["cols"]])) * (1.0 + ROUNDING_ROOM)
 
     def crop(self) -> tuple[np.ndarray, np.ndarray]:
         """The layer's DV crop (lo, hi) as the GPU stored it beside the tables."""
