@@ -61,6 +61,22 @@ bool ow_outside_region(vec3 v0, vec3 v1, vec3 v2)
   return false;
 }
 
+#ifndef OW_FIXED_KIND
+// A uv box (u0, u1, v0, v1) that is not empty and meets the map (false too where not finite).
+bool ow_box_meets_map(vec4 box)
+{
+  return box.x <= box.y && box.x <= 1.0 && box.y >= 0.0 && box.z <= 1.0 && box.w >= 0.0;
+}
+
+// The clip position of the quad's `corner` over a uv box, clamped to the map.
+vec4 ow_box_corner(vec4 box, int corner)
+{
+  box = clamp(box, 0.0, 1.0);
+  vec2 uv = vec2(((corner & 1) != 0) ? box.y : box.x, ((corner & 2) != 0) ? box.w : box.z);
+  return vec4(uv * 2.0 - 1.0, 0.0, 1.0);
+}
+#endif
+
 #ifdef OW_EXACT
 #ifndef OW_FIXED_KIND
 // The exact pass over a sun's map: the edge planes that contain the light's direction
@@ -76,20 +92,6 @@ float ow_sun_edges(vec3 v0, vec3 v1, vec3 v2)
   v_edge1 = n1 * orientation;
   v_edge2 = n2 * orientation;
   return orientation;
-}
-
-// A uv box (u0, u1, v0, v1) that is not empty and meets the map (false too where not finite).
-bool ow_box_meets_map(vec4 box)
-{
-  return box.x <= box.y && box.x <= 1.0 && box.y >= 0.0 && box.z <= 1.0 && box.w >= 0.0;
-}
-
-// The clip position of the quad's `corner` over a uv box, clamped to the map.
-vec4 ow_box_corner(vec4 box, int corner)
-{
-  box = clamp(box, 0.0, 1.0);
-  vec2 uv = vec2(((corner & 1) != 0) ? box.y : box.x, ((corner & 2) != 0) ? box.w : box.z);
-  return vec4(uv * 2.0 - 1.0, 0.0, 1.0);
 }
 
 // The exact pass over a spot's or sun's map: a conservative cover of the triangle's image
@@ -138,9 +140,51 @@ vec4 ow_soft_projective_quad(vec3 v0, vec3 v1, vec3 v2, int corner, float grow)
 // The quad's corner (bit 0: high x, bit 1: high y) of each of the six vertices.
 const int OW_QUAD_CORNER[OW_FOOTPRINT_VERTICES] = int[OW_FOOTPRINT_VERTICES](0, 1, 2, 2, 1, 3);
 
+// Where vertex `corner` of a footprint goes, for its box in the layer's projection xy
+// (x0, x1, y0, y1), not empty: projection xy -> uncropped uv -> cropped uv (affine,
+// increasing) -> warped uv, grown by `ow_dilate` texels; outside the clip volume where
+// that misses the (cropped) map. As a point sprite (OW_POINTS) it also sets the size.
+vec4 ow_layer_position(vec4 box, int corner)
+{
+  vec4 crop = ow_crop_of(ow_warp_rows, ow_layer_slot, ow_warp_size, ow_crop);
+  box = (box * 0.5 + 0.5 - crop.xxyy) * crop.zzww;
+#ifndef OW_NO_WARP
+  if (ow_warp_size > 0) {
+    box = ow_warp_box(ow_warp_rows, ow_warp_cols, ow_layer_slot, ow_warp_size, box,
+                      ow_warp_shears(ow_warp_rows, ow_warp_cols, ow_layer_slot, ow_warp_size));
+  }
+#endif
+  float grow = ow_dilate / ow_resolution;
+  box += vec4(-grow, grow, -grow, grow);
+  if (box.x > 1.0 || box.y < 0.0 || box.z > 1.0 || box.w < 0.0) {
+    return vec4(2.0, 2.0, 2.0, 1.0);  // outside the (cropped) map: nothing drawn
+  }
+  box = clamp(box, 0.0, 1.0);
+#ifdef OW_POINTS
+  // The square of side extent + 1 texel around the box's centre holds the box; its
+  // centre lies in the tile, so the point is not clipped, and the scissor keeps it there.
+  gl_PointSize = min(max(box.y - box.x, box.w - box.z) * ow_resolution + 1.0, float(OW_MAX_POINT_SIZE));
+  if (corner < 0) {
+    gl_PointSize = 0.0;  // never (corners are >= 0): keeps the corner attribute in the program
+  }
+  return vec4(vec2(box.x + box.y, box.z + box.w) - 1.0, 0.0, 1.0);
+#else
+  vec2 uv = vec2(((corner & 1) != 0) ? box.y : box.x, ((corner & 2) != 0) ? box.w : box.z);
+  return vec4(uv * 2.0 - 1.0, 0.0, 1.0);
+#endif
+}
+
+#ifdef OW_PIECES
+#include "lib/footprint_piece.glsl"
+#endif
+
 void main()
 {
   int corner = OW_QUAD_CORNER[clamp(int(ow_corner + 0.5), 0, OW_FOOTPRINT_VERTICES - 1)];
+#ifdef OW_PIECES
+  ow_piece_vertex(corner);
+  return;
+#endif
 #ifdef OW_POINTS
   int base = 3 * gl_VertexID;
 #else
@@ -246,32 +290,5 @@ void main()
     gl_Position = parked;  // behind the layer's half-space, or beside the cube face
     return;
   }
-  // Projection xy -> uncropped uv -> cropped uv (affine, increasing) -> warped uv.
-  vec4 crop = ow_crop_of(ow_warp_rows, ow_layer_slot, ow_warp_size, ow_crop);
-  box = (box * 0.5 + 0.5 - crop.xxyy) * crop.zzww;
-#ifndef OW_NO_WARP
-  if (ow_warp_size > 0) {
-    box = ow_warp_box(ow_warp_rows, ow_warp_cols, ow_layer_slot, ow_warp_size, box,
-                      ow_warp_shears(ow_warp_rows, ow_warp_cols, ow_layer_slot, ow_warp_size));
-  }
-#endif
-  float grow = ow_dilate / ow_resolution;
-  box += vec4(-grow, grow, -grow, grow);
-  if (box.x > 1.0 || box.y < 0.0 || box.z > 1.0 || box.w < 0.0) {
-    gl_Position = parked;  // outside the (cropped) map
-    return;
-  }
-  box = clamp(box, 0.0, 1.0);
-#ifdef OW_POINTS
-  // The square of side extent + 1 texel around the box's centre holds the box; its
-  // centre lies in the tile, so the point is not clipped, and the scissor keeps it there.
-  gl_PointSize = min(max(box.y - box.x, box.w - box.z) * ow_resolution + 1.0, float(OW_MAX_POINT_SIZE));
-  if (corner < 0) {
-    gl_PointSize = 0.0;  // never (corners are >= 0): keeps the corner attribute in the program
-  }
-  gl_Position = vec4(vec2(box.x + box.y, box.z + box.w) - 1.0, 0.0, 1.0);
-#else
-  vec2 uv = vec2(((corner & 1) != 0) ? box.y : box.x, ((corner & 2) != 0) ? box.w : box.z);
-  gl_Position = vec4(uv * 2.0 - 1.0, 0.0, 1.0);
-#endif
+  gl_Position = ow_layer_position(box, corner);
 }

@@ -30,6 +30,9 @@ import numpy as np
 # Pieces a Catmull-Rom span is sampled into: the chord's sag below a piece is about
 # (span length)^2 * curvature / (8 * 16^2), far below a strand's radius for hair.
 PIECES_PER_SPAN = 16
+# The GPU's pieces (`Strands.capsules(adaptive=True)`): as few a span as keep the chords'
+# sag below this share of the curve's thinnest radius, at most PIECES_PER_SPAN.
+SAG_SHARE = 0.05
 
 
 @dataclass(frozen=True)
@@ -108,14 +111,17 @@ class Strands:
         return cls(np.concatenate([p.points for p in parts]), np.concatenate([p.radii for p in parts]),
                    np.concatenate(offsets), np.concatenate([p.linear for p in parts]))
 
-    def curve_capsules(self, k: int, pieces: int = PIECES_PER_SPAN
+    def curve_capsules(self, k: int, pieces: int | None = PIECES_PER_SPAN
                        ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
-        """(a, b, ra, rb): curve k's spans sampled into `pieces` pieces each, from a to b
-        (K, 3) with radii ra to rb (K,). A curve of one point is a sphere (a == b)."""
+        """(a, b, ra, rb): curve k's spans sampled into `pieces` pieces each (None: as few as
+        keep the sag below SAG_SHARE of its thinnest radius), from a to b (K, 3) with radii
+        ra to rb (K,). A curve of one point is a sphere (a == b)."""
         lo, hi = int(self.offsets[k]), int(self.offsets[k + 1])
         points, radii = self.points[lo:hi], self.radii[lo:hi]
         if len(points) == 1:
             return points, points, radii, radii
+        if pieces is None:
+            pieces = 1 if self.linear[k] else _spline_pieces(points, radii)
         t = np.linspace(0.0, 1.0, pieces + 1)
         if self.linear[k]:
             weights = np.stack([np.zeros_like(t), 1.0 - t, t, np.zeros_like(t)], axis=1)
@@ -129,7 +135,8 @@ class Strands:
         return (curve[:, :-1].reshape(-1, 3), curve[:, 1:].reshape(-1, 3), width[:, :-1].reshape(-1),
                 width[:, 1:].reshape(-1))
 
-    def capsules(self, pieces: int = PIECES_PER_SPAN) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    def capsules(self, pieces: int | None = PIECES_PER_SPAN
+                 ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
         """Every curve's `curve_capsules`, concatenated."""
         parts = [self.curve_capsules(k, pieces) for k in range(len(self))]
         if not parts:
@@ -155,6 +162,31 @@ class Strands:
             if len(near):
                 out[near] |= _crossed(p[near], q[near], a, b, ra, rb, eps)
         return out
+
+
+def _spline_pieces(points: np.ndarray, radii: np.ndarray) -> int:
+    """Pieces a span of this Catmull-Rom curve needs: a chord over a parameter step h sags
+    by at most h^2 max|C''| / 8, and on a span C'' is a mix of its four control points' two
+    second differences, with weights of absolute sum at most 3 (2, -1 at t = 0 and -1, 2
+    at t = 1, linear between)."""
+    padded = np.concatenate([points[:1], points, points[-1:]])
+    second = np.linalg.norm(padded[:-2] - 2.0 * padded[1:-1] + padded[2:], axis=1).max()
+    tolerance = SAG_SHARE * max(float(radii.min()), 1e-12)
+    return int(np.clip(np.ceil(np.sqrt(3.0 * second / (8.0 * tolerance))), 1, PIECES_PER_SPAN))
+
+
+def pieces(spheres: "Spheres | None", strands: "Strands | None", adaptive: bool = True
+           ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """(a, b, ra, rb): every sphere (a == b) and strand piece, as the GPU draws them (the
+    strands' spans in as few pieces as keep SAG_SHARE with `adaptive`)."""
+    parts = []
+    if spheres is not None and len(spheres):
+        parts.append((spheres.centres, spheres.centres, spheres.radii, spheres.radii))
+    if strands is not None and len(strands):
+        parts.append(strands.capsules(None if adaptive else PIECES_PER_SPAN))
+    if not parts:
+        return np.zeros((0, 3)), np.zeros((0, 3)), np.zeros(0), np.zeros(0)
+    return tuple(np.concatenate(column) for column in zip(*parts))  # type: ignore[return-value]
 
 
 def catmull_rom_basis(t: np.ndarray) -> np.ndarray:

@@ -4,9 +4,6 @@ The render depsgraph (`render_geometry.collect`) hands over every instance Cycle
 renders. Most become triangles. These do not, or not as Cycles renders them, and the
 rows, the report, the comparison panel and the log must say so:
 
-- **hair curves**: Curves geometry (hair objects, curves from geometry nodes on any
-  object), and **particle hair** (a mesh's hair particle system drawn as strands);
-- **point clouds**: PointCloud geometry (objects, or geometry nodes' points);
 - **volumes**: Volume geometry (OpenVDB grids, geometry nodes' volumes), and a
   **volume material** on a mesh without a surface shader (a smoke or fog box): Cycles
   renders a medium, the maps an opaque surface, and the reference a white one;
@@ -14,9 +11,11 @@ rows, the report, the comparison panel and the log must say so:
   maps draw the undisplaced triangles, and so does the reference, whose white
   materials displace nothing).
 
-The type of an instance is what geometry nodes made it, not the type of the object
-that carries it: a mesh object whose modifier outputs points gives a point cloud
-instance, named here by that object. Shadow catchers and holdouts, and see-through
+Hair curves, particle hair and point clouds are drawn (issue 42): `render_geometry`
+keeps them as strands and spheres, every method but unfold draws them, and unfold's rows
+say so (compare._row_note). The type of an instance is what geometry nodes made it, not
+the type of the object that carries it: a volume made by a mesh object's modifier is
+named here by that object. Shadow catchers and holdouts, and see-through
 materials, are the shadow rule's notes (`shadow_rule.unfollowed`).
 """
 from __future__ import annotations
@@ -32,19 +31,15 @@ log = logging.getLogger(__name__)
 
 # Each kind's note, in the order notes are given; the owners' names follow it.
 KINDS = {
-    "curves": "hair curves that Cycles shadows with, not drawn by OmniWarp's methods",
-    "particle_hair": "particle hair that Cycles shadows with, not drawn by OmniWarp's methods",
-    "points": "point clouds that Cycles shadows with, not drawn by OmniWarp's methods",
     "volume": "volumes that Cycles shadows with, not drawn by OmniWarp's methods",
     "volume_material": ("volume materials without a surface shader, a medium in Cycles, drawn as opaque "
                         "surfaces by OmniWarp's methods and white in the reference"),
     "displacement": ("true displacement, which OmniWarp's methods and the reference (its white materials "
                      "displace nothing) leave out"),
 }
-# Instance types (`Object.type` of a depsgraph instance) that give no triangles. Curves
-# that geometry nodes make on a mesh come as a legacy CURVE instance, which Cycles does
-# not render (measured on 5.2.3), so they are not named.
-_INSTANCE_KINDS = {"CURVES": "curves", "POINTCLOUD": "points", "VOLUME": "volume"}
+# Instance types (`Object.type` of a depsgraph instance) that give no triangles and that
+# no method draws; hair curves and point clouds (CURVES, POINTCLOUD) are drawn as pieces.
+_INSTANCE_KINDS = {"VOLUME": "volume"}
 
 
 @dataclass
@@ -68,9 +63,9 @@ class LeftOut:
         return out
 
 
-def scan_instance(left: LeftOut, inst: Any, materials: dict[str, tuple[str, ...]], hair: bool = True) -> None:
+def scan_instance(left: LeftOut, inst: Any, materials: dict[str, tuple[str, ...]]) -> None:
     """Record what of one depsgraph instance the methods leave out. `materials` caches
-    each material's kinds by name; `hair`: the view layer renders strands."""
+    each material's kinds by name."""
     obj = inst.object
     parent = inst.parent if inst.is_instance else None
     name = obj.original.name_full
@@ -81,8 +76,6 @@ def scan_instance(left: LeftOut, inst: Any, materials: dict[str, tuple[str, ...]
         return
     if obj.type != "MESH":
         return
-    if hair and parent is None and any(True for _ in path_hair_systems(obj)):
-        left.add("particle_hair", name)  # drawn whether or not its emitter is
     if parent is None and obj.is_instancer and not obj.original.show_instancer_for_render:
         return  # an emitter Cycles does not draw: its surface, materials and all
     for slot in getattr(obj, "material_slots", ()):

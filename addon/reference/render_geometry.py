@@ -154,7 +154,7 @@ def collect(depsgraph: Any) -> SceneTriangles:
         obj = inst.object
         if not hair and obj.type == "CURVES":
             continue
-        scan_instance(left, inst, left_materials, hair)
+        scan_instance(left, inst, left_materials)
         if obj.type in ("POINTCLOUD", "CURVES"):
             parent = inst.parent if inst.is_instance else None
             owner = Owner(obj.original.name_full, None if parent is None else parent.original.name_full)

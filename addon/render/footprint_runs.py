@@ -4,6 +4,7 @@ uniforms; plus the host's counts of what the pass keeps, for measurement."""
 from __future__ import annotations
 
 import logging
+from dataclasses import replace
 
 import numpy as np
 
@@ -191,7 +192,7 @@ class RunMemo:
                 self._runs.clear()
             runs = self._runs[key] = [(run.first, run.count, run.points) for run in
                                       footprint_ranges(draw, spheres, layer, stretch, res, region, reach)]
-        return [FootprintDraw(draw.key, first, count, draw.uniforms, points) for first, count, points in runs]
+        return [replace(draw, first=first, count=count, points=points) for first, count, points in runs]
 
 
 def footprint_ranges(draw: FootprintDraw, spheres: tuple[np.ndarray, np.ndarray, np.ndarray] | None,
@@ -221,7 +222,7 @@ def footprint_ranges(draw: FootprintDraw, spheres: tuple[np.ndarray, np.ndarray,
         first = draw.first + a * CHUNK_TRIANGLES
         count = min(b * CHUNK_TRIANGLES, total - draw.first) - a * CHUNK_TRIANGLES
         if kind != SKIP and count > 0:
-            out.append(FootprintDraw(draw.key, first, count, draw.uniforms, kind == POINTS))
+            out.append(replace(draw, first=first, count=count, points=kind == POINTS))
     return out
 
 
@@ -234,7 +235,7 @@ def footprint_draws(scene: ResidentScene, light: LightSpec) -> list[FootprintDra
             uniforms = {"ow_object_linear": obj.matrix[:3, :3], "ow_light_hi": hi, "ow_light_lo": lo}
             if obj.alpha is not None:
                 uniforms["ow_alpha_mode"] = obj.alpha.mode  # the see-through variant's
-            draws.append(FootprintDraw(key, 0, obj.triangles, uniforms))
+            draws.append(FootprintDraw(key, 0, obj.triangles, uniforms, pieces=obj.pieces))
     return draws
 
 
@@ -267,6 +268,8 @@ def _measurer(scene: ResidentScene, light: LightSpec, plan: Plan, settings: Shad
     def measure() -> tuple[int, int]:
         kept, edge_on = [], 0
         for obj in scene.objects.values():
+            if obj.pieces:
+                continue  # counts of triangles: hair and points are not among them
             tris = obj.light_centred(light.position)
             if plan.projective is None and len(tris):
                 _, orientation = footprint.edge_planes(tris, footprint.GPU_EDGE_ON,

@@ -210,9 +210,11 @@ class Projective(Parameterization):
 
     def draw(self, backend: ShadowBackend, inputs: DrawInputs) -> int:
         plan = inputs.plan
+        # A sun's parallel rays: pieces' fragments run their texel's ray from the map's near
+        # plane, not from the light (lib/footprint_ray.glsl's ow_piece_depth).
         uniforms = {**layer_uniforms(plan.drawn[0], inputs.geometry, inputs.settings.resolution,
                                      inputs.layout.origin(0), LayerMapping.identity(), 0),
-                    **inputs.region, **self.test_uniforms(plan)}
+                    **inputs.region, **self.test_uniforms(plan), "ow_sun": int(inputs.light.emission == "sun")}
         if inputs.settings.exact:
             self._draw_exact(backend, inputs, uniforms)
             return 0

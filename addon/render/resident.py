@@ -14,6 +14,11 @@ the light in a 110 m scene keeps its shape), as the host's float64 light-centrin
 What the frame needs from the scene on the host is per object, not per triangle:
 the bounding box (the depth range) and the triangle count.
 
+Hair and point clouds (issue 42) are parts of **pieces**: a piece is a sphere swept from
+a to b, its radius from ra to rb (a sphere: a == b), stored as a triangle (a, b, a)
+whose first two vertices carry ra and rb in the w of their hi texels. A strand's pieces
+are sampled from its curve once, when it is set (core/blockers.py), not per frame.
+
 See-through materials (issue 25): an object's triangles of one alpha material are a part
 of their own, which carries that `AlphaMap` and each vertex's UV (in the w of its two
 texels); the depth pass draws such a part with the alpha variant. The opaque triangles
@@ -105,6 +110,29 @@ def chunk_bounds(local: np.ndarray) -> Chunks:
     return Chunks(centres, radii, lengths.reshape(count, CHUNK_TRIANGLES).max(axis=1))
 
 
+def piece_chunks(local: np.ndarray, radii: np.ndarray) -> Chunks:
+    """`chunk_bounds` of pieces (T, 3, 3) with radii (T, 2): the spheres grown by twice the
+    chunk's largest radius (the footprint pass boxes a piece by its oriented bounding box,
+    whose corners lie within sqrt(3) r of its axis), the edges by five times it (that
+    box's diagonal is below length + (2 + 2 sqrt 2) r)."""
+    chunks = chunk_bounds(local)
+    if not len(chunks):
+        return chunks
+    count = len(chunks)
+    widest = np.asarray(radii, dtype=np.float64).max(axis=1)
+    widest = np.concatenate([widest, np.repeat(widest[-1:], count * CHUNK_TRIANGLES - len(widest))])
+    widest = widest.reshape(count, CHUNK_TRIANGLES).max(axis=1)
+    return Chunks(chunks.centres, chunks.radii + 2.0 * widest, chunks.edges + 5.0 * widest)
+
+
+def _piece_uvs(radii: np.ndarray) -> np.ndarray:
+    """(T, 3, 2): a piece's ra and rb where vertex_texels puts a triangle's UVs (u of its first
+    two vertices)."""
+    uvs = np.zeros((len(radii), 3, 2))
+    uvs[:, 0, 0], uvs[:, 1, 0] = radii[:, 0], radii[:, 1]
+    return uvs
+
+
 @dataclass
 class ResidentObject:
     """One object's triangles in its own frame, and where the frame lies in the world."""
@@ -118,12 +146,19 @@ class ResidentObject:
     chunks: Chunks | None = None
     alpha: AlphaMap | None = None  # the part's see-through material; None: opaque
     uvs: np.ndarray | None = None  # (T, 3, 2) float32 with `alpha`, in the order of `local`
+    radii: np.ndarray | None = None  # (T, 2) a part of pieces (ra, rb each); None: triangles
     _local_lo: np.ndarray = field(default_factory=lambda: np.zeros(3))
     _local_hi: np.ndarray = field(default_factory=lambda: np.zeros(3))
 
     @property
     def triangles(self) -> int:
+        """Primitives the footprint pass draws: triangles, or a part's pieces."""
         return int(len(self.local))
+
+    @property
+    def pieces(self) -> bool:
+        """Whether this part holds pieces (hair, points) rather than triangles."""
+        return self.radii is not None
 
     def offset(self, light_position: np.ndarray) -> np.ndarray:
         """Light-centred world position of the object's origin, in float64."""
@@ -161,7 +196,7 @@ class ResidentObject:
 
     def vertex_texels(self) -> np.ndarray:
         """The vertex texture: (rows, VERTEX_TEXTURE_WIDTH, 4) float32 (`vertex_texels`)."""
-        return vertex_texels(self.local, self.uvs)
+        return vertex_texels(self.local, _piece_uvs(self.radii) if self.pieces else self.uvs)
 
 
 def vertex_texels(local: np.ndarray, uvs: np.ndarray | None = None) -> np.ndarray:
@@ -261,16 +296,48 @@ class ResidentScene:
         self._parts[key] = keys
         return self.objects[key]
 
+    def set_pieces(self, key: str, a: np.ndarray, b: np.ndarray, ra: np.ndarray, rb: np.ndarray,
+                   matrix: np.ndarray | None = None) -> ResidentObject:
+        """Add or replace an object of pieces (core/blockers.pieces: spheres and strands),
+        from a (N, 3) to b with radii ra to rb (N,) in its own frame; the next frame uploads
+        them. Pieces not finite or beyond projection.MAX_COORDINATE are left out, and so
+        are those of no radius (counted as degenerate). Parts as `set_geometry`'s."""
+        matrix = self._matrix(matrix)
+        a, b = (np.asarray(x, dtype=np.float64).reshape(-1, 3) for x in (a, b))
+        radii = np.stack([np.asarray(ra, dtype=np.float64).reshape(-1), np.asarray(rb, dtype=np.float64).reshape(-1)],
+                         axis=1)
+        if not (len(a) == len(b) == len(radii)):
+            raise InputError(f"object {key!r}: {len(a)} piece starts, {len(b)} ends and {len(radii)} radii")
+        tris = np.stack([a, b, a], axis=1)
+        finite = np.all(np.isfinite(tris) & (np.abs(tris) < MAX_COORDINATE), axis=(1, 2)) \
+            & np.all(np.isfinite(radii), axis=1)
+        keep = finite & (radii.max(axis=1) > 0.0)
+        counts = SanitizeCounts(int(np.count_nonzero(~finite)), int(np.count_nonzero(finite & ~keep)))
+        chosen = np.flatnonzero(keep)
+        order = chosen[morton_order(tris[chosen])]
+        self.remove(key)
+        keys: list[str] = []
+        for start in range(0, max(len(order), 1), MAX_PART_TRIANGLES):
+            picked = order[start:start + MAX_PART_TRIANGLES]
+            part_key = key if not keys else f"{key}#{len(keys)}"
+            self._add_part(part_key, tris[picked], matrix, counts if not keys else SanitizeCounts(), None, None,
+                           np.maximum(radii[picked], 0.0))
+            keys.append(part_key)
+        self._parts[key] = keys
+        return self.objects[key]
+
     def _add_part(self, part_key: str, part: np.ndarray, matrix: np.ndarray, counts: SanitizeCounts,
-                  amap: AlphaMap | None, uvs: np.ndarray | None) -> None:
+                  amap: AlphaMap | None, uvs: np.ndarray | None, radii: np.ndarray | None = None) -> None:
         if len(part):
             lo, hi = part.reshape(-1, 3).min(axis=0), part.reshape(-1, 3).max(axis=0)
         else:
             lo = hi = np.zeros(3)
         origin = 0.5 * (lo + hi)
         local = part - origin
+        chunks = chunk_bounds(local) if radii is None else piece_chunks(local, radii)
+        grow = float(radii.max()) if radii is not None and len(radii) else 0.0  # a piece's box reaches past its axis
         self.objects[part_key] = ResidentObject(part_key, local, origin, matrix.copy(), next(_revisions), counts,
-                                                chunk_bounds(local), amap, uvs, lo - origin, hi - origin)
+                                                chunks, amap, uvs, radii, lo - origin - grow, hi - origin + grow)
         self.removed.discard(part_key)
 
     def subset(self, keys: Iterable[str]) -> "ResidentScene":
@@ -315,7 +382,13 @@ class ResidentScene:
 
     @property
     def triangles(self) -> int:
-        return sum(obj.triangles for obj in self.objects.values())
+        """Resident triangles (pieces not counted)."""
+        return sum(obj.triangles for obj in self.objects.values() if not obj.pieces)
+
+    @property
+    def pieces(self) -> int:
+        """Resident pieces of hair and points."""
+        return sum(obj.triangles for obj in self.objects.values() if obj.pieces)
 
     @property
     def skipped(self) -> int:
@@ -329,10 +402,10 @@ class ResidentScene:
         return np.min([b[0] for b in boxes], axis=0), np.max([b[1] for b in boxes], axis=0)
 
     def world_triangles(self) -> np.ndarray:
-        """All objects' triangles in world space, (T, 3, 3) float64: a host copy, for
-        measurement and the unfold method (kept until an object changes or moves)."""
+        """All objects' triangles in world space, (T, 3, 3) float64, pieces left out: a host
+        copy, for measurement and the unfold method (kept until an object changes or moves)."""
         state = tuple((key, obj.revision, obj.matrix.tobytes()) for key, obj in self.objects.items())
         if self._world is None or self._world[0] != state:
-            parts = [obj.world_triangles() for obj in self.objects.values() if obj.triangles]
+            parts = [obj.world_triangles() for obj in self.objects.values() if obj.triangles and not obj.pieces]
             self._world = (state, np.concatenate(parts) if parts else np.zeros((0, 3, 3)))
         return self._world[1]

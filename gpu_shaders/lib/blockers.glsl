@@ -1,54 +1,74 @@
-// The blockers that are not triangles, as the exact pass will test them per view sample
-// (issue 42): whether the segment from a light-centred sample p to the light (the origin)
-// meets a sphere or a strand's piece, beyond `eps` of its length from p (the receiver's
-// own surface left out, as the triangles' walk leaves it out). core/blockers.py is the
-// numpy oracle (tests/gl/test_blockers_glsl.py).
+// The blockers that are not triangles (issue 42): spheres (point clouds) and a strand's
+// pieces (capsules: a sphere swept from a to b, its radius from ra to rb), as the
+// footprint pass draws them (footprint.vert and .frag with OW_CAPSULES) and the exact
+// pass tests them per view sample. A sphere is a piece with a == b. core/blockers.py is
+// the numpy oracle (tests/gl/test_blockers_glsl.py).
 
-// The segment's point at s in [eps, 1] is p (1 - s): s = 0 at the sample, 1 at the light.
-
-// Sphere of centre c and radius r.
-bool ow_segment_sphere(vec3 p, vec3 c, float r, float eps)
+// The closest approach of the segment p + s d, s in [lo, 1], to the piece a -> b: the
+// closest points of the two segments (Ericson, Real-Time Collision Detection 5.1.9), s
+// kept in [lo, 1]. Returns (s, the squared gap, the piece's radius there).
+vec3 ow_piece_closest(vec3 p, vec3 d, vec3 a, vec3 b, float ra, float rb, float lo)
 {
-  float pp = dot(p, p);
-  if (!(pp > 0.0)) {
-    return false;
-  }
-  float s = clamp(1.0 - dot(c, p) / pp, eps, 1.0);
-  vec3 gap = p * (1.0 - s) - c;
-  return dot(gap, gap) <= r * r;
-}
-
-// A strand's piece from a to b, its radius from ra to rb along it, with sphere ends (a
-// swept sphere): the closest points of the two segments (Ericson, Real-Time Collision
-// Detection 5.1.9), the segment's parameter kept in [eps, 1], and the radius at the
-// piece's one.
-bool ow_segment_capsule(vec3 p, vec3 a, vec3 b, float ra, float rb, float eps)
-{
-  vec3 d1 = -p;
   vec3 d2 = b - a;
   vec3 r = p - a;
-  float aa = dot(d1, d1);
+  float aa = dot(d, d);
   float ee = dot(d2, d2);
   if (!(aa > 0.0)) {
-    return false;
+    return vec3(lo, dot(r, r), ra);
   }
+  float cc = dot(d, r);
+  float s;
+  float u = 0.0;
   if (!(ee > 0.0)) {
-    return ow_segment_sphere(p, a, ra, eps);
+    s = clamp(-cc / aa, lo, 1.0);  // a sphere: the segment's point closest to its centre
+  } else {
+    float bb = dot(d, d2);
+    float ff = dot(d2, r);
+    float denom = aa * ee - bb * bb;
+    s = (denom > 1e-12 * aa * ee) ? clamp((bb * ff - cc * ee) / denom, lo, 1.0) : lo;
+    u = (bb * s + ff) / ee;
+    if (u < 0.0) {
+      s = clamp(-cc / aa, lo, 1.0);
+    } else if (u > 1.0) {
+      s = clamp((bb - cc) / aa, lo, 1.0);
+    }
+    u = clamp(u, 0.0, 1.0);
   }
-  float bb = dot(d1, d2);
-  float cc = dot(d1, r);
-  float ff = dot(d2, r);
-  float denom = aa * ee - bb * bb;
-  float s = (denom > 1e-12 * aa * ee) ? clamp((bb * ff - cc * ee) / denom, eps, 1.0) : eps;
-  float u = (bb * s + ff) / ee;
-  if (u < 0.0) {
-    s = clamp(-cc / aa, eps, 1.0);
+  vec3 gap = p + s * d - (a + u * d2);
+  return vec3(s, dot(gap, gap), mix(ra, rb, u));
+}
+
+// Whether the segment p + s d, s in [eps, 1], passes within the piece's radius.
+bool ow_segment_piece(vec3 p, vec3 d, vec3 a, vec3 b, float ra, float rb, float eps)
+{
+  vec3 c = ow_piece_closest(p, d, a, b, ra, rb, eps);
+  return c.y <= c.z * c.z;
+}
+
+// The segment from a light-centred sample p to the light (the origin), from `eps` of its
+// length on, against a sphere of centre c and radius r, and against a piece.
+bool ow_segment_sphere(vec3 p, vec3 c, float r, float eps)
+{
+  return dot(p, p) > 0.0 && ow_segment_piece(p, -p, c, c, r, r, eps);
+}
+
+bool ow_segment_capsule(vec3 p, vec3 a, vec3 b, float ra, float rb, float eps)
+{
+  return dot(p, p) > 0.0 && ow_segment_piece(p, -p, a, b, ra, rb, eps);
+}
+
+// Where the segment p0 -> p1 first enters the piece, as its parameter in [0, 1], or -1
+// where it passes beside it: the closest approach less the half chord of a sphere of the
+// radius there. For a piece seen aslant that lies past the true entry (never before it),
+// which a depth map may take: what it stores only has to lie between the blocker's front
+// and what lies behind it.
+float ow_piece_entry(vec3 p0, vec3 p1, vec3 a, vec3 b, float ra, float rb)
+{
+  vec3 d = p1 - p0;
+  vec3 c = ow_piece_closest(p0, d, a, b, ra, rb, 0.0);
+  if (!(c.y <= c.z * c.z)) {
+    return -1.0;
   }
-  else if (u > 1.0) {
-    s = clamp((bb - cc) / aa, eps, 1.0);
-  }
-  u = clamp(u, 0.0, 1.0);
-  vec3 gap = p + s * d1 - (a + u * d2);
-  float radius = mix(ra, rb, u);
-  return dot(gap, gap) <= radius * radius;
+  float len = length(d);
+  return max(c.x - sqrt(max(c.z * c.z - c.y, 0.0)) / max(len, 1e-30), 0.0);
 }

@@ -67,6 +67,10 @@ void ow_exact_mark(ivec2 at, vec3 sides)
 // (ow_projective_blocks), or the segment to a point light.
 void ow_exact_entry(ivec2 at, vec3 p)
 {
+#ifdef OW_PIECES
+  ow_piece_exact_entry(at, p);  // a piece of hair or a point (lib/exact_piece.glsl)
+  return;
+#endif
 #ifdef OW_EXACT_SOFT
   ow_exact_soft_mark(p, at, textureSize(ow_positions, 0).y);
   return;

@@ -9,7 +9,7 @@ import numpy as np
 from ...core.errors import BackendError
 from ..device import Geometry, UniformValues
 from ..shaders import FOOTPRINT_PROGRAM, FOOTPRINT_VERTICES, RAY_TABLE_PROGRAM, ProgramInterface, program_variant
-from ..shaders import alpha_of, exact_variant
+from ..shaders import alpha_of, exact_variant, pieces_of
 from .atlas import layer_viewport
 
 
@@ -17,13 +17,15 @@ from .atlas import layer_viewport
 class FootprintDraw:
     """One object's triangles [first, first + count) drawn by the footprint pass, with the
     object's own uniforms (ow_object_linear, ow_light_hi, ow_light_lo); as point sprites when
-    `points` (each triangle's box is known to fit MAX_POINT_SIZE), else as quads."""
+    `points` (each triangle's box is known to fit MAX_POINT_SIZE), else as quads. A part
+    of `pieces` (hair, points) draws its pieces where a mesh draws triangles."""
 
     key: str
     first: int
     count: int
     uniforms: UniformValues
     points: bool = False
+    pieces: bool = False
 
 
 def corner_indices(triangles: int) -> np.ndarray:
@@ -72,11 +74,11 @@ def footprint_program(backend, draw: FootprintDraw, uniforms: UniformValues, exa
         raise BackendError(f"object {draw.key!r} is not resident; call sync_scene first")
     see_through = backend.alpha.see_through(draw.key)
     if exact:
-        iface = exact_variant(uniforms, points, see_through=see_through)
+        iface = exact_variant(uniforms, points, see_through=see_through, pieces=draw.pieces)
         images = backend.exact.images(iface)
     else:
         iface = program_variant(FOOTPRINT_PROGRAM, uniforms, points)
-        iface = alpha_of(iface) if see_through else iface
+        iface = pieces_of(iface) if draw.pieces else (alpha_of(iface) if see_through else iface)
         images = backend.veil.ready(backend.device, backend.atlas.layout.size) if see_through else {}
     return iface, {"ow_vertices": held[1], **backend.alpha.textures_of(draw.key)}, images
 

@@ -6,7 +6,7 @@
   defines (the codes a uniform carries among them, so no shader compares with a bare number);
 - `interfaces`: `ProgramInterface`, `ComputeInterface` and the base programs, composed from
   shared uniform groups;
-- `variants`: the variants (no warp, a fixed kind, point sprites, exact, see-through, veil,
+- `variants`: the variants (no warp, a fixed kind, point sprites, exact, see-through, pieces, veil,
   soft, exact soft, the scatter modes and the list links), from one helper and one cache;
 - `programs`: every program a backend may build.
 
@@ -28,13 +28,13 @@ from .interfaces import (ADVANCE_PROGRAM, BARRIER_PROGRAM, DEPTH_PROGRAM, EDGE_P
                          image_type, program_defines)
 from .loader import GLSL_VERSION, SHADER_DIR, expand_source, load_source
 from .programs import (ALPHA_PROGRAMS, COMPUTE_PROGRAMS, DEPTH_PLAIN_PROGRAM, EXACT_PROGRAMS, EXACT_SOFT_PROGRAMS,
-                       GBUFFER_ALPHA_PROGRAM, PROGRAMS, SHADOW_TEST_PLAIN_PROGRAM, SOFT_PROGRAMS, VARIANT_PROGRAMS,
+                       GBUFFER_ALPHA_PROGRAM, PIECES_PROGRAMS, PROGRAMS, SHADOW_TEST_PLAIN_PROGRAM, SOFT_PROGRAMS, VARIANT_PROGRAMS,
                        VEIL_PROGRAMS)
 from .variants import (ALPHA_DEFINE, ALPHA_SAMPLERS, EXACT_COUNT_DEFINE, EXACT_COUNT_KEY, EXACT_DEFINE, EXACT_IMAGES,
                        EXACT_SOFT_DEFINE, EXACT_SOFT_KEY, EXACT_SOFT_UNIFORMS, FIXED_KIND_DEFINE, FIXED_KIND_NAMES,
-                       FOOTPRINT_FILES, LINK_DEFINE, NO_WARP_DEFINE, POINTS_DEFINE, SCATTER_MODE_DEFINE, SOFT_DEFINE,
+                       FOOTPRINT_FILES, LINK_DEFINE, NO_WARP_DEFINE, PIECES_DEFINE, POINTS_DEFINE, SCATTER_MODE_DEFINE, SOFT_DEFINE,
                        SOFT_UNIFORMS, VEIL_DEFINE, VEIL_IMAGES, alpha_of, derive, exact_of, exact_soft_of,
-                       exact_variant, link_variant, program_variant, scatter_variant, soft_of, veil_of,
+                       exact_variant, link_variant, pieces_of, program_variant, scatter_variant, soft_of, veil_of,
                        warp_step_variant)
 
 __all__ = [
@@ -47,7 +47,8 @@ __all__ = [
     "FOOTPRINT_FILES", "FOOTPRINT_PROGRAM", "FOOTPRINT_VERTICES", "GBUFFER_ALPHA_PROGRAM", "GBUFFER_PROGRAM",
     "GBUFFER_SAMPLES_PROGRAM", "GLSL_VERSION", "INTERPOLATIONS", "LAYER_KINDS", "LIGHT_KINDS", "LINK_DEFINE",
     "link_variant", "load_source", "MAX_POINT_SIZE", "NO_SPLIT", "NO_SPOT", "NO_SPREAD", "NO_TILE", "NO_WARP_DEFINE",
-    "OUTLINES", "OVERLAY_MODES", "OVERLAY_PROGRAM", "PARAM_CODES", "POINTS_DEFINE", "PREVIEW_PROGRAM",
+    "OUTLINES", "OVERLAY_MODES", "OVERLAY_PROGRAM", "PARAM_CODES", "PIECES_DEFINE", "pieces_of", "PIECES_PROGRAMS",
+    "POINTS_DEFINE", "PREVIEW_PROGRAM",
     "program_defines", "program_variant", "ProgramInterface", "PROGRAMS", "RAY_TABLE_PROGRAM", "REGION_PLANES",
     "RESOLVE_PROGRAM",
     "SAMPLE_FLAGS", "SAMPLE_STATS_PROGRAM", "SCATTER_MODE_CODES", "SCATTER_MODE_DEFINE", "SCATTER_MODES",

@@ -9,7 +9,7 @@ from .interfaces import (ADVANCE_PROGRAM, BARRIER_PROGRAM, DEPTH_PROGRAM, EDGE_P
                          SHADOW_TEST_PROGRAM)
 from .variants import (VARIANT_BASES, EXACT_DEFINE, FIXED_KIND_NAMES, POINTS_DEFINE, is_footprint,
                        is_shadow_test, link_kind_variant, scatter_mode_variant, base_variant, alpha_of, exact_of,
-                       exact_soft_of, soft_of, veil_of, warp_step_variant)
+                       exact_soft_of, pieces_of, soft_of, veil_of, warp_step_variant)
 
 DEPTH_PLAIN_PROGRAM = base_variant(DEPTH_PROGRAM.name, False, None)
 SHADOW_TEST_PLAIN_PROGRAM = base_variant(SHADOW_TEST_PROGRAM.name, False, None)
@@ -24,12 +24,15 @@ EXACT_PROGRAMS = tuple(exact_of(iface, count) for iface in _FOOTPRINTS for count
 ALPHA_PROGRAMS = tuple(alpha_of(iface) for iface in _FOOTPRINTS) + tuple(
     exact_of(alpha_of(iface), count) for iface in _FOOTPRINTS for count in (False, True))
 GBUFFER_ALPHA_PROGRAM = alpha_of(GBUFFER_PROGRAM)
+PIECES_PROGRAMS = tuple(pieces_of(iface) for iface in _FOOTPRINTS) + tuple(
+    exact_of(pieces_of(iface), count) for iface in _FOOTPRINTS for count in (False, True))
 VEIL_PROGRAMS = tuple(veil_of(iface) for iface in _SHADOW_TESTS)
 SOFT_PROGRAMS = tuple(soft_of(iface) for iface in (*_SHADOW_TESTS, *VEIL_PROGRAMS))
-EXACT_SOFT_PROGRAMS = tuple(exact_soft_of(iface) for iface in (*EXACT_PROGRAMS, *ALPHA_PROGRAMS, *VARIANT_PROGRAMS)
+EXACT_SOFT_PROGRAMS = tuple(exact_soft_of(iface) for iface in (*EXACT_PROGRAMS, *ALPHA_PROGRAMS, *PIECES_PROGRAMS,
+                                                              *VARIANT_PROGRAMS)
                             if (EXACT_DEFINE in iface.defines and POINTS_DEFINE not in iface.defines)
                             or is_shadow_test(iface))
-PROGRAMS = (*VARIANT_PROGRAMS, *EXACT_PROGRAMS, *ALPHA_PROGRAMS, *VEIL_PROGRAMS, *SOFT_PROGRAMS,
+PROGRAMS = (*VARIANT_PROGRAMS, *EXACT_PROGRAMS, *ALPHA_PROGRAMS, *PIECES_PROGRAMS, *VEIL_PROGRAMS, *SOFT_PROGRAMS,
             *EXACT_SOFT_PROGRAMS, GBUFFER_ALPHA_PROGRAM, RAY_TABLE_PROGRAM, GBUFFER_PROGRAM,
             GBUFFER_SAMPLES_PROGRAM, PREVIEW_PROGRAM, OVERLAY_PROGRAM, EDGE_PROGRAM, RESOLVE_PROGRAM)
 COMPUTE_PROGRAMS = (SCATTER_PROGRAM, SAMPLE_STATS_PROGRAM, BARRIER_PROGRAM, ADVANCE_PROGRAM,

@@ -40,6 +40,9 @@ EXACT_COUNT_KEY = "ow_exact_count"  # the uniforms' key that picks the counting 
 EXACT_SOFT_DEFINE = "OW_EXACT_SOFT"
 EXACT_SOFT_KEY = "ow_exact_points"  # the uniforms' key: a sized light's point count (0: hard)
 ALPHA_DEFINE = "OW_ALPHA"
+# A part of pieces (hair, points; resident.py): the footprint pass boxes and hits swept
+# spheres instead of triangles (lib/footprint_piece.glsl, lib/exact_piece.glsl).
+PIECES_DEFINE = "OW_PIECES"
 # The veil of a map (lib/veil.glsl): the see-through crossings of each atlas texel, written
 # by the see-through footprint programs and read by the shadow test's veil variant.
 VEIL_DEFINE = "OW_VEIL"
@@ -155,14 +158,17 @@ def exact_of(base: ProgramInterface, count: bool = False) -> ProgramInterface:
                   varyings=tuple(Varying("vec3", f"v_edge_at{i}", flat=True) for i in range(3)))
 
 
-def exact_variant(uniforms: dict, points: bool = False, see_through: bool = False) -> ProgramInterface:
+def exact_variant(uniforms: dict, points: bool = False, see_through: bool = False,
+                  pieces: bool = False) -> ProgramInterface:
     """The footprint pass of the irregular z-buffer (issue 19): each fragment walks its
     texel's list of samples (link_variant) and marks those whose segment to the light the
     triangle crosses, instead of storing a depth; `see_through` for an object with alpha,
-    the counting variant when uniforms[EXACT_COUNT_KEY] is set, and the sized light's
-    (exact_soft_of) when uniforms[EXACT_SOFT_KEY] counts its points."""
+    `pieces` for a part of hair or points, the counting variant when
+    uniforms[EXACT_COUNT_KEY] is set, and the sized light's (exact_soft_of) when
+    uniforms[EXACT_SOFT_KEY] counts its points."""
     base = program_variant(FOOTPRINT_PROGRAM, uniforms, points)
-    held = exact_of(alpha_of(base) if see_through else base, bool(uniforms.get(EXACT_COUNT_KEY, 0)))
+    base = pieces_of(base) if pieces else (alpha_of(base) if see_through else base)
+    held = exact_of(base, bool(uniforms.get(EXACT_COUNT_KEY, 0)))
     if int(uniforms.get(EXACT_SOFT_KEY, 0)) > 0:
         if points:
             raise BackendError("the exact pass of a sized light draws quads: its footprints grow past a point sprite")
@@ -205,6 +211,17 @@ def alpha_of(base: ProgramInterface) -> ProgramInterface:
     return derive(base, base.name + "_alpha", defines={ALPHA_DEFINE: "1", VEIL_DEFINE: "1"}, images=VEIL_IMAGES,
                   varyings=(Varying("vec4", "v_uv01", flat=True), Varying("vec2", "v_uv2", flat=True)) + uv,
                   fragment_file=FOOTPRINT_ALPHA_FILE, **alpha)
+
+
+def pieces_of(base: ProgramInterface) -> ProgramInterface:
+    """The footprint pass's variant for a part of pieces (issue 42): each piece (a sphere
+    swept from a to b) over the box of its bounding box's image, its fragments finding
+    their ray's entry or walking their samples' segments against it. Parts of triangles
+    keep the plain programs, unchanged."""
+    if not is_footprint(base):
+        raise BackendError(f"program {base.name!r} has no pieces variant")
+    return derive(base, base.name + "_pieces", defines={PIECES_DEFINE: "1"},
+                  varyings=(Varying("vec4", "v_piece_a", flat=True), Varying("vec4", "v_piece_b", flat=True)))
 
 
 def soft_of(base: ProgramInterface) -> ProgramInterface:

@@ -1,0 +1,66 @@
+// The exact pass's test of a piece (OW_PIECES, lib/blockers.glsl) for one view sample p
+// (light-centred), for lib/exact_walk.glsl: whether the segment from p to the light meets
+// the piece more than ow_exact_eps of its length from p (the receiver's own surface left
+// out, as for triangles). A sun's segment runs from p against its direction, past the
+// piece; it must meet it more than ow_exact_eps |p| from p. A sized light
+// (OW_EXACT_SOFT) tests each of its points' segments (lib/exact_soft.glsl).
+#include "lib/blockers.glsl"
+
+// A segment towards a sun, as the parameter's scale: long enough to pass every point of
+// the piece (|a - p| <= |a| + |p|).
+float ow_piece_sun_reach(vec3 p)
+{
+  return length(p) + max(length(v_piece_a.xyz), length(v_piece_b.xyz)) + max(v_piece_a.w, v_piece_b.w) + 1.0;
+}
+
+// Whether the segment p + s d, s past `lo`, meets this fragment's piece.
+bool ow_piece_blocks(vec3 p, vec3 d, float lo)
+{
+  return ow_segment_piece(p, d, v_piece_a.xyz, v_piece_b.xyz, v_piece_a.w, v_piece_b.w, lo);
+}
+
+#ifdef OW_EXACT_SOFT
+// The light points whose segments from p meet the piece set their bits in p's words.
+void ow_piece_soft_mark(vec3 p, ivec2 at, int rows)
+{
+  OwLightView view = ow_light_view(p);
+  bool sun = int(ow_exact_light.x) == OW_LIGHT_SUN_DISK;
+  float reach = sun ? ow_piece_sun_reach(p) : 1.0;
+  float lo = sun ? ow_exact_eps * length(p) / reach : ow_exact_eps;
+  for (int w = 0; w * 32 < ow_exact_points; w++) {
+    int count = min(32, ow_exact_points - 32 * w);
+    ivec2 word_at = at + ivec2(0, w * rows);
+    uint blocked = imageLoad(ow_hits, word_at).x;  // a stale read only tests more
+    uint word = 0u;
+    for (int j = 0; j < count; j++) {
+      if (((blocked >> uint(j)) & 1u) == 0u && ow_piece_blocks(p, ow_light_segment(p, view, 32 * w + j) * reach, lo)) {
+        word |= 1u << uint(j);
+      }
+    }
+    if (word != 0u) {
+      imageAtomicOr(ow_hits, word_at, word);
+    }
+  }
+}
+#endif
+
+// Sample `at` (p) marked opaque where the piece blocks its light.
+void ow_piece_exact_entry(ivec2 at, vec3 p)
+{
+#ifdef OW_EXACT_SOFT
+  ow_piece_soft_mark(p, at, textureSize(ow_positions, 0).y);
+#else
+#ifndef OW_FIXED_KIND
+  if (ow_projective != 0 && ow_sun != 0) {
+    float reach = ow_piece_sun_reach(p);
+    if (ow_piece_blocks(p, -ow_light_axis * reach, ow_exact_eps * length(p) / reach)) {
+      imageAtomicOr(ow_hits, at, OW_HIT_OPAQUE);
+    }
+    return;
+  }
+#endif
+  if (dot(p, p) > 0.0 && ow_piece_blocks(p, -p, ow_exact_eps)) {
+    imageAtomicOr(ow_hits, at, OW_HIT_OPAQUE);
+  }
+#endif
+}
