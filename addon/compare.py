@@ -18,7 +18,7 @@ from pathlib import Path
 
 import numpy as np
 
-from .core import metrics
+from .core import blockers, metrics
 from .core import methods as method_registry
 from .core.errors import InputError
 from .core.methods import DEFAULT_METHODS
@@ -138,6 +138,7 @@ def _median_gpu_times(frames: Sequence[dict[str, float] | None]) -> dict[str, fl
 
 # The one method that does not follow see-through materials: its host-built stream has no UVs.
 UNFOLD_ALPHA_NOTE = "unfold draws see-through materials opaque (its tessellated stream carries no UVs)"
+UNFOLD_PIECES_NOTE = "unfold draws no hair or points (its tessellated stream holds triangles only)"
 HARD_SIZED_NOTE = ("the light has a size, but this method's shadows are hard (render/soft.py softens "
                    "the sphere, area and sun shapes on their lights' maps)")
 
@@ -148,10 +149,15 @@ def scene_has_alpha(scene: ResidentScene) -> bool:
 
 
 def resident_scene(ref: ReferenceData) -> ResidentScene:
-    """The reference's triangles as one resident object: build it once per reference and
-    pass it to every row, so the GPU holds the scene across rows and frames."""
-    return ResidentScene.of_triangles(ref.triangles.astype(np.float64), key=f"reference:{id(ref)}",
-                                      surface=ref.surface)
+    """The reference's triangles as one resident object, and its hair and points as one
+    object of pieces: build it once per reference and pass it to every row, so the GPU
+    holds the scene across rows and frames."""
+    scene = ResidentScene.of_triangles(ref.triangles.astype(np.float64), key=f"reference:{id(ref)}",
+                                       surface=ref.surface)
+    pieces = blockers.pieces(ref.spheres, ref.strands)
+    if len(pieces):
+        scene.set_pieces(f"reference:{id(ref)}:pieces", pieces)
+    return scene
 
 
 def run_row(pipeline: ShadowPipeline, ref: ReferenceData, preset: str, method: str, resolution: int,
@@ -191,6 +197,7 @@ def run_row(pipeline: ShadowPipeline, ref: ReferenceData, preset: str, method: s
         passes=last.passes,
         triangles_drawn=last.geometry.triangles_drawn,
         scene_triangles=scene.triangles,  # resident, after dropping non-finite and zero-area ones
+        scene_pieces=scene.pieces or None,  # hair and points, as pieces (resident.set_pieces)
         texels=last.texels,
         max_count_before=counts.max_count_before,
         max_count_after=counts.max_count_after,
@@ -223,6 +230,8 @@ def _row_note(light: LightSpec, settings: ShadowSettings, scene: ResidentScene,
     notes = list(ref.meta.get("left_out", ())) if ref is not None else []
     if settings.parameterization == "unfold" and scene_has_alpha(scene):
         notes.append(UNFOLD_ALPHA_NOTE)
+    if settings.parameterization == "unfold" and scene.pieces:
+        notes.append(UNFOLD_PIECES_NOTE)
     if light.sized and soft.sized_mode(light, settings) is soft.SizedMode.HARD:
         notes.append(HARD_SIZED_NOTE)
     return "; ".join(notes) or None

@@ -55,6 +55,7 @@ class Row(TypedDict, total=False):
     light_points: int  # the light's points a sample's shadow follows: the filter's taps or exact's
     triangles_drawn: int
     scene_triangles: int
+    scene_pieces: int  # hair and points, as the pieces the maps draw (resident.set_pieces); absent: none
     texels: int
     max_count_before: float
     max_count_after: float

@@ -16,32 +16,17 @@
 #include "lib/mapping.glsl"
 #include "lib/footprint.glsl"
 #include "lib/projective.glsl"
+#include "lib/vertex_pull.glsl"
 #ifdef OW_EXACT_SOFT
 #include "lib/soft_footprint.glsl"
 #endif
 
-// Vertex `index`, light-centred: its double-single parts (texels 2i and 2i + 1) minus the
-// light's in the object's frame, hi from hi and lo from lo, before the object's matrix
-// (resident.py). `precise` keeps the compiler from reassociating the sums.
-vec3 ow_pull(int index)
-{
-  int texel = 2 * index;
-  vec3 hi = texelFetch(ow_vertices, ivec2(texel % OW_VERTEX_WIDTH, texel / OW_VERTEX_WIDTH), 0).xyz;
-  texel += 1;
-  vec3 lo = texelFetch(ow_vertices, ivec2(texel % OW_VERTEX_WIDTH, texel / OW_VERTEX_WIDTH), 0).xyz;
-  precise vec3 local = (hi - ow_light_hi) + (lo - ow_light_lo);
-  return ow_object_linear * local;
-}
 
 #ifdef OW_ALPHA
 // Vertex `index`'s UV: u in its hi texel's w, v in its lo texel's (resident.vertex_texels).
 vec2 ow_pull_uv(int index)
 {
-  int texel = 2 * index;
-  float u = texelFetch(ow_vertices, ivec2(texel % OW_VERTEX_WIDTH, texel / OW_VERTEX_WIDTH), 0).w;
-  texel += 1;
-  float v = texelFetch(ow_vertices, ivec2(texel % OW_VERTEX_WIDTH, texel / OW_VERTEX_WIDTH), 0).w;
-  return vec2(u, v);
+  return vec2(ow_pull_w(index, false), ow_pull_w(index, true));
 }
 #endif
 

@@ -18,6 +18,7 @@ import sys
 from pathlib import Path
 
 from ..core import methods as method_registry
+from ..core.blockers import pieces
 from ..core.errors import OmniWarpError, report_error
 from ..core.scene import LightSpec
 from ..reference.data import ReferenceData
@@ -99,8 +100,13 @@ def main(argv: list[str] | None = None) -> int:
             found = render_triangles(scene, layer)
 
             def resident(keep, key) -> ResidentScene:
-                # With the see-through materials, for the G-buffer and each light's blockers.
-                return ResidentScene.of_triangles(found.select(keep), surface=found.select_surface(keep))
+                # With the see-through materials, for the G-buffer and each light's blockers,
+                # and the hair and points as pieces (the G-buffer leaves those out).
+                scene = ResidentScene.of_triangles(found.select(keep), surface=found.select_surface(keep))
+                held = pieces(found.select_spheres(keep), found.select_strands(keep))
+                if len(held):
+                    scene.set_pieces(f"pieces:{key}", held)
+                return scene
 
             rules = rules_for(scene, [name for name, _, _ in lights])
             for name, rule in rules.items():  # what blocks the light in Cycles but is not drawn

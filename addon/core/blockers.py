@@ -19,7 +19,9 @@ stores of a scene's point clouds and hair.
   where it passes within a piece's interpolated radius of the piece.
 
 A hit closer to the segment's start than `eps` of its length is left out: the receiver's
-own surface, as the exact pass leaves it out (passes/exact.EXACT_EPS).
+own surface, as the exact pass leaves it out (passes/exact.EXACT_EPS); and a segment that
+starts on a piece is never blocked by that piece (Cycles' rays skip the primitive they
+leave; a ribbon's points lie inside its tube).
 """
 from __future__ import annotations
 
@@ -33,6 +35,97 @@ PIECES_PER_SPAN = 16
 # The GPU's pieces (`Strands.capsules(adaptive=True)`): as few a span as keep the chords'
 # sag below this share of the curve's thinnest radius, at most PIECES_PER_SPAN.
 SAG_SHARE = 0.05
+
+
+@dataclass(frozen=True)
+class Pieces:
+    """Spheres swept from `a` to `b` (N, 3), their radius from `ra` to `rb` (N,), as the
+    GPU draws hair and points (a sphere: a == b), world space, float64, each of one
+    `curve` (N,) int: a strand's pieces share their strand's, a sphere has its own; a
+    curve's pieces are consecutive.
+
+    A segment that starts on a curve (within OWN_SLACK of one of its pieces' radius) is
+    never blocked by that curve: Cycles never shadows a point with the primitive it lies
+    on, and its primitive is the whole curve (Cycles packs the segment into the type, the
+    prim is the curve). Measured on tests/support/make_left_out_blend.py --blockers at
+    5.2.3: with the span as the primitive 39 (ribbons) and 9 (3D curves) of about 18,000
+    pixels differ from Cycles, with the curve 15 and 4. A ribbon's points lie inside the
+    tube, so they are on it too."""
+
+    a: np.ndarray
+    b: np.ndarray
+    ra: np.ndarray
+    rb: np.ndarray
+    curve: np.ndarray
+
+    def __post_init__(self) -> None:
+        for name in ("a", "b"):
+            object.__setattr__(self, name, np.asarray(getattr(self, name), dtype=np.float64).reshape(-1, 3))
+        for name in ("ra", "rb"):
+            object.__setattr__(self, name, np.asarray(getattr(self, name), dtype=np.float64).reshape(-1))
+        object.__setattr__(self, "curve", np.asarray(self.curve, dtype=np.int64).reshape(-1))
+        sizes = {len(getattr(self, name)) for name in _PIECE_FIELDS}
+        if len(sizes) != 1:
+            raise ValueError(f"pieces of unequal lengths: {sorted(sizes)}")
+
+    def __len__(self) -> int:
+        return len(self.ra)
+
+    @classmethod
+    def empty(cls) -> "Pieces":
+        return cls(np.zeros((0, 3)), np.zeros((0, 3)), np.zeros(0), np.zeros(0), np.zeros(0, np.int64))
+
+    @classmethod
+    def concatenate(cls, parts: "list[Pieces]") -> "Pieces":
+        """The parts in order, their curves numbered on (each part's curves stay its own)."""
+        parts = [p for p in parts if len(p)]
+        if not parts:
+            return cls.empty()
+        curves, base = [], 0
+        for part in parts:
+            curves.append(part.curve - part.curve.min() + base)
+            base = int(curves[-1].max()) + 1
+        return cls(*(np.concatenate([getattr(p, name) for p in parts]) for name in _PIECE_FIELDS[:4]),
+                   np.concatenate(curves))
+
+    def spans(self) -> tuple[np.ndarray, np.ndarray]:
+        """(first, count) (N,) each: the run of consecutive pieces of each piece's curve."""
+        n = len(self)
+        if not n:
+            return np.zeros(0, np.int64), np.zeros(0, np.int64)
+        starts = np.flatnonzero(np.r_[True, self.curve[1:] != self.curve[:-1]])
+        counts = np.diff(np.r_[starts, n])
+        run = np.repeat(np.arange(len(starts)), counts)
+        return starts[run], counts[run]
+
+    def crossed(self, starts: np.ndarray, ends: np.ndarray, eps: float = 1e-4) -> np.ndarray:
+        """(M,) whether each segment start -> end meets a piece beyond `eps` of its length
+        from the start, not of a curve it starts on."""
+        return _crossed(starts, ends, self.a, self.b, self.ra, self.rb, eps, own=self)
+
+    def holds(self, points: np.ndarray, grow: float = 1.0) -> np.ndarray:
+        """(M,) whether each point lies within `grow` times a piece's radius of it."""
+        return _held(points, self.a, self.b, self.ra * grow, self.rb * grow)
+
+    def on_curve(self, points: np.ndarray, pieces: np.ndarray) -> np.ndarray:
+        """Pairwise: whether point m lies on the curve of piece pieces[m] (within OWN_SLACK
+        of the radius of one of its pieces)."""
+        first, count = self.spans()
+        out = np.zeros(len(points), dtype=bool)
+        p = np.asarray(points, dtype=np.float64).reshape(-1, 3)
+        longest = int(count[pieces].max()) if len(pieces) else 0
+        for step in range(longest):
+            live = np.flatnonzero(~out & (step < count[pieces]))
+            if not len(live):
+                break
+            j = first[pieces[live]] + step
+            grow = 1.0 + OWN_SLACK
+            out[live] = _within(p[live], self.a[j], self.b[j], self.ra[j] * grow, self.rb[j] * grow,
+                                1e-6 * np.linalg.norm(p[live], axis=1))
+        return out
+
+
+_PIECE_FIELDS = ("a", "b", "ra", "rb", "curve")
 
 
 @dataclass(frozen=True)
@@ -62,10 +155,18 @@ class Spheres:
             return cls.empty()
         return cls(np.concatenate([p.centres for p in parts]), np.concatenate([p.radii for p in parts]))
 
+    def pieces(self) -> Pieces:
+        """Each sphere as a piece of no length, a curve of its own."""
+        return Pieces(self.centres, self.centres, self.radii, self.radii, np.arange(len(self)))
+
     def crossed(self, starts: np.ndarray, ends: np.ndarray, eps: float = 1e-4) -> np.ndarray:
         """(M,) whether each segment start -> end meets a sphere beyond `eps` of its length
-        from the start."""
-        return _crossed(starts, ends, self.centres, self.centres, self.radii, self.radii, eps)
+        from the start (not the sphere it starts on)."""
+        return self.pieces().crossed(starts, ends, eps)
+
+    def holds(self, points: np.ndarray, grow: float = 1.0) -> np.ndarray:
+        """(M,) whether each point lies on or in a sphere of `grow` times its radius."""
+        return self.pieces().holds(points, grow)
 
 
 @dataclass(frozen=True)
@@ -111,15 +212,14 @@ class Strands:
         return cls(np.concatenate([p.points for p in parts]), np.concatenate([p.radii for p in parts]),
                    np.concatenate(offsets), np.concatenate([p.linear for p in parts]))
 
-    def curve_capsules(self, k: int, pieces: int | None = PIECES_PER_SPAN
-                       ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
-        """(a, b, ra, rb): curve k's spans sampled into `pieces` pieces each (None: as few as
-        keep the sag below SAG_SHARE of its thinnest radius), from a to b (K, 3) with radii
-        ra to rb (K,). A curve of one point is a sphere (a == b)."""
+    def curve_pieces(self, k: int, pieces: int | None = PIECES_PER_SPAN) -> Pieces:
+        """Curve k's spans sampled into `pieces` pieces each (None: as few as keep the sag
+        below SAG_SHARE of its thinnest radius), all of curve 0. A curve of one point is a
+        sphere."""
         lo, hi = int(self.offsets[k]), int(self.offsets[k + 1])
         points, radii = self.points[lo:hi], self.radii[lo:hi]
         if len(points) == 1:
-            return points, points, radii, radii
+            return Spheres(points, radii).pieces()
         if pieces is None:
             pieces = 1 if self.linear[k] else _spline_pieces(points, radii)
         t = np.linspace(0.0, 1.0, pieces + 1)
@@ -132,36 +232,47 @@ class Strands:
                             axis=1)  # (S, 4): the ends repeated
         curve = np.einsum("tj,sjc->stc", weights, points[controls])  # (S, pieces + 1, 3)
         width = np.maximum(np.einsum("tj,sj->st", weights, radii[controls]), 0.0)
-        return (curve[:, :-1].reshape(-1, 3), curve[:, 1:].reshape(-1, 3), width[:, :-1].reshape(-1),
-                width[:, 1:].reshape(-1))
+        return Pieces(curve[:, :-1].reshape(-1, 3), curve[:, 1:].reshape(-1, 3), width[:, :-1].reshape(-1),
+                      width[:, 1:].reshape(-1), np.zeros(len(index) * pieces, np.int64))
 
-    def capsules(self, pieces: int | None = PIECES_PER_SPAN
-                 ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
-        """Every curve's `curve_capsules`, concatenated."""
-        parts = [self.curve_capsules(k, pieces) for k in range(len(self))]
-        if not parts:
-            return np.zeros((0, 3)), np.zeros((0, 3)), np.zeros(0), np.zeros(0)
-        return tuple(np.concatenate(column) for column in zip(*parts))  # type: ignore[return-value]
+    def pieces(self, pieces: int | None = PIECES_PER_SPAN) -> Pieces:
+        """Every curve's `curve_pieces`, concatenated."""
+        return Pieces.concatenate([self.curve_pieces(k, pieces) for k in range(len(self))])
+
+    def holds(self, points: np.ndarray, grow: float = 1.0, pieces: int | None = PIECES_PER_SPAN) -> np.ndarray:
+        """(M,) whether each point lies on or in a strand of `grow` times its radius."""
+        return self.pieces(pieces).holds(points, grow)
 
     def crossed(self, starts: np.ndarray, ends: np.ndarray, eps: float = 1e-4,
-                pieces: int = PIECES_PER_SPAN) -> np.ndarray:
+                pieces: int | None = PIECES_PER_SPAN) -> np.ndarray:
         """(M,) whether each segment start -> end meets a strand beyond `eps` of its length
-        from the start. Each curve's pieces are tested only against the segments that pass
-        through its bounding sphere."""
+        from the start (not the span it starts on). Each curve's pieces are tested only
+        against the segments that pass through its bounding sphere."""
         p = np.asarray(starts, dtype=np.float64).reshape(-1, 3)
         q = np.asarray(ends, dtype=np.float64).reshape(-1, 3)
         out = np.zeros(len(p), dtype=bool)
         for k in range(len(self) if len(p) else 0):
-            a, b, ra, rb = self.curve_capsules(k, pieces)
-            ends_k = np.concatenate([a, b])
+            part = self.curve_pieces(k, pieces)
+            ends_k = np.concatenate([part.a, part.b])
             lo, hi = ends_k.min(axis=0), ends_k.max(axis=0)
             centre = np.broadcast_to(0.5 * (lo + hi), p.shape)
-            reach = np.full(len(p), 0.5 * float(np.linalg.norm(hi - lo)) + float(max(ra.max(), rb.max())))
+            reach = np.full(len(p), 0.5 * float(np.linalg.norm(hi - lo)) + float(max(part.ra.max(), part.rb.max())))
             # The segments that pass through the curve's bounding sphere: a sphere's own test.
-            near = np.flatnonzero(_segment_capsule(p, q, centre, centre, reach, reach, 0.0))
+            near = np.flatnonzero(_segment_capsule(p, q, centre, centre, reach, reach, 0.0, own=False))
             if len(near):
-                out[near] |= _crossed(p[near], q[near], a, b, ra, rb, eps)
+                out[near] |= part.crossed(p[near], q[near], eps)
         return out
+
+
+def pieces(spheres: "Spheres | None", strands: "Strands | None", adaptive: bool = True) -> Pieces:
+    """Every sphere and strand piece, as the GPU draws them (the strands' spans in as few
+    pieces as keep SAG_SHARE with `adaptive`)."""
+    parts = []
+    if spheres is not None and len(spheres):
+        parts.append(spheres.pieces())
+    if strands is not None and len(strands):
+        parts.append(strands.pieces(None if adaptive else PIECES_PER_SPAN))
+    return Pieces.concatenate(parts)
 
 
 def _spline_pieces(points: np.ndarray, radii: np.ndarray) -> int:
@@ -173,20 +284,6 @@ def _spline_pieces(points: np.ndarray, radii: np.ndarray) -> int:
     second = np.linalg.norm(padded[:-2] - 2.0 * padded[1:-1] + padded[2:], axis=1).max()
     tolerance = SAG_SHARE * max(float(radii.min()), 1e-12)
     return int(np.clip(np.ceil(np.sqrt(3.0 * second / (8.0 * tolerance))), 1, PIECES_PER_SPAN))
-
-
-def pieces(spheres: "Spheres | None", strands: "Strands | None", adaptive: bool = True
-           ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
-    """(a, b, ra, rb): every sphere (a == b) and strand piece, as the GPU draws them (the
-    strands' spans in as few pieces as keep SAG_SHARE with `adaptive`)."""
-    parts = []
-    if spheres is not None and len(spheres):
-        parts.append((spheres.centres, spheres.centres, spheres.radii, spheres.radii))
-    if strands is not None and len(strands):
-        parts.append(strands.capsules(None if adaptive else PIECES_PER_SPAN))
-    if not parts:
-        return np.zeros((0, 3)), np.zeros((0, 3)), np.zeros(0), np.zeros(0)
-    return tuple(np.concatenate(column) for column in zip(*parts))  # type: ignore[return-value]
 
 
 def catmull_rom_basis(t: np.ndarray) -> np.ndarray:
@@ -201,12 +298,18 @@ def catmull_rom_basis(t: np.ndarray) -> np.ndarray:
 # Segment pairs tested at once (memory: a few arrays of this many float64).
 _BATCH = 4_000_000
 
+# A point within this share of a piece's radius beyond it lies on its curve: above
+# SAG_SHARE, so that a point on Cycles' curve lies on the pieces drawn for it.
+OWN_SLACK = 0.1
+
 
 def _crossed(starts: np.ndarray, ends: np.ndarray, a: np.ndarray, b: np.ndarray, ra: np.ndarray,
-             rb: np.ndarray, eps: float) -> np.ndarray:
+             rb: np.ndarray, eps: float, own: "Pieces | bool" = True) -> np.ndarray:
     """(M,) whether segment m (starts -> ends) passes within the radius of capsule k (a -> b,
-    radius from ra to rb along it) at a point beyond `eps` of its length from its start.
-    Each capsule is first tested against the bounding sphere of each segment."""
+    radius from ra to rb along it) at a point beyond `eps` of its length from its start,
+    and does not start on it: on capsule k grown by OWN_SLACK (`own` True), on its curve
+    (`own` the Pieces that a..rb are: Pieces.on_curve), or anywhere (False). Each capsule
+    is first tested against the bounding sphere of each segment."""
     p = np.asarray(starts, dtype=np.float64).reshape(-1, 3)
     q = np.asarray(ends, dtype=np.float64).reshape(-1, 3)
     out = np.zeros(len(p), dtype=bool)
@@ -221,15 +324,21 @@ def _crossed(starts: np.ndarray, ends: np.ndarray, a: np.ndarray, b: np.ndarray,
         m, k = np.nonzero(near)
         if not len(m):
             continue
-        hit = _segment_capsule(p[rows][m], q[rows][m], a[k], b[k], ra[k], rb[k], eps)
-        out[first + np.unique(m[hit])] = True
+        by_curve = isinstance(own, Pieces)
+        hit = _segment_capsule(p[rows][m], q[rows][m], a[k], b[k], ra[k], rb[k], eps, own=False if by_curve else own)
+        m, k = m[hit], k[hit]
+        if by_curve and len(m):
+            keep = ~own.on_curve(p[rows][m], k)
+            m = m[keep]
+        out[first + np.unique(m)] = True
     return out
 
 
-def _segment_capsule(p, q, a, b, ra, rb, eps):
+def _segment_capsule(p, q, a, b, ra, rb, eps, own: bool = True):
     """Pairwise: segment p -> q, from `eps` of its length on, within the capsule a -> b
     (radius ra -> rb along it, sphere ends). The closest points of the two segments
-    (Ericson, Real-Time Collision Detection 5.1.9) and the radius at the capsule's one."""
+    (Ericson, Real-Time Collision Detection 5.1.9) and the radius at the capsule's one.
+    Not where p lies on the capsule (grown by OWN_SLACK) with `own`."""
     d1, d2, r = q - p, b - a, p - a
     aa = np.einsum("ij,ij->i", d1, d1)
     ee = np.einsum("ij,ij->i", d2, d2)
@@ -249,4 +358,36 @@ def _segment_capsule(p, q, a, b, ra, rb, eps):
         u = np.clip(u, 0.0, 1.0)
     gap = p + s[:, None] * d1 - (a + u[:, None] * d2)
     radius = ra + u * (rb - ra)
-    return np.einsum("ij,ij->i", gap, gap) <= radius * radius
+    hit = np.einsum("ij,ij->i", gap, gap) <= radius * radius
+    if own:
+        grow = 1.0 + OWN_SLACK
+        hit &= ~_within(p, a, b, ra * grow, rb * grow, 1e-6 * np.linalg.norm(p, axis=1))
+    return hit
+
+
+def _within(p, a, b, ra, rb, slack=0.0):
+    """Pairwise: whether p lies within the capsule a -> b (radius ra -> rb along it) grown
+    by `slack`."""
+    d2 = b - a
+    ee = np.einsum("ij,ij->i", d2, d2)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        u = np.where(ee > 0.0, np.clip(np.einsum("ij,ij->i", p - a, d2) / np.where(ee > 0.0, ee, 1.0), 0.0, 1.0), 0.0)
+    gap = p - (a + u[:, None] * d2)
+    reach = ra + u * (rb - ra) + slack
+    return np.einsum("ij,ij->i", gap, gap) <= reach * reach
+
+
+def _held(points: np.ndarray, a: np.ndarray, b: np.ndarray, ra: np.ndarray, rb: np.ndarray) -> np.ndarray:
+    """(M,) whether each point lies within one of the capsules."""
+    p = np.asarray(points, dtype=np.float64).reshape(-1, 3)
+    out = np.zeros(len(p), dtype=bool)
+    if not len(p) or not len(a):
+        return out
+    c_mid, c_half = 0.5 * (a + b), 0.5 * np.linalg.norm(b - a, axis=1) + np.maximum(ra, rb)
+    step = max(1, _BATCH // len(a))
+    for first in range(0, len(p), step):
+        rows = slice(first, first + step)
+        m, k = np.nonzero(np.linalg.norm(p[rows, None, :] - c_mid[None], axis=2) <= c_half[None] + 1e-9)
+        if len(m):
+            out[first + np.unique(m[_within(p[rows][m], a[k], b[k], ra[k], rb[k])])] = True
+    return out

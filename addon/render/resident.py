@@ -14,10 +14,11 @@ the light in a 110 m scene keeps its shape), as the host's float64 light-centrin
 What the frame needs from the scene on the host is per object, not per triangle:
 the bounding box (the depth range) and the triangle count.
 
-Hair and point clouds (issue 42) are parts of **pieces**: a piece is a sphere swept from
-a to b, its radius from ra to rb (a sphere: a == b), stored as a triangle (a, b, a)
-whose first two vertices carry ra and rb in the w of their hi texels. A strand's pieces
-are sampled from its curve once, when it is set (core/blockers.py), not per frame.
+Hair and point clouds (issue 42) are parts of **pieces** (core/blockers.Pieces): a piece
+is a sphere swept from a to b, its radius from ra to rb (a sphere: a == b), stored as a
+triangle (a, b, a) whose texels' w carry ra, rb and the run of pieces of its curve
+(`_piece_uvs`: the exact pass leaves a sample on a curve unshadowed by it). A strand's
+pieces are sampled from its curve once, when it is set, not per frame.
 
 See-through materials (issue 25): an object's triangles of one alpha material are a part
 of their own, which carries that `AlphaMap` and each vertex's UV (in the w of its two
@@ -35,6 +36,7 @@ from itertools import count
 import numpy as np
 
 from ..core.alpha import AlphaMap, Surface
+from ..core.blockers import Pieces
 from ..core.errors import InputError
 from ..core.projection import MAX_COORDINATE
 from .shaders import VERTEX_TEXTURE_WIDTH
@@ -115,7 +117,7 @@ def piece_chunks(local: np.ndarray, radii: np.ndarray) -> Chunks:
     chunk's largest radius (the footprint pass boxes a piece by its oriented bounding box,
     whose corners lie within sqrt(3) r of its axis), the edges by five times it (that
     box's diagonal is below length + (2 + 2 sqrt 2) r)."""
-    chunks = chunk_bounds(local)
+    chunks = chunk_bounds(np.asarray(local)[:, [0, 1, 0]])  # the axis a -> b (the third vertex is own_a)
     if not len(chunks):
         return chunks
     count = len(chunks)
@@ -125,11 +127,13 @@ def piece_chunks(local: np.ndarray, radii: np.ndarray) -> Chunks:
     return Chunks(chunks.centres, chunks.radii + 2.0 * widest, chunks.edges + 5.0 * widest)
 
 
-def _piece_uvs(radii: np.ndarray) -> np.ndarray:
-    """(T, 3, 2): a piece's ra and rb where vertex_texels puts a triangle's UVs (u of its first
-    two vertices)."""
-    uvs = np.zeros((len(radii), 3, 2))
-    uvs[:, 0, 0], uvs[:, 1, 0] = radii[:, 0], radii[:, 1]
+def _piece_uvs(extra: np.ndarray) -> np.ndarray:
+    """(T, 3, 2): a piece's ra, rb and its curve's run (first, count) where vertex_texels
+    puts a triangle's UVs: (ra, first), (rb, count), (0, 0), the w of the hi and lo texels
+    of its three vertices (lib/vertex_pull.glsl reads them so; indices below 2^21 are exact
+    in float32)."""
+    uvs = np.zeros((len(extra), 3, 2))
+    uvs[:, :2, :] = np.asarray(extra, dtype=np.float64)[:, [0, 2, 1, 3]].reshape(-1, 2, 2)
     return uvs
 
 
@@ -146,7 +150,9 @@ class ResidentObject:
     chunks: Chunks | None = None
     alpha: AlphaMap | None = None  # the part's see-through material; None: opaque
     uvs: np.ndarray | None = None  # (T, 3, 2) float32 with `alpha`, in the order of `local`
-    radii: np.ndarray | None = None  # (T, 2) a part of pieces (ra, rb each); None: triangles
+    # A part of pieces: (T, 4) ra, rb, and the first index and count of the run of the
+    # part's pieces that make its curve (core/blockers.Pieces); None: triangles.
+    radii: np.ndarray | None = None
     _local_lo: np.ndarray = field(default_factory=lambda: np.zeros(3))
     _local_hi: np.ndarray = field(default_factory=lambda: np.zeros(3))
 
@@ -296,32 +302,40 @@ class ResidentScene:
         self._parts[key] = keys
         return self.objects[key]
 
-    def set_pieces(self, key: str, a: np.ndarray, b: np.ndarray, ra: np.ndarray, rb: np.ndarray,
-                   matrix: np.ndarray | None = None) -> ResidentObject:
-        """Add or replace an object of pieces (core/blockers.pieces: spheres and strands),
-        from a (N, 3) to b with radii ra to rb (N,) in its own frame; the next frame uploads
-        them. Pieces not finite or beyond projection.MAX_COORDINATE are left out, and so
-        are those of no radius (counted as degenerate). Parts as `set_geometry`'s."""
+    def set_pieces(self, key: str, pieces: Pieces, matrix: np.ndarray | None = None) -> ResidentObject:
+        """Add or replace an object of pieces (core/blockers.Pieces: hair and points) in its
+        own frame; the next frame uploads them. Pieces not finite or beyond
+        projection.MAX_COORDINATE are left out, and so are those of no radius (counted as
+        degenerate). Curves are stored whole and together, in the Morton order of their
+        first points (so a chunk is a compact cluster of curves); parts as `set_geometry`'s."""
         matrix = self._matrix(matrix)
-        a, b = (np.asarray(x, dtype=np.float64).reshape(-1, 3) for x in (a, b))
-        radii = np.stack([np.asarray(ra, dtype=np.float64).reshape(-1), np.asarray(rb, dtype=np.float64).reshape(-1)],
-                         axis=1)
-        if not (len(a) == len(b) == len(radii)):
-            raise InputError(f"object {key!r}: {len(a)} piece starts, {len(b)} ends and {len(radii)} radii")
-        tris = np.stack([a, b, a], axis=1)
+        tris = np.stack([pieces.a, pieces.b, pieces.a], axis=1)
+        radii = np.column_stack([pieces.ra, pieces.rb])
         finite = np.all(np.isfinite(tris) & (np.abs(tris) < MAX_COORDINATE), axis=(1, 2)) \
             & np.all(np.isfinite(radii), axis=1)
         keep = finite & (radii.max(axis=1) > 0.0)
         counts = SanitizeCounts(int(np.count_nonzero(~finite)), int(np.count_nonzero(finite & ~keep)))
         chosen = np.flatnonzero(keep)
-        order = chosen[morton_order(tris[chosen])]
+        kept = Pieces(pieces.a[chosen], pieces.b[chosen], pieces.ra[chosen], pieces.rb[chosen], pieces.curve[chosen])
+        first, count = kept.spans()
+        heads = np.flatnonzero(first == np.arange(len(kept)))
+        runs = heads[morton_order(tris[chosen][heads])]
+        order = np.concatenate([np.arange(h, h + count[h]) for h in runs]) if len(runs) else np.zeros(0, np.int64)
+        kept = Pieces(kept.a[order], kept.b[order], kept.ra[order], kept.rb[order], kept.curve[order])
+        first, count = kept.spans()
         self.remove(key)
         keys: list[str] = []
-        for start in range(0, max(len(order), 1), MAX_PART_TRIANGLES):
-            picked = order[start:start + MAX_PART_TRIANGLES]
+        for start in range(0, max(len(kept), 1), MAX_PART_TRIANGLES):
+            end = min(start + MAX_PART_TRIANGLES, len(kept))
             part_key = key if not keys else f"{key}#{len(keys)}"
-            self._add_part(part_key, tris[picked], matrix, counts if not keys else SanitizeCounts(), None, None,
-                           np.maximum(radii[picked], 0.0))
+            # Each piece's curve as the run of the part's pieces it lies in (a curve cut by
+            # the part's end keeps its part's share).
+            lo = np.maximum(first[start:end], start)
+            hi = np.minimum(first[start:end] + count[start:end], end)
+            extra = np.column_stack([np.maximum(kept.ra[start:end], 0.0), np.maximum(kept.rb[start:end], 0.0),
+                                     lo - start, hi - lo])
+            self._add_part(part_key, np.stack([kept.a[start:end], kept.b[start:end], kept.a[start:end]], axis=1),
+                           matrix, counts if not keys else SanitizeCounts(), None, None, extra)
             keys.append(part_key)
         self._parts[key] = keys
         return self.objects[key]
@@ -334,8 +348,8 @@ class ResidentScene:
             lo = hi = np.zeros(3)
         origin = 0.5 * (lo + hi)
         local = part - origin
-        chunks = chunk_bounds(local) if radii is None else piece_chunks(local, radii)
-        grow = float(radii.max()) if radii is not None and len(radii) else 0.0  # a piece's box reaches past its axis
+        chunks = chunk_bounds(local) if radii is None else piece_chunks(local, radii[:, :2])
+        grow = float(radii[:, :2].max()) if radii is not None and len(radii) else 0.0  # boxes reach past the axis
         self.objects[part_key] = ResidentObject(part_key, local, origin, matrix.copy(), next(_revisions), counts,
                                                 chunks, amap, uvs, radii, lo - origin - grow, hi - origin + grow)
         self.removed.discard(part_key)

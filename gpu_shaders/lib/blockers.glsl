@@ -38,6 +38,18 @@ vec3 ow_piece_closest(vec3 p, vec3 d, vec3 a, vec3 b, float ra, float rb, float 
   return vec3(s, dot(gap, gap), mix(ra, rb, u));
 }
 
+// Whether p lies within the piece a -> b (radius ra -> rb along it), grown by float32's
+// rounding of p (core/blockers._within).
+bool ow_within(vec3 p, vec3 a, vec3 b, float ra, float rb)
+{
+  vec3 d2 = b - a;
+  float ee = dot(d2, d2);
+  float u = (ee > 0.0) ? clamp(dot(p - a, d2) / ee, 0.0, 1.0) : 0.0;
+  vec3 gap = p - (a + u * d2);
+  float reach = mix(ra, rb, u) + 1e-6 * length(p);
+  return dot(gap, gap) <= reach * reach;
+}
+
 // Whether the segment p + s d, s in [eps, 1], passes within the piece's radius.
 bool ow_segment_piece(vec3 p, vec3 d, vec3 a, vec3 b, float ra, float rb, float eps)
 {
@@ -46,29 +58,32 @@ bool ow_segment_piece(vec3 p, vec3 d, vec3 a, vec3 b, float ra, float rb, float 
 }
 
 // The segment from a light-centred sample p to the light (the origin), from `eps` of its
-// length on, against a sphere of centre c and radius r, and against a piece.
+// length on, against a sphere of centre c and radius r, and against a piece; not where p
+// lies in it, grown by OW_OWN_SLACK (its own region: Cycles never shadows a point with
+// the primitive it lies on). core/blockers._segment_capsule's default.
 bool ow_segment_sphere(vec3 p, vec3 c, float r, float eps)
 {
-  return dot(p, p) > 0.0 && ow_segment_piece(p, -p, c, c, r, r, eps);
+  float own = r * (1.0 + OW_OWN_SLACK);
+  return dot(p, p) > 0.0 && !ow_within(p, c, c, own, own) && ow_segment_piece(p, -p, c, c, r, r, eps);
 }
 
 bool ow_segment_capsule(vec3 p, vec3 a, vec3 b, float ra, float rb, float eps)
 {
-  return dot(p, p) > 0.0 && ow_segment_piece(p, -p, a, b, ra, rb, eps);
+  float grow = 1.0 + OW_OWN_SLACK;
+  return dot(p, p) > 0.0 && !ow_within(p, a, b, ra * grow, rb * grow) && ow_segment_piece(p, -p, a, b, ra, rb, eps);
 }
 
-// Where the segment p0 -> p1 first enters the piece, as its parameter in [0, 1], or -1
-// where it passes beside it: the closest approach less the half chord of a sphere of the
-// radius there. For a piece seen aslant that lies past the true entry (never before it),
-// which a depth map may take: what it stores only has to lie between the blocker's front
-// and what lies behind it.
-float ow_piece_entry(vec3 p0, vec3 p1, vec3 a, vec3 b, float ra, float rb)
+// Where the segment p0 -> p1 passes through the piece, as its parameters in [0, 1]
+// (entry, exit), or (-1, -1) where it passes beside it: the closest approach less and plus
+// the half chord of a sphere of the radius there. For a piece seen aslant both lie
+// between the true entry and exit.
+vec2 ow_piece_span(vec3 p0, vec3 p1, vec3 a, vec3 b, float ra, float rb)
 {
   vec3 d = p1 - p0;
   vec3 c = ow_piece_closest(p0, d, a, b, ra, rb, 0.0);
   if (!(c.y <= c.z * c.z)) {
-    return -1.0;
+    return vec2(-1.0);
   }
-  float len = length(d);
-  return max(c.x - sqrt(max(c.z * c.z - c.y, 0.0)) / max(len, 1e-30), 0.0);
+  float half_chord = sqrt(max(c.z * c.z - c.y, 0.0)) / max(length(d), 1e-30);
+  return vec2(max(c.x - half_chord, 0.0), min(c.x + half_chord, 1.0));
 }

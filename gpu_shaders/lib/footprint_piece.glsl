@@ -1,5 +1,5 @@
 // The footprint pass's vertex stage for pieces (OW_PIECES: resident.py's parts of hair and
-// points), included by footprint.vert after its helpers (ow_pull, ow_layer_position,
+// points), included by footprint.vert after its helpers (ow_layer_position,
 // ow_box_corner). A piece is a sphere swept from a to b, its radius from ra to rb; its
 // fragments find their texel's ray's entry into it (lib/footprint_ray.glsl's
 // ow_piece_depth) or walk the texel's samples (lib/exact_piece.glsl).
@@ -14,15 +14,6 @@
 const ivec3 OW_BOX_FACES[12] = ivec3[12](ivec3(0, 2, 6), ivec3(0, 6, 4), ivec3(1, 5, 7), ivec3(1, 7, 3),
                                          ivec3(0, 4, 5), ivec3(0, 5, 1), ivec3(2, 3, 7), ivec3(2, 7, 6),
                                          ivec3(0, 1, 3), ivec3(0, 3, 2), ivec3(4, 6, 7), ivec3(4, 7, 5));
-
-// A piece's radius at vertex `index`: the w of its hi texel (resident._piece_uvs), times the
-// object's largest axis scale (a bound under a non-uniform scale).
-float ow_pull_radius(int index)
-{
-  int texel = 2 * index;
-  float r = texelFetch(ow_vertices, ivec2(texel % OW_VERTEX_WIDTH, texel / OW_VERTEX_WIDTH), 0).w;
-  return r * max(length(ow_object_linear[0]), max(length(ow_object_linear[1]), length(ow_object_linear[2])));
-}
 
 // One face triangle's box: in the layer's projection xy, or in a projective map's uv.
 vec4 ow_piece_face_box(vec3 t0, vec3 t1, vec3 t2, float soft_grow)
@@ -107,11 +98,13 @@ void ow_piece_vertex(int corner)
 #endif
   vec3 a = ow_pull(base);
   vec3 b = ow_pull(base + 1);
-  float ra = ow_pull_radius(base);
-  float rb = ow_pull_radius(base + 1);
+  float ra = ow_object_length(ow_pull_w(base, false));
+  float rb = ow_object_length(ow_pull_w(base + 1, false));
   float r = max(ra, rb);
   v_piece_a = vec4(a, ra);
   v_piece_b = vec4(b, rb);
+  // Its curve's run of pieces (lib/exact_piece.glsl leaves a sample on the curve unshadowed).
+  v_piece_curve = vec2(ow_pull_w(base, true), ow_pull_w(base + 1, true));
   // The triangles' flat inputs: unused by a piece's fragments, written all the same.
   v_plane = vec4(0.0);
   v_edge0 = vec3(0.0);

@@ -47,12 +47,14 @@ float ow_footprint_depth(vec3 dir)
 #ifdef OW_PIECES
 #include "lib/blockers.glsl"
 
-// A piece's normalised depth at this texel (OW_PIECES): where the texel's ray first enters
-// it (lib/blockers.glsl's ow_piece_entry, never in front of the true entry); the fragment
-// is discarded where the ray passes beside it. A layer's ray runs from the light to twice
-// the far distance; a spot's from the light through the map's far plane, a sun's from the
-// map's near plane to its far one, and the depth is the map's own there (an inverted PSM's
-// kept farthest, as ow_projective_z01 keeps it).
+// A piece's normalised depth at this texel (OW_PIECES): where the texel's ray leaves it
+// (lib/blockers.glsl's ow_piece_span); the fragment is discarded where the ray passes
+// beside it. The far side, not the near one (second-depth shadow maps, Wang and Molnar
+// 1994): a point on a strand or a point cloud's sphere is never shadowed by its own
+// primitive in Cycles, and a point on the far side faces away from the light. A layer's
+// ray runs from the light to twice the far distance; a spot's from the light through the
+// map's far plane, a sun's from the map's near plane to its far one, and the depth is the
+// map's own there (an inverted PSM's kept farthest, as ow_projective_z01 keeps it).
 float ow_piece_depth()
 {
   vec3 a = v_piece_a.xyz;
@@ -65,11 +67,11 @@ float ow_piece_depth()
     vec4 far_point = to_light * vec4(ndc, 1.0, 1.0);
     vec3 p1 = far_point.xyz / far_point.w;
     vec3 p0 = (ow_sun != 0) ? near_point.xyz / near_point.w : vec3(0.0);
-    float s = ow_piece_entry(p0, p1, a, b, v_piece_a.w, v_piece_b.w);
-    if (s < 0.0) {
+    vec2 span = ow_piece_span(p0, p1, a, b, v_piece_a.w, v_piece_b.w);
+    if (span.x < 0.0) {
       discard;
     }
-    vec4 clip = ow_map_matrix * vec4(mix(p0, p1, s), 1.0);
+    vec4 clip = ow_map_matrix * vec4(mix(p0, p1, span.y), 1.0);
     if (!(clip.w > 0.0)) {
       discard;
     }
@@ -79,10 +81,10 @@ float ow_piece_depth()
 #endif
   vec3 dir = normalize(ow_texel_ray());
   float reach = 2.0 * ow_far;
-  float s = ow_piece_entry(vec3(0.0), dir * reach, a, b, v_piece_a.w, v_piece_b.w);
-  if (s < 0.0) {
+  vec2 span = ow_piece_span(vec3(0.0), dir * reach, a, b, v_piece_a.w, v_piece_b.w);
+  if (span.x < 0.0) {
     discard;
   }
-  return clamp((s * reach - ow_near) / (ow_far - ow_near), 0.0, 1.0);
+  return clamp((span.y * reach - ow_near) / (ow_far - ow_near), 0.0, 1.0);
 }
 #endif

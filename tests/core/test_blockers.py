@@ -35,13 +35,29 @@ def test_a_sphere_blocks_the_segments_that_pass_within_its_radius():
     assert tilted.tolist() == [True]
 
 
-def test_the_receivers_own_sphere_is_left_out_near_the_start():
-    """A sample on the sphere's surface, its light straight away from the sphere: not
-    shadowed; behind it (the light on the far side): shadowed."""
-    spheres = Spheres([[0.0, 0.0, 0.0]], [1.0])
+def test_the_receivers_own_primitive_is_left_out():
+    """A sample on a sphere's surface is never shadowed by that sphere, its light on
+    either side (Cycles' rays skip the primitive they leave), but by another one; a sample
+    on a strand (a ribbon's point, inside the tube) not by any part of that strand
+    (Cycles' primitive is the whole curve), but by another strand, and a sample off it by
+    the strand itself."""
+    spheres = Spheres([[0.0, 0.0, 0.0], [0.0, 0.0, -3.0]], [1.0, 0.5])
     start = np.array([[0.0, 0.0, 1.0]])
     assert not spheres.crossed(start, np.array([[0.0, 0.0, 5.0]]))[0]
+    assert not Spheres([[0.0, 0.0, 0.0]], [1.0]).crossed(start, np.array([[0.0, 0.0, -5.0]]))[0]
     assert spheres.crossed(start, np.array([[0.0, 0.0, -5.0]]))[0]
+    # A hook: up, then back down over its start; a sample in the first span's middle.
+    points = [[0.0, 0.0, 0.0], [0.0, 0.0, 1.0], [0.3, 0.0, 1.2], [0.3, 0.0, 0.5]]
+    hook = Strands(points, np.full(4, 0.05), [0, 4], np.array([True]))
+    on_first = np.array([[0.02, 0.0, 0.5]])
+    towards_last = np.array([[5.0, 0.0, 0.6]])  # the segment passes through the last span
+    assert not hook.crossed(on_first, np.array([[0.02, 0.0, -2.0]]))[0]  # its own span lies along it
+    assert not hook.crossed(on_first, towards_last)[0]
+    assert hook.crossed(on_first + [0.1, 0.0, 0.0], towards_last)[0]  # off the strand
+    two = Strands.concatenate([hook, Strands(np.array(points[2:]) + [0.5, 0.0, 0.0], np.full(2, 0.05), [0, 2],
+                                             np.array([True]))])
+    beyond = np.array([[5.0, 0.0, 0.51]])  # through the hook's last span and the second strand
+    assert two.crossed(on_first, beyond)[0] and not hook.crossed(on_first, beyond)[0]
 
 
 def test_capsules_match_brute_force():
@@ -51,7 +67,7 @@ def test_capsules_match_brute_force():
     starts, ends = rng.normal(size=(120, 3)) * 1.5, rng.normal(size=(120, 3)) * 1.5
     from addon.core.blockers import _crossed
 
-    ours = _crossed(starts, ends, a, b, ra, rb, 1e-4)
+    ours = _crossed(starts, ends, a, b, ra, rb, 1e-4, own=False)
     theirs = _brute(starts, ends, a, b, ra, rb, 1e-4)
     # Dense sampling can only miss a grazing hit, never invent one.
     assert not np.any(theirs & ~ours)
@@ -65,12 +81,14 @@ def test_catmull_rom_passes_through_its_control_points_with_repeated_ends():
     assert np.allclose(catmull_rom_basis(np.linspace(0, 1, 9)).sum(axis=1), 1.0)
     points = np.array([[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [2.0, 1.0, 0.0], [3.0, 1.0, 0.0]])
     strands = Strands(points, np.full(4, 0.1), [0, 4])
-    a, b, ra, rb = strands.capsules(8)
+    cut = strands.pieces(8)
+    a, b = cut.a, cut.b
     assert len(a) == 3 * 8
     assert np.allclose(a[::8], points[:3]) and np.allclose(b[7::8], points[1:])
     # A strand of two points is their segment; the radius follows the same basis.
     line = Strands([[0.0, 0.0, 0.0], [0.0, 0.0, 1.0]], [0.1, 0.3], [0, 2])
-    a, b, ra, rb = line.capsules(4)
+    cut = line.pieces(4)
+    a, ra = cut.a, cut.ra
     weights = catmull_rom_basis(np.linspace(0.0, 1.0, 5))[:-1]
     assert np.allclose(a[:, :2], 0.0) and np.allclose(ra, weights @ np.array([0.1, 0.1, 0.3, 0.3]))
     crossing = line.crossed(np.array([[-1.0, 0.0, 0.9], [-1.0, 0.22, 0.1]]), np.array([[1.0, 0.0, 0.9],

@@ -94,5 +94,15 @@ def test_the_cases_that_decide(gl_backend):
     expected = [False, True, False, False, True, False]
     assert _glsl(gl_backend, p, a, b, ra, rb, capsule).tolist() == expected
     assert _oracle(p, a, b, ra, rb).tolist() == expected
+    # On the far side its own sphere does not shadow it either (Cycles' rays skip the
+    # primitive they leave), nor does a piece it lies in; another sphere does.
     p[3] = [0.0, 0.0, 5.0]
-    assert _glsl(gl_backend, p[3:4], a[3:4], b[3:4], ra[3:4], rb[3:4], capsule[3:4]).tolist() == [True]
+    assert _glsl(gl_backend, p[3:4], a[3:4], b[3:4], ra[3:4], rb[3:4], capsule[3:4]).tolist() == [False]
+    inside = np.array([[0.0, 0.0, 2.0], [0.05, 0.0, 2.0]])  # within the sphere; on a ribbon of the piece
+    other = np.array([[0.0, 0.0, 1.0], [-1.0, 0.0, 1.0]])
+    ends = np.array([[0.0, 0.0, 1.0], [1.0, 0.0, 3.0]])
+    own = _glsl(gl_backend, inside, np.array([[0.0, 0.0, 2.0], other[1]]), np.array([[0.0, 0.0, 2.0], ends[1]]),
+                np.array([1.0, 0.1]), np.array([1.0, 0.1]), np.array([0, 1]))
+    assert own.tolist() == [False, False]
+    assert _glsl(gl_backend, inside[:1], other[:1], ends[:1], np.array([0.3]), np.array([0.3]),
+                 np.array([0])).tolist() == [True]

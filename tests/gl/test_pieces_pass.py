@@ -11,7 +11,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from addon.core.blockers import Spheres, Strands, _crossed, pieces
+from addon.core.blockers import Spheres, Strands, pieces
 from addon.core.camera import CameraSpec
 from addon.core.light_shape import Area
 from addon.core.scene import LightSpec, look_at
@@ -57,7 +57,7 @@ def ground() -> np.ndarray:
 
 def scene_of(spheres: Spheres, strands: Strands) -> ResidentScene:
     scene = ResidentScene.of_triangles(ground())
-    scene.set_pieces("tuft", *pieces(spheres, strands))
+    scene.set_pieces("tuft", pieces(spheres, strands))
     return scene
 
 
@@ -67,8 +67,7 @@ def oracle_lit(samples: ViewSamples, towards: np.ndarray, spheres: Spheres, stra
     positions, as the GPU reads them)."""
     p = samples.positions.reshape(-1, 3).astype(np.float32).astype(np.float64)
     q = p + towards * 50.0 if sun else np.broadcast_to(towards, p.shape)
-    a, b, ra, rb = pieces(spheres, strands)
-    return ~_crossed(p, q, a, b, ra, rb, 1e-4 / 50.0 if sun else 1e-4)
+    return ~pieces(spheres, strands).crossed(p, q, 1e-4 / 50.0 if sun else 1e-4)
 
 
 LIGHTS = {

@@ -12,7 +12,7 @@ from dataclasses import dataclass
 from types import MappingProxyType
 from typing import Mapping
 
-from ...core import alpha, footprint, projection
+from ...core import alpha, blockers, footprint, projection
 
 
 @dataclass(frozen=True)
@@ -150,6 +150,8 @@ def _shared_defines() -> dict[str, str]:
         "OW_CLEAR_ALPHA": repr(float(alpha.CLEAR_ALPHA)),
         "OW_HIT_OPAQUE": f"{alpha.HIT_OPAQUE:#x}u",
         "OW_OPTICAL_SCALE": repr(float(alpha.OPTICAL_SCALE)),
+        # A point this share of a piece's radius beyond it still lies on it (lib/blockers.glsl).
+        "OW_OWN_SLACK": repr(float(blockers.OWN_SLACK)),
         "OW_WORK_CUT": str(WORK_CUT), "OW_WORK_ENTRIES": str(WORK_ENTRIES),
         "OW_WORK_FRAGMENTS": str(WORK_FRAGMENTS), "OW_WORK_BOX": str(WORK_BOX),
         "OW_EXACT_SOFT_MAX_POINTS": str(EXACT_SOFT_MAX_POINTS), "OW_EXACT_SOFT_CLUSTER": str(EXACT_SOFT_CLUSTER),

@@ -221,7 +221,8 @@ def pieces_of(base: ProgramInterface) -> ProgramInterface:
     if not is_footprint(base):
         raise BackendError(f"program {base.name!r} has no pieces variant")
     return derive(base, base.name + "_pieces", defines={PIECES_DEFINE: "1"},
-                  varyings=(Varying("vec4", "v_piece_a", flat=True), Varying("vec4", "v_piece_b", flat=True)))
+                  varyings=(Varying("vec4", "v_piece_a", flat=True), Varying("vec4", "v_piece_b", flat=True),
+                            Varying("vec2", "v_piece_curve", flat=True)))
 
 
 def soft_of(base: ProgramInterface) -> ProgramInterface:
