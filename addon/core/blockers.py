@@ -236,8 +236,35 @@ class Strands:
                       width[:, 1:].reshape(-1), np.zeros(len(index) * pieces, np.int64))
 
     def pieces(self, pieces: int | None = PIECES_PER_SPAN) -> Pieces:
-        """Every curve's `curve_pieces`, concatenated."""
-        return Pieces.concatenate([self.curve_pieces(k, pieces) for k in range(len(self))])
+        """Every curve's `curve_pieces`, in curve order, curve k numbered k: worked out a
+        group of curves at a time (the same point count, pieces a span and type), so that
+        100,000 strands take numpy calls, not Python loops."""
+        sizes = np.diff(self.offsets)
+        if not len(sizes):
+            return Pieces.empty()
+        per_span = np.ones(len(sizes), np.int64)
+        if pieces is not None:
+            per_span[:] = pieces
+        parts = []
+        for n in np.unique(sizes):
+            curves = np.flatnonzero(sizes == n)
+            points = self.points[self.offsets[curves][:, None] + np.arange(n)]  # (C, n, 3)
+            radii = self.radii[self.offsets[curves][:, None] + np.arange(n)]
+            if n == 1:
+                parts.append((curves, Pieces(points[:, 0], points[:, 0], radii[:, 0], radii[:, 0], curves)))
+                continue
+            if pieces is None:
+                per_span[curves] = np.where(self.linear[curves], 1, _spline_pieces_many(points, radii))
+            for count in np.unique(per_span[curves]):
+                for linear in (False, True):
+                    pick = (per_span[curves] == count) & (self.linear[curves] == linear)
+                    if pick.any():
+                        parts.append((curves[pick], _sampled(points[pick], radii[pick], int(count), linear,
+                                                             curves[pick])))
+        merged = Pieces.concatenate([part for _, part in parts])
+        curve = np.concatenate([part.curve for _, part in parts])
+        order = np.argsort(curve, kind="stable")  # back in curve order, each curve's pieces in turn
+        return Pieces(merged.a[order], merged.b[order], merged.ra[order], merged.rb[order], curve[order])
 
     def holds(self, points: np.ndarray, grow: float = 1.0, pieces: int | None = PIECES_PER_SPAN) -> np.ndarray:
         """(M,) whether each point lies on or in a strand of `grow` times its radius."""
@@ -284,6 +311,31 @@ def _spline_pieces(points: np.ndarray, radii: np.ndarray) -> int:
     second = np.linalg.norm(padded[:-2] - 2.0 * padded[1:-1] + padded[2:], axis=1).max()
     tolerance = SAG_SHARE * max(float(radii.min()), 1e-12)
     return int(np.clip(np.ceil(np.sqrt(3.0 * second / (8.0 * tolerance))), 1, PIECES_PER_SPAN))
+
+
+def _spline_pieces_many(points: np.ndarray, radii: np.ndarray) -> np.ndarray:
+    """`_spline_pieces` of curves (C, n, 3) with radii (C, n) at once."""
+    padded = np.concatenate([points[:, :1], points, points[:, -1:]], axis=1)
+    second = np.linalg.norm(padded[:, :-2] - 2.0 * padded[:, 1:-1] + padded[:, 2:], axis=2).max(axis=1)
+    tolerance = SAG_SHARE * np.maximum(radii.min(axis=1), 1e-12)
+    return np.clip(np.ceil(np.sqrt(3.0 * second / (8.0 * tolerance))), 1, PIECES_PER_SPAN).astype(np.int64)
+
+
+def _sampled(points: np.ndarray, radii: np.ndarray, pieces: int, linear: bool, curves: np.ndarray) -> Pieces:
+    """Curves (C, n, 3) of one type, their spans sampled into `pieces` pieces each, as in
+    `Strands.curve_pieces`; curve c numbered curves[c]."""
+    count, n = radii.shape
+    t = np.linspace(0.0, 1.0, pieces + 1)
+    if linear:
+        weights = np.stack([np.zeros_like(t), 1.0 - t, t, np.zeros_like(t)], axis=1)
+    else:
+        weights = catmull_rom_basis(t)
+    index = np.arange(n - 1)
+    controls = np.stack([np.maximum(index - 1, 0), index, index + 1, np.minimum(index + 2, n - 1)], axis=1)
+    curve = np.einsum("tj,csjk->cstk", weights, points[:, controls])  # (C, S, pieces + 1, 3)
+    width = np.maximum(np.einsum("tj,csj->cst", weights, radii[:, controls]), 0.0)
+    return Pieces(curve[:, :, :-1].reshape(-1, 3), curve[:, :, 1:].reshape(-1, 3), width[:, :, :-1].reshape(-1),
+                  width[:, :, 1:].reshape(-1), np.repeat(curves, (n - 1) * pieces))
 
 
 def catmull_rom_basis(t: np.ndarray) -> np.ndarray:

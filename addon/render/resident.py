@@ -117,7 +117,7 @@ def piece_chunks(local: np.ndarray, radii: np.ndarray) -> Chunks:
     chunk's largest radius (the footprint pass boxes a piece by its oriented bounding box,
     whose corners lie within sqrt(3) r of its axis), the edges by five times it (that
     box's diagonal is below length + (2 + 2 sqrt 2) r)."""
-    chunks = chunk_bounds(np.asarray(local)[:, [0, 1, 0]])  # the axis a -> b (the third vertex is own_a)
+    chunks = chunk_bounds(local)  # of the axes a -> b: a piece's third vertex repeats a
     if not len(chunks):
         return chunks
     count = len(chunks)
@@ -152,7 +152,7 @@ class ResidentObject:
     uvs: np.ndarray | None = None  # (T, 3, 2) float32 with `alpha`, in the order of `local`
     # A part of pieces: (T, 4) ra, rb, and the first index and count of the run of the
     # part's pieces that make its curve (core/blockers.Pieces); None: triangles.
-    radii: np.ndarray | None = None
+    piece_data: np.ndarray | None = None
     _local_lo: np.ndarray = field(default_factory=lambda: np.zeros(3))
     _local_hi: np.ndarray = field(default_factory=lambda: np.zeros(3))
 
@@ -164,7 +164,7 @@ class ResidentObject:
     @property
     def pieces(self) -> bool:
         """Whether this part holds pieces (hair, points) rather than triangles."""
-        return self.radii is not None
+        return self.piece_data is not None
 
     def offset(self, light_position: np.ndarray) -> np.ndarray:
         """Light-centred world position of the object's origin, in float64."""
@@ -202,7 +202,7 @@ class ResidentObject:
 
     def vertex_texels(self) -> np.ndarray:
         """The vertex texture: (rows, VERTEX_TEXTURE_WIDTH, 4) float32 (`vertex_texels`)."""
-        return vertex_texels(self.local, _piece_uvs(self.radii) if self.pieces else self.uvs)
+        return vertex_texels(self.local, _piece_uvs(self.piece_data) if self.pieces else self.uvs)
 
 
 def vertex_texels(local: np.ndarray, uvs: np.ndarray | None = None) -> np.ndarray:
@@ -319,8 +319,10 @@ class ResidentScene:
         kept = Pieces(pieces.a[chosen], pieces.b[chosen], pieces.ra[chosen], pieces.rb[chosen], pieces.curve[chosen])
         first, count = kept.spans()
         heads = np.flatnonzero(first == np.arange(len(kept)))
-        runs = heads[morton_order(tris[chosen][heads])]
-        order = np.concatenate([np.arange(h, h + count[h]) for h in runs]) if len(runs) else np.zeros(0, np.int64)
+        runs = heads[morton_order(tris[chosen][heads])]  # each curve's first piece, in Morton order
+        sizes = count[runs]
+        # Every curve's pieces in turn: its head plus 0, 1, ... (no Python loop over curves).
+        order = np.repeat(runs, sizes) + np.arange(int(sizes.sum())) - np.repeat(np.cumsum(sizes) - sizes, sizes)
         kept = Pieces(kept.a[order], kept.b[order], kept.ra[order], kept.rb[order], kept.curve[order])
         first, count = kept.spans()
         self.remove(key)
@@ -341,17 +343,18 @@ class ResidentScene:
         return self.objects[key]
 
     def _add_part(self, part_key: str, part: np.ndarray, matrix: np.ndarray, counts: SanitizeCounts,
-                  amap: AlphaMap | None, uvs: np.ndarray | None, radii: np.ndarray | None = None) -> None:
+                  amap: AlphaMap | None, uvs: np.ndarray | None, piece_data: np.ndarray | None = None) -> None:
         if len(part):
             lo, hi = part.reshape(-1, 3).min(axis=0), part.reshape(-1, 3).max(axis=0)
         else:
             lo = hi = np.zeros(3)
         origin = 0.5 * (lo + hi)
         local = part - origin
-        chunks = chunk_bounds(local) if radii is None else piece_chunks(local, radii[:, :2])
-        grow = float(radii[:, :2].max()) if radii is not None and len(radii) else 0.0  # boxes reach past the axis
+        pieces = piece_data is not None
+        chunks = piece_chunks(local, piece_data[:, :2]) if pieces else chunk_bounds(local)
+        grow = float(piece_data[:, :2].max()) if pieces and len(piece_data) else 0.0  # boxes reach past the axis
         self.objects[part_key] = ResidentObject(part_key, local, origin, matrix.copy(), next(_revisions), counts,
-                                                chunks, amap, uvs, radii, lo - origin - grow, hi - origin + grow)
+                                                chunks, amap, uvs, piece_data, lo - origin - grow, hi - origin + grow)
         self.removed.discard(part_key)
 
     def subset(self, keys: Iterable[str]) -> "ResidentScene":

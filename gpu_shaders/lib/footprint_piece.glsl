@@ -1,8 +1,8 @@
 // The footprint pass's vertex stage for pieces (OW_PIECES: resident.py's parts of hair and
 // points), included by footprint.vert after its helpers (ow_layer_position,
 // ow_box_corner). A piece is a sphere swept from a to b, its radius from ra to rb; its
-// fragments find their texel's ray's entry into it (lib/footprint_ray.glsl's
-// ow_piece_depth) or walk the texel's samples (lib/exact_piece.glsl).
+// fragments find where their texel's ray passes through it (lib/footprint_ray.glsl,
+// the maps) or walk the texel's samples (lib/exact_piece.glsl, the exact pass).
 //
 // Its footprint is the box of the image of its oriented bounding box: every ray from the
 // light that meets the solid box meets one of its twelve faces, so the union of the

@@ -32,6 +32,7 @@ from tests.support.blender_gpu_worker import (  # noqa: E402
     boxed_scene,
     case_key,
     one_texel_case,
+    pieces_frames,
     soft_frames,
     weighted_samples,
 )
@@ -119,6 +120,10 @@ def test_blender_backend_matches_moderngl(gl_backend, tmp_path, monkeypatch, ref
     for key, visibility in soft_frames(pipeline).items():
         assert np.allclose(visibility, theirs[key], atol=1e-6), key
         assert ((visibility > 0.0) & (visibility < 1.0)).sum() > 100, key
+    # Hair and points: the same pieces drawn and walked alike.
+    for key, visibility in pieces_frames(pipeline).items():
+        assert np.allclose(visibility, theirs[key], atol=1e-6), key  # the area light's are shares
+        assert (visibility < 0.5).any(), key
     court = boxed_scene()
     court_samples, _, _ = view_samples(court)
     for param in BOXED_CASES:

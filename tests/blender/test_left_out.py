@@ -1,5 +1,6 @@
 """Nothing Cycles draws is left out in silence (issue 42): the render depsgraph's geometry
-that no method draws is named in the log, in every OmniWarp row's note and in report.md.
+that no method draws is named in the log, in every OmniWarp row's note and in report.md;
+hair and points, which the methods draw as pieces, are kept and not named.
 
 tests/support/make_left_out_blend.py builds the file (hair curves from geometry nodes,
 particle hair, points from a mesh's geometry nodes, a volume, a fog box, true
@@ -19,8 +20,7 @@ from tests.support.cli_run import SUPPORT, run_python  # noqa: E402
 pytestmark = pytest.mark.blender
 
 # Each kind's note must name exactly these objects, for every light and for the light.
-NAMED = {"hair curves": {"Strands", "Unseen"}, "particle hair": {"Groom"}, "point clouds": {"Pebbles"},
-         "volumes that": {"Cloud"}, "volume materials": {"Fog"}, "true displacement": {"Bumps"}}
+NAMED = {"volumes that": {"Cloud"}, "volume materials": {"Fog"}, "true displacement": {"Bumps"}}
 # Rendered and drawn (Ivy's hair is instanced leaves), not rendered by Cycles (Wire's
 # curves from a mesh's geometry nodes) or not rendered at all (Hidden).
 NEVER = ("Ivy", "Wire", "Hidden", "Leaf", "Ground")
@@ -40,7 +40,7 @@ def made(tmp_path_factory):
     blend, notes = folder / "left_out.blend", folder / "notes.json"
     proc = run_python(SUPPORT / "make_left_out_blend.py", blend, "--notes", notes)
     assert proc.returncode == 0, proc.stderr[-3000:]
-    run = run_python("-m", "addon.cli", "compare", "--blend", blend, "--methods", "dpsm+notw,exact",
+    run = run_python("-m", "addon.cli", "compare", "--blend", blend, "--methods", "dpsm+notw,exact,unfold",
                      "--resolutions", "256", "--repeats", "1", "--no-images", "--out", folder / "out",
                      "--cache-dir", folder / "cache")
     assert run.returncode == 0, run.stderr[-3000:]
@@ -50,20 +50,25 @@ def made(tmp_path_factory):
 
 def test_the_walk_names_each_kind_and_nothing_else(made):
     notes, _, _, _ = made
-    assert _named(notes["all"]) == NAMED
-    light = _named(notes["light"])
-    assert light == {**NAMED, "hair curves": {"Strands"}}  # Unseen casts no shadow (visible_shadow off)
+    assert _named(notes["all"]) == NAMED and _named(notes["light"]) == NAMED
     assert not any(name in note.rsplit(": ", 1)[1].split(", ") for note in notes["all"] for name in NEVER)
-    # A view layer with Strands off renders no hair: neither kind is named, nor kept.
-    assert _named(notes["no_strands"]) == {k: v for k, v in NAMED.items() if k not in ("hair curves", "particle hair")}
+    # Hair and points are kept, to be drawn; Unseen casts no shadow (visible_shadow off).
+    assert notes["kept"] == {"points": ["Pebbles"], "strands": ["Groom", "Strands", "Unseen"],
+                             "light_strands": ["Groom", "Strands"]}
+    # A view layer with Strands off renders no hair: none is kept.
+    assert _named(notes["no_strands"]) == NAMED
     assert notes["strands"][0] > 0 and notes["strands"][1] == 0
 
 
 def test_every_row_the_report_and_the_log_name_what_is_not_drawn(made):
     notes, rows, report, stderr = made
-    assert {row["method"] for row in rows} == {"dpsm+notw", "exact"}
+    from addon.compare import UNFOLD_PIECES_NOTE
+
+    assert {row["method"] for row in rows} == {"dpsm+notw", "exact", "unfold"}
     for row in rows:
-        assert row["note"].split("; ") == notes["light"], row["note"]
+        # unfold alone draws no hair and points, and says so.
+        own = [UNFOLD_PIECES_NOTE] if row["method"] == "unfold" else []
+        assert row["note"].split("; ") == notes["light"] + own, row["note"]
         assert any("holdout" in note and "Cutout" in note for note in row["scene_notes"])
     for note in notes["light"]:
         assert report.count(f"(every OmniWarp row): {note}") == 1

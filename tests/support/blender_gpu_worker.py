@@ -95,6 +95,28 @@ def soft_frames(pipeline):
     return frames
 
 
+def pieces_frames(pipeline):
+    """Visibility of the tuft of strands and pebbles (tests/gl/test_pieces_pass.py) under a
+    point, a spot and a sun light and a sized area light, by key: hair and points in the
+    maps and the exact pass."""
+    from addon.core.light_shape import Area
+    from addon.core.scene import LightSpec, look_at
+    from addon.render.frame import settings_for
+    from tests.gl.test_pieces_pass import LIGHTS, ground_samples, scene_of, tuft
+
+    scene = scene_of(*tuft())
+    samples = ground_samples(48, 36)
+    area = LightSpec("hemi", look_at((0.35, 0.25, 3.0), (0.0, 0.0, 0.0)), shape=Area("rectangle", 0.4, 0.4))
+    cases = [(name, light, method) for name, light in LIGHTS.items()
+             for method in (("dpsm", "cube+notw", "exact") if name == "omni" else ("sm", "exact"))]
+    frames = {}
+    for name, light, method in cases + [("area", area, "exact")]:
+        result = pipeline.render(light, scene, samples, settings_for(method, 256, light.emission))
+        frames[f"pieces_{name}_{method}_visibility"] = result.visibility
+    pipeline.backend.release_scene(scene)
+    return frames
+
+
 def case_key(param: str, warp: str, aa: bool) -> str:
     return f"{param}_{warp}{'_aa' if aa else ''}"
 
@@ -167,6 +189,7 @@ def backends(out: str, reference: str | None = None) -> None:
     arrays["exact_one_texel_rounds"] = np.array(result.exact_work["rounds"])
     arrays.update(alpha_frames(pipeline))
     arrays.update(soft_frames(pipeline))
+    arrays.update(pieces_frames(pipeline))
     court = boxed_scene()
     court_samples, _, _ = view_samples(court)
     for param in BOXED_CASES:

@@ -1,4 +1,5 @@
-"""A small file with what Cycles renders but OmniWarp's methods do not draw (issue 42):
+"""A small file with what Cycles renders that OmniWarp's methods draw other than as
+triangles, or do not draw (issue 42):
 
     python tests/support/make_left_out_blend.py OUT.blend [--notes OUT.json]
 
@@ -16,7 +17,8 @@ Built the way an artist builds it, on a ground plane under a point light and a c
 - `Unseen`: a strand like the strands, but with `visible_shadow` off (no note for the light);
 - `Cutout`: a holdout object (the shadow rule's note: the reference renders it plain).
 With --notes, also reads the render depsgraph (render_geometry.render_triangles) and
-writes every left-out note, and those of the light's shadow rule, as JSON.
+writes every left-out note, and those of the light's shadow rule, and the owners of the
+points and strands it keeps (drawn as pieces), as JSON.
 
     python tests/support/make_left_out_blend.py OUT.blend --blockers
 
@@ -272,9 +274,14 @@ def notes(out: Path) -> None:
     rule = ShadowRule.for_light(scene, bpy.data.objects["Lamp"], notes=False, view_layer=layer)
     layer.use_strand = False  # the view layer's Strands off: Cycles renders no hair
     no_strands = render_triangles(scene, layer)
+    def owners(kept, keep=None):
+        return sorted({o.parent or o.name for o, _ in kept if keep is None or keep(o.name, o.parent)})
+
     out.write_text(json.dumps({"all": found.left_out.notes(), "light": found.left_out.notes(rule.blocks),
                                "names": sorted(found.names), "no_strands": no_strands.left_out.notes(),
-                               "strands": [len(found.strands), len(no_strands.strands)]}, indent=1))
+                               "strands": [len(found.strands), len(no_strands.strands)],
+                               "kept": {"points": owners(found.spheres), "strands": owners(found.strands),
+                                        "light_strands": owners(found.strands, rule.blocks)}}, indent=1))
 
 
 def main() -> int:
