@@ -2,8 +2,8 @@
 
 Each kind is one object holding its world-space data and the one question a shadow
 asks of it: which segments (from a view sample towards the light) it crosses. These are
-the numpy oracle the GPU passes will be held to (issue 42), and what the reference
-stores of a scene's point clouds and hair.
+the numpy oracle the GPU passes are held to (issue 42), what the reference stores of a
+scene's point clouds and hair, and, as **Pieces**, what the GPU draws of both.
 
 - **Spheres** (point clouds): a centre and a radius each; Cycles intersects each point
   as a sphere.
@@ -15,13 +15,13 @@ stores of a scene's point clouds and hair.
   tangents' neighbours, for hair's own curve type; straight pieces between the points
   for a poly curve (`linear`; measured against Cycles 5.2.3 on spirals of a few points a
   turn: the polyline matched to the pixel, the spline missed 125 of 18,103 pixels).
-  `Strands.capsules` samples each span into short pieces; a segment crosses the strand
+  `Strands.pieces` samples each span into short pieces; a segment crosses the strand
   where it passes within a piece's interpolated radius of the piece.
 
 A hit closer to the segment's start than `eps` of its length is left out: the receiver's
 own surface, as the exact pass leaves it out (passes/exact.EXACT_EPS); and a segment that
-starts on a piece is never blocked by that piece (Cycles' rays skip the primitive they
-leave; a ribbon's points lie inside its tube).
+starts on a curve (or a point's sphere) is never blocked by it (Cycles' rays skip the
+primitive they leave, and a curve is one primitive; a ribbon's points lie inside its tube).
 """
 from __future__ import annotations
 
@@ -32,8 +32,8 @@ import numpy as np
 # Pieces a Catmull-Rom span is sampled into: the chord's sag below a piece is about
 # (span length)^2 * curvature / (8 * 16^2), far below a strand's radius for hair.
 PIECES_PER_SPAN = 16
-# The GPU's pieces (`Strands.capsules(adaptive=True)`): as few a span as keep the chords'
-# sag below this share of the curve's thinnest radius, at most PIECES_PER_SPAN.
+# The GPU's pieces (`Strands.pieces(None)`, `pieces(adaptive=True)`): as few a span as keep
+# the chords' sag below this share of the curve's thinnest radius, at most PIECES_PER_SPAN.
 SAG_SHARE = 0.05
 
 
