@@ -20,9 +20,12 @@ What is handled:
   when its instancer is flagged or moved, when one of its source objects is
   flagged, or when one of its instanced collections is flagged.
 
+- hair curves and point clouds as pieces, one resident object each
+  (`scene_pieces.py`).
+
 What is not handled:
-- object types without surface triangles (CURVES hair, POINTCLOUD, VOLUME,
-  GREASEPENCIL) contribute nothing;
+- object types without surface triangles or pieces (VOLUME, GREASEPENCIL)
+  contribute nothing;
 - geometry changes are only seen through the `depsgraph_update_post` flags fed
   to `mark_dirty` (and on first sight of an object): comparing vertex data would
   cost as much as re-reading it. Without a handler, only additions, removals,
@@ -47,38 +50,23 @@ import numpy as np
 from ..core.errors import InputError
 from ..core.alpha import Surface
 from ..reference.material_alpha import MaterialAlpha, material_alpha
+from ..core.blockers import Pieces
 from ..reference.render_geometry import GEOMETRY_TYPES, local_geometry
 from ..reference import reference_materials
 from ..reference.shadow_rule import rules_for
 from ..reference.shadow_rule import shadow_inputs as _shadow_inputs
 from ..render.resident import ResidentScene
 from . import events
+from .depsgraph_ids import GEOMETRY, TRANSFORM, Dirty, Key, id_key, matrix_of
+from .scene_pieces import ScenePieces
 
 log = logging.getLogger(__name__)
 
-# Dirty flags per object key.
-GEOMETRY = 1
-TRANSFORM = 2
-
 # Data-block types whose geometry flag means "objects using it need a re-read".
 # (Text and surface curves are "CURVE" ids too.)
-_GEOMETRY_DATA_TYPES = {"MESH", "CURVE", "META"}
-
-Key = Hashable
+_GEOMETRY_DATA_TYPES = {"MESH", "CURVE", "META", "CURVES", "POINTCLOUD"}
 _EMPTY_LOCAL = np.zeros((0, 3, 3), dtype=np.float32)
 _EMPTY_LOCAL.flags.writeable = False
-
-
-def id_key(id_data: Any) -> Key:
-    """Stable key of an ID: the original's `session_uid`, else its `name_full`.
-
-    Evaluated copies report session_uid 0, so the original is always asked. The
-    session_uid survives renames; `name_full` is the fallback for Blender
-    versions without it.
-    """
-    original = getattr(id_data, "original", None) or id_data
-    uid = getattr(original, "session_uid", 0)
-    return uid if uid else original.name_full
 
 
 def _has_nodes_modifier(obj: Any) -> bool:
@@ -90,10 +78,6 @@ def _ray_flags(obj: Any) -> tuple[bool, bool]:
     """The ray-visibility flags the shadow rule reads."""
     original = getattr(obj, "original", None) or obj
     return bool(getattr(original, "visible_shadow", True)), bool(getattr(original, "visible_camera", True))
-
-
-def _matrix(matrix: Any) -> np.ndarray:
-    return np.array(matrix, dtype=np.float64).reshape(4, 4)
 
 
 @dataclass
@@ -132,20 +116,6 @@ class _Part:
                 start += n
 
 
-@dataclass
-class _Dirty:
-    """What `depsgraph_update_post` reported since the last `update`."""
-
-    objects: dict[Key, int] = field(default_factory=dict)
-    data: set[Key] = field(default_factory=set)
-    collections: set[Key] = field(default_factory=set)
-
-    def clear(self) -> None:
-        self.objects.clear()
-        self.data.clear()
-        self.collections.clear()
-
-
 class SceneGeometryCache:
     """World-space triangles of one depsgraph, kept in step with it incrementally.
 
@@ -161,7 +131,7 @@ class SceneGeometryCache:
         self._parts: dict[tuple[str, Key], _Part] = {}
         # Instance sources without a plain part: key -> (local triangles, data key).
         self._sources: dict[Key, tuple[np.ndarray, Key | None]] = {}
-        self._dirty = _Dirty()
+        self._dirty = Dirty()
         self._identity: tuple[Key, str] | None = None
         self._world: np.ndarray | None = None
         self._layout: dict[tuple[str, Key], tuple[int, int]] = {}
@@ -179,6 +149,7 @@ class SceneGeometryCache:
         self._materials: dict[str, MaterialAlpha] = {}
         self._surfaces: dict[int, tuple[np.ndarray, Surface]] = {}
         self._dirty_materials: set[str] = set()
+        self.pieces = ScenePieces()  # hair and points (scene_pieces.py)
         self.stats: dict[str, int] = {
             "geometry_reads": 0, "matrix_updates": 0, "instance_collections": 0, "version": 0,
         }
@@ -281,6 +252,7 @@ class SceneGeometryCache:
         changed |= self._drop(lambda k: k[0] == "object" and k not in seen)
         changed |= self._sync_instances(instancers, depsgraph)
         changed |= self._drop(lambda k: k[0] == "instances" and k[1] not in instancers)
+        changed |= self.pieces.sync(depsgraph, self._dirty)
         self._dirty.clear()  # flags of objects not seen are moot: they are read afresh on sight
         if changed and self._surfaces:
             live = {id(held[0]) for part in self._parts.values() for held in part.sources}
@@ -315,7 +287,7 @@ class SceneGeometryCache:
 
     def _sync_object(self, part_key: tuple[str, Key], obj: Any, depsgraph: Any) -> bool:
         """Bring one plain object up to date; return whether its triangles changed."""
-        matrix = _matrix(obj.matrix_world)
+        matrix = matrix_of(obj.matrix_world)
         part = self._parts.get(part_key)
         data_key = id_key(obj.original.data) if obj.original.data is not None else None
         flags = self._dirty.objects.get(part_key[1], 0)
@@ -343,7 +315,7 @@ class SceneGeometryCache:
             if (part is None or key in touched_objects
                     or not part.source_keys.isdisjoint(touched_objects)
                     or not part.collection_keys.isdisjoint(dirty.collections)
-                    or not np.array_equal(_matrix(obj.matrix_world), part.matrix, equal_nan=True)):
+                    or not np.array_equal(matrix_of(obj.matrix_world), part.matrix, equal_nan=True)):
                 todo[key] = obj
         if todo:
             for key, part in self._collect_instances(todo, depsgraph).items():
@@ -390,7 +362,7 @@ class SceneGeometryCache:
                     pass_local[local_key] = local
                 entry = group[local_key] = (local, [])
                 owners[parent_key][local_key] = (obj.original.name_full, inst.parent.original.name_full)
-            entry[1].append(_matrix(inst.matrix_world))
+            entry[1].append(matrix_of(inst.matrix_world))
         parts = {}
         for key, obj in instancers.items():
             kept = [local_key for local_key, (local, _) in groups[key].items() if len(local)]
@@ -399,7 +371,7 @@ class SceneGeometryCache:
             coll_keys = set()
             if collections is not None:
                 coll_keys = {id_key(collections)} | {id_key(c) for c in collections.children_recursive}
-            parts[key] = _Part(obj.name, _matrix(obj.matrix_world), sources, [owners[key][k] for k in kept],
+            parts[key] = _Part(obj.name, matrix_of(obj.matrix_world), sources, [owners[key][k] for k in kept],
                                source_keys=frozenset(source_keys[key]), collection_keys=frozenset(coll_keys))
         return parts
 
@@ -501,11 +473,12 @@ class SceneGeometryCache:
         """
         if self._resident_version == self.stats["version"]:
             return self._resident
-        wanted: dict[str, tuple[np.ndarray, np.ndarray, tuple[str, str | None]]] = {}
+        wanted: dict[str, tuple[np.ndarray | Pieces, np.ndarray, tuple[str, str | None]]] = {}
         for (kind, key), part in self._parts.items():
             for index, ((local, matrices), owner) in enumerate(zip(part.sources, part.owners)):
                 for instance, matrix in enumerate(matrices):
                     wanted[f"{kind}:{key}:{index}:{instance}"] = (local, matrix, owner)
+        wanted.update(self.pieces.held)
         scene = self._resident
         for key in [k for k in self._resident_held if k not in wanted]:
             scene.remove(key)
@@ -525,7 +498,13 @@ class SceneGeometryCache:
         self._resident_selections.clear()
         return scene
 
-    def _set_resident(self, key: str, local: np.ndarray, matrix: np.ndarray) -> None:
+    def _set_resident(self, key: str, local: "np.ndarray | Pieces", matrix: np.ndarray) -> None:
+        if isinstance(local, Pieces):
+            try:
+                self._resident.set_pieces(key, local, matrix)
+            except InputError:  # a zero scale: the pieces have no width, so no shadow
+                self._resident.remove(key)
+            return
         surface = self.surface_of(local)
         try:
             self._resident.set_geometry(key, local, matrix, surface=surface)
@@ -571,6 +550,7 @@ class SceneGeometryCache:
         self._resident_held.clear()
         self._resident_selections.clear()
         self._resident_version = -1
+        had |= self.pieces.clear()
         if had:
             self.stats["version"] += 1
 

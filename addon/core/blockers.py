@@ -21,7 +21,14 @@ scene's point clouds and hair, and, as **Pieces**, what the GPU draws of both.
 A hit closer to the segment's start than `eps` of its length is left out: the receiver's
 own surface, as the exact pass leaves it out (passes/exact.EXACT_EPS); and a segment that
 starts on a curve (or a point's sphere) is never blocked by it (Cycles' rays skip the
-primitive they leave, and a curve is one primitive; a ribbon's points lie inside its tube).
+primitive they leave, and a curve is one primitive). Which curve a start lies on is told
+by its normal (Cycles' true normal, as the view samples carry it): a round curve's point
+lies on its tube with the normal along the direction from the axis, a ribbon's lies in
+the plane through the axis that faces the camera ray, its true normal. A start inside
+another curve's tube is shadowed by it. Cycles' tube ends at a curve's ends in the plane
+across its axis, with no half sphere past it (`Pieces.end_planes`), and it ignores a
+ribbon's hits nearer than RIBBON_AVOIDANCE radii. Measured against Cycles 5.2.3 in the
+notebook (docs/notebook/2026-12-hair-points.md).
 """
 from __future__ import annotations
 
@@ -44,19 +51,25 @@ class Pieces:
     `curve` (N,) int: a strand's pieces share their strand's, a sphere has its own; a
     curve's pieces are consecutive.
 
-    A segment that starts on a curve (within OWN_SLACK of one of its pieces' radius) is
-    never blocked by that curve: Cycles never shadows a point with the primitive it lies
-    on, and its primitive is the whole curve (Cycles packs the segment into the type, the
-    prim is the curve). Measured on tests/support/make_left_out_blend.py --blockers at
-    5.2.3: with the span as the primitive 39 (ribbons) and 9 (3D curves) of about 18,000
-    pixels differ from Cycles, with the curve 15 and 4. A ribbon's points lie inside the
-    tube, so they are on it too."""
+    `flat` (N,) bool: a piece of a curve Cycles draws as a ribbon (the scene's curve shape);
+    None: all round. `closed` (N,) bool: a piece of a curve that ends in half spheres (a
+    poly curve, which Cycles 5.x draws as round linear segments whatever the shape:
+    Strands.pieces); None: none (a Catmull-Rom curve's tube ends flat, `end_planes`).
+
+    A segment that starts on a curve (`on_curve`) is never blocked by that curve: Cycles
+    never shadows a point with the primitive it lies on, and its primitive is the whole
+    curve (Cycles packs the segment into the type, the prim is the curve). Measured on
+    tests/support/make_left_out_blend.py --blockers at 5.2.3: with the span as the
+    primitive 39 (ribbons) and 9 (3D curves) of about 18,000 pixels differ from Cycles,
+    with the curve 15 and 4."""
 
     a: np.ndarray
     b: np.ndarray
     ra: np.ndarray
     rb: np.ndarray
     curve: np.ndarray
+    flat: np.ndarray | None = None
+    closed: np.ndarray | None = None
 
     def __post_init__(self) -> None:
         for name in ("a", "b"):
@@ -64,6 +77,10 @@ class Pieces:
         for name in ("ra", "rb"):
             object.__setattr__(self, name, np.asarray(getattr(self, name), dtype=np.float64).reshape(-1))
         object.__setattr__(self, "curve", np.asarray(self.curve, dtype=np.int64).reshape(-1))
+        for name in ("flat", "closed"):
+            given = getattr(self, name)
+            object.__setattr__(self, name, np.asarray(np.zeros(len(self.curve), dtype=bool) if given is None else given,
+                                                      dtype=bool).reshape(-1))
         sizes = {len(getattr(self, name)) for name in _PIECE_FIELDS}
         if len(sizes) != 1:
             raise ValueError(f"pieces of unequal lengths: {sorted(sizes)}")
@@ -74,6 +91,10 @@ class Pieces:
     @classmethod
     def empty(cls) -> "Pieces":
         return cls(np.zeros((0, 3)), np.zeros((0, 3)), np.zeros(0), np.zeros(0), np.zeros(0, np.int64))
+
+    def take(self, index: np.ndarray) -> "Pieces":
+        """The pieces at `index` (an index array or a mask), in its order."""
+        return Pieces(*(getattr(self, name)[index] for name in _PIECE_FIELDS))
 
     @classmethod
     def concatenate(cls, parts: "list[Pieces]") -> "Pieces":
@@ -86,7 +107,8 @@ class Pieces:
             curves.append(part.curve - part.curve.min() + base)
             base = int(curves[-1].max()) + 1
         return cls(*(np.concatenate([getattr(p, name) for p in parts]) for name in _PIECE_FIELDS[:4]),
-                   np.concatenate(curves))
+                   np.concatenate(curves), np.concatenate([p.flat for p in parts]),
+                   np.concatenate([p.closed for p in parts]))
 
     def spans(self) -> tuple[np.ndarray, np.ndarray]:
         """(first, count) (N,) each: the run of consecutive pieces of each piece's curve."""
@@ -98,34 +120,71 @@ class Pieces:
         run = np.repeat(np.arange(len(starts)), counts)
         return starts[run], counts[run]
 
-    def crossed(self, starts: np.ndarray, ends: np.ndarray, eps: float = 1e-4) -> np.ndarray:
+    def crossed(self, starts: np.ndarray, ends: np.ndarray, eps: float = 1e-4,
+                normals: np.ndarray | None = None) -> np.ndarray:
         """(M,) whether each segment start -> end meets a piece beyond `eps` of its length
-        from the start, not of a curve it starts on."""
-        return _crossed(starts, ends, self.a, self.b, self.ra, self.rb, eps, own=self)
+        from the start, not of a curve it starts on (`on_curve`, with the starts' unit
+        `normals`; None: the starts lie on no curve)."""
+        return _crossed(starts, ends, self.a, self.b, self.ra, self.rb, eps, own=self, normals=normals,
+                        flat=self.flat, planes=self.end_planes(), tangents=self.joint_tangents())
 
     def holds(self, points: np.ndarray, grow: float = 1.0) -> np.ndarray:
         """(M,) whether each point lies within `grow` times a piece's radius of it."""
         return _held(points, self.a, self.b, self.ra * grow, self.rb * grow)
 
-    def on_curve(self, points: np.ndarray, pieces: np.ndarray) -> np.ndarray:
-        """Pairwise: whether point m lies on the curve of piece pieces[m] (within OWN_SLACK
-        of the radius of one of its pieces)."""
+    def end_planes(self) -> np.ndarray:
+        """(N, 2, 4): the planes that end each piece's curve, at its first and its last
+        point, across its direction there, each as (n, w) with n . x + w >= 0 on the
+        curve's side. Cycles ends a Catmull-Rom curve's tube so (kernel/geom/
+        curve_intersect.h's cap planes): no half sphere reaches past its ends, whatever
+        piece's it would be. Zero (no cut) for a point and for a closed (linear) curve."""
         first, count = self.spans()
+        last = first + count - 1
+        out = np.zeros((len(self), 2, 4))
+        for side, index, sign, at in ((0, first, 1.0, self.a), (1, last, -1.0, self.b)):
+            direction = self.b[index] - self.a[index]
+            length = np.linalg.norm(direction, axis=1, keepdims=True)
+            normal = sign * np.divide(direction, length, out=np.zeros_like(direction), where=length > 0.0)
+            normal[self.closed] = 0.0
+            out[:, side, :3] = normal
+            out[:, side, 3] = -np.einsum("ij,ij->i", normal, at[index])
+        return out
+
+    def joint_tangents(self) -> tuple[np.ndarray, np.ndarray]:
+        """(N, 3) each: the curve's direction at a piece's a end and at its b end, the
+        bisector of its own and its neighbour's (its own at the curve's ends). A ribbon's
+        stretch ends across them: Cycles' strip bends with the curve, with no gap or
+        overlap at a joint."""
+        own = self.b - self.a
+        length = np.linalg.norm(own, axis=1, keepdims=True)
+        unit = np.divide(own, length, out=np.zeros_like(own), where=length > 0.0)
+        first, count = self.spans()
+        index = np.arange(len(self))
+        before = np.where(index > first, index - 1, index)
+        after = np.where(index < first + count - 1, index + 1, index)
+        at_a, at_b = unit[before] + unit, unit + unit[after]
+        return at_a, at_b
+
+    def on_curve(self, points: np.ndarray, normals: np.ndarray, pieces: np.ndarray) -> np.ndarray:
+        """Pairwise: whether point m, of unit normal normals[m], lies on the curve of piece
+        pieces[m]: on the surface of one of its pieces as Cycles intersects it (`_on_piece`)."""
+        first, count = self.spans()
+        planes = self.end_planes()
         out = np.zeros(len(points), dtype=bool)
         p = np.asarray(points, dtype=np.float64).reshape(-1, 3)
+        n = np.asarray(normals, dtype=np.float64).reshape(-1, 3)
         longest = int(count[pieces].max()) if len(pieces) else 0
         for step in range(longest):
             live = np.flatnonzero(~out & (step < count[pieces]))
             if not len(live):
                 break
             j = first[pieces[live]] + step
-            grow = 1.0 + OWN_SLACK
-            out[live] = _within(p[live], self.a[j], self.b[j], self.ra[j] * grow, self.rb[j] * grow,
-                                1e-6 * np.linalg.norm(p[live], axis=1))
+            out[live] = _on_piece(p[live], n[live], self.a[j], self.b[j], self.ra[j], self.rb[j], self.flat[j],
+                                  planes[j])
         return out
 
 
-_PIECE_FIELDS = ("a", "b", "ra", "rb", "curve")
+_PIECE_FIELDS = ("a", "b", "ra", "rb", "curve", "flat", "closed")
 
 
 @dataclass(frozen=True)
@@ -159,10 +218,11 @@ class Spheres:
         """Each sphere as a piece of no length, a curve of its own."""
         return Pieces(self.centres, self.centres, self.radii, self.radii, np.arange(len(self)))
 
-    def crossed(self, starts: np.ndarray, ends: np.ndarray, eps: float = 1e-4) -> np.ndarray:
+    def crossed(self, starts: np.ndarray, ends: np.ndarray, eps: float = 1e-4,
+                normals: np.ndarray | None = None) -> np.ndarray:
         """(M,) whether each segment start -> end meets a sphere beyond `eps` of its length
-        from the start (not the sphere it starts on)."""
-        return self.pieces().crossed(starts, ends, eps)
+        from the start (not the sphere it starts on: Pieces.crossed)."""
+        return self.pieces().crossed(starts, ends, eps, normals)
 
     def holds(self, points: np.ndarray, grow: float = 1.0) -> np.ndarray:
         """(M,) whether each point lies on or in a sphere of `grow` times its radius."""
@@ -178,6 +238,7 @@ class Strands:
     radii: np.ndarray
     offsets: np.ndarray
     linear: np.ndarray | None = None  # (C,) bool: a poly curve, straight between its points
+    flat: np.ndarray | None = None  # (C,) bool: the scene draws curves as ribbons (not its linear ones)
 
     def __post_init__(self) -> None:
         object.__setattr__(self, "points", np.asarray(self.points, dtype=np.float64).reshape(-1, 3))
@@ -185,8 +246,11 @@ class Strands:
         object.__setattr__(self, "offsets", np.asarray(self.offsets, dtype=np.int64).reshape(-1))
         linear = np.zeros(max(len(self.offsets) - 1, 0), dtype=bool) if self.linear is None else self.linear
         object.__setattr__(self, "linear", np.asarray(linear, dtype=bool).reshape(-1))
-        if len(self.linear) != max(len(self.offsets) - 1, 0):
-            raise ValueError(f"{len(self.linear)} curve types for {len(self.offsets) - 1} curves")
+        flat = np.zeros_like(self.linear) if self.flat is None else self.flat
+        object.__setattr__(self, "flat", np.asarray(flat, dtype=bool).reshape(-1))
+        if not len(self.linear) == len(self.flat) == max(len(self.offsets) - 1, 0):
+            raise ValueError(f"{len(self.linear)} curve types and {len(self.flat)} shapes for "
+                             f"{len(self.offsets) - 1} curves")
         if len(self.points) != len(self.radii):
             raise ValueError(f"{len(self.points)} strand points but {len(self.radii)} radii")
         if len(self.offsets) < 1 or self.offsets[0] != 0 or self.offsets[-1] != len(self.points) \
@@ -210,7 +274,8 @@ class Strands:
             offsets.append(part.offsets[1:] + base)
             base += len(part.points)
         return cls(np.concatenate([p.points for p in parts]), np.concatenate([p.radii for p in parts]),
-                   np.concatenate(offsets), np.concatenate([p.linear for p in parts]))
+                   np.concatenate(offsets), np.concatenate([p.linear for p in parts]),
+                   np.concatenate([p.flat for p in parts]))
 
     def curve_pieces(self, k: int, pieces: int | None = PIECES_PER_SPAN) -> Pieces:
         """Curve k's spans sampled into `pieces` pieces each (None: as few as keep the sag
@@ -219,7 +284,7 @@ class Strands:
         lo, hi = int(self.offsets[k]), int(self.offsets[k + 1])
         points, radii = self.points[lo:hi], self.radii[lo:hi]
         if len(points) == 1:
-            return Spheres(points, radii).pieces()
+            return Spheres(points, radii).pieces()  # a point is a sphere whatever the shape
         if pieces is None:
             pieces = 1 if self.linear[k] else _spline_pieces(points, radii)
         t = np.linspace(0.0, 1.0, pieces + 1)
@@ -233,7 +298,9 @@ class Strands:
         curve = np.einsum("tj,sjc->stc", weights, points[controls])  # (S, pieces + 1, 3)
         width = np.maximum(np.einsum("tj,sj->st", weights, radii[controls]), 0.0)
         return Pieces(curve[:, :-1].reshape(-1, 3), curve[:, 1:].reshape(-1, 3), width[:, :-1].reshape(-1),
-                      width[:, 1:].reshape(-1), np.zeros(len(index) * pieces, np.int64))
+                      width[:, 1:].reshape(-1), np.zeros(len(index) * pieces, np.int64),
+                      np.full(len(index) * pieces, bool(self.flat[k] and not self.linear[k])),
+                      np.full(len(index) * pieces, bool(self.linear[k])))
 
     def pieces(self, pieces: int | None = PIECES_PER_SPAN) -> Pieces:
         """Every curve's `curve_pieces`, in curve order, curve k numbered k: worked out a
@@ -260,23 +327,25 @@ class Strands:
                     pick = (per_span[curves] == count) & (self.linear[curves] == linear)
                     if pick.any():
                         parts.append((curves[pick], _sampled(points[pick], radii[pick], int(count), linear,
-                                                             curves[pick])))
+                                                             curves[pick], self.flat[curves[pick]] & (not linear))))
         merged = Pieces.concatenate([part for _, part in parts])
         curve = np.concatenate([part.curve for _, part in parts])
         order = np.argsort(curve, kind="stable")  # back in curve order, each curve's pieces in turn
-        return Pieces(merged.a[order], merged.b[order], merged.ra[order], merged.rb[order], curve[order])
+        return Pieces(merged.a[order], merged.b[order], merged.ra[order], merged.rb[order], curve[order],
+                      merged.flat[order], merged.closed[order])
 
     def holds(self, points: np.ndarray, grow: float = 1.0, pieces: int | None = PIECES_PER_SPAN) -> np.ndarray:
         """(M,) whether each point lies on or in a strand of `grow` times its radius."""
         return self.pieces(pieces).holds(points, grow)
 
     def crossed(self, starts: np.ndarray, ends: np.ndarray, eps: float = 1e-4,
-                pieces: int | None = PIECES_PER_SPAN) -> np.ndarray:
+                normals: np.ndarray | None = None, pieces: int | None = PIECES_PER_SPAN) -> np.ndarray:
         """(M,) whether each segment start -> end meets a strand beyond `eps` of its length
-        from the start (not the span it starts on). Each curve's pieces are tested only
-        against the segments that pass through its bounding sphere."""
+        from the start, not the curve it starts on (Pieces.crossed). Each curve's pieces are
+        tested only against the segments that pass through its bounding sphere."""
         p = np.asarray(starts, dtype=np.float64).reshape(-1, 3)
         q = np.asarray(ends, dtype=np.float64).reshape(-1, 3)
+        n = None if normals is None else np.asarray(normals, dtype=np.float64).reshape(-1, 3)
         out = np.zeros(len(p), dtype=bool)
         for k in range(len(self) if len(p) else 0):
             part = self.curve_pieces(k, pieces)
@@ -285,9 +354,9 @@ class Strands:
             centre = np.broadcast_to(0.5 * (lo + hi), p.shape)
             reach = np.full(len(p), 0.5 * float(np.linalg.norm(hi - lo)) + float(max(part.ra.max(), part.rb.max())))
             # The segments that pass through the curve's bounding sphere: a sphere's own test.
-            near = np.flatnonzero(_segment_capsule(p, q, centre, centre, reach, reach, 0.0, own=False))
+            near = np.flatnonzero(_segment_capsule(p, q, centre, centre, reach, reach, 0.0))
             if len(near):
-                out[near] |= part.crossed(p[near], q[near], eps)
+                out[near] |= part.crossed(p[near], q[near], eps, None if n is None else n[near])
         return out
 
 
@@ -321,9 +390,11 @@ def _spline_pieces_many(points: np.ndarray, radii: np.ndarray) -> np.ndarray:
     return np.clip(np.ceil(np.sqrt(3.0 * second / (8.0 * tolerance))), 1, PIECES_PER_SPAN).astype(np.int64)
 
 
-def _sampled(points: np.ndarray, radii: np.ndarray, pieces: int, linear: bool, curves: np.ndarray) -> Pieces:
+def _sampled(points: np.ndarray, radii: np.ndarray, pieces: int, linear: bool, curves: np.ndarray,
+             flat: np.ndarray) -> Pieces:
     """Curves (C, n, 3) of one type, their spans sampled into `pieces` pieces each, as in
-    `Strands.curve_pieces`; curve c numbered curves[c]."""
+    `Strands.curve_pieces`; curve c numbered curves[c], a ribbon where flat[c], closed at
+    its ends where linear."""
     count, n = radii.shape
     t = np.linspace(0.0, 1.0, pieces + 1)
     if linear:
@@ -335,7 +406,8 @@ def _sampled(points: np.ndarray, radii: np.ndarray, pieces: int, linear: bool, c
     curve = np.einsum("tj,csjk->cstk", weights, points[:, controls])  # (C, S, pieces + 1, 3)
     width = np.maximum(np.einsum("tj,csj->cst", weights, radii[:, controls]), 0.0)
     return Pieces(curve[:, :, :-1].reshape(-1, 3), curve[:, :, 1:].reshape(-1, 3), width[:, :, :-1].reshape(-1),
-                  width[:, :, 1:].reshape(-1), np.repeat(curves, (n - 1) * pieces))
+                  width[:, :, 1:].reshape(-1), np.repeat(curves, (n - 1) * pieces), np.repeat(flat, (n - 1) * pieces),
+                  np.full(count * (n - 1) * pieces, linear))
 
 
 def catmull_rom_basis(t: np.ndarray) -> np.ndarray:
@@ -350,23 +422,37 @@ def catmull_rom_basis(t: np.ndarray) -> np.ndarray:
 # Segment pairs tested at once (memory: a few arrays of this many float64).
 _BATCH = 4_000_000
 
-# A point within this share of a piece's radius beyond it lies on its curve: above
-# SAG_SHARE, so that a point on Cycles' curve lies on the pieces drawn for it.
+# A point lies on a piece's surface as Cycles intersects it (`_on_piece`) within this
+# share of the piece's radius: above SAG_SHARE, so that a point on Cycles' curve lies on
+# the pieces drawn for it.
 OWN_SLACK = 0.1
+# A round piece's point has its normal within this cosine of the direction from the axis,
+# either way (about 8 degrees; a chord within SAG_SHARE of the curve turns it by under 3).
+OWN_COS = 0.99
+# Cycles ignores a ribbon's hit nearer the ray's start than this many radii (its
+# self-intersection avoidance, kernel/geom/curve_intersect.h).
+RIBBON_AVOIDANCE = 2.0
 
 
 def _crossed(starts: np.ndarray, ends: np.ndarray, a: np.ndarray, b: np.ndarray, ra: np.ndarray,
-             rb: np.ndarray, eps: float, own: "Pieces | bool" = True) -> np.ndarray:
+             rb: np.ndarray, eps: float, own: "Pieces | None" = None, normals: np.ndarray | None = None,
+             flat: np.ndarray | None = None, planes: np.ndarray | None = None,
+             tangents: tuple[np.ndarray, np.ndarray] | None = None) -> np.ndarray:
     """(M,) whether segment m (starts -> ends) passes within the radius of capsule k (a -> b,
-    radius from ra to rb along it) at a point beyond `eps` of its length from its start,
-    and does not start on it: on capsule k grown by OWN_SLACK (`own` True), on its curve
-    (`own` the Pieces that a..rb are: Pieces.on_curve), or anywhere (False). Each capsule
-    is first tested against the bounding sphere of each segment."""
+    radius from ra to rb along it; a ribbon where flat[k], its stretch ending across the
+    joint `tangents`, cut by its curve's end `planes`:
+    `_segment_capsule`) at a point
+    beyond `eps` of its length from its start, and does not start on its curve (`own`, the
+    Pieces that a..rb are, with the starts' `normals`: Pieces.on_curve; either None: every
+    capsule blocks). Each capsule is first tested against the bounding sphere of each
+    segment."""
     p = np.asarray(starts, dtype=np.float64).reshape(-1, 3)
     q = np.asarray(ends, dtype=np.float64).reshape(-1, 3)
     out = np.zeros(len(p), dtype=bool)
     if not len(p) or not len(a):
         return out
+    by_curve = own is not None and normals is not None
+    n = np.asarray(normals, dtype=np.float64).reshape(-1, 3) if by_curve else None
     mid, half = 0.5 * (p + q), 0.5 * np.linalg.norm(q - p, axis=1)
     c_mid, c_half = 0.5 * (a + b), 0.5 * np.linalg.norm(b - a, axis=1) + np.maximum(ra, rb)
     step = max(1, _BATCH // len(a))
@@ -376,21 +462,25 @@ def _crossed(starts: np.ndarray, ends: np.ndarray, a: np.ndarray, b: np.ndarray,
         m, k = np.nonzero(near)
         if not len(m):
             continue
-        by_curve = isinstance(own, Pieces)
-        hit = _segment_capsule(p[rows][m], q[rows][m], a[k], b[k], ra[k], rb[k], eps, own=False if by_curve else own)
+        hit = _segment_capsule(p[rows][m], q[rows][m], a[k], b[k], ra[k], rb[k], eps,
+                               None if flat is None else flat[k],
+                               None if planes is None else planes[k],
+                               None if tangents is None else (tangents[0][k], tangents[1][k]))
         m, k = m[hit], k[hit]
         if by_curve and len(m):
-            keep = ~own.on_curve(p[rows][m], k)
+            keep = ~own.on_curve(p[rows][m], n[rows][m], k)
             m = m[keep]
         out[first + np.unique(m)] = True
     return out
 
 
-def _segment_capsule(p, q, a, b, ra, rb, eps, own: bool = True):
+def _segment_capsule(p, q, a, b, ra, rb, eps, flat=None, planes=None, tangents=None):
     """Pairwise: segment p -> q, from `eps` of its length on, within the capsule a -> b
-    (radius ra -> rb along it, sphere ends). The closest points of the two segments
+    (radius ra -> rb along it, sphere ends): the closest points of the two segments
     (Ericson, Real-Time Collision Detection 5.1.9) and the radius at the capsule's one.
-    Not where p lies on the capsule (grown by OWN_SLACK) with `own`."""
+    `planes` (M, 2, 4): the planes that end the capsule's curve (Pieces.end_planes), where
+    Cycles' tube ends: a round capsule is met only on their curve's side (`_capped_tube`).
+    Where `flat`, a ribbon (`_segment_ribbon`, its `tangents` at its ends)."""
     d1, d2, r = q - p, b - a, p - a
     aa = np.einsum("ij,ij->i", d1, d1)
     ee = np.einsum("ij,ij->i", d2, d2)
@@ -411,10 +501,105 @@ def _segment_capsule(p, q, a, b, ra, rb, eps, own: bool = True):
     gap = p + s[:, None] * d1 - (a + u[:, None] * d2)
     radius = ra + u * (rb - ra)
     hit = np.einsum("ij,ij->i", gap, gap) <= radius * radius
-    if own:
-        grow = 1.0 + OWN_SLACK
-        hit &= ~_within(p, a, b, ra * grow, rb * grow, 1e-6 * np.linalg.norm(p, axis=1))
+    if planes is not None:
+        planes = np.asarray(planes, dtype=np.float64)
+        cut = np.any(planes[:, :, :3] != 0.0, axis=(1, 2))
+        hit &= ~cut | _capped_tube(p, d1, a, d2, ee, radius, eps, planes)
+    if flat is not None and np.any(flat):
+        flat = np.asarray(flat, dtype=bool)
+        hit = np.where(flat, _segment_ribbon(p, d1, a, b, ra, rb, eps, tangents), hit)
     return hit
+
+
+def _segment_ribbon(p, d1, a, b, ra, rb, eps, tangents=None):
+    """Pairwise: segment p -> p + d1 against a ribbon's stretch a -> b (half width ra ->
+    rb along it) as Cycles meets a ribbon: facing the ray, where the ray's line passes the
+    axis line (the closest approach of the two lines), at the axis's depth there, which
+    must lie on the segment more than RIBBON_AVOIDANCE half widths from p (Cycles ignores
+    nearer hits). The stretch ends across the curve's directions at its ends (`tangents`
+    (ta, tb), Pieces.joint_tangents; None: its own), seen across the ray, so that the
+    stretches of a bending curve meet."""
+    d2 = b - a
+    aa = np.einsum("ij,ij->i", d1, d1)
+    ee = np.einsum("ij,ij->i", d2, d2)
+    bb = np.einsum("ij,ij->i", d1, d2)
+    cc = np.einsum("ij,ij->i", d1, p - a)
+    ff = np.einsum("ij,ij->i", d2, p - a)
+    denom = aa * ee - bb * bb
+    with np.errstate(divide="ignore", invalid="ignore"):
+        crossing = denom > 1e-12 * aa * ee  # a ribbon along the ray is seen edge on
+        s = np.where(crossing, (bb * ff - cc * ee) / np.where(crossing, denom, 1.0), -np.inf)
+        u = np.where(ee > 0.0, (bb * s + ff) / np.where(ee > 0.0, ee, 1.0), 0.0)
+    u = np.where(crossing, u, 0.0)
+    gap = p + np.where(crossing, s, 0.0)[:, None] * d1 - (a + u[:, None] * d2)
+    radius = ra + np.clip(u, 0.0, 1.0) * (rb - ra)
+    ta, tb = (d2, d2) if tangents is None else (np.asarray(t, dtype=np.float64) for t in tangents)
+    scale = np.maximum(aa, 1e-300)
+    across_a = ta - (np.einsum("ij,ij->i", ta, d1) / scale)[:, None] * d1
+    across_b = tb - (np.einsum("ij,ij->i", tb, d1) / scale)[:, None] * d1
+    within = (np.einsum("ij,ij->i", p - a, across_a) >= 0.0) & (np.einsum("ij,ij->i", p - b, across_b) <= 0.0)
+    near = RIBBON_AVOIDANCE * radius / np.sqrt(scale)
+    return crossing & within & (np.einsum("ij,ij->i", gap, gap) <= radius * radius) \
+        & (s >= np.maximum(eps, near)) & (s <= 1.0)
+
+
+def _capped_tube(p, d1, a, d2, ee, radius, eps, planes):
+    """Pairwise, for a capsule the segment p -> p + d1 passes within its radius: whether it
+    meets it as Cycles' tube, which its curve's end `planes` (M, 2, 4) cut rather than a
+    half sphere: some point of the segment more than `eps` of its length on lies within
+    the cylinder of the radius at the closest approach and on the curve's side of both."""
+    with np.errstate(divide="ignore", invalid="ignore"):
+        axis = d2 / np.sqrt(np.where(ee > 0.0, ee, 1.0))[:, None]
+        w = (p - a) - np.einsum("ij,ij->i", p - a, axis)[:, None] * axis
+        v = d1 - np.einsum("ij,ij->i", d1, axis)[:, None] * axis
+        qa = np.einsum("ij,ij->i", v, v)
+        qb = 2.0 * np.einsum("ij,ij->i", w, v)
+        qc = np.einsum("ij,ij->i", w, w) - radius * radius
+        disc = qb * qb - 4.0 * qa * qc
+        root = np.sqrt(np.maximum(disc, 0.0))
+        moving = qa > 0.0
+        lo = np.where(moving, (-qb - root) / (2.0 * np.where(moving, qa, 1.0)), np.where(qc <= 0.0, -np.inf, np.inf))
+        hi = np.where(moving, (-qb + root) / (2.0 * np.where(moving, qa, 1.0)), np.where(qc <= 0.0, np.inf, -np.inf))
+        lo = np.where(moving & (disc < 0.0), np.inf, lo)
+        for side in (0, 1):
+            # start + s rate >= 0 on the curve's side of the plane.
+            normal, offset = planes[:, side, :3], planes[:, side, 3]
+            start = np.einsum("ij,ij->i", normal, p) + offset
+            rate = np.einsum("ij,ij->i", normal, d1)
+            cross = -start / np.where(rate != 0.0, rate, 1.0)
+            lo = np.where(rate > 0.0, np.maximum(lo, cross), lo)
+            hi = np.where(rate < 0.0, np.minimum(hi, cross), hi)
+            lo = np.where((rate == 0.0) & (start < 0.0), np.inf, lo)
+    return np.maximum(lo, eps) <= np.minimum(hi, 1.0)
+
+
+def _on_piece(p, n, a, b, ra, rb, flat, planes=None):
+    """Pairwise: whether p, of unit normal n, lies on the piece a -> b (radius ra -> rb
+    along it) as Cycles intersects it, within OWN_SLACK of the radius there (plus
+    float32's rounding of p). A round piece (flat False): on its surface, n within
+    OWN_COS of the direction from the axis, either way (the true normal as the shader
+    sees it faces the camera). A ribbon (flat True): within its radius, in the plane
+    through the axis normal to n (a ribbon faces the ray that meets it, and its true
+    normal is that ray's).
+
+    Nothing lies on a piece past its curve's end `planes` (M, 2, 4; `_segment_capsule`)."""
+    d2 = b - a
+    ee = np.einsum("ij,ij->i", d2, d2)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        u = np.where(ee > 0.0, np.clip(np.einsum("ij,ij->i", p - a, d2) / np.where(ee > 0.0, ee, 1.0), 0.0, 1.0), 0.0)
+    radial = p - (a + u[:, None] * d2)
+    dist = np.linalg.norm(radial, axis=1)
+    radius = ra + u * (rb - ra)
+    slack = OWN_SLACK * radius + 1e-6 * np.linalg.norm(p, axis=1)
+    along = np.einsum("ij,ij->i", radial, n)
+    round_on = (np.abs(dist - radius) <= slack) & (np.abs(along) >= OWN_COS * dist)
+    flat_on = (dist <= radius + slack) & (np.abs(along) <= slack)
+    on = np.where(flat, flat_on, round_on)
+    if planes is not None:
+        planes = np.asarray(planes, dtype=np.float64)
+        for side in (0, 1):
+            on &= np.einsum("ij,ij->i", planes[:, side, :3], p) + planes[:, side, 3] >= 0.0
+    return on
 
 
 def _within(p, a, b, ra, rb, slack=0.0):

@@ -24,8 +24,9 @@ if TYPE_CHECKING:  # pragma: no cover - typing only
 
 # The notes of what no method draws (left_out.py) and the points and strands came with
 # version 2 of a file's reference: one cached before has neither, so it is captured again.
-# Version 3: hair and points are drawn, so no longer among the notes.
-NOTES_VERSION = 3
+# Version 3: hair and points are drawn, so no longer among the notes. Version 4: the
+# strands know whether the scene draws them as ribbons (Strands.flat).
+NOTES_VERSION = 4
 
 log = logging.getLogger(__name__)
 

@@ -222,7 +222,8 @@ class ReferenceData:
             arrays.update(sphere_centres=self.spheres.centres, sphere_radii=self.spheres.radii)
         if self.strands is not None and len(self.strands):
             arrays.update(strand_points=self.strands.points, strand_radii=self.strands.radii,
-                          strand_offsets=self.strands.offsets, strand_linear=self.strands.linear)
+                          strand_offsets=self.strands.offsets, strand_linear=self.strands.linear,
+                          strand_flat=self.strands.flat)
         return arrays
 
     def save(self, path: str | os.PathLike) -> Path:
@@ -304,7 +305,8 @@ def _stored_blockers(npz) -> dict[str, Any]:
         fields["spheres"] = Spheres(npz["sphere_centres"], npz["sphere_radii"])
     if "strand_points" in npz.files:
         fields["strands"] = Strands(npz["strand_points"], npz["strand_radii"], npz["strand_offsets"],
-                                    npz["strand_linear"] if "strand_linear" in npz.files else None)
+                                    npz["strand_linear"] if "strand_linear" in npz.files else None,
+                                    npz["strand_flat"] if "strand_flat" in npz.files else None)
     return fields
 
 

@@ -147,7 +147,7 @@ def collect(depsgraph: Any) -> SceneTriangles:
     left_materials: dict[str, tuple[str, ...]] = {}
     spheres: list[tuple[Owner, Spheres]] = []
     strands: list[tuple[Owner, Strands]] = []
-    linear_shape = getattr(getattr(depsgraph.scene, "cycles_curves", None), "shape", "") == "THICK_LINEAR"
+    shape = CurveShape.of(depsgraph.scene)
     # A view layer with "Strands" off renders no hair (Cycles' view_layer.use_hair).
     hair = bool(getattr(depsgraph.view_layer, "use_strand", True))
     for inst in depsgraph.object_instances:
@@ -158,7 +158,7 @@ def collect(depsgraph: Any) -> SceneTriangles:
         if obj.type in ("POINTCLOUD", "CURVES"):
             parent = inst.parent if inst.is_instance else None
             owner = Owner(obj.original.name_full, None if parent is None else parent.original.name_full)
-            found = _points_or_strands(obj, np.array(inst.matrix_world, dtype=np.float64), linear_shape)
+            found = points_or_strands(obj, np.array(inst.matrix_world, dtype=np.float64), shape)
             if found is not None and len(found):
                 (spheres if obj.type == "POINTCLOUD" else strands).append((owner, found))
             continue
@@ -169,7 +169,7 @@ def collect(depsgraph: Any) -> SceneTriangles:
             continue
         parent = inst.parent if inst.is_instance else None
         if parent is None and hair:
-            for found in _particle_strands(obj, linear_shape):
+            for found in particle_strands(obj, shape):
                 strands.append((Owner(obj.original.name_full), found))
         if parent is None and obj.is_instancer and not obj.original.show_instancer_for_render:
             continue  # an emitter that Cycles does not draw itself
@@ -207,12 +207,26 @@ def _attribute(data: Any, name: str, width: int, count: int) -> np.ndarray | Non
     return values.reshape(count, width) if width > 1 else values
 
 
-def _points_or_strands(obj: Any, matrix: np.ndarray, linear_shape: bool = False) -> "Spheres | Strands | None":
+@dataclass(frozen=True)
+class CurveShape:
+    """How Cycles draws a scene's curves (`scene.cycles_curves.shape`): straight between
+    their points ("Linear 3D Curves") and as ribbons facing the ray ("Ribbons")."""
+
+    linear: bool = False
+    flat: bool = False
+
+    @classmethod
+    def of(cls, scene: Any) -> "CurveShape":
+        shape = getattr(getattr(scene, "cycles_curves", None), "shape", "")
+        return cls(linear=shape == "THICK_LINEAR", flat=shape == "RIBBONS")
+
+
+def points_or_strands(obj: Any, matrix: np.ndarray, shape: CurveShape = CurveShape()) -> "Spheres | Strands | None":
     """An evaluated point cloud's spheres, or hair curves' strands, in world space. Radii
     scale with the matrix's mean scale (a non-uniform scale would make ellipsoids and
     elliptic tubes in Cycles, which these are not). As Cycles does, an object's strands
     are straight between their points when its first curve is a poly curve (5.x), or when
-    the scene's curve shape is "Linear 3D Curves" (`linear_shape`); else Catmull-Rom."""
+    the scene's curve shape is "Linear 3D Curves"; else Catmull-Rom."""
     data = obj.data
     count = len(data.points)
     positions = _attribute(data, "position", 3, count)
@@ -228,8 +242,8 @@ def _points_or_strands(obj: Any, matrix: np.ndarray, linear_shape: bool = False)
     offsets = np.empty(len(data.curve_offset_data), dtype=np.int32)
     data.curve_offset_data.foreach_get("value", offsets)
     curves = len(offsets) - 1
-    linear = linear_shape or (blender_compat.has_linear_curves() and _first_curve_type(data, curves) == CURVE_POLY)
-    return Strands(world, radii * scale, offsets, np.full(curves, linear))
+    linear = shape.linear or (blender_compat.has_linear_curves() and _first_curve_type(data, curves) == CURVE_POLY)
+    return Strands(world, radii * scale, offsets, np.full(curves, linear), np.full(curves, shape.flat))
 
 
 def _shape_radius(shape: float, root: float, tip: float, time: np.ndarray) -> np.ndarray:
@@ -243,7 +257,7 @@ def _shape_radius(shape: float, root: float, tip: float, time: np.ndarray) -> np
     return radius * (root - tip) + tip
 
 
-def _particle_strands(obj: Any, linear_shape: bool) -> list[Strands]:
+def particle_strands(obj: Any, shape: CurveShape) -> list[Strands]:
     """The strands of an evaluated mesh's hair particle systems drawn as paths, in world
     space, as Cycles reads them: 2^render_step + 1 keys a strand (more for a spiral kink),
     the children alone when there are any, the radius from the settings' root, tip and
@@ -270,7 +284,8 @@ def _particle_strands(obj: Any, linear_shape: bool) -> list[Strands]:
         if settings.use_close_tip:
             radii[:, -1] = 0.0
         offsets = np.arange(len(points) + 1) * steps
-        out.append(Strands(points.reshape(-1, 3), radii.reshape(-1), offsets, np.full(len(points), linear_shape)))
+        out.append(Strands(points.reshape(-1, 3), radii.reshape(-1), offsets, np.full(len(points), shape.linear),
+                           np.full(len(points), shape.flat)))
     return out
 
 

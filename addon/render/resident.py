@@ -128,12 +128,14 @@ def piece_chunks(local: np.ndarray, radii: np.ndarray) -> Chunks:
 
 
 def _piece_uvs(extra: np.ndarray) -> np.ndarray:
-    """(T, 3, 2): a piece's ra, rb and its curve's run (first, count) where vertex_texels
-    puts a triangle's UVs: (ra, first), (rb, count), (0, 0), the w of the hi and lo texels
-    of its three vertices (lib/vertex_pull.glsl reads them so; indices below 2^21 are exact
-    in float32)."""
+    """(T, 3, 2): a piece's ra, rb, its curve's run (first, count), whether it is a ribbon
+    and whether its curve ends closed, where vertex_texels puts a triangle's UVs: (ra,
+    first), (rb, count), (flat, closed), the w of the hi and lo texels of its three
+    vertices (lib/vertex_pull.glsl reads them so; indices below 2^21 are exact in float32)."""
+    extra = np.asarray(extra, dtype=np.float64)
     uvs = np.zeros((len(extra), 3, 2))
-    uvs[:, :2, :] = np.asarray(extra, dtype=np.float64)[:, [0, 2, 1, 3]].reshape(-1, 2, 2)
+    uvs[:, :2, :] = extra[:, [0, 2, 1, 3]].reshape(-1, 2, 2)
+    uvs[:, 2, :] = extra[:, 4:6]
     return uvs
 
 
@@ -150,8 +152,9 @@ class ResidentObject:
     chunks: Chunks | None = None
     alpha: AlphaMap | None = None  # the part's see-through material; None: opaque
     uvs: np.ndarray | None = None  # (T, 3, 2) float32 with `alpha`, in the order of `local`
-    # A part of pieces: (T, 4) ra, rb, and the first index and count of the run of the
-    # part's pieces that make its curve (core/blockers.Pieces); None: triangles.
+    # A part of pieces: (T, 6) ra, rb, the first index and count of the run of the part's
+    # pieces that make its curve, 1 for a ribbon, 1 for a curve with closed ends
+    # (core/blockers.Pieces); None: triangles.
     piece_data: np.ndarray | None = None
     _local_lo: np.ndarray = field(default_factory=lambda: np.zeros(3))
     _local_hi: np.ndarray = field(default_factory=lambda: np.zeros(3))
@@ -316,14 +319,14 @@ class ResidentScene:
         keep = finite & (radii.max(axis=1) > 0.0)
         counts = SanitizeCounts(int(np.count_nonzero(~finite)), int(np.count_nonzero(finite & ~keep)))
         chosen = np.flatnonzero(keep)
-        kept = Pieces(pieces.a[chosen], pieces.b[chosen], pieces.ra[chosen], pieces.rb[chosen], pieces.curve[chosen])
+        kept = pieces.take(chosen)
         first, count = kept.spans()
         heads = np.flatnonzero(first == np.arange(len(kept)))
         runs = heads[morton_order(tris[chosen][heads])]  # each curve's first piece, in Morton order
         sizes = count[runs]
         # Every curve's pieces in turn: its head plus 0, 1, ... (no Python loop over curves).
         order = np.repeat(runs, sizes) + np.arange(int(sizes.sum())) - np.repeat(np.cumsum(sizes) - sizes, sizes)
-        kept = Pieces(kept.a[order], kept.b[order], kept.ra[order], kept.rb[order], kept.curve[order])
+        kept = kept.take(order)
         first, count = kept.spans()
         self.remove(key)
         keys: list[str] = []
@@ -335,7 +338,7 @@ class ResidentScene:
             lo = np.maximum(first[start:end], start)
             hi = np.minimum(first[start:end] + count[start:end], end)
             extra = np.column_stack([np.maximum(kept.ra[start:end], 0.0), np.maximum(kept.rb[start:end], 0.0),
-                                     lo - start, hi - lo])
+                                     lo - start, hi - lo, kept.flat[start:end], kept.closed[start:end]])
             self._add_part(part_key, np.stack([kept.a[start:end], kept.b[start:end], kept.a[start:end]], axis=1),
                            matrix, counts if not keys else SanitizeCounts(), None, None, extra)
             keys.append(part_key)

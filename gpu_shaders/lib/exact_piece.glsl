@@ -3,28 +3,34 @@
 // the piece more than ow_exact_eps of its length from p (the receiver's own surface left
 // out, as for triangles), unless p lies on the piece's curve (a point's own sphere, a
 // strand's pieces: Cycles never shadows a point with the primitive it lies on, and a
-// curve is one primitive; core/blockers.Pieces). That is asked only of a segment the
+// curve is one primitive; core/blockers.Pieces), as p's normal tells. That is asked only of a segment the
 // piece blocks, so its walk over the curve's pieces is rare. A sun's segment runs from p
 // against its direction, past the piece; it must meet it more than ow_exact_eps |p| from
 // p. A sized light (OW_EXACT_SOFT) tests each of its points' segments (lib/exact_soft.glsl).
-#include "lib/blockers.glsl"
+#include "lib/piece_fragment.glsl"
 #include "lib/vertex_pull.glsl"
 
-// Whether p lies on this fragment's piece's curve: within OW_OWN_SLACK of the radius of
-// one of its run of pieces (v_piece_curve: first, count).
-bool ow_on_own_curve(vec3 p)
+// Whether p, of normal n, lies on this fragment's piece's curve: on one of its run of
+// pieces (v_piece_curve: first, count; ow_on_piece), cut by the curve's end planes.
+bool ow_on_own_curve(vec3 p, vec3 n)
 {
   int first = int(v_piece_curve.x + 0.5);
   int count = int(v_piece_curve.y + 0.5);
+  bool ribbon = ow_piece_ribbon();
   for (int j = first; j < first + count; j++) {
-    float grow = 1.0 + OW_OWN_SLACK;
-    float ra = ow_object_length(ow_pull_w(3 * j, false)) * grow;
-    float rb = ow_object_length(ow_pull_w(3 * j + 1, false)) * grow;
-    if (ow_within(p, ow_pull(3 * j), ow_pull(3 * j + 1), ra, rb)) {
+    float ra = ow_object_length(ow_pull_w(3 * j, false));
+    float rb = ow_object_length(ow_pull_w(3 * j + 1, false));
+    if (ow_on_piece(p, n, ow_pull(3 * j), ow_pull(3 * j + 1), ra, rb, ribbon, v_piece_cut_a, v_piece_cut_b)) {
       return true;
     }
   }
   return false;
+}
+
+// Sample `at`'s unit normal (its true normal, facing the camera).
+vec3 ow_sample_normal(ivec2 at)
+{
+  return normalize(texelFetch(ow_normals, at, 0).xyz);
 }
 
 // A segment towards a sun, as the parameter's scale: long enough to pass every point of
@@ -32,12 +38,6 @@ bool ow_on_own_curve(vec3 p)
 float ow_piece_sun_reach(vec3 p)
 {
   return length(p) + max(length(v_piece_a.xyz), length(v_piece_b.xyz)) + max(v_piece_a.w, v_piece_b.w) + 1.0;
-}
-
-// Whether the segment p + s d, s past `lo`, meets this fragment's piece.
-bool ow_piece_blocks(vec3 p, vec3 d, float lo)
-{
-  return ow_segment_piece(p, d, v_piece_a.xyz, v_piece_b.xyz, v_piece_a.w, v_piece_b.w, lo);
 }
 
 #ifdef OW_EXACT_SOFT
@@ -57,7 +57,7 @@ void ow_piece_soft_mark(vec3 p, ivec2 at, int rows)
     for (int j = 0; j < count; j++) {
       if (((blocked >> uint(j)) & 1u) == 0u && ow_piece_blocks(p, ow_light_segment(p, view, 32 * w + j) * reach, lo)) {
         if (own < 0) {
-          own = ow_on_own_curve(p) ? 1 : 0;  // asked once, at the first blocked point
+          own = ow_on_own_curve(p, ow_sample_normal(at)) ? 1 : 0;  // asked once, at the first blocked point
         }
         if (own > 0) {
           return;
@@ -81,13 +81,14 @@ void ow_piece_exact_entry(ivec2 at, vec3 p)
 #ifndef OW_FIXED_KIND
   if (ow_projective != 0 && ow_sun != 0) {
     float reach = ow_piece_sun_reach(p);
-    if (ow_piece_blocks(p, -ow_light_axis * reach, ow_exact_eps * length(p) / reach) && !ow_on_own_curve(p)) {
+    if (ow_piece_blocks(p, -ow_light_axis * reach, ow_exact_eps * length(p) / reach)
+        && !ow_on_own_curve(p, ow_sample_normal(at))) {
       imageAtomicOr(ow_hits, at, OW_HIT_OPAQUE);
     }
     return;
   }
 #endif
-  if (dot(p, p) > 0.0 && ow_piece_blocks(p, -p, ow_exact_eps) && !ow_on_own_curve(p)) {
+  if (dot(p, p) > 0.0 && ow_piece_blocks(p, -p, ow_exact_eps) && !ow_on_own_curve(p, ow_sample_normal(at))) {
     imageAtomicOr(ow_hits, at, OW_HIT_OPAQUE);
   }
 #endif

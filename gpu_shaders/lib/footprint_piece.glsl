@@ -103,8 +103,48 @@ void ow_piece_vertex(int corner)
   float r = max(ra, rb);
   v_piece_a = vec4(a, ra);
   v_piece_b = vec4(b, rb);
-  // Its curve's run of pieces (lib/exact_piece.glsl leaves a sample on the curve unshadowed).
-  v_piece_curve = vec2(ow_pull_w(base, true), ow_pull_w(base + 1, true));
+  // Its curve's run of pieces (lib/exact_piece.glsl leaves a sample on the curve
+  // unshadowed) and 1 for a ribbon (resident._piece_uvs).
+  float first = ow_pull_w(base, true);
+  float count = ow_pull_w(base + 1, true);
+  int index = base / 3;
+  int first_i = int(first + 0.5);
+  int last_i = int(first + count - 0.5);
+  v_piece_curve = vec3(first, count, ow_pull_w(base + 2, false));
+  // The planes that end its curve, across its direction at its first and last points,
+  // as Cycles ends a curve's tube (core/blockers.Pieces.end_planes); none for a point or
+  // a closed (linear) curve.
+  v_piece_cut_a = vec4(0.0);
+  v_piece_cut_b = vec4(0.0);
+  if (ow_pull_w(base + 2, true) < 0.5) {
+    vec3 a0 = ow_pull(3 * first_i);
+    vec3 b0 = ow_pull(3 * first_i + 1);
+    vec3 a1 = ow_pull(3 * last_i);
+    vec3 b1 = ow_pull(3 * last_i + 1);
+    if (a0 != b0) {
+      vec3 n0 = normalize(b0 - a0);
+      v_piece_cut_a = vec4(n0, -dot(n0, a0));
+    }
+    if (a1 != b1) {
+      vec3 n1 = normalize(a1 - b1);
+      v_piece_cut_b = vec4(n1, -dot(n1, b1));
+    }
+  }
+  // A ribbon's stretch ends across the curve's direction at its ends: the bisectors of its
+  // own and its neighbours' (core/blockers.Pieces.joint_tangents).
+  vec3 unit = (a != b) ? normalize(b - a) : vec3(0.0);
+  v_piece_ta = unit;
+  v_piece_tb = unit;
+  if (v_piece_curve.z > 0.5) {
+    if (index > first_i) {
+      vec3 before = ow_pull(base - 2) - ow_pull(base - 3);
+      v_piece_ta += (dot(before, before) > 0.0) ? normalize(before) : vec3(0.0);
+    }
+    if (index < last_i) {
+      vec3 after = ow_pull(base + 4) - ow_pull(base + 3);
+      v_piece_tb += (dot(after, after) > 0.0) ? normalize(after) : vec3(0.0);
+    }
+  }
   // The triangles' flat inputs: unused by a piece's fragments, written all the same.
   v_plane = vec4(0.0);
   v_edge0 = vec3(0.0);

@@ -45,7 +45,7 @@ float ow_footprint_depth(vec3 dir)
 }
 
 #ifdef OW_PIECES
-#include "lib/blockers.glsl"
+#include "lib/piece_fragment.glsl"
 
 // A piece's normalised depth at this texel (OW_PIECES): where the texel's ray leaves it
 // (lib/blockers.glsl's ow_piece_span); the fragment is discarded where the ray passes
@@ -54,7 +54,10 @@ float ow_footprint_depth(vec3 dir)
 // primitive in Cycles, and a point on the far side faces away from the light. A layer's
 // ray runs from the light to twice the far distance; a spot's from the light through the
 // map's far plane, a sun's from the map's near plane to its far one, and the depth is the
-// map's own there (an inverted PSM's kept farthest, as ow_projective_z01 keeps it).
+// map's own there (an inverted PSM's kept farthest, as ow_projective_z01 keeps it). A ray
+// that meets the piece only where Cycles draws nothing (past a curve's end plane, beside a
+// ribbon's end: lib/piece_fragment.glsl) passes it.
+
 float ow_piece_depth()
 {
   vec3 a = v_piece_a.xyz;
@@ -68,7 +71,7 @@ float ow_piece_depth()
     vec3 p1 = far_point.xyz / far_point.w;
     vec3 p0 = (ow_sun != 0) ? near_point.xyz / near_point.w : vec3(0.0);
     vec2 span = ow_piece_span(p0, p1, a, b, v_piece_a.w, v_piece_b.w);
-    if (span.x < 0.0) {
+    if (span.x < 0.0 || !ow_piece_blocks(p0, p1 - p0, 0.0)) {
       discard;
     }
     vec4 clip = ow_map_matrix * vec4(mix(p0, p1, span.y), 1.0);
@@ -82,7 +85,7 @@ float ow_piece_depth()
   vec3 dir = normalize(ow_texel_ray());
   float reach = 2.0 * ow_far;
   vec2 span = ow_piece_span(vec3(0.0), dir * reach, a, b, v_piece_a.w, v_piece_b.w);
-  if (span.x < 0.0) {
+  if (span.x < 0.0 || !ow_piece_blocks(vec3(0.0), dir * reach, 0.0)) {
     discard;
   }
   return clamp((span.y * reach - ow_near) / (ow_far - ow_near), 0.0, 1.0);

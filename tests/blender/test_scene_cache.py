@@ -545,3 +545,73 @@ def test_see_through_materials_become_alpha_parts_and_follow_edits(world):
     world.evaluate()
     assert world.cache.stats["geometry_reads"] == reads + 1
     assert all(obj.alpha is None for obj in world.cache.resident().objects.values())
+
+
+# ----------------------------------------------------------------------------
+# hair and points
+# ----------------------------------------------------------------------------
+def _hair_object(world: World, name: str, location=(0.0, 0.0, 0.0)):
+    """A hair curves object of two straight strands of three points, 2 cm thick."""
+    curves = bpy.data.hair_curves.new(name)
+    curves.add_curves([3, 3])
+    points = np.array([[0, 0, 0], [0, 0, 0.5], [0, 0, 1], [0.5, 0, 0], [0.5, 0, 0.5], [0.5, 0, 1]], np.float32)
+    curves.attributes["position"].data.foreach_set("vector", points.ravel())
+    radius = curves.attributes.get("radius") or curves.attributes.new("radius", "FLOAT", "POINT")
+    radius.data.foreach_set("value", np.full(6, 0.02, np.float32))
+    obj = bpy.data.objects.new(name, curves)
+    obj.location = location
+    world.scene.collection.objects.link(obj)
+    world.objects.append(obj.name_full)
+    world.datablocks.append((bpy.data.hair_curves, curves.name_full))
+    return obj
+
+
+def _points_on(world: World, obj) -> None:
+    """Geometry nodes on a mesh: its vertices as points of 10 cm (a point cloud that has
+    no object of its own)."""
+    tree = bpy.data.node_groups.new(f"{obj.name}_points", "GeometryNodeTree")
+    tree.interface.new_socket("Geometry", in_out="INPUT", socket_type="NodeSocketGeometry")
+    tree.interface.new_socket("Geometry", in_out="OUTPUT", socket_type="NodeSocketGeometry")
+    group_in, group_out = tree.nodes.new("NodeGroupInput"), tree.nodes.new("NodeGroupOutput")
+    to_points = tree.nodes.new("GeometryNodeMeshToPoints")
+    to_points.inputs["Radius"].default_value = 0.1
+    tree.links.new(group_in.outputs[0], to_points.inputs["Mesh"])
+    tree.links.new(to_points.outputs["Points"], group_out.inputs[0])
+    obj.modifiers.new("points", "NODES").node_group = tree
+    world.track(tree)
+
+
+def _piece_keys(resident) -> set[str]:
+    return {key for key, obj in resident.objects.items() if obj.pieces}
+
+
+def test_hair_and_points_become_resident_pieces(world: World) -> None:
+    """The viewport draws hair curves and geometry nodes' points as pieces: one resident
+    object each, in its own frame (a move changes only the matrix, nothing is read
+    again), in each light's blockers, gone when hidden or when the layer's strands are off."""
+    hair = _hair_object(world, "cache_hair", location=(1.0, 0.0, 0.0))
+    scatter = world.mesh("cache_scatter", PLANE_VERTS, PLANE_TRIS)
+    _points_on(world, scatter)
+    lamp = bpy.data.objects.new("cache_lamp", bpy.data.lights.new("cache_lamp", "POINT"))
+    world.scene.collection.objects.link(lamp)
+    world.objects.append(lamp.name_full)
+    world.evaluate()
+    resident = world.cache.resident()
+    keys = _piece_keys(resident)
+    assert len(keys) == 2, keys
+    assert resident.pieces > 4  # two strands' pieces and four points
+    reads = world.cache.pieces.reads
+    _, occluders = scene_cache.resident_inputs(world.cache, world.scene, ["cache_lamp"])
+    assert occluders["cache_lamp"].pieces == resident.pieces
+    hair.location = (2.0, 0.0, 0.0)
+    world.evaluate()
+    assert world.cache.pieces.reads == reads  # moved, not read again
+    moved = [resident.objects[key].matrix for key in _piece_keys(world.cache.resident())]
+    assert any(np.allclose(m[:3, 3], (2.0, 0.0, 0.0)) for m in moved)
+    world.scene.view_layers[0].use_strand = False
+    world.evaluate()
+    assert len(_piece_keys(world.cache.resident())) == 1  # the points alone
+    world.scene.view_layers[0].use_strand = True
+    scatter.hide_viewport = True
+    world.evaluate()
+    assert len(_piece_keys(world.cache.resident())) == 1  # the hair alone

@@ -38,26 +38,66 @@ def test_a_sphere_blocks_the_segments_that_pass_within_its_radius():
 def test_the_receivers_own_primitive_is_left_out():
     """A sample on a sphere's surface is never shadowed by that sphere, its light on
     either side (Cycles' rays skip the primitive they leave), but by another one; a sample
-    on a strand (a ribbon's point, inside the tube) not by any part of that strand
-    (Cycles' primitive is the whole curve), but by another strand, and a sample off it by
-    the strand itself."""
+    on a strand not by any part of that strand (Cycles' primitive is the whole curve),
+    but by another strand, and a sample off it by the strand itself."""
     spheres = Spheres([[0.0, 0.0, 0.0], [0.0, 0.0, -3.0]], [1.0, 0.5])
-    start = np.array([[0.0, 0.0, 1.0]])
-    assert not spheres.crossed(start, np.array([[0.0, 0.0, 5.0]]))[0]
-    assert not Spheres([[0.0, 0.0, 0.0]], [1.0]).crossed(start, np.array([[0.0, 0.0, -5.0]]))[0]
-    assert spheres.crossed(start, np.array([[0.0, 0.0, -5.0]]))[0]
-    # A hook: up, then back down over its start; a sample in the first span's middle.
+    start, up = np.array([[0.0, 0.0, 1.0]]), np.array([[0.0, 0.0, 1.0]])
+    assert not spheres.crossed(start, np.array([[0.0, 0.0, 5.0]]), normals=up)[0]
+    assert not Spheres([[0.0, 0.0, 0.0]], [1.0]).crossed(start, np.array([[0.0, 0.0, -5.0]]), normals=up)[0]
+    assert spheres.crossed(start, np.array([[0.0, 0.0, -5.0]]), normals=up)[0]
+    # Without normals no start lies on a sphere: its own blocks the far side.
+    assert Spheres([[0.0, 0.0, 0.0]], [1.0]).crossed(start, np.array([[0.0, 0.0, -5.0]]))[0]
+    # A hook: up, then back down over its start; a sample on the first span's side.
     points = [[0.0, 0.0, 0.0], [0.0, 0.0, 1.0], [0.3, 0.0, 1.2], [0.3, 0.0, 0.5]]
     hook = Strands(points, np.full(4, 0.05), [0, 4], np.array([True]))
-    on_first = np.array([[0.02, 0.0, 0.5]])
+    on_first, out = np.array([[0.05, 0.0, 0.5]]), np.array([[1.0, 0.0, 0.0]])
     towards_last = np.array([[5.0, 0.0, 0.6]])  # the segment passes through the last span
-    assert not hook.crossed(on_first, np.array([[0.02, 0.0, -2.0]]))[0]  # its own span lies along it
-    assert not hook.crossed(on_first, towards_last)[0]
-    assert hook.crossed(on_first + [0.1, 0.0, 0.0], towards_last)[0]  # off the strand
+    assert not hook.crossed(on_first, np.array([[0.05, 0.0, -2.0]]), normals=out)[0]  # along its own span
+    assert not hook.crossed(on_first, towards_last, normals=out)[0]
+    assert hook.crossed(on_first + [0.1, 0.0, 0.0], towards_last, normals=out)[0]  # off the strand
     two = Strands.concatenate([hook, Strands(np.array(points[2:]) + [0.5, 0.0, 0.0], np.full(2, 0.05), [0, 2],
                                              np.array([True]))])
     beyond = np.array([[5.0, 0.0, 0.51]])  # through the hook's last span and the second strand
-    assert two.crossed(on_first, beyond)[0] and not hook.crossed(on_first, beyond)[0]
+    assert two.crossed(on_first, beyond, normals=out)[0] and not hook.crossed(on_first, beyond, normals=out)[0]
+
+
+def test_a_sample_inside_another_strand_is_shadowed_by_it():
+    """Two round strands that overlap: a sample on the first one's surface lies inside the
+    second, whose tube Cycles' ray leaves on its way to the light; so the second shadows
+    it, and the first does not. Told apart by the sample's normal: on the second strand's
+    surface with its normal facing out, the sample would lie on it instead."""
+    first = Strands([[0.0, 0.0, 0.0], [0.0, 0.0, 1.0]], [0.1, 0.1], [0, 2], np.array([True]))
+    second = Strands([[0.05, 0.0, 0.0], [0.05, 0.0, 1.0]], [0.1, 0.1], [0, 2], np.array([True]))
+    both = Strands.concatenate([first, second])
+    sample, normal = np.array([[0.1, 0.0, 0.5]]), np.array([[1.0, 0.0, 0.0]])  # on the first, inside the second
+    light = np.array([[0.1, 0.0, 0.5]]) + [-5.0, 0.0, 0.0]  # through both axes
+    assert both.crossed(sample, light, normals=normal)[0]
+    assert not first.crossed(sample, light, normals=normal)[0]
+    assert second.crossed(sample, light, normals=normal)[0]
+    # On the second's surface (0.05 + 0.1 from its axis, facing out) neither shadows it
+    # towards +x: it lies on the second, and the first lies behind it.
+    outer = np.array([[0.15, 0.0, 0.5]])
+    assert not both.crossed(outer, outer + [5.0, 0.0, 0.0], normals=normal)[0]
+
+
+def test_a_ribbon_faces_the_ray():
+    """A ribbon (Strands.flat) is met where the ray passes its axis, more than twice its
+    radius from the start: a segment starting in its tube past the axis does not meet it,
+    one before the axis does; a sample in the
+    ribbon's plane facing the camera (its true normal) lies on it, one across the plane
+    (on a round tube's surface) does not."""
+    flat = Strands([[0.0, 0.0, 0.0], [0.0, 0.0, 1.0]], [0.1, 0.1], [0, 2], np.array([False]), np.array([True]))
+    round_ = Strands(flat.points, flat.radii, flat.offsets, flat.linear)
+    sample, light = np.array([[0.05, 0.0, 0.5]]), np.array([[5.0, 0.0, 0.5]])  # inside, past the axis
+    camera = np.array([[0.0, 1.0, 0.0]])  # the camera ray's: the ribbon's plane y = 0
+    assert not flat.crossed(sample + [0.0, 0.05, 0.0], light)[0]  # past the axis: no hit
+    assert flat.crossed(sample - [0.5, 0.0, 0.0], light)[0]  # before it: a hit
+    assert not flat.crossed(sample - [0.2, 0.0, 0.0], light)[0]  # nearer than twice its radius: ignored
+    assert round_.crossed(sample + [0.0, 0.05, 0.0], light)[0]  # a round tube's far side
+    in_plane = np.array([[0.05, 0.0, 0.5], [0.05, 0.05, 0.5]])  # in the plane y = 0, its normal +y; off it
+    on = flat.pieces(4).on_curve(in_plane, np.repeat(camera, 2, axis=0), np.array([1, 1]))
+    assert on.tolist() == [True, False]
+    assert flat.pieces(4).flat.all() and not round_.pieces(4).flat.any()
 
 
 def test_capsules_match_brute_force():
@@ -67,7 +107,7 @@ def test_capsules_match_brute_force():
     starts, ends = rng.normal(size=(120, 3)) * 1.5, rng.normal(size=(120, 3)) * 1.5
     from addon.core.blockers import _crossed
 
-    ours = _crossed(starts, ends, a, b, ra, rb, 1e-4, own=False)
+    ours = _crossed(starts, ends, a, b, ra, rb, 1e-4)
     theirs = _brute(starts, ends, a, b, ra, rb, 1e-4)
     # Dense sampling can only miss a grazing hit, never invent one.
     assert not np.any(theirs & ~ours)
@@ -105,3 +145,27 @@ def test_strands_concatenate_and_refuse_bad_offsets():
         Strands(np.zeros((3, 3)), np.ones(3), [0, 2])
     with pytest.raises(ValueError):
         Spheres(np.zeros((2, 3)), np.ones(3))
+
+
+def test_a_curve_is_open_at_its_ends():
+    """Cycles ends a Catmull-Rom curve's tube in the plane across its axis, with no half
+    sphere: a segment that passes the end point within the radius but beyond that plane
+    misses it, one through the side near the end meets it. A sample beyond the end, within
+    the radius of the end point, does not lie on the curve. A point's sphere is closed,
+    and so is a poly curve's end (Cycles 5.x draws it as round linear segments, ribbons
+    or not)."""
+    strand = Strands([[0.0, 0.0, 0.0], [0.0, 0.0, 1.0]], [0.1, 0.1], [0, 2])
+    assert np.allclose(strand.pieces(1).end_planes()[0], [[0, 0, 1, 0], [0, 0, -1, 1]])
+    assert not Spheres([[0.0, 0.0, 0.0]], [0.1]).pieces().end_planes().any()
+    beyond = strand.crossed(np.array([[-1.0, 0.0, -0.05]]), np.array([[1.0, 0.0, -0.05]]))
+    side = strand.crossed(np.array([[-1.0, 0.0, 0.05]]), np.array([[1.0, 0.0, 0.05]]))
+    assert beyond.tolist() == [False] and side.tolist() == [True]
+    ball = Spheres([[0.0, 0.0, 0.0]], [0.1]).crossed(np.array([[-1.0, 0.0, -0.05]]), np.array([[1.0, 0.0, -0.05]]))
+    assert ball.tolist() == [True]
+    poly = Strands(strand.points, strand.radii, strand.offsets, np.array([True]), np.array([True]))
+    assert not poly.pieces(1).flat.any() and not poly.pieces(1).end_planes().any()
+    assert poly.crossed(np.array([[-1.0, 0.0, -0.05]]), np.array([[1.0, 0.0, -0.05]])).tolist() == [True]
+    pieces = strand.pieces(1)
+    on = pieces.on_curve(np.array([[0.1, 0.0, 0.5], [0.1, 0.0, -0.01]]), np.array([[1.0, 0.0, 0.0]] * 2),
+                         np.array([0, 0]))
+    assert on.tolist() == [True, False]

@@ -150,8 +150,11 @@ def _shared_defines() -> dict[str, str]:
         "OW_CLEAR_ALPHA": repr(float(alpha.CLEAR_ALPHA)),
         "OW_HIT_OPAQUE": f"{alpha.HIT_OPAQUE:#x}u",
         "OW_OPTICAL_SCALE": repr(float(alpha.OPTICAL_SCALE)),
-        # A point this share of a piece's radius beyond it still lies on it (lib/blockers.glsl).
-        "OW_OWN_SLACK": repr(float(blockers.OWN_SLACK)),
+        # How near a piece's surface a point lies on it, and its normal's least cosine with
+        # the direction from the axis (lib/blockers.glsl ow_on_piece).
+        "OW_OWN_SLACK": repr(float(blockers.OWN_SLACK)), "OW_OWN_COS": repr(float(blockers.OWN_COS)),
+        # Cycles ignores a ribbon's hit nearer than this many radii (lib/blockers.glsl).
+        "OW_RIBBON_AVOIDANCE": repr(float(blockers.RIBBON_AVOIDANCE)),
         "OW_WORK_CUT": str(WORK_CUT), "OW_WORK_ENTRIES": str(WORK_ENTRIES),
         "OW_WORK_FRAGMENTS": str(WORK_FRAGMENTS), "OW_WORK_BOX": str(WORK_BOX),
         "OW_EXACT_SOFT_MAX_POINTS": str(EXACT_SOFT_MAX_POINTS), "OW_EXACT_SOFT_CLUSTER": str(EXACT_SOFT_CLUSTER),

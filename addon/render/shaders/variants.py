@@ -222,7 +222,9 @@ def pieces_of(base: ProgramInterface) -> ProgramInterface:
         raise BackendError(f"program {base.name!r} has no pieces variant")
     return derive(base, base.name + "_pieces", defines={PIECES_DEFINE: "1"},
                   varyings=(Varying("vec4", "v_piece_a", flat=True), Varying("vec4", "v_piece_b", flat=True),
-                            Varying("vec2", "v_piece_curve", flat=True)))
+                            Varying("vec3", "v_piece_curve", flat=True), Varying("vec4", "v_piece_cut_a", flat=True),
+                            Varying("vec4", "v_piece_cut_b", flat=True), Varying("vec3", "v_piece_ta", flat=True),
+                            Varying("vec3", "v_piece_tb", flat=True)))
 
 
 def soft_of(base: ProgramInterface) -> ProgramInterface:
