@@ -438,14 +438,12 @@ def _crossed(starts: np.ndarray, ends: np.ndarray, a: np.ndarray, b: np.ndarray,
              rb: np.ndarray, eps: float, own: "Pieces | None" = None, normals: np.ndarray | None = None,
              flat: np.ndarray | None = None, planes: np.ndarray | None = None,
              tangents: tuple[np.ndarray, np.ndarray] | None = None) -> np.ndarray:
-    """(M,) whether segment m (starts -> ends) passes within the radius of capsule k (a -> b,
-    radius from ra to rb along it; a ribbon where flat[k], its stretch ending across the
-    joint `tangents`, cut by its curve's end `planes`:
-    `_segment_capsule`) at a point
-    beyond `eps` of its length from its start, and does not start on its curve (`own`, the
-    Pieces that a..rb are, with the starts' `normals`: Pieces.on_curve; either None: every
-    capsule blocks). Each capsule is first tested against the bounding sphere of each
-    segment."""
+    """(M,) whether segment m (starts -> ends) meets capsule k (a -> b, radius from ra to rb
+    along it; a ribbon where flat[k], its stretch ending across the joint `tangents`, cut
+    by its curve's end `planes`: `_segment_capsule`) beyond `eps` of its length from its
+    start, and does not start on its curve (`own`, the Pieces that a..rb are, with the
+    starts' `normals`: Pieces.on_curve; either None: every capsule blocks). Each capsule
+    is first tested against the bounding sphere of each segment."""
     p = np.asarray(starts, dtype=np.float64).reshape(-1, 3)
     q = np.asarray(ends, dtype=np.float64).reshape(-1, 3)
     out = np.zeros(len(p), dtype=bool)

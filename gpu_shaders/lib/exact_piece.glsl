@@ -3,10 +3,11 @@
 // the piece more than ow_exact_eps of its length from p (the receiver's own surface left
 // out, as for triangles), unless p lies on the piece's curve (a point's own sphere, a
 // strand's pieces: Cycles never shadows a point with the primitive it lies on, and a
-// curve is one primitive; core/blockers.Pieces), as p's normal tells. That is asked only of a segment the
-// piece blocks, so its walk over the curve's pieces is rare. A sun's segment runs from p
-// against its direction, past the piece; it must meet it more than ow_exact_eps |p| from
-// p. A sized light (OW_EXACT_SOFT) tests each of its points' segments (lib/exact_soft.glsl).
+// curve is one primitive; core/blockers.Pieces), as p's normal tells. That is asked only
+// of a segment the piece blocks, so its walk over the curve's pieces is rare. A sun's
+// segment runs from p against its direction, past the piece; it must meet it more than
+// ow_exact_eps |p| from p. A sized light (OW_EXACT_SOFT) tests each of its points'
+// segments (lib/exact_soft.glsl).
 #include "lib/piece_fragment.glsl"
 #include "lib/vertex_pull.glsl"
 
