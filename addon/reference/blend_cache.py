@@ -25,8 +25,9 @@ if TYPE_CHECKING:  # pragma: no cover - typing only
 # The notes of what no method draws (left_out.py) and the points and strands came with
 # version 2 of a file's reference: one cached before has neither, so it is captured again.
 # Version 3: hair and points are drawn, so no longer among the notes. Version 4: the
-# strands know whether the scene draws them as ribbons (Strands.flat).
-NOTES_VERSION = 4
+# strands know whether the scene draws them as ribbons (Strands.flat). Version 5: the
+# reference renders volume shaders (reference_materials), with their noise.
+NOTES_VERSION = 5
 
 log = logging.getLogger(__name__)
 

@@ -22,7 +22,9 @@ gives the `shadowed` and `unshadowed` Diffuse Direct passes. A sized light rende
 pass twice, with `soft_samples` / 2 samples and two seeds: the halves' mean is the
 reference, and half their difference, `visibility_noise`, its own noise per pixel. The
 same seed in the shadowed and unshadowed renders draws the same light points, so their
-ratio is the share of those points the pixel sees. The stored triangles
+ratio is the share of those points the pixel sees. A scene with a medium (a volume
+shader; `reference_materials.media`) renders so too, whatever its light: a density that
+varies makes the shadows' transmittance noisy. The stored triangles
 are the ones that block the light: the render depsgraph's geometry
 (`render_geometry.py`) sorted by `shadow_rule.ShadowRule`, which follows ray
 visibility, shadow linking and the light's own `use_shadow` as Cycles does. `bpy`
@@ -526,6 +528,10 @@ def capture(scene: "bpy.types.Scene", samples: int = DEFAULT_SAMPLES, *, light: 
     emission = _emission_of(light_obj.data)
     authored = light_size.light_shape(light_obj, light_obj.evaluated_get(depsgraph).matrix_world)
     sized = authored.sized and not hard
+    media = reference_materials.media(scene, layer)
+    noisy = sized or bool(media)  # two halves and their noise (module docstring)
+    if media:
+        log.info("media (volume shaders) the reference renders with: %s", ", ".join(media))
     if check is not None:
         check(emission)
     _warn_soft_light(light_obj)
@@ -553,7 +559,7 @@ def capture(scene: "bpy.types.Scene", samples: int = DEFAULT_SAMPLES, *, light: 
             # read before the reference materials replace the file's (their alpha).
             scene_triangles = render_triangles(scene, layer)
             material_notes = _apply_render_settings(scene, layer, light_obj, visible,
-                                                    soft_samples // 2 if sized else samples,
+                                                    soft_samples // 2 if noisy else samples,
                                                     str(tmpdir / "pass"), overrides, hard)
 
             depsgraph = _evaluated_depsgraph(scene, layer)
@@ -572,8 +578,8 @@ def capture(scene: "bpy.types.Scene", samples: int = DEFAULT_SAMPLES, *, light: 
             if empty:
                 log.info("rendered objects without triangles: %s", ", ".join(sorted(empty)))
 
-            seeds = SOFT_SEEDS if sized else SOFT_SEEDS[:1]
-            spp = soft_samples // 2 if sized else samples
+            seeds = SOFT_SEEDS if noisy else SOFT_SEEDS[:1]
+            spp = soft_samples // 2 if noisy else samples
             lits, frees, t_shadowed, t_unshadowed = [], [], 0.0, 0.0
             count = 2 * len(seeds)
             for i, seed in enumerate(seeds):
@@ -610,7 +616,7 @@ def capture(scene: "bpy.types.Scene", samples: int = DEFAULT_SAMPLES, *, light: 
     shadowed = np.mean(shadowed_halves, axis=0).astype(np.float32)
     unshadowed = np.mean(unshadowed_halves, axis=0).astype(np.float32)
     noise = None
-    if sized:
+    if noisy:
         # Half the halves' difference: for independent halves, its mean is the mean
         # distance of their average (the reference) from the converged visibility.
         a, b = (reference_ratio(sh, un) for sh, un in zip(shadowed_halves, unshadowed_halves))
@@ -624,7 +630,7 @@ def capture(scene: "bpy.types.Scene", samples: int = DEFAULT_SAMPLES, *, light: 
         "light": light_obj.name,
         "camera": cam_obj.name,
         "blender_version": bpy.app.version_string,
-        "samples": int(soft_samples if sized else samples),
+        "samples": int(soft_samples if noisy else samples),
         "mixed_pixels": mixed,
         # The light as the reference rendered it, and as the file has it.
         "light_shape": (authored if sized else POINT).as_dict(),

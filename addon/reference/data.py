@@ -88,7 +88,7 @@ class ReferenceData:
     camera_ortho: bool = False
     camera_clip: tuple[float, float] | None = None  # (start, end); None: CameraSpec's defaults
     surface: Surface | None = None  # see-through materials of `triangles`; None: all opaque
-    visibility_noise: np.ndarray | None = None  # (H, W) float32, a sized light's; None: noise-free
+    visibility_noise: np.ndarray | None = None  # (H, W) float32, a sized light's or a medium's; None: noise-free
     spheres: Spheres | None = None  # point clouds that block the light; None: none
     strands: Strands | None = None  # hair curves that block the light; None: none
 

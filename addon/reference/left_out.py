@@ -6,7 +6,7 @@ rows, the report, the comparison panel and the log must say so:
 
 - **volumes**: Volume geometry (OpenVDB grids, geometry nodes' volumes), and a
   **volume material** on a mesh without a surface shader (a smoke or fog box): Cycles
-  renders a medium, the maps an opaque surface, and the reference a white one;
+  and the reference (reference_materials) render a medium, the maps an opaque surface;
 - **true displacement**: a material that displaces its surface at render time (the
   maps draw the undisplaced triangles, and so does the reference, whose white
   materials displace nothing).
@@ -32,8 +32,8 @@ log = logging.getLogger(__name__)
 # Each kind's note, in the order notes are given; the owners' names follow it.
 KINDS = {
     "volume": "volumes that Cycles shadows with, not drawn by OmniWarp's methods",
-    "volume_material": ("volume materials without a surface shader, a medium in Cycles, drawn as opaque "
-                        "surfaces by OmniWarp's methods and white in the reference"),
+    "volume_material": ("volume materials without a surface shader, a medium in Cycles (and in the "
+                        "reference), drawn as opaque surfaces by OmniWarp's methods"),
     "displacement": ("true displacement, which OmniWarp's methods and the reference (its white materials "
                      "displace nothing) leave out"),
 }

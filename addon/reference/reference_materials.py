@@ -16,6 +16,13 @@ opaque or absent, as the position pass (pass_alpha_threshold 0.5) and OmniWarp's
 samples take it. The alpha is read from the shader that reaches the Material Output:
 a Principled BSDF's Alpha, Transparent BSDFs (alpha 0), and Mix Shaders of them,
 (1 - f) alpha_A + f alpha_B; any other shader is opaque.
+
+Volumes keep their shaders (issue 43): a material with a Volume output gets a copy that
+keeps the volume graph (density, absorption and scattering as the file has them) and the
+white for its surface if it has one. A medium (a volume material with no surface shader,
+and Volume objects) is hidden from camera rays: the reference measures the light that
+reaches surfaces, and a camera ray that crosses a medium may end in it (measured in the
+notebook, 2026-12-volumes.md), while shadow rays still cross it as Cycles renders them.
 """
 from __future__ import annotations
 
@@ -132,6 +139,50 @@ class _Expression:
         return None
 
 
+def volume_source(material) -> Any:
+    """The socket feeding a material's Volume output, or None (read-only check)."""
+    if material is None or not blender_compat.uses_nodes(material):
+        return None
+    output = surface_output(material.node_tree)
+    socket = output.inputs.get("Volume") if output is not None else None
+    return _linked_from(socket) if socket is not None else None
+
+
+def is_medium(material) -> bool:
+    """Whether a material is a medium only: a volume and no surface shader."""
+    if volume_source(material) is None:
+        return False
+    surface = surface_output(material.node_tree).inputs.get("Surface")
+    return surface is None or _linked_from(surface) is None
+
+
+def media(scene, view_layer) -> list[str]:
+    """The rendered objects that are media: Volume objects, and objects whose every
+    material is a volume without a surface (read-only)."""
+    return sorted(obj.name for obj in _rendered_objects(scene, view_layer) if _is_medium_object(obj))
+
+
+def _is_medium_object(obj) -> bool:
+    materials = [slot.material for slot in obj.material_slots if slot.material is not None]
+    return obj.type == "VOLUME" or (bool(materials) and all(is_medium(m) for m in materials))
+
+
+def _volume_copy(material, overrides):
+    """A copy of a material with a volume: its volume graph, the white for its surface
+    when it has one, no surface when it has none."""
+    import bpy
+
+    copy = material.copy()
+    overrides.on_restore(lambda: bpy.data.materials.remove(copy))
+    tree = copy.node_tree
+    output = surface_output(tree)
+    surface = output.inputs["Surface"]
+    if _linked_from(surface) is not None:
+        tree.links.new(_white_diffuse(tree), surface)
+    _normal_aov(tree)
+    return copy
+
+
 def see_through(material) -> bool:
     """Whether a material's shader lets shadow rays through by its alpha (read-only check)."""
     if material is None or not blender_compat.uses_nodes(material):
@@ -166,6 +217,7 @@ def _see_through_copy(material, overrides):
     expr = _Expression(tree)
     alpha = expr.alpha(_linked_from(output.inputs["Surface"]))
     alpha = 1.0 if alpha is None else alpha
+    volume = _linked_from(output.inputs["Volume"]) if "Volume" in output.inputs else None
     for node in [n for n in tree.nodes if n.type in ("OUTPUT_MATERIAL", "OUTPUT_AOV")]:
         tree.nodes.remove(node)
     light_path = tree.nodes.new("ShaderNodeLightPath")
@@ -184,6 +236,8 @@ def _see_through_copy(material, overrides):
     out = tree.nodes.new("ShaderNodeOutputMaterial")
     out.target = "ALL"
     tree.links.new(mix.outputs["Shader"], out.inputs["Surface"])
+    if volume is not None:
+        tree.links.new(volume, out.inputs["Volume"])
     _normal_aov(tree)
     blender_compat.set_see_through(copy)
     return copy
@@ -194,14 +248,20 @@ def apply(scene, view_layer, overrides) -> list[str]:
     objects whose materials could not be replaced (linked, read-only data)."""
     objects = _rendered_objects(scene, view_layer)
     materials = {slot.material for obj in objects for slot in obj.material_slots if slot.material is not None}
-    if not any(see_through(m) for m in materials):
+    volumes = any(obj.type == "VOLUME" for obj in objects) or any(volume_source(m) is not None for m in materials)
+    if not volumes and not any(see_through(m) for m in materials):
         overrides.set(view_layer, "material_override", white_material(overrides))
         return []
     white = white_material(overrides)
-    copies = {m: (_see_through_copy(m, overrides) if see_through(m) else white) for m in materials}
+    copies = {m: (_see_through_copy(m, overrides) if see_through(m)
+                  else _volume_copy(m, overrides) if volume_source(m) is not None else white) for m in materials}
     refused = []
     for obj in objects:
         try:
+            if _is_medium_object(obj):
+                overrides.set(obj, "visible_camera", False)  # shadow rays still cross it
+            if obj.type == "VOLUME" and not obj.material_slots:
+                continue  # its own default volume shader, as Cycles renders it
             if not obj.material_slots and obj.data is not None and hasattr(obj.data, "materials"):
                 obj.data.materials.append(white)
                 overrides.on_restore(lambda data=obj.data: data.materials.pop())
@@ -210,7 +270,8 @@ def apply(scene, view_layer, overrides) -> list[str]:
         except (AttributeError, TypeError, RuntimeError) as exc:
             log.warning("object %r keeps its own materials in the reference: %s", obj.name, exc)
             refused.append(obj.name)
-    log.info("reference materials: %d see-through of %d", sum(c is not white for c in copies.values()), len(copies))
+    log.info("reference materials: %d see-through or volume of %d", sum(c is not white for c in copies.values()),
+             len(copies))
     if refused:
         return [f"objects whose materials the reference could not replace (read-only data): {', '.join(refused)}"]
     return []
