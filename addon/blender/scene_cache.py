@@ -18,8 +18,7 @@ What is handled:
   `is_instancer` stays False for geometry-nodes instances). A
   group is re-collected as a whole (one pass over the instances) when it is new,
   when its instancer is flagged or moved, when one of its source objects is
-  flagged, or when one of its instanced collections is flagged.
-
+  flagged, or when one of its instanced collections is flagged;
 - hair curves and point clouds as pieces, one resident object each
   (`scene_pieces.py`).
 
