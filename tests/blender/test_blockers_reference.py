@@ -87,21 +87,27 @@ def test_the_reference_keeps_the_points_and_strands(reference):
     assert "note" not in rows[0] and rows[0]["scene_pieces"] > 35
 
 
+def _evaluated(ref: ReferenceData) -> tuple[np.ndarray, ...]:
+    """Over the evaluated pixels: Cycles' verdict (lit), the samples and their normals, the
+    light as each segment's end, and whether the triangles block it (a ray cast from the
+    sample lifted off its surface)."""
+    light = light_from_reference(ref)
+    evaluable = metrics.evaluable_mask(ref.position, ref.normal, ref.hit, ref.unshadowed, light)
+    lit = metrics.reference_visibility(ref.shadowed, ref.unshadowed)[evaluable]
+    points = ref.position[evaluable].astype(np.float64)
+    normals = ref.normal[evaluable].astype(np.float64)
+    lifted = points + 1e-4 * normals
+    t, _ = ray_hits(lifted, light.position - lifted, ref.triangles, t_max=np.full(len(points), 1.0 - 1e-6))
+    return lit, points, normals, np.broadcast_to(light.position, points.shape), np.isfinite(t)
+
+
 def test_spheres_and_strands_cast_cycles_shadows(reference):
     from addon.render import blender_compat
 
     ref, _, shape = reference
     bound = OLD_RIBBONS_MAX_MISMATCH_PCT if shape == "RIBBONS" and not blender_compat.has_linear_curves() \
         else MAX_MISMATCH_PCT[shape]
-    light = light_from_reference(ref)
-    evaluable = metrics.evaluable_mask(ref.position, ref.normal, ref.hit, ref.unshadowed, light)
-    lit = metrics.reference_visibility(ref.shadowed, ref.unshadowed)[evaluable]
-    points = ref.position[evaluable].astype(np.float64)
-    normals = ref.normal[evaluable].astype(np.float64)
-    to_light = np.broadcast_to(light.position, points.shape)
-    lifted = points + 1e-4 * normals
-    t, _ = ray_hits(lifted, light.position - lifted, ref.triangles, t_max=np.full(len(points), 1.0 - 1e-6))
-    by_triangles = np.isfinite(t)
+    lit, points, normals, to_light, by_triangles = _evaluated(ref)
     blocked = by_triangles | ref.spheres.crossed(points, to_light) | ref.strands.crossed(points, to_light)
     judged = ~_on_blockers(points, ref.spheres, ref.strands)
     mismatch = np.count_nonzero(((~blocked) != lit) & judged)
@@ -120,15 +126,8 @@ def test_every_pixel_with_its_normal(reference):
     ref, _, shape = reference
     if not blender_compat.has_linear_curves():
         pytest.skip("4.2-4.5 draw poly curves as Catmull-Rom and their ribbons differ from the tube (0.25 %)")
-    light = light_from_reference(ref)
-    evaluable = metrics.evaluable_mask(ref.position, ref.normal, ref.hit, ref.unshadowed, light)
-    lit = metrics.reference_visibility(ref.shadowed, ref.unshadowed)[evaluable]
-    points = ref.position[evaluable].astype(np.float64)
-    normals = ref.normal[evaluable].astype(np.float64)
-    to_light = np.broadcast_to(light.position, points.shape)
-    lifted = points + 1e-4 * normals
-    t, _ = ray_hits(lifted, light.position - lifted, ref.triangles, t_max=np.full(len(points), 1.0 - 1e-6))
-    blocked = np.isfinite(t) | ref.spheres.crossed(points, to_light, normals=normals) \
+    lit, points, normals, to_light, by_triangles = _evaluated(ref)
+    blocked = by_triangles | ref.spheres.crossed(points, to_light, normals=normals) \
         | ref.strands.crossed(points, to_light, normals=normals)
     on = _on_blockers(points, ref.spheres, ref.strands)
     assert on.sum() > 1000  # the samples on them are judged
@@ -136,5 +135,5 @@ def test_every_pixel_with_its_normal(reference):
     assert mismatch <= 0.0005 * len(lit), (mismatch, len(lit))
     # Without the normals a sample on a strand or a point counts as on none: its own
     # primitive shadows it where the segment to the light runs through it.
-    unowned = np.isfinite(t) | ref.spheres.crossed(points, to_light) | ref.strands.crossed(points, to_light)
+    unowned = by_triangles | ref.spheres.crossed(points, to_light) | ref.strands.crossed(points, to_light)
     assert np.count_nonzero((~unowned) != lit) > mismatch
