@@ -12,6 +12,9 @@
 #ifdef OW_PIECES
 #include "lib/exact_piece.glsl"
 #endif
+#ifdef OW_MEDIUM
+#include "lib/media.glsl"
+#endif
 #include "lib/exact_walk.glsl"
 
 void main()

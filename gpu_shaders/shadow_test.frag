@@ -16,6 +16,9 @@
 #ifdef OW_VEIL
 #include "lib/veil.glsl"
 #endif
+#ifdef OW_HAZE
+#include "lib/media.glsl"
+#endif
 
 // A spot's or sun's map (sm, psm) at a light-centred point: its z01 (the map's depth, PSM's
 // inverted light turned round), and the atlas texel holding it, or false outside the map.
@@ -298,6 +301,11 @@ void main()
 #ifdef OW_EXACT_SOFT
   // The exact pass of a sized light (its atlas holds no depth, so the test above lit it).
   visibility *= ow_exact_soft_share(p, n, pix);
+#endif
+#ifdef OW_HAZE
+  // Through the media between the light and the receiver, along the texel's ray (a sized
+  // light's too: its centre's).
+  visibility *= ow_media_light_kept(ow_haze_depth(texel + ivec2(tile.xy), dist));
 #endif
   ow_result = vec2(visibility, OW_FLAG_TESTED);
 }

@@ -1,7 +1,9 @@
 // A frame's visibility and flag per sample, copied where a compositor samples them (the
 // samples' layout, row 0 at the bottom), with the exact pass's marks applied when
 // ow_marks != 0 (core/alpha.hits_visibility): 0 past an opaque crossing, else
-// exp(-optical depth). The viewport keeps one per light and never reads it back.
+// exp(-optical depth); and with ow_media_on the light its media keep (passes/media.py).
+// The viewport keeps one per light and never reads it back.
+#include "lib/media.glsl"
 void main()
 {
   ivec2 pix = ivec2(gl_FragCoord.xy);
@@ -10,6 +12,14 @@ void main()
     uint word = imageLoad(ow_hits, pix).x;
     float depth = float(word & (OW_HIT_OPAQUE - 1u)) / OW_OPTICAL_SCALE;
     result.x *= ((word & OW_HIT_OPAQUE) != 0u) ? 0.0 : exp(-depth);
+  }
+  if (ow_media_on != 0) {
+    // The media's optical depths (lib/media.glsl), and those around the light.
+    int rows = textureSize(ow_positions, 0).y;
+    vec3 depth = vec3(float(int(imageLoad(ow_media, pix).x)), float(int(imageLoad(ow_media, pix + ivec2(0, rows)).x)),
+                      float(int(imageLoad(ow_media, pix + ivec2(0, 2 * rows)).x))) / ow_media_scale
+                 + ow_media_light * length(texelFetch(ow_positions, pix, 0).xyz);
+    result.x *= ow_media_light_kept(depth);
   }
   ow_visibility = result;
 }

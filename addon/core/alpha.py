@@ -21,6 +21,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from .errors import InputError
+from .media import Medium
 
 # The interpolations and extensions the rule follows, with the codes the GPU takes
 # (lib/alpha.glsl's ow_alpha_mode: interpolation + 2 * extension).
@@ -179,12 +180,16 @@ def srgb_to_linear(value: np.ndarray) -> np.ndarray:
 
 @dataclass(frozen=True)
 class Surface:
-    """What a set of triangles carries for see-through materials: per-corner UVs and, per
-    triangle, the index of its material's alpha in `maps` (-1: opaque)."""
+    """What a set of triangles carries beyond its shape: per-corner UVs and, per triangle,
+    the index of its material's alpha in `maps` (-1: opaque), and of the homogeneous medium
+    it bounds in `media` (core/media.py; -1: none). A medium's triangles are no surface:
+    they cast no shadow of their own, the medium between them does."""
 
     uvs: np.ndarray  # (T, 3, 2) float32
     material: np.ndarray  # (T,) int32
     maps: tuple[AlphaMap, ...] = ()
+    medium: np.ndarray | None = None  # (T,) int32; None: all -1
+    media: tuple[Medium, ...] = ()
 
     def __post_init__(self) -> None:
         uvs = np.asarray(self.uvs, dtype=np.float32).reshape(-1, 3, 2)
@@ -193,9 +198,17 @@ class Surface:
             raise InputError(f"surface: {len(uvs)} triangles of UVs but {len(material)} material indices")
         if len(material) and (material.min() < -1 or material.max() >= len(self.maps)):
             raise InputError(f"surface: a material index lies outside [-1, {len(self.maps)})")
+        medium = (np.full(len(material), -1, np.int32) if self.medium is None
+                  else np.asarray(self.medium, dtype=np.int32).reshape(-1))
+        if len(medium) != len(material):
+            raise InputError(f"surface: {len(material)} triangles but {len(medium)} medium indices")
+        if len(medium) and (medium.min() < -1 or medium.max() >= len(self.media)):
+            raise InputError(f"surface: a medium index lies outside [-1, {len(self.media)})")
         object.__setattr__(self, "uvs", uvs)
         object.__setattr__(self, "material", material)
         object.__setattr__(self, "maps", tuple(self.maps))
+        object.__setattr__(self, "medium", medium)
+        object.__setattr__(self, "media", tuple(self.media))
 
     @classmethod
     def opaque(cls, triangles: int) -> "Surface":
@@ -209,28 +222,44 @@ class Surface:
         """Whether any triangle has a material that is not opaque."""
         return bool(np.any(self.material >= 0))
 
+    @property
+    def has_media(self) -> bool:
+        """Whether any triangle bounds a medium."""
+        return bool(np.any(self.medium >= 0))
+
     def take(self, index: np.ndarray) -> "Surface":
         """The surface of a selection (or reordering) of the triangles."""
-        return Surface(self.uvs[index], self.material[index], self.maps)
+        return Surface(self.uvs[index], self.material[index], self.maps, self.medium[index], self.media)
+
+    def with_media(self, medium: np.ndarray, media: tuple[Medium, ...]) -> "Surface":
+        """This surface with the triangles' media set."""
+        return Surface(self.uvs, self.material, self.maps, medium, media)
 
     @staticmethod
     def concatenate(parts: "list[Surface]") -> "Surface":
-        """One surface of several, their maps merged (equal digests kept once)."""
-        maps: list[AlphaMap] = []
-        where: dict[str, int] = {}
-        uvs, material = [], []
-        for part in parts:
-            remap = np.full(len(part.maps) + 1, -1, dtype=np.int32)
-            for index, amap in enumerate(part.maps):
-                if amap.digest not in where:
-                    where[amap.digest] = len(maps)
-                    maps.append(amap)
-                remap[index] = where[amap.digest]
-            uvs.append(part.uvs)
-            material.append(remap[part.material])  # -1 indexes the last entry: -1
+        """One surface of several, their maps and media merged (equal digests kept once)."""
         if not parts:
             return Surface.opaque(0)
-        return Surface(np.concatenate(uvs), np.concatenate(material), tuple(maps))
+        maps, material = _merged([(p.maps, p.material) for p in parts])
+        media, medium = _merged([(p.media, p.medium) for p in parts])
+        return Surface(np.concatenate([p.uvs for p in parts]), material, tuple(maps), medium, tuple(media))
+
+
+def _merged(parts: list[tuple[tuple, np.ndarray]]) -> tuple[list, np.ndarray]:
+    """Items with a `digest` and per-triangle indices into them (-1: none), of several
+    parts: the items kept once each, and the indices into that one list."""
+    items: list = []
+    where: dict[str, int] = {}
+    indices = []
+    for own, index in parts:
+        remap = np.full(len(own) + 1, -1, dtype=np.int32)
+        for i, item in enumerate(own):
+            if item.digest not in where:
+                where[item.digest] = len(items)
+                items.append(item)
+            remap[i] = where[item.digest]
+        indices.append(remap[index])  # -1 indexes the last entry: -1
+    return items, np.concatenate(indices)
 
 
 def transmittance(alphas: np.ndarray, axis: int = -1) -> np.ndarray:

@@ -20,6 +20,7 @@ from .device import FULLSCREEN_CORNERS, Device, Rect, Target, UniformValues
 from .passes.alpha import AlphaStore, Veil
 from .passes.atlas import Atlas, AtlasLayout
 from .passes.exact import ExactLists
+from .passes.media import NO_MEDIA, Haze, MediaFrame, SampleMedia
 from .passes.footprints import FootprintDraw, corner_capacity, corner_indices
 from .passes.samples import SampleTargets, pack_warp_table
 from .passes.warp import WarpBuild
@@ -57,6 +58,9 @@ class ShadowBackend:
         self.vertices: dict[str, tuple[int, Any]] = {}  # object key -> (revision, vertex texture)
         self.alpha = AlphaStore()  # see-through materials' maps, shared by the parts that use them
         self.veil = Veil()  # the maps' veil (lib/veil.glsl)
+        self.haze = Haze()  # the maps' media (lib/media.glsl)
+        self.sample_media = SampleMedia()  # the exact pass's optical depths per sample
+        self.media: MediaFrame = NO_MEDIA  # this frame's media units and extinction at the light
         self.exact: ExactLists | None = None  # the irregular z-buffer's lists (passes/exact.py)
         self.edge_targets: tuple[Target, ...] = ()  # edge-distance passes' targets
         self.ray_target: Target | None = None  # the ray table's, the atlas's size
@@ -147,6 +151,7 @@ class ShadowBackend:
     link_samples = _on_device(passes.exact.link_samples)
     read_links = _on_device(passes.exact.read_links)
     read_hits = _on_device(passes.exact.read_hits)
+    read_media = _on_device(passes.exact.read_media)
     exact_work = _on_device(passes.exact.exact_work)
     exact_round = _on_device(passes.exact.exact_round)
     finish_lists = _on_device(passes.exact.finish_lists)
@@ -156,6 +161,12 @@ class ShadowBackend:
     run_shadow_test = _on_device(passes.shadow_test.run_shadow_test)
     read_shadow_test = _on_device(passes.shadow_test.read_shadow_test)
     resolve_visibility = _on_device(passes.shadow_test.resolve_visibility)
+
+    @_on_device
+    def read_positions(self) -> np.ndarray:
+        """The uploaded samples' light-centred positions and weights, (H, W, 4), row 0 at the
+        bottom (a frame's media around the light weigh each sample's distance)."""
+        return self.device.read(self.textures["ow_positions"], "RGBA32F")
 
     def samples_from_gbuffer(self, textures: dict, light_position: np.ndarray) -> None:
         """Make a Blender G-buffer's textures the view samples (frame.GBufferSamples); only
@@ -207,6 +218,8 @@ class ShadowBackend:
             self.vertices.clear()
             self.alpha.release(device)
             self.veil.release(device)
+            self.haze.release(device)
+            self.sample_media.release(device)
             held = (*self.textures.values(), *self.warp_tables.values(), self.no_warp)
             device.free(*{id(t): t for t in held if t is not None}.values())
             self.textures.clear()

@@ -15,6 +15,7 @@ from ..core.scene import LightSpec
 from ..core.warping import LayerMapping, box_stretch, max_shear
 from .frame import ShadowSettings
 from .passes.footprints import FootprintDraw
+from .passes.media import NO_MEDIA, MediaFrame
 from .passes.warp import GpuWarp
 from .resident import CHUNK_TRIANGLES, ResidentScene
 from .shaders import FOOTPRINT_VERTICES, MAX_POINT_SIZE, REGION_PLANES
@@ -208,6 +209,8 @@ def footprint_ranges(draw: FootprintDraw, spheres: tuple[np.ndarray, np.ndarray,
     Host work per chunk, not per triangle; the vertex stage still culls each triangle."""
     if spheres is None or not len(spheres[1]):
         return [draw]
+    if draw.medium:
+        region = {}  # a medium's crossings all count, past the receivers too (footprint_draws)
     centres, radii, edges = spheres
     if reach > 0.0:
         kinds = np.full(len(radii), QUADS)
@@ -226,16 +229,22 @@ def footprint_ranges(draw: FootprintDraw, spheres: tuple[np.ndarray, np.ndarray,
     return out
 
 
-def footprint_draws(scene: ResidentScene, light: LightSpec) -> list[FootprintDraw]:
-    """One draw per resident object: its matrix, and the light in its frame as double-single."""
+def footprint_draws(scene: ResidentScene, light: LightSpec, media: MediaFrame = NO_MEDIA) -> list[FootprintDraw]:
+    """One draw per resident object: its matrix, and the light in its frame as double-single.
+    A medium's part is drawn only in a frame that draws media (`media.on`), with its
+    extinction in the frame's units and no occluder region: the maps' haze needs every
+    crossing of a texel's ray, the ones past the receivers too (lib/media.glsl)."""
     draws = []
     for key, obj in scene.objects.items():
-        if obj.triangles:
+        if obj.triangles and (obj.medium is None or media.on):
             hi, lo = obj.light_split(light.position)
             uniforms = {"ow_object_linear": obj.matrix[:3, :3], "ow_light_hi": hi, "ow_light_lo": lo}
             if obj.alpha is not None:
                 uniforms["ow_alpha_mode"] = obj.alpha.mode  # the see-through variant's
-            draws.append(FootprintDraw(key, 0, obj.triangles, uniforms, pieces=obj.pieces))
+            if obj.medium is not None:
+                uniforms.update(ow_medium_sigma=media.sigma_uniform(obj.medium), ow_region_count=0)
+            draws.append(FootprintDraw(key, 0, obj.triangles, uniforms, pieces=obj.pieces,
+                                       medium=obj.medium is not None))
     return draws
 
 

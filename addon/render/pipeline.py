@@ -67,6 +67,7 @@ from .frame import (
     settings_for,
 )
 from .footprint_runs import RunMemo, footprint_draws, region_uniforms
+from .passes.media import NO_MEDIA, MediaMemo
 from .parameterizations import DrawInputs, parameterization, slot_rotations_and_crops
 from .plan_memo import PlanMemo
 from .resident import ResidentScene
@@ -98,6 +99,7 @@ class ShadowPipeline:
         self._latest: weakref.ref | None = None  # the last frame rendered (visibility_into)
         self._plans = PlanMemo()  # a steady frame's plan is the last one
         self._runs = RunMemo()  # and its chunk runs, the last ones
+        self._media = MediaMemo()  # and its media's units, while the light and media stay
 
     def _scene_of(self, triangles: np.ndarray) -> tuple[ResidentScene, bool]:
         """A resident scene for a triangle array, and whether it is for this frame only.
@@ -135,13 +137,14 @@ class ShadowPipeline:
         return analysis.count_maps(self.backend, light, plan, mappings, size, mode, weighted)
 
     def link_lists(self, light: LightSpec, plan: Plan, mappings: dict[int, LayerMapping], size: int,
-                   words: int = 1) -> None:
+                   words: int = 1, media: bool = False) -> None:
         """Link the uploaded samples into per-texel lists through the full mapping of each
         drawn layer, at `size` texels a side (the irregular z-buffer's lists; the backend
         keeps them, `read_links` reads them back), with `words` words of marks a sample
-        (soft.hit_words). The warp tables must be bound."""
+        (soft.hit_words), and with `media` the samples' optical depths cleared. The warp tables
+        must be bound."""
         uniforms = analysis.scatter_uniforms(light, plan, mappings, size, 2, False)
-        self.backend.link_samples(size, max(len(plan.drawn), 1), uniforms, hit_words=words)
+        self.backend.link_samples(size, max(len(plan.drawn), 1), uniforms, hit_words=words, media=media)
 
     def render(self, light: LightSpec, scene: ResidentScene | np.ndarray, samples: ViewSamples | GBufferSamples,
                settings: ShadowSettings, keep_atlas: bool = False, count_work: bool = False,
@@ -241,15 +244,21 @@ class ShadowPipeline:
             tile_of_slot = {layer.slot: i for i, layer in enumerate(plan.drawn)}
             layout = AtlasLayout.for_tiles(res, len(plan.drawn), backend.max_texture_size())
             boxes = scheme.scissor(plan, light, settings, mappings)
+            media = self._media.frame(scene, light)
+            if media.on and not media_drawn(light, settings, plan):
+                log.debug("media not drawn by this frame (%s): left out", settings.parameterization)
+                media = NO_MEDIA
+            backend.media = media
             inputs = DrawInputs(plan, settings, geometry, layout, tile_of_slot, mappings, size, boxes,
-                                footprint_draws(scene, light), region_uniforms(plan, light, settings.cull), scene,
-                                light, count_work, self._runs)
+                                footprint_draws(scene, light, media), region_uniforms(plan, light, settings.cull),
+                                scene, light, count_work, self._runs)
 
         with clock.part("shadow_maps", "shadow_maps"):
             # Texels outside a layer's box are neither cleared nor drawn (map-space culling).
             backend.begin_atlas(layout, {tile_of_slot[slot]: box for slot, box in boxes.items()})
             if settings.exact:
-                self.link_lists(light, plan, mappings, res, hit_words(light, settings))  # the irregular z-buffer's lists
+                # The irregular z-buffer's lists.
+                self.link_lists(light, plan, mappings, res, hit_words(light, settings), media=media.on)
             edge_radius = scheme.draw(backend, inputs)
             if settings.exact and (sync_stages or count_work):
                 # A measuring frame draws the exact pass's later rounds in its own time; any
@@ -368,6 +377,16 @@ def _completer(backend: ShadowBackend, test: dict | None) -> Callable[[], None]:
 
     return complete
 
+def media_drawn(light: LightSpec, settings: ShadowSettings, plan: Plan) -> bool:
+    """Whether a frame draws its media (issue 43): the exact pass does, for hard lights of
+    every kind; the maps of point lights do (their haze, lib/media.glsl), also for a sized
+    light's filtered test, along its centre's ray. A sized light's exact pass and the spot's
+    and sun's maps do not yet: their media cast no shadow (docs/materials.md)."""
+    if settings.exact:
+        return sized_mode(light, settings) is not SizedMode.EXACT_SOFT
+    return plan.projective is None and settings.parameterization != "unfold"
+
+
 def _reader(backend: ShadowBackend, marks: bool, gpu_ms) -> FrameReader:
     """Reads a frame's visibility and flags (top row first) and its GPU ms; `marks`: shadow
     the samples the exact pass marked."""
@@ -379,6 +398,12 @@ def _reader(backend: ShadowBackend, marks: bool, gpu_ms) -> FrameReader:
         if marks:
             hits, _ = backend.read_hits()
             result[..., 0] *= hits_visibility(hits)  # opaque crossings and see-through ones
+            words = backend.read_media()
+            if words is not None:  # the media's optical depths (passes/media.py)
+                media = backend.media
+                distance = (np.linalg.norm(backend.read_positions()[..., :3], axis=-1) if media.light.any()
+                            else np.zeros(result.shape[:2]))
+                result[..., 0] *= media.kept(words, distance)
         return result[..., 0][::-1].copy(), result[..., 1][::-1].astype(np.int8), gpu_ms()
 
     return read

@@ -38,6 +38,7 @@ import numpy as np
 from ..core.alpha import AlphaMap, Surface
 from ..core.blockers import Pieces
 from ..core.errors import InputError
+from ..core.media import Medium
 from ..core.projection import MAX_COORDINATE
 from .shaders import VERTEX_TEXTURE_WIDTH
 
@@ -156,6 +157,9 @@ class ResidentObject:
     # pieces that make its curve, 1 for a ribbon, 1 for a curve with closed ends
     # (core/blockers.Pieces); None: triangles.
     piece_data: np.ndarray | None = None
+    # A part of a homogeneous medium's closed triangles (core/media.py): no surface, the
+    # footprint pass sums its crossings instead of storing a depth; None: a surface.
+    medium: Medium | None = None
     _local_lo: np.ndarray = field(default_factory=lambda: np.zeros(3))
     _local_hi: np.ndarray = field(default_factory=lambda: np.zeros(3))
 
@@ -281,9 +285,16 @@ class ResidentScene:
         if surface is not None and len(surface) != len(tris):
             raise InputError(f"object {key!r}: {len(tris)} triangles but a surface of {len(surface)}")
         keep, counts = _sanitized(tris)
-        groups: list[tuple[AlphaMap | None, np.ndarray]] = []
+        groups: list[tuple[AlphaMap | None, Medium | None, np.ndarray]] = []
+        if surface is not None and surface.has_media:
+            # A medium's triangles are a part of their own each, never opaque (core/media.py).
+            for index, medium in enumerate(surface.media):
+                chosen = np.flatnonzero(keep & (surface.medium == index))
+                if len(chosen) and not medium.clear:
+                    groups.append((None, medium, chosen))
+            keep = keep & (surface.medium < 0)
         if surface is None or not surface.see_through:
-            groups.append((None, np.flatnonzero(keep)))
+            groups.insert(0, (None, None, np.flatnonzero(keep)))
         else:
             for index in range(-1, len(surface.maps)):
                 chosen = np.flatnonzero(keep & (surface.material == index))
@@ -291,16 +302,17 @@ class ResidentScene:
                 if amap is not None and amap.opaque:
                     amap = None  # drawn as plain geometry, in a part of its own
                 if len(chosen) or index == -1:
-                    groups.append((amap, chosen))
+                    groups.insert(len(groups) if index >= 0 else 0, (amap, None, chosen))
         self.remove(key)
         keys: list[str] = []
-        for amap, chosen in groups:
+        for amap, medium, chosen in groups:
             order = chosen[morton_order(tris[chosen])]
             for start in range(0, max(len(order), 1), MAX_PART_TRIANGLES):
                 picked = order[start:start + MAX_PART_TRIANGLES]
                 part_key = key if not keys else f"{key}#{len(keys)}"
                 uvs = surface.uvs[picked] if amap is not None else None
-                self._add_part(part_key, tris[picked], matrix, counts if not keys else SanitizeCounts(), amap, uvs)
+                self._add_part(part_key, tris[picked], matrix, counts if not keys else SanitizeCounts(), amap, uvs,
+                               medium=medium)
                 keys.append(part_key)
         self._parts[key] = keys
         return self.objects[key]
@@ -346,7 +358,8 @@ class ResidentScene:
         return self.objects[key]
 
     def _add_part(self, part_key: str, part: np.ndarray, matrix: np.ndarray, counts: SanitizeCounts,
-                  amap: AlphaMap | None, uvs: np.ndarray | None, piece_data: np.ndarray | None = None) -> None:
+                  amap: AlphaMap | None, uvs: np.ndarray | None, piece_data: np.ndarray | None = None,
+                  medium: Medium | None = None) -> None:
         if len(part):
             lo, hi = part.reshape(-1, 3).min(axis=0), part.reshape(-1, 3).max(axis=0)
         else:
@@ -357,7 +370,8 @@ class ResidentScene:
         chunks = piece_chunks(local, piece_data[:, :2]) if pieces else chunk_bounds(local)
         grow = float(piece_data[:, :2].max()) if pieces and len(piece_data) else 0.0  # boxes reach past the axis
         self.objects[part_key] = ResidentObject(part_key, local, origin, matrix.copy(), next(_revisions), counts,
-                                                chunks, amap, uvs, piece_data, lo - origin - grow, hi - origin + grow)
+                                                chunks, amap, uvs, piece_data, medium, lo - origin - grow,
+                                                hi - origin + grow)
         self.removed.discard(part_key)
 
     def subset(self, keys: Iterable[str]) -> "ResidentScene":

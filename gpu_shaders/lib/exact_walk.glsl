@@ -62,11 +62,58 @@ void ow_exact_mark(ivec2 at, vec3 sides)
 #endif
 }
 
+#ifdef OW_MEDIUM
+// A medium's triangle (shaders.medium_of, lib/media.glsl): where the segment from the light
+// to sample p crosses it, more than ow_exact_eps of the way from the sample, the crossing's
+// distance from the sample goes to the sample's optical depths, signed by whether the walk
+// from the light enters the medium there. A spot's or sun's sample is lifted off its
+// surface as for an opaque triangle; a sun's walk comes along its axis from upstream.
+void ow_medium_entry(ivec2 at, vec3 p)
+{
+  int rows = textureSize(ow_positions, 0).y;
+  vec3 q = p;
+#ifndef OW_FIXED_KIND
+  if (ow_projective != 0) {
+    q = ow_exact_lift(p, texelFetch(ow_normals, at, 0).xyz);
+  }
+#endif
+  precise float side0 = dot(q - v_edge_at0, v_edge0);
+  precise float side1 = dot(q - v_edge_at1, v_edge1);
+  precise float side2 = dot(q - v_edge_at2, v_edge2);
+  if (!(ow_medium_inside(side0, v_edge0) && ow_medium_inside(side1, v_edge1) && ow_medium_inside(side2, v_edge2))) {
+    return;
+  }
+  precise float h = dot(v_plane.xyz, q - v_edge_at0);  // q's height over the triangle's plane
+#ifndef OW_FIXED_KIND
+  if (ow_projective != 0 && ow_sun != 0) {
+    float across = dot(v_plane.xyz, ow_light_axis);
+    float t = h / across;  // q - t axis lies on the plane
+    if (across != 0.0 && t > ow_exact_eps * length(q)) {
+      ow_media_mark(at, rows, (across < 0.0) ? t : -t);
+    }
+    return;
+  }
+#endif
+  float along = dot(v_plane.xyz, q);
+  if (along == 0.0 || !(v_plane.w / along > 0.0)) {
+    return;  // the plane meets the segment's line behind the light
+  }
+  float rest = h / along;  // the crossing's distance from the sample, over |q|
+  if (rest > ow_exact_eps && rest < 1.0) {
+    ow_media_mark(at, rows, ((along < 0.0) ? rest : -rest) * length(q));
+  }
+}
+#endif
+
 // One list entry: sample `at` (p light-centred) marked if this triangle blocks its light: a
 // sized light's points (the soft variant's mark, above), a spot's or a sun's segment
 // (ow_projective_blocks), or the segment to a point light.
 void ow_exact_entry(ivec2 at, vec3 p)
 {
+#ifdef OW_MEDIUM
+  ow_medium_entry(at, p);  // a medium's crossing (lib/media.glsl)
+  return;
+#endif
 #ifdef OW_PIECES
   ow_piece_exact_entry(at, p);  // a piece of hair or a point (lib/exact_piece.glsl)
   return;

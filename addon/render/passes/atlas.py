@@ -105,6 +105,7 @@ def begin_atlas(backend, layout: AtlasLayout, boxes: dict[int, tuple[int, int, i
         backend.atlas = Atlas(layout, texture, device.target((texture,), depth=True))
         backend.textures["ow_atlas"] = texture
     backend.veil.live = False  # cleared again at this atlas's first see-through draw
+    backend.haze.live = False  # and the haze at its first medium draw
     device.clear(backend.atlas.target, (1.0, 1.0, 1.0, 1.0), depth=1.0, rects=clear_rects(layout, boxes))
 
 

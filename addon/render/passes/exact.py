@@ -63,7 +63,7 @@ class ExactLists:
     def images(self, iface: ProgramInterface) -> dict[str, Any]:
         """The images a program of the exact pass binds, by the names it declares."""
         held = {"ow_counts": self.heads, "ow_next": self.links, "ow_hits": self.hits, "ow_work": self.work}
-        return {name: held[name] for _, name in iface.images}
+        return {name: held[name] for _, name in iface.images if name in held}
 
     def all(self) -> tuple[Any, ...]:
         return self.heads, self.links, self.hits, self.work
@@ -75,10 +75,12 @@ def _lists(backend, caller: str) -> ExactLists:
     return backend.exact
 
 
-def link_samples(backend, size: int, tiles: int, uniforms: UniformValues, hit_words: int = 1) -> None:
+def link_samples(backend, size: int, tiles: int, uniforms: UniformValues, hit_words: int = 1,
+                 media: bool = False) -> None:
     """Link every uploaded sample into the list of the map texel it falls in, through the
     full warp (shaders.link_variant, the scatter's uniforms with ow_count_size = the map
-    resolution), with `hit_words` words of marks a sample (a sized light's bits)."""
+    resolution), with `hit_words` words of marks a sample (a sized light's bits), and with
+    `media` the samples' optical depths cleared (passes/media.py)."""
     if backend.samples.size is None:
         raise BackendError("link_samples called before upload_samples")
     device = backend.device
@@ -90,6 +92,10 @@ def link_samples(backend, size: int, tiles: int, uniforms: UniformValues, hit_wo
         held = backend.exact = ExactLists(*(device.texture(s, "R32UI") for s in sizes))
     for image in held.all():
         device.clear_image(image)
+    if media:
+        backend.sample_media.ready(device, (width, height))
+    else:
+        backend.sample_media.live = False
     held.work_done = dict.fromkeys(WORK_KEYS, 0)  # a new dict: an earlier frame keeps its own
     held.rounds = None
     iface = link_variant(uniforms)
@@ -101,6 +107,15 @@ def read_links(backend) -> tuple[np.ndarray, np.ndarray]:
     the bottom; sample index i is texel (i % W, i // W) of the sample texture."""
     held = _lists(backend, "read_links")
     return backend.device.read(held.heads, "R32UI"), backend.device.read(held.links, "R32UI")
+
+
+def read_media(backend) -> np.ndarray | None:
+    """The exact pass's optical depths since the last `link_samples`, (3 * H, W) uint32
+    (passes/media.py), or None for a frame without media."""
+    if not backend.sample_media.live:
+        return None
+    backend.device.barrier()
+    return backend.device.read(backend.sample_media.image, "R32UI")
 
 
 def read_hits(backend) -> tuple[np.ndarray, dict[str, int]]:

@@ -9,7 +9,7 @@ import numpy as np
 from ...core.errors import BackendError
 from ..device import Geometry, UniformValues
 from ..shaders import FOOTPRINT_PROGRAM, FOOTPRINT_VERTICES, RAY_TABLE_PROGRAM, ProgramInterface, program_variant
-from ..shaders import alpha_of, exact_variant, pieces_of
+from ..shaders import alpha_of, exact_variant, medium_of, pieces_of
 from .atlas import layer_viewport
 
 
@@ -26,6 +26,7 @@ class FootprintDraw:
     uniforms: UniformValues
     points: bool = False
     pieces: bool = False
+    medium: bool = False  # a part of a homogeneous medium (shaders.medium_of)
 
 
 def corner_indices(triangles: int) -> np.ndarray:
@@ -74,8 +75,15 @@ def footprint_program(backend, draw: FootprintDraw, uniforms: UniformValues, exa
         raise BackendError(f"object {draw.key!r} is not resident; call sync_scene first")
     see_through = backend.alpha.see_through(draw.key)
     if exact:
-        iface = exact_variant(uniforms, points, see_through=see_through, pieces=draw.pieces)
+        iface = exact_variant(uniforms, points, see_through=see_through, pieces=draw.pieces, medium=draw.medium)
         images = backend.exact.images(iface)
+        if draw.medium:
+            if not backend.sample_media.live:
+                raise BackendError("a medium's exact pass needs link_samples with media")
+            images["ow_media"] = backend.sample_media.image
+    elif draw.medium:
+        iface = medium_of(program_variant(FOOTPRINT_PROGRAM, uniforms, points))
+        images = backend.haze.ready(backend.device, backend.atlas.layout.size)
     else:
         iface = program_variant(FOOTPRINT_PROGRAM, uniforms, points)
         iface = pieces_of(iface) if draw.pieces else (alpha_of(iface) if see_through else iface)
@@ -98,6 +106,8 @@ def draw_footprints(backend, tile: int, draws: list[FootprintDraw], uniforms: Un
     if not exact and any(backend.alpha.see_through(draw.key) for draw in draws):
         # Cleared before the atlas is bound: a device may clear through a target of its own.
         backend.veil.ready(device, layout.size)
+    if not exact and any(draw.medium for draw in draws):
+        backend.haze.ready(device, layout.size)
     # Always scissored: point sprites may reach past the tile's edge.
     rect = viewport if scissor is None else layout.scissor_rect(tile, scissor)
     with device.drawing(backend.atlas.target, viewport, rect, depth_test=True):

@@ -9,7 +9,7 @@ from ..device import Target, UniformValues
 from .exact import _lists
 from ..shaders import (EXACT_SOFT_KEY, RESOLVE_PROGRAM, SHADOW_TEST_PROGRAM, ProgramInterface, exact_soft_of,
                        program_variant)
-from ..shaders import soft_of, veil_of
+from ..shaders import haze_of, soft_of, veil_of
 
 
 def test_program(backend, uniforms: UniformValues) -> tuple[ProgramInterface, dict[str, object]]:
@@ -27,6 +27,8 @@ def test_program(backend, uniforms: UniformValues) -> tuple[ProgramInterface, di
         if backend.exact is None:
             raise BackendError("the exact soft shadow test needs the exact pass's marks (link_samples)")
         iface, images = exact_soft_of(iface), {"ow_hits": backend.exact.hits}
+    if backend.haze.live:
+        iface, images = haze_of(iface), {**images, **backend.haze.by_name()}
     return iface, images
 
 
@@ -41,6 +43,8 @@ def run_shadow_test(backend, uniforms: UniformValues) -> None:
         # Bound even when no antialiasing runs (ow_edge_radius = 0 never reads it).
         backend.textures["ow_edges"] = device.texture((1, 1), "R32F", np.zeros(1, np.float32))
     iface, images = test_program(backend, uniforms)
+    if backend.haze.live:
+        uniforms = {**uniforms, **backend.media.uniforms()}
     if images:
         device.barrier()  # the depth pass's image atomics, before the test's loads
     target = held.test[1]
@@ -64,15 +68,19 @@ def resolve_visibility(backend, target: Target, marks: bool) -> None:
     if held.test is None:
         raise BackendError("resolve_visibility called before a shadow test")
     device = backend.device
+    if "ow_no_hits" not in backend.textures:
+        backend.textures["ow_no_hits"] = device.texture((1, 1), "R32UI", np.zeros(1, np.uint32))
+    hits = media = backend.textures["ow_no_hits"]
     if marks:
         device.barrier()  # the exact pass's atomics, before the loads
         hits = _lists(backend, "resolve_visibility").hits
-    else:
-        if "ow_no_hits" not in backend.textures:
-            backend.textures["ow_no_hits"] = device.texture((1, 1), "R32UI", np.zeros(1, np.uint32))
-        hits = backend.textures["ow_no_hits"]
+    media_on = marks and backend.sample_media.live
+    if media_on:
+        media = backend.sample_media.image
+    uniforms = {"ow_marks": int(marks), "ow_media_on": int(media_on), **backend.media.uniforms()}
     with device.drawing(target, (0, 0) + held.size):
-        device.draw(RESOLVE_PROGRAM, {"ow_marks": int(marks)}, {"ow_test": held.test[0]}, images={"ow_hits": hits})
+        device.draw(RESOLVE_PROGRAM, uniforms, {"ow_test": held.test[0], "ow_positions": backend.textures["ow_positions"]},
+                    images={"ow_hits": hits, "ow_media": media})
 
 
 def shadow_test(backend, uniforms: UniformValues) -> np.ndarray:

@@ -28,7 +28,7 @@ from .interfaces import (ADVANCE_PROGRAM, BARRIER_PROGRAM, DEPTH_PROGRAM, EDGE_P
                          image_type, program_defines)
 from .loader import GLSL_VERSION, SHADER_DIR, expand_source, load_source
 from .programs import (ALPHA_PROGRAMS, COMPUTE_PROGRAMS, DEPTH_PLAIN_PROGRAM, EXACT_PROGRAMS, EXACT_SOFT_PROGRAMS,
-                       GBUFFER_ALPHA_PROGRAM, PIECES_PROGRAMS, PROGRAMS, SHADOW_TEST_PLAIN_PROGRAM, SOFT_PROGRAMS, VARIANT_PROGRAMS,
+                       GBUFFER_ALPHA_PROGRAM, MEDIA_PROGRAMS, PIECES_PROGRAMS, PROGRAMS, SHADOW_TEST_PLAIN_PROGRAM, SOFT_PROGRAMS, VARIANT_PROGRAMS,
                        VEIL_PROGRAMS)
 from .variants import (ALPHA_DEFINE, ALPHA_SAMPLERS, EXACT_COUNT_DEFINE, EXACT_COUNT_KEY, EXACT_DEFINE, EXACT_IMAGES,
                        EXACT_SOFT_DEFINE, EXACT_SOFT_KEY, EXACT_SOFT_UNIFORMS, FIXED_KIND_DEFINE, FIXED_KIND_NAMES,
@@ -36,8 +36,10 @@ from .variants import (ALPHA_DEFINE, ALPHA_SAMPLERS, EXACT_COUNT_DEFINE, EXACT_C
                        SOFT_UNIFORMS, VEIL_DEFINE, VEIL_IMAGES, alpha_of, derive, exact_of, exact_soft_of,
                        exact_variant, link_variant, pieces_of, program_variant, scatter_variant, soft_of, veil_of,
                        warp_step_variant)
+from .variants import HAZE_DEFINE, HAZE_IMAGES, MEDIA_IMAGE, MEDIUM_DEFINE, haze_of, medium_of
 
 __all__ = [
+    "HAZE_DEFINE", "HAZE_IMAGES", "haze_of", "MEDIA_IMAGE", "MEDIA_PROGRAMS", "MEDIUM_DEFINE", "medium_of",
     "ADVANCE_PROGRAM", "ALPHA_DEFINE", "ALPHA_INTERPOLATIONS", "alpha_of", "ALPHA_PROGRAMS", "ALPHA_SAMPLERS",
     "BARRIER_PROGRAM", "CODES", "Codes", "COMPUTE_PROGRAMS", "ComputeInterface", "DEPTH_PLAIN_PROGRAM",
     "DEPTH_PROGRAM", "derive", "EDGE_PASSES", "EDGE_PROGRAM", "EXACT_COUNT_DEFINE", "EXACT_COUNT_KEY", "EXACT_DEFINE",

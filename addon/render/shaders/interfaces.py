@@ -187,9 +187,9 @@ RESOLVE_PROGRAM = ProgramInterface(
     name="omniwarp_visibility_resolve",
     fragment_file="visibility_resolve.frag",
     fragment_out=(("vec2", "ow_visibility"),),
-    uniforms=uniform_list("int ow_marks"),
-    samplers=("ow_test",),
-    images=(("r32ui", "ow_hits"),),
+    uniforms=uniform_list("int ow_marks", "int ow_media_on", "vec3 ow_media_light", "float ow_media_scale"),
+    samplers=("ow_test", "ow_positions"),
+    images=(("r32ui", "ow_hits"), ("r32ui", "ow_media")),
     **_FULLSCREEN,
 )
 

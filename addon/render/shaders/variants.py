@@ -46,6 +46,10 @@ PIECES_DEFINE = "OW_PIECES"
 # The veil of a map (lib/veil.glsl): the see-through crossings of each atlas texel, written
 # by the see-through footprint programs and read by the shadow test's veil variant.
 VEIL_DEFINE = "OW_VEIL"
+# A part of a homogeneous medium (issue 43, lib/media.glsl): the exact pass sums its crossings
+# per sample (ow_media), the maps per texel (the haze, read by the shadow test's haze variant).
+MEDIUM_DEFINE = "OW_MEDIUM"
+HAZE_DEFINE = "OW_HAZE"
 SOFT_DEFINE = "OW_SOFT"
 SCATTER_MODE_DEFINE = "OW_SCATTER_MODE"
 LINK_DEFINE = "OW_LINK"
@@ -57,11 +61,16 @@ FIXED_KIND_NAMES = {projection.PARABOLOID: "paraboloid", projection.CUBE: "cube"
 # The footprint pass's three entry points: the depth pass, its see-through variant, the exact pass.
 FOOTPRINT_ALPHA_FILE = "footprint_alpha.frag"
 FOOTPRINT_EXACT_FILE = "footprint_exact.frag"
-FOOTPRINT_FILES = (FOOTPRINT_PROGRAM.fragment_file, FOOTPRINT_ALPHA_FILE, FOOTPRINT_EXACT_FILE)
+FOOTPRINT_MEDIUM_FILE = "footprint_medium.frag"
+FOOTPRINT_FILES = (FOOTPRINT_PROGRAM.fragment_file, FOOTPRINT_ALPHA_FILE, FOOTPRINT_EXACT_FILE, FOOTPRINT_MEDIUM_FILE)
 
 EXACT_IMAGES = (("r32ui", "ow_counts"), ("r32ui", "ow_next"), ("r32ui", "ow_hits"), ("r32ui", "ow_work"))
 ALPHA_SAMPLERS = ("ow_alpha_image", "ow_alpha_transfer")  # the material's channel and transfer (R32F)
 VEIL_IMAGES = (("r32ui", "ow_veil_optical"), ("r32ui", "ow_veil_near"), ("r32ui", "ow_veil_far"))
+MEDIA_IMAGE = ("r32ui", "ow_media")  # the exact pass's optical depths, three rows of words a sample
+HAZE_IMAGES = (("r32ui", "ow_haze_r"), ("r32ui", "ow_haze_g"), ("r32ui", "ow_haze_b"), ("r32ui", "ow_haze_near"),
+               ("r32ui", "ow_haze_far"))
+MEDIA_TEST_UNIFORMS = uniform_list("vec3 ow_media_light", "float ow_media_scale")
 EXACT_SOFT_UNIFORMS = uniform_list("vec4 ow_exact_light", "float ow_exact_reach", "float ow_exact_spread",
                                    "vec2 ow_exact_spot", "mat3 ow_exact_frame", f"int {EXACT_SOFT_KEY}",
                                    f"vec4 ow_exact_pattern[{EXACT_SOFT_MAX_POINTS}]",
@@ -159,16 +168,21 @@ def exact_of(base: ProgramInterface, count: bool = False) -> ProgramInterface:
 
 
 def exact_variant(uniforms: dict, points: bool = False, see_through: bool = False,
-                  pieces: bool = False) -> ProgramInterface:
+                  pieces: bool = False, medium: bool = False) -> ProgramInterface:
     """The footprint pass of the irregular z-buffer (issue 19): each fragment walks its
     texel's list of samples (link_variant) and marks those whose segment to the light the
     triangle crosses, instead of storing a depth; `see_through` for an object with alpha,
     `pieces` for a part of hair or points, the counting variant when
     uniforms[EXACT_COUNT_KEY] is set, and the sized light's (exact_soft_of) when
-    uniforms[EXACT_SOFT_KEY] counts its points."""
+    uniforms[EXACT_SOFT_KEY] counts its points; `medium` for a part of a medium (medium_of),
+    hard lights only."""
     base = program_variant(FOOTPRINT_PROGRAM, uniforms, points)
     base = pieces_of(base) if pieces else (alpha_of(base) if see_through else base)
     held = exact_of(base, bool(uniforms.get(EXACT_COUNT_KEY, 0)))
+    if medium:
+        if int(uniforms.get(EXACT_SOFT_KEY, 0)) > 0:
+            raise BackendError("the exact pass of a sized light does not draw media")
+        return medium_of(held)
     if int(uniforms.get(EXACT_SOFT_KEY, 0)) > 0:
         if points:
             raise BackendError("the exact pass of a sized light draws quads: its footprints grow past a point sprite")
@@ -225,6 +239,30 @@ def pieces_of(base: ProgramInterface) -> ProgramInterface:
                             Varying("vec3", "v_piece_curve", flat=True), Varying("vec4", "v_piece_cut_a", flat=True),
                             Varying("vec4", "v_piece_cut_b", flat=True), Varying("vec3", "v_piece_ta", flat=True),
                             Varying("vec3", "v_piece_tb", flat=True)))
+
+
+def medium_of(base: ProgramInterface) -> ProgramInterface:
+    """The footprint pass's variant for a part of a homogeneous medium (issue 43,
+    lib/media.glsl): in the exact pass (a base from exact_of) each listed sample's segment
+    adds its signed crossing to the sample's optical depths (ow_media); in the maps each
+    texel's ray adds its crossing to the texel's haze. Its triangles store no depth."""
+    if not is_footprint(base):
+        raise BackendError(f"program {base.name!r} has no medium variant")
+    sigma = uniform_list("vec3 ow_medium_sigma")
+    if EXACT_DEFINE in base.defines:
+        return derive(base, base.name + "_medium", defines={MEDIUM_DEFINE: "1"}, uniforms=sigma,
+                      images=base.images + (MEDIA_IMAGE,))
+    return derive(base, base.name + "_medium", defines={MEDIUM_DEFINE: "1", HAZE_DEFINE: "1"}, uniforms=sigma,
+                  images=HAZE_IMAGES, fragment_file=FOOTPRINT_MEDIUM_FILE)
+
+
+def haze_of(base: ProgramInterface) -> ProgramInterface:
+    """The shadow test's variant that also reads the maps' haze (lib/media.glsl): for a
+    frame that drew media. Other frames keep their test, unchanged."""
+    if not is_shadow_test(base):
+        raise BackendError(f"program {base.name!r} has no haze variant")
+    return derive(base, base.name + "_haze", defines={HAZE_DEFINE: "1"}, uniforms=MEDIA_TEST_UNIFORMS,
+                  images=base.images + HAZE_IMAGES)
 
 
 def soft_of(base: ProgramInterface) -> ProgramInterface:

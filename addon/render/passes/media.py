@@ -1,0 +1,156 @@
+"""Homogeneous media on the GPU (issue 43, core/media.py, lib/media.glsl): the frame's
+fixed-point units and the extinction at the light, the exact pass's optical depths per
+view sample, and the maps' haze per texel.
+
+A frame with media draws each medium's part with the medium variant of the footprint pass
+(shaders.medium_of): the exact pass adds every listed sample's signed crossings to its
+three words of `ow_media` (one a channel), the maps add each texel ray's crossings to the
+texel's haze, which the shadow test's haze variant reads. Both sums are integers in the
+frame's units (`MediaFrame.scale`), and both leave the media around the light to the
+reader: sigma_light times the sample's distance.
+"""
+from __future__ import annotations
+
+import logging
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+
+from ...core import media as core_media
+from ..shaders import HAZE_IMAGES
+
+log = logging.getLogger(__name__)
+
+
+@dataclass(frozen=True)
+class MediaFrame:
+    """One frame's media: units per optical depth in the GPU's sums (0: no media) and the
+    extinction at the light per metre, (3,)."""
+
+    scale: float
+    light: np.ndarray
+
+    @property
+    def on(self) -> bool:
+        return self.scale > 0.0
+
+    def uniforms(self) -> dict[str, Any]:
+        """What the readers of the sums take (the shadow test's haze variant, the resolve)."""
+        return {"ow_media_light": self.light, "ow_media_scale": self.scale if self.on else 1.0}
+
+    def sigma_uniform(self, medium: core_media.Medium) -> np.ndarray:
+        """A medium part's ow_medium_sigma: its extinction in the frame's units a metre."""
+        return medium.sigma * self.scale
+
+    def kept(self, words: np.ndarray, distance: np.ndarray) -> np.ndarray:
+        """The light kept per sample, from the exact pass's words (3 * H, W) uint32 and each
+        sample's distance from the light (H, W): lib/media.glsl's ow_media_light_kept."""
+        rows = words.shape[0] // 3
+        depth = np.stack([words[c * rows:(c + 1) * rows].view(np.int32).astype(np.float64) for c in range(3)],
+                         axis=-1) / (self.scale if self.on else 1.0)
+        depth += np.asarray(distance, dtype=np.float64)[..., None] * self.light
+        return core_media.visibility(np.maximum(depth, 0.0))
+
+
+NO_MEDIA = MediaFrame(0.0, np.zeros(3))
+
+
+class MediaMemo:
+    """A scene's MediaFrame for a light, kept while the light, the media parts and their
+    matrices are the same (the light's winding numbers are numpy over the media's triangles)."""
+
+    def __init__(self) -> None:
+        self._held: tuple[tuple, MediaFrame] | None = None
+
+    def frame(self, scene, light) -> MediaFrame:
+        parts = [obj for obj in scene.objects.values() if obj.medium is not None and obj.triangles]
+        if not parts:
+            return NO_MEDIA
+        key = (light.position.tobytes(), light.emission,
+               tuple((obj.key, obj.revision, obj.matrix.tobytes()) for obj in parts))
+        if self._held is None or self._held[0] != key:
+            self._held = (key, media_frame(scene, light, parts))
+        return self._held[1]
+
+
+def media_frame(scene, light, parts: list) -> MediaFrame:
+    """The units and the light's extinction of a frame over `parts` (resident media parts):
+    the largest optical depth a sample can have, every medium's largest sigma times the
+    farthest point of the scene from the light (a sun: across the scene), is
+    core_media.FIXED_RANGE units."""
+    lo, hi = scene.bounds()
+    corners = np.array([[x, y, z] for x in (lo[0], hi[0]) for y in (lo[1], hi[1]) for z in (lo[2], hi[2])])
+    if light.emission == "sun":
+        reach = float(np.linalg.norm(hi - lo))
+    else:
+        reach = float(np.linalg.norm(corners - light.position, axis=1).max())
+    media = tuple(obj.medium for obj in parts)
+    scale = core_media.fixed_scale(media, reach)
+    sigma = np.zeros(3)
+    if light.emission != "sun":  # a sun lies inside nothing
+        by_medium: dict[str, list[np.ndarray]] = {}
+        held: dict[str, core_media.Medium] = {}
+        for obj in parts:
+            by_medium.setdefault(obj.medium.digest, []).append(obj.world_triangles())
+            held[obj.medium.digest] = obj.medium
+        for digest, tris in by_medium.items():
+            inside = round(core_media.winding_numbers(light.position, np.concatenate(tris)))
+            sigma += max(inside, 0) * held[digest].sigma
+    log.debug("media frame: %d parts, reach %.4g, scale %.4g, sigma at the light %s", len(parts), reach, scale, sigma)
+    return MediaFrame(scale, sigma)
+
+
+class SampleMedia:
+    """The exact pass's optical depths: one R32UI image of three rows of words a view
+    sample (channel c of the sample at (x, y) at (x, y + c * H)), cleared at each
+    link_samples of a frame with media (`live` until the next)."""
+
+    def __init__(self) -> None:
+        self.image: Any = None
+        self.size: tuple[int, int] | None = None
+        self.live = False
+
+    def ready(self, device, size: tuple[int, int]) -> Any:
+        width, height = size
+        if self.image is None or self.size != (width, 3 * height):
+            self.release(device)
+            self.size = (width, 3 * height)
+            self.image = device.texture(self.size, "R32UI")
+        device.clear_image(self.image)
+        self.live = True
+        return self.image
+
+    def release(self, device) -> None:
+        device.free(*((self.image,) if self.image is not None else ()))
+        self.image = self.size = None
+        self.live = False
+
+
+class Haze:
+    """The maps' haze (HAZE_IMAGES, the atlas's size): made at the first medium draw, cleared
+    once per atlas (`live` from that clear until the next begin_atlas), as the veil is."""
+
+    def __init__(self) -> None:
+        self.images: tuple[Any, ...] | None = None
+        self.size: tuple[int, int] | None = None
+        self.live = False
+
+    def ready(self, device, size: tuple[int, int]) -> dict[str, Any]:
+        if self.images is None or self.size != size:
+            self.release(device)
+            self.images = tuple(device.texture(size, "R32UI") for _ in HAZE_IMAGES)
+            self.size = size
+        if not self.live:
+            for image in self.images:
+                device.clear_image(image)
+            self.live = True
+        return self.by_name()
+
+    def by_name(self) -> dict[str, Any]:
+        return dict(zip((name for _, name in HAZE_IMAGES), self.images))
+
+    def release(self, device) -> None:
+        device.free(*(self.images or ()))
+        self.images = self.size = None
+        self.live = False

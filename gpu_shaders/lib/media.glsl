@@ -1,0 +1,91 @@
+// Homogeneous media (issue 43, core/media.py): a medium's closed triangles are no surface;
+// the light a receiver gets through them is exp(-sigma L) per channel, L the length of its
+// segment to the light inside the medium. Each crossing of the segment adds its signed
+// distance: entering the medium (against the triangle's outward normal, walking from the
+// light) or leaving it. Sums are 32-bit integers in the frame's units (ow_medium_sigma
+// holds sigma times core/media.fixed_scale's units per optical depth), so atomics add them
+// in any order and two's complement wraps back.
+
+// Whether a direction on the inner side of an edge plane: `side` its signed distance,
+// `edge` the plane's normal. On the plane (side 0), as if moved by (e, e^2, e^3) for a
+// vanishing e: the side of the normal's first non-zero component. Two triangles sharing
+// the edge have exactly opposite normals (lib/footprint.glsl), so a crossing on the edge
+// counts once, not twice or never (core/media.py's inside_edge, its oracle).
+bool ow_medium_inside(float side, vec3 edge)
+{
+  if (side != 0.0) {
+    return side > 0.0;
+  }
+  float first = (edge.x != 0.0) ? edge.x : ((edge.y != 0.0) ? edge.y : edge.z);
+  return first > 0.0;
+}
+
+// Fixed-point units of a signed length times one channel's sigma (rounded to nearest).
+uint ow_medium_units(float length_signed, float sigma)
+{
+  return uint(int(floor(length_signed * sigma + 0.5)));
+}
+
+#if defined(OW_EXACT) && defined(OW_MEDIUM)
+// The exact pass: the sample at `at` gets this crossing's signed optical depth per channel,
+// channel c in row at.y + c * rows of ow_media (passes/media.py). `s`: the crossing's distance
+// from the sample, positive when the walk from the light enters the medium there.
+void ow_media_mark(ivec2 at, int rows, float s)
+{
+  imageAtomicAdd(ow_media, at, ow_medium_units(s, ow_medium_sigma.r));
+  imageAtomicAdd(ow_media, at + ivec2(0, rows), ow_medium_units(s, ow_medium_sigma.g));
+  imageAtomicAdd(ow_media, at + ivec2(0, 2 * rows), ow_medium_units(s, ow_medium_sigma.b));
+}
+#endif
+
+#ifdef OW_HAZE
+// A map's haze: the media a texel's ray from the light crosses, in five R32UI words a texel
+// (shaders.HAZE_IMAGES): per channel, A = the sum of sigma u over the crossings, u their
+// distance from the light, minus where the ray enters and plus where it leaves; the nearest
+// crossing's u (its bits inverted, so the largest word is the nearest; 0: none) and the
+// farthest's. Past the last crossing a ray is outside every medium, so a receiver there gets
+// the optical depth A; one before the first, sigma_light times its distance (the media
+// around the light); between the two, the line between those (exact for one convex medium,
+// a box or a sphere of fog, with the receiver inside it or not).
+#ifdef OW_MEDIUM
+void ow_haze_add(ivec2 texel, float u, bool entering)
+{
+  float signed_u = entering ? -u : u;
+  imageAtomicAdd(ow_haze_r, texel, ow_medium_units(signed_u, ow_medium_sigma.r));
+  imageAtomicAdd(ow_haze_g, texel, ow_medium_units(signed_u, ow_medium_sigma.g));
+  imageAtomicAdd(ow_haze_b, texel, ow_medium_units(signed_u, ow_medium_sigma.b));
+  imageAtomicMax(ow_haze_near, texel, ~floatBitsToUint(u));
+  imageAtomicMax(ow_haze_far, texel, floatBitsToUint(u));
+}
+#else
+
+// The optical depth per channel of the texel's haze at distance `u` from the light (the
+// shadow test's haze variant).
+vec3 ow_haze_depth(ivec2 texel, float u)
+{
+  vec3 around = ow_media_light * u;  // the media the light lies in, in optical depth a metre
+  uint near_bits = imageLoad(ow_haze_near, texel).x;
+  if (near_bits == 0u) {
+    return around;
+  }
+  vec3 whole = vec3(float(int(imageLoad(ow_haze_r, texel).x)), float(int(imageLoad(ow_haze_g, texel).x)),
+                    float(int(imageLoad(ow_haze_b, texel).x))) / ow_media_scale;
+  float last = uintBitsToFloat(imageLoad(ow_haze_far, texel).x);
+  float first = any(greaterThan(ow_media_light, vec3(0.0))) ? 0.0 : uintBitsToFloat(~near_bits);
+  if (u >= last) {
+    return whole;
+  }
+  if (u <= first) {
+    return around;
+  }
+  return mix(ow_media_light * first, whole, (u - first) / max(last - first, 1e-30));
+}
+#endif
+#endif
+
+// The reference's visibility of RGB optical depths: the mean of the light each channel keeps.
+float ow_media_light_kept(vec3 depth)
+{
+  vec3 kept = exp(-max(depth, vec3(0.0)));
+  return (kept.r + kept.g + kept.b) / 3.0;
+}

@@ -1,0 +1,141 @@
+"""Homogeneous media in the shadow passes (issue 43), against core/media.py's oracle.
+
+A floor and a figure under a light, and a box of fog (a medium: no surface, extinction
+sigma) around the figure, reaching below the floor, so that the floor and the figure are
+receivers inside the fog. `exact` must give exp(-sigma L) per channel, L each sample's
+length inside the box towards the light, times the opaque figure's hard shadow; the maps
+give it along each texel's ray (lib/media.glsl's haze), so they are right but for a
+texel's width at the box's silhouette. With the light inside the fog, every segment
+starts in it.
+"""
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from addon.core.alpha import Surface
+from addon.core.media import Medium, optical_depths, visibility, winding_numbers
+from addon.core.scene import SceneBuilder
+from addon.render.pipeline import ShadowPipeline, ShadowSettings
+from addon.render.resident import ResidentScene
+from tests.support.oracle import view_samples
+
+pytestmark = pytest.mark.gl
+
+FOG_CENTRE, FOG_SIZE = (0.3, 0.2, 0.9), (2.4, 2.0, 2.2)
+
+
+def _finished(builder: SceneBuilder):
+    builder.point_light((0.0, 0.0, 5.0))
+    builder.camera((0.0, -6.0, 5.0), (0.0, 0.0, 0.0), fov_deg=60.0)
+    return builder.finish()
+
+
+def _case(light=(0.8, -0.6, 4.0), spot: bool = False):
+    b = SceneBuilder("fog_test", (96, 72))
+    b.plane("floor", (0.0, 0.0, 0.0), 10.0, 10.0)
+    b.box("figure", (0.2, 0.3, 0.6), (0.4, 0.4, 1.2))
+    if spot:
+        b.spot_light(light, (0.0, 0.0, 0.0), 150.0)
+    else:
+        b.point_light(light)
+    b.camera((0.0, -6.5, 5.5), (0.0, 0.0, 0.3), fov_deg=55.0)
+    scene = b.finish()
+    samples, hard, evaluable = view_samples(scene)  # the camera sees no medium
+    return scene, samples, hard, evaluable
+
+
+def _fog() -> np.ndarray:
+    b = SceneBuilder("fog_only", (8, 8))
+    b.box("fog", FOG_CENTRE, FOG_SIZE)
+    return _finished(b).world_triangles()
+
+
+def _resident(scene, fog: np.ndarray, medium: Medium) -> ResidentScene:
+    resident = ResidentScene()
+    resident.set_geometry("opaque", scene.world_triangles())
+    surface = Surface.opaque(len(fog)).with_media(np.zeros(len(fog), np.int32), (medium,))
+    resident.set_geometry("fog", fog, surface=surface)
+    return resident
+
+
+def _expected(scene, samples, hard, fog, medium):
+    depth = optical_depths(scene.light.position, samples.positions.reshape(-1, 3), fog,
+                           np.zeros(len(fog), np.int32), (medium,))
+    return hard * visibility(depth).reshape(hard.shape)
+
+
+def test_the_fog_box_is_closed_and_wound_outward():
+    fog = _fog()
+    assert abs(winding_numbers(np.array(FOG_CENTRE), fog) - 1.0) < 1e-9
+    assert abs(winding_numbers(np.array([5.0, 5.0, 5.0]), fog)) < 1e-9
+
+
+@pytest.mark.parametrize("light,sigma", [((0.8, -0.6, 4.0), 0.9), ((0.5, 0.6, 1.6), 0.7),
+                                         ((0.8, -0.6, 4.0), (0.2, 0.9, 2.5))],
+                         ids=["outside", "light_inside", "tinted"])
+def test_exact_gives_the_transmittance_of_the_fog(gl_backend, light, sigma):
+    scene, samples, hard, evaluable = _case(light)
+    fog, medium = _fog(), Medium("fog", sigma)
+    want = _expected(scene, samples, hard, fog, medium)
+    resident = _resident(scene, fog, medium)
+    try:
+        got = ShadowPipeline(gl_backend).render(scene.light, resident, samples,
+                                                ShadowSettings("dpsm", 256, warp="notw", exact=True)).visibility
+    finally:
+        gl_backend.release_scene(resident)
+    inside = evaluable & (want > 0.0) & (want < 1.0)
+    assert inside.sum() > 500, int(inside.sum())  # most of the floor and figure are in the fog
+    error = np.abs(got - want)[evaluable]
+    assert error.max() < 2e-3, float(error.max())  # float32 and the fixed point, no more
+
+
+def test_exact_without_the_medium_is_the_opaque_shadow_only(gl_backend):
+    """The same frame with the fog's triangles as a surface shadows far more: the medium
+    path is what lets the light through."""
+    scene, samples, hard, evaluable = _case()
+    fog = _fog()
+    resident = ResidentScene()
+    resident.set_geometry("opaque", scene.world_triangles())
+    resident.set_geometry("fog", fog)
+    try:
+        got = ShadowPipeline(gl_backend).render(scene.light, resident, samples,
+                                                ShadowSettings("dpsm", 256, exact=True)).visibility
+    finally:
+        gl_backend.release_scene(resident)
+    want = _expected(scene, samples, hard, fog, Medium("fog", 0.9))
+    assert np.abs(got - want)[evaluable].mean() > 0.05
+
+
+def test_exact_under_a_spot(gl_backend):
+    scene, samples, hard, evaluable = _case(spot=True)
+    fog, medium = _fog(), Medium("fog", 1.1)
+    want = _expected(scene, samples, hard, fog, medium)
+    resident = _resident(scene, fog, medium)
+    try:
+        result = ShadowPipeline(gl_backend).render(scene.light, resident, samples,
+                                                   ShadowSettings("sm", 512, exact=True))
+    finally:
+        gl_backend.release_scene(resident)
+    tested = evaluable & (result.flags == 0)
+    assert tested.sum() > 500
+    assert np.abs(result.visibility - want)[tested].max() < 2e-3
+
+
+@pytest.mark.parametrize("param,warp", [("dpsm", "notw"), ("cube", "none"), ("dpsm", "none")])
+@pytest.mark.parametrize("light", [(0.8, -0.6, 4.0), (0.5, 0.6, 1.6)], ids=["outside", "light_inside"])
+def test_maps_give_the_fog_along_their_texels(gl_backend, param, warp, light):
+    """The haze of one convex box is exact along each texel's ray; only samples whose
+    texel's ray and own segment part at the box's silhouette, or at the figure's, differ."""
+    scene, samples, hard, evaluable = _case(light)
+    fog, medium = _fog(), Medium("fog", (0.5, 0.9, 1.4))
+    want = _expected(scene, samples, hard, fog, medium)
+    resident = _resident(scene, fog, medium)
+    try:
+        got = ShadowPipeline(gl_backend).render(scene.light, resident, samples,
+                                                ShadowSettings(param, 1024, warp=warp)).visibility
+    finally:
+        gl_backend.release_scene(resident)
+    error = np.abs(got - want)[evaluable]
+    assert np.mean(error < 0.01) >= 0.97, float(np.mean(error < 0.01))
+    assert error.mean() < 0.01, float(error.mean())
