@@ -35,6 +35,7 @@ from .render.pipeline import (
     ShadowSettings,
     ViewSamples,
     count_statistics,
+    media_drawn,
     settings_for,
 )
 from .render import soft
@@ -139,6 +140,8 @@ def _median_gpu_times(frames: Sequence[dict[str, float] | None]) -> dict[str, fl
 # The one method that does not follow see-through materials: its host-built stream has no UVs.
 UNFOLD_ALPHA_NOTE = "unfold draws see-through materials opaque (its tessellated stream carries no UVs)"
 UNFOLD_PIECES_NOTE = "unfold draws no hair or points (its tessellated stream holds triangles only)"
+MEDIA_NOTE = ("this method draws no media: the scene's homogeneous volumes (fog, smoke) cast no shadow here "
+              "(the exact pass under a hard light and the point lights' maps draw them, render/passes/media.py)")
 HARD_SIZED_NOTE = ("the light has a size, but this method's shadows are hard (render/soft.py softens "
                    "the sphere, area and sun shapes on their lights' maps)")
 
@@ -146,6 +149,11 @@ HARD_SIZED_NOTE = ("the light has a size, but this method's shadows are hard (re
 def scene_has_alpha(scene: ResidentScene) -> bool:
     """Whether any resident part has a see-through material."""
     return any(obj.alpha is not None for obj in scene.objects.values())
+
+
+def scene_has_media(scene: ResidentScene) -> bool:
+    """Whether any resident part bounds a homogeneous medium."""
+    return any(obj.medium is not None for obj in scene.objects.values())
 
 
 def resident_scene(ref: ReferenceData) -> ResidentScene:
@@ -234,6 +242,8 @@ def _row_note(light: LightSpec, settings: ShadowSettings, scene: ResidentScene,
         notes.append(UNFOLD_PIECES_NOTE)
     if light.sized and soft.sized_mode(light, settings) is soft.SizedMode.HARD:
         notes.append(HARD_SIZED_NOTE)
+    if scene_has_media(scene) and not media_drawn(light, settings):
+        notes.append(MEDIA_NOTE)
     return "; ".join(notes) or None
 
 

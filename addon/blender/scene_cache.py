@@ -273,7 +273,7 @@ class SceneGeometryCache:
         self._dirty_materials.clear()
 
     def surface_of(self, local: np.ndarray) -> Surface | None:
-        """The see-through surface of a source's triangles, or None when opaque."""
+        """The see-through surface (or media) of a source's triangles, or None when opaque."""
         held = self._surfaces.get(id(local))
         return held[1] if held is not None and held[0] is local else None
 
@@ -404,7 +404,7 @@ class SceneGeometryCache:
         except (RuntimeError, ReferenceError) as exc:
             log.warning("could not read the geometry of %r: %s; it casts no shadow", obj.name, exc)
             return _EMPTY_LOCAL
-        if surface.see_through:
+        if surface.see_through or surface.has_media:
             self._surfaces[id(local)] = (local, surface)
         return local
 

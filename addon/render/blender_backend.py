@@ -335,8 +335,10 @@ class BlenderGPUBackend(ShadowBackend):
         GBUFFER_PROGRAM: only objects new or changed since the last sync upload."""
         self.sync_scene(scene)
         for key, obj in scene.objects.items():
-            if obj.triangles == 0 or obj.pieces:
-                continue  # pieces (hair, points) cast shadows but are not in the G-buffer here
+            if obj.triangles == 0 or obj.pieces or obj.medium is not None:
+                # Pieces (hair, points) cast shadows but are not in the G-buffer here; a
+                # medium has no surface for the camera to see (issue 43).
+                continue
             origin = obj.matrix[:3, :3] @ obj.origin + obj.matrix[:3, 3]
             values = {**uniforms, "ow_object_linear": obj.matrix[:3, :3], "ow_object_origin": origin}
             textures = {**self.textures, "ow_vertices": self.vertices[key][1], **self.alpha_textures(key)}

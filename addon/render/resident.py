@@ -440,6 +440,7 @@ class ResidentScene:
         copy, for measurement and the unfold method (kept until an object changes or moves)."""
         state = tuple((key, obj.revision, obj.matrix.tobytes()) for key, obj in self.objects.items())
         if self._world is None or self._world[0] != state:
-            parts = [obj.world_triangles() for obj in self.objects.values() if obj.triangles and not obj.pieces]
+            parts = [obj.world_triangles() for obj in self.objects.values()
+                     if obj.triangles and not obj.pieces and obj.medium is None]
             self._world = (state, np.concatenate(parts) if parts else np.zeros((0, 3, 3)))
         return self._world[1]

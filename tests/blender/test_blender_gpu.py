@@ -32,6 +32,7 @@ from tests.support.blender_gpu_worker import (  # noqa: E402
     boxed_scene,
     case_key,
     one_texel_case,
+    media_frames,
     pieces_frames,
     soft_frames,
     weighted_samples,
@@ -124,6 +125,10 @@ def test_blender_backend_matches_moderngl(gl_backend, tmp_path, monkeypatch, ref
     for key, visibility in pieces_frames(pipeline).items():
         assert np.allclose(visibility, theirs[key], atol=1e-6), key  # the area light's are shares
         assert (visibility < 0.5).any(), key
+    # Media: the same optical depths per sample, and the same haze.
+    for key, visibility in media_frames(pipeline).items():
+        assert np.allclose(visibility, theirs[key], atol=1e-6), key
+        assert ((visibility > 0.05) & (visibility < 0.95)).sum() > 100, key
     court = boxed_scene()
     court_samples, _, _ = view_samples(court)
     for param in BOXED_CASES:

@@ -117,6 +117,27 @@ def pieces_frames(pipeline):
     return frames
 
 
+def media_frames(pipeline):
+    """Visibility of the fog box around a figure (tests/gl/test_media_pass.py), by key: the
+    exact pass's optical depths under a point light (outside the fog and inside it) and a
+    spot, and the maps' haze."""
+    from addon.core.media import Medium
+    from addon.render.frame import settings_for
+    from tests.gl.test_media_pass import _case, _fog, _resident
+
+    frames = {}
+    for name, light, spot, methods in (("outside", (0.8, -0.6, 4.0), False, ("exact", "dpsm+notw", "cube")),
+                                       ("inside", (0.5, 0.6, 1.6), False, ("exact", "dpsm")),
+                                       ("spot", (0.8, -0.6, 4.0), True, ("exact",))):
+        scene, samples, _, _ = _case(light, spot=spot)
+        resident = _resident(scene, _fog(), Medium("fog", (0.5, 0.9, 1.4)))
+        for method in methods:
+            result = pipeline.render(scene.light, resident, samples, settings_for(method, 256, scene.light.emission))
+            frames[f"media_{name}_{method}_visibility"] = result.visibility
+        pipeline.backend.release_scene(resident)
+    return frames
+
+
 def case_key(param: str, warp: str, aa: bool) -> str:
     return f"{param}_{warp}{'_aa' if aa else ''}"
 
@@ -190,6 +211,7 @@ def backends(out: str, reference: str | None = None) -> None:
     arrays.update(alpha_frames(pipeline))
     arrays.update(soft_frames(pipeline))
     arrays.update(pieces_frames(pipeline))
+    arrays.update(media_frames(pipeline))
     court = boxed_scene()
     court_samples, _, _ = view_samples(court)
     for param in BOXED_CASES:
