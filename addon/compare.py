@@ -141,7 +141,7 @@ def _median_gpu_times(frames: Sequence[dict[str, float] | None]) -> dict[str, fl
 UNFOLD_ALPHA_NOTE = "unfold draws see-through materials opaque (its tessellated stream carries no UVs)"
 UNFOLD_PIECES_NOTE = "unfold draws no hair or points (its tessellated stream holds triangles only)"
 MEDIA_NOTE = ("this method draws no media: the scene's homogeneous volumes (fog, smoke) cast no shadow here "
-              "(the exact pass under a hard light and the point lights' maps draw them, render/passes/media.py)")
+              "(the maps and the exact pass under a hard light draw them, render/passes/media.py)")
 HARD_SIZED_NOTE = ("the light has a size, but this method's shadows are hard (render/soft.py softens "
                    "the sphere, area and sun shapes on their lights' maps)")
 

@@ -127,6 +127,12 @@ vec2 ow_projective_test(vec3 p, vec3 n)
   visibility = (ow_sun != 0) ? ow_sun_soft_visibility(p, n, bias, visibility)
                              : ow_soft_visibility(p, n, bias, visibility);
 #endif
+#ifdef OW_HAZE
+  // Through the media along the texel's ray: a spot's distance, a sun's place on its axis
+  // (footprint_medium.frag).
+  float u = (ow_sun != 0) ? dot(p, ow_light_axis) + ow_media_offset : dist;
+  visibility *= ow_media_light_kept(ow_haze_depth(texel, u));
+#endif
   return vec2(visibility, OW_FLAG_TESTED);
 }
 

@@ -242,7 +242,8 @@ def footprint_draws(scene: ResidentScene, light: LightSpec, media: MediaFrame = 
             if obj.alpha is not None:
                 uniforms["ow_alpha_mode"] = obj.alpha.mode  # the see-through variant's
             if obj.medium is not None:
-                uniforms.update(ow_medium_sigma=media.sigma_uniform(obj.medium), ow_region_count=0)
+                uniforms.update(ow_medium_sigma=media.sigma_uniform(obj.medium), ow_region_count=0,
+                                ow_media_offset=media.offset)
             draws.append(FootprintDraw(key, 0, obj.triangles, uniforms, pieces=obj.pieces,
                                        medium=obj.medium is not None))
     return draws

@@ -214,7 +214,8 @@ class Projective(Parameterization):
         # plane, not from the light (lib/footprint_ray.glsl's ow_piece_depth).
         uniforms = {**layer_uniforms(plan.drawn[0], inputs.geometry, inputs.settings.resolution,
                                      inputs.layout.origin(0), LayerMapping.identity(), 0),
-                    **inputs.region, **self.test_uniforms(plan), "ow_sun": int(inputs.light.emission == "sun")}
+                    **inputs.region, **self.test_uniforms(plan), "ow_sun": int(inputs.light.emission == "sun"),
+                    "ow_light_axis": inputs.light.axis}  # a sun's media: places along its axis
         if inputs.settings.exact:
             self._draw_exact(backend, inputs, uniforms)
             return 0

@@ -45,7 +45,7 @@ from ..core.alpha import hits_visibility
 from ..core.errors import BackendError, InputError
 from ..core.plan import Plan, hit_points
 from ..core.samples import Reduction, depth_axis
-from ..core.scene import POINT_EMISSIONS, LightSpec
+from ..core.scene import LightSpec
 from ..core.warping import LayerMapping
 from . import analysis
 from .backend import AtlasLayout, ShadowBackend
@@ -379,12 +379,12 @@ def _completer(backend: ShadowBackend, test: dict | None) -> Callable[[], None]:
 
 def media_drawn(light: LightSpec, settings: ShadowSettings) -> bool:
     """Whether a frame draws its media (issue 43): the exact pass does, for hard lights of
-    every kind; the maps of point lights do (their haze, lib/media.glsl), also for a sized
-    light's filtered test, along its centre's ray. A sized light's exact pass and the spot's
-    and sun's maps do not yet: their media cast no shadow (docs/materials.md)."""
+    every kind; the maps do (their haze, lib/media.glsl), also for a sized light's filtered
+    test, along its centre's ray. A sized light's exact pass and unfold do not yet: their
+    media cast no shadow (docs/volumes.md)."""
     if settings.exact:
         return sized_mode(light, settings) is not SizedMode.EXACT_SOFT
-    return light.emission in POINT_EMISSIONS and settings.parameterization != "unfold"
+    return settings.parameterization != "unfold"
 
 
 def _reader(backend: ShadowBackend, marks: bool, gpu_ms) -> FrameReader:

@@ -31,11 +31,16 @@ def _finished(builder: SceneBuilder):
     return builder.finish()
 
 
-def _case(light=(0.8, -0.6, 4.0), spot: bool = False):
+SUN = (-0.3, 0.25, -1.0)  # the sun's light travels along this
+
+
+def _case(light=(0.8, -0.6, 4.0), spot: bool = False, sun: bool = False):
     b = SceneBuilder("fog_test", (96, 72))
     b.plane("floor", (0.0, 0.0, 0.0), 10.0, 10.0)
     b.box("figure", (0.2, 0.3, 0.6), (0.4, 0.4, 1.2))
-    if spot:
+    if sun:
+        b.sun_light(SUN)
+    elif spot:
         b.spot_light(light, (0.0, 0.0, 0.0), 150.0)
     else:
         b.point_light(light)
@@ -60,8 +65,9 @@ def _resident(scene, fog: np.ndarray, medium: Medium) -> ResidentScene:
 
 
 def _expected(scene, samples, hard, fog, medium):
-    depth = optical_depths(scene.light.position, samples.positions.reshape(-1, 3), fog,
-                           np.zeros(len(fog), np.int32), (medium,))
+    # A sun: its rays from a point far upstream (1e5 m: their directions part by 3e-5 over the fog).
+    origin = (-1e5 * scene.light.axis if scene.light.emission == "sun" else scene.light.position)
+    depth = optical_depths(origin, samples.positions.reshape(-1, 3), fog, np.zeros(len(fog), np.int32), (medium,))
     return hard * visibility(depth).reshape(hard.shape)
 
 
@@ -107,8 +113,9 @@ def test_exact_without_the_medium_is_the_opaque_shadow_only(gl_backend):
     assert np.abs(got - want)[evaluable].mean() > 0.05
 
 
-def test_exact_under_a_spot(gl_backend):
-    scene, samples, hard, evaluable = _case(spot=True)
+@pytest.mark.parametrize("kind", ["spot", "sun"])
+def test_exact_under_a_spot_and_a_sun(gl_backend, kind):
+    scene, samples, hard, evaluable = _case(spot=kind == "spot", sun=kind == "sun")
     fog, medium = _fog(), Medium("fog", 1.1)
     want = _expected(scene, samples, hard, fog, medium)
     resident = _resident(scene, fog, medium)
@@ -118,8 +125,28 @@ def test_exact_under_a_spot(gl_backend):
     finally:
         gl_backend.release_scene(resident)
     tested = evaluable & (result.flags == 0)
-    assert tested.sum() > 500
+    assert tested.sum() > 500 and ((want > 0.05) & (want < 0.95) & tested).sum() > 300
     assert np.abs(result.visibility - want)[tested].max() < 2e-3
+
+
+@pytest.mark.parametrize("kind,method", [("spot", "sm"), ("spot", "psm"), ("sun", "sm"), ("sun", "psm")])
+def test_spot_and_sun_maps_give_the_fog(gl_backend, kind, method):
+    """A spot's and a sun's haze: the fog's triangles rasterised in the map, each texel's
+    crossings along the light's ray through it. The spot's map (150 degrees at 1024) has
+    texels of 5 mm at the fog's top, where rays graze its edges: 5 % of the samples there
+    differ by more than 0.01 (0.3 % at 4096, measured)."""
+    scene, samples, hard, evaluable = _case(spot=kind == "spot", sun=kind == "sun")
+    fog, medium = _fog(), Medium("fog", (0.5, 0.9, 1.4))
+    want = _expected(scene, samples, hard, fog, medium)
+    resident = _resident(scene, fog, medium)
+    try:
+        result = ShadowPipeline(gl_backend).render(scene.light, resident, samples, ShadowSettings(method, 1024))
+    finally:
+        gl_backend.release_scene(resident)
+    tested = evaluable & (result.flags == 0)
+    error = np.abs(result.visibility - want)[tested]
+    assert tested.sum() > 500 and np.mean(error < 0.01) >= 0.93, float(np.mean(error < 0.01))
+    assert error.mean() < 0.003, float(error.mean())
 
 
 @pytest.mark.parametrize("param,warp", [("dpsm", "notw"), ("cube", "none"), ("dpsm", "none")])

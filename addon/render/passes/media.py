@@ -25,11 +25,14 @@ log = logging.getLogger(__name__)
 
 @dataclass(frozen=True)
 class MediaFrame:
-    """One frame's media: units per optical depth in the GPU's sums (0: no media) and the
-    extinction at the light per metre, (3,)."""
+    """One frame's media: units per optical depth in the GPU's sums (0: no media), the
+    extinction at the light per metre, (3,), and for a sun's map what puts every point's
+    place along the axis past 0 (the haze's nearest and farthest words order as positive
+    floats; footprint_medium.frag)."""
 
     scale: float
     light: np.ndarray
+    offset: float = 0.0
 
     @property
     def on(self) -> bool:
@@ -37,7 +40,8 @@ class MediaFrame:
 
     def uniforms(self) -> dict[str, Any]:
         """What the readers of the sums take (the shadow test's haze variant, the resolve)."""
-        return {"ow_media_light": self.light, "ow_media_scale": self.scale if self.on else 1.0}
+        return {"ow_media_light": self.light, "ow_media_scale": self.scale if self.on else 1.0,
+                "ow_media_offset": self.offset}
 
     def sigma_uniform(self, medium: core_media.Medium) -> np.ndarray:
         """A medium part's ow_medium_sigma: its extinction in the frame's units a metre."""
@@ -81,8 +85,10 @@ def media_frame(scene, light, parts: list) -> MediaFrame:
     core_media.FIXED_RANGE units."""
     lo, hi = scene.bounds()
     corners = np.array([[x, y, z] for x in (lo[0], hi[0]) for y in (lo[1], hi[1]) for z in (lo[2], hi[2])])
+    offset = 0.0
     if light.emission == "sun":
         reach = float(np.linalg.norm(hi - lo))
+        offset = reach - float(((corners - light.position) @ light.axis).min())
     else:
         reach = float(np.linalg.norm(corners - light.position, axis=1).max())
     media = tuple(obj.medium for obj in parts)
@@ -98,7 +104,7 @@ def media_frame(scene, light, parts: list) -> MediaFrame:
             inside = round(core_media.winding_numbers(light.position, np.concatenate(tris)))
             sigma += max(inside, 0) * held[digest].sigma
     log.debug("media frame: %d parts, reach %.4g, scale %.4g, sigma at the light %s", len(parts), reach, scale, sigma)
-    return MediaFrame(scale, sigma)
+    return MediaFrame(scale, sigma, offset)
 
 
 class SampleMedia:

@@ -70,7 +70,7 @@ VEIL_IMAGES = (("r32ui", "ow_veil_optical"), ("r32ui", "ow_veil_near"), ("r32ui"
 MEDIA_IMAGE = ("r32ui", "ow_media")  # the exact pass's optical depths, three rows of words a sample
 HAZE_IMAGES = (("r32ui", "ow_haze_r"), ("r32ui", "ow_haze_g"), ("r32ui", "ow_haze_b"), ("r32ui", "ow_haze_near"),
                ("r32ui", "ow_haze_far"))
-MEDIA_TEST_UNIFORMS = uniform_list("vec3 ow_media_light", "float ow_media_scale")
+MEDIA_TEST_UNIFORMS = uniform_list("vec3 ow_media_light", "float ow_media_scale", "float ow_media_offset")
 EXACT_SOFT_UNIFORMS = uniform_list("vec4 ow_exact_light", "float ow_exact_reach", "float ow_exact_spread",
                                    "vec2 ow_exact_spot", "mat3 ow_exact_frame", f"int {EXACT_SOFT_KEY}",
                                    f"vec4 ow_exact_pattern[{EXACT_SOFT_MAX_POINTS}]",
@@ -252,8 +252,9 @@ def medium_of(base: ProgramInterface) -> ProgramInterface:
     if EXACT_DEFINE in base.defines:
         return derive(base, base.name + "_medium", defines={MEDIUM_DEFINE: "1"}, uniforms=sigma,
                       images=base.images + (MEDIA_IMAGE,))
-    return derive(base, base.name + "_medium", defines={MEDIUM_DEFINE: "1", HAZE_DEFINE: "1"}, uniforms=sigma,
-                  images=HAZE_IMAGES, fragment_file=FOOTPRINT_MEDIUM_FILE)
+    return derive(base, base.name + "_medium", defines={MEDIUM_DEFINE: "1", HAZE_DEFINE: "1"},
+                  uniforms=sigma + uniform_list("float ow_media_offset"), images=HAZE_IMAGES,
+                  fragment_file=FOOTPRINT_MEDIUM_FILE)
 
 
 def haze_of(base: ProgramInterface) -> ProgramInterface:
