@@ -67,7 +67,7 @@ from .frame import (
     settings_for,
 )
 from .footprint_runs import RunMemo, footprint_draws, region_uniforms
-from .passes.media import NO_MEDIA, MediaMemo
+from .passes.media import NO_MEDIA, MediaFrame, MediaMemo
 from .parameterizations import DrawInputs, parameterization, slot_rotations_and_crops
 from .plan_memo import PlanMemo
 from .resident import ResidentScene
@@ -208,6 +208,7 @@ class ShadowPipeline:
             self._upload_samples(light, samples)
 
         with clock.part("sync", "prepare", gpu=False):
+            backend.sample_media.live = False  # until this frame's exact pass sums its media
             check_light_fits(light, settings.parameterization)
             backend.sync_scene(scene)  # uploads only objects whose geometry changed
             bounds = scene.bounds()  # per object, from its box and matrix
@@ -278,7 +279,8 @@ class ShadowPipeline:
         return FrameResult(timings, plan, geometry, layout, texels=len(plan.drawn) * res * res, atlas=atlas,
                            tile_of_slot=tile_of_slot, mappings=mappings, count_maps=counts, boxes=boxes,
                            exact_counts=backend.exact_work() if settings.exact else None,
-                           reader=_reader(backend, marks, clock.gpu_reader()), exact_marks=marks,
+                           reader=_reader(backend, marks, media if backend.sample_media.live else None,
+                                          clock.gpu_reader()), exact_marks=marks,
                            completer=_completer(backend, None if marks else test) if settings.exact else None)
 
     def _reduce_samples(self, light: LightSpec, samples: ViewSamples | GBufferSamples) -> np.ndarray:
@@ -378,18 +380,17 @@ def _completer(backend: ShadowBackend, test: dict | None) -> Callable[[], None]:
     return complete
 
 def media_drawn(light: LightSpec, settings: ShadowSettings) -> bool:
-    """Whether a frame draws its media (issue 43): the exact pass does, for hard lights of
-    every kind; the maps do (their haze, lib/media.glsl), also for a sized light's filtered
-    test, along its centre's ray. A sized light's exact pass and unfold do not yet: their
-    media cast no shadow (docs/volumes.md)."""
-    if settings.exact:
-        return sized_mode(light, settings) is not SizedMode.EXACT_SOFT
+    """Whether a frame draws its media (issue 43): the exact pass and the maps (their haze,
+    lib/media.glsl) do, for every light; a sized light's along the segment or ray to its
+    centre, the light its media keep times the share of it that surfaces let through.
+    Unfold does not: its media cast no shadow (docs/volumes.md)."""
     return settings.parameterization != "unfold"
 
 
-def _reader(backend: ShadowBackend, marks: bool, gpu_ms) -> FrameReader:
+def _reader(backend: ShadowBackend, marks: bool, media: MediaFrame | None, gpu_ms) -> FrameReader:
     """Reads a frame's visibility and flags (top row first) and its GPU ms; `marks`: shadow
-    the samples the exact pass marked."""
+    the samples the exact pass marked; `media`: weigh in the optical depths the exact pass
+    summed (None: it summed none)."""
 
     def read() -> tuple[np.ndarray, np.ndarray, dict[str, float] | None]:
         if backend.released:
@@ -398,12 +399,11 @@ def _reader(backend: ShadowBackend, marks: bool, gpu_ms) -> FrameReader:
         if marks:
             hits, _ = backend.read_hits()
             result[..., 0] *= hits_visibility(hits)  # opaque crossings and see-through ones
+        if media is not None:  # the exact pass's optical depths (passes/media.py)
             words = backend.read_media()
-            if words is not None:  # the media's optical depths (passes/media.py)
-                media = backend.media
-                distance = (np.linalg.norm(backend.read_positions()[..., :3], axis=-1) if media.light.any()
-                            else np.zeros(result.shape[:2]))
-                result[..., 0] *= media.kept(words, distance)
+            distance = (np.linalg.norm(backend.read_positions()[..., :3], axis=-1) if media.light.any()
+                        else np.zeros(result.shape[:2]))
+            result[..., 0] *= media.kept(words, distance)
         return result[..., 0][::-1].copy(), result[..., 1][::-1].astype(np.int8), gpu_ms()
 
     return read

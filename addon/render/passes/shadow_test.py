@@ -74,7 +74,7 @@ def resolve_visibility(backend, target: Target, marks: bool) -> None:
     if marks:
         device.barrier()  # the exact pass's atomics, before the loads
         hits = _lists(backend, "resolve_visibility").hits
-    media_on = marks and backend.sample_media.live
+    media_on = backend.sample_media.live
     if media_on:
         media = backend.sample_media.image
     uniforms = {"ow_marks": int(marks), "ow_media_on": int(media_on), **backend.media.uniforms()}
