@@ -295,7 +295,8 @@ def _pool(image: np.ndarray, reduce) -> np.ndarray:
 
 
 def _write_map_images(image_dir: Path, stem: str, result: FrameResult, counts) -> list[str]:
-    """Per layer: count map (log), importance map (counts after crop and warp), depth map."""
+    """Per layer: count map (log), importance map (counts after crop and warp), depth map,
+    and where the layer drew media their transmittance map."""
     import matplotlib
 
     matplotlib.use("Agg")
@@ -308,13 +309,17 @@ def _write_map_images(image_dir: Path, stem: str, result: FrameResult, counts) -
         tag = layer.name.replace("(", "_").replace(")", "").replace("+", "p").replace("-", "m")
         x, y = result.layout.origin(result.tile_of_slot[layer.slot])
         depth = result.atlas[y:y + res, x:x + res] if result.atlas is not None else None
-        panels = {"count": counts.before[layer.slot], "importance": counts.after[layer.slot], "depth": depth}
+        kept = result.haze[y:y + res, x:x + res] if result.haze is not None else None
+        panels = {"count": counts.before[layer.slot], "importance": counts.after[layer.slot], "depth": depth,
+                  "transmittance": kept}
         for kind, data in panels.items():
             if data is None:
                 continue
             path = image_dir / f"{stem}_{tag}_{kind}.png"
             if kind == "depth":
                 plt.imsave(path, _pool(data, np.min), cmap="viridis", origin="lower", vmin=0.0, vmax=1.0)
+            elif kind == "transmittance":
+                plt.imsave(path, _pool(data, np.min), cmap="gray", origin="lower", vmin=0.0, vmax=1.0)
             else:
                 pooled = _pool(data, np.max)
                 plt.imsave(path, np.log1p(pooled), cmap="inferno", origin="lower", vmin=0.0, vmax=np.log1p(top))

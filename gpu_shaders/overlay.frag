@@ -1,5 +1,7 @@
 // Map thumbnail: OW_OVERLAY_DEPTH = depth in grey (1 = empty, drawn dark blue), OW_OVERLAY_COUNT = count
-// on a log heat scale normalised by ow_max, OW_OVERLAY_LEGEND = the heat legend (u = value).
+// on a log heat scale normalised by ow_max, OW_OVERLAY_LEGEND = the heat legend (u = value),
+// OW_OVERLAY_TRANSMITTANCE = the light the media let through past a texel (passes/media.py's
+// read_haze) in grey (1 = no medium, drawn dark blue).
 vec3 ow_heat(float t)
 {
   t = clamp(t, 0.0, 1.0);
@@ -21,6 +23,9 @@ void main()
   float value = texelFetch(ow_image, texel, 0).r;
   if (ow_mode == OW_OVERLAY_DEPTH) {
     ow_color = (value >= 1.0) ? vec4(0.02, 0.03, 0.12, 1.0) : vec4(vec3(1.0 - 0.85 * value), 1.0);
+  }
+  else if (ow_mode == OW_OVERLAY_TRANSMITTANCE) {
+    ow_color = (value >= 1.0) ? vec4(0.02, 0.03, 0.12, 1.0) : vec4(vec3(value), 1.0);
   }
   else {
     ow_color = vec4(ow_heat(log(1.0 + value) / log(1.0 + max(ow_max, 1.0))), 1.0);

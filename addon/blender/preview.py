@@ -74,6 +74,9 @@ def overlay_panels(result, stats, label: str, maps: set[str], thumb: int = 256) 
             x, y = result.layout.origin(result.tile_of_slot[layer.slot])
             depth = pool_image(result.atlas[y:y + res, x:x + res], 2 * thumb, np.min)
             panels.append(OverlayPanel(f"depth {layer.name}", depth, OVERLAY_MODES["depth"]))
+            if result.haze is not None:  # the media's transmittance map (passes/media.read_haze)
+                kept = pool_image(result.haze[y:y + res, x:x + res], 2 * thumb, np.min)
+                panels.append(OverlayPanel(f"transmittance {layer.name}", kept, OVERLAY_MODES["transmittance"]))
         if "COUNT" in maps:
             panels.append(OverlayPanel(f"count {layer.name}", pool_image(stats.before[layer.slot], 2 * thumb),
                                        OVERLAY_MODES["count"], top))

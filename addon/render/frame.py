@@ -304,6 +304,9 @@ class FrameResult:
     layout: AtlasLayout | None
     texels: int
     atlas: np.ndarray | None = None
+    # The maps' transmittance past each atlas texel's media (passes/media.read_haze), read
+    # with the atlas; None without media.
+    haze: np.ndarray | None = None
     tile_of_slot: dict[int, int] = field(default_factory=dict)
     mappings: dict[int, LayerMapping] = field(default_factory=dict)
     count_maps: dict[int, np.ndarray] = field(default_factory=dict)  # analysis count map per slot

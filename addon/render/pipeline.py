@@ -67,7 +67,7 @@ from .frame import (
     settings_for,
 )
 from .footprint_runs import RunMemo, footprint_draws, region_uniforms
-from .passes.media import NO_MEDIA, MediaFrame, MediaMemo
+from .passes.media import NO_MEDIA, MediaFrame, MediaMemo, read_haze
 from .parameterizations import DrawInputs, parameterization, slot_rotations_and_crops
 from .plan_memo import PlanMemo
 from .resident import ResidentScene
@@ -272,11 +272,14 @@ class ShadowPipeline:
         timings = clock.wall_ms()
 
         atlas = _mask_unread_texels(backend.read_atlas(), layout, tile_of_slot, boxes) if keep_atlas else None
+        haze = read_haze(backend) if keep_atlas else None
+        if haze is not None:
+            haze = _mask_unread_texels(haze, layout, tile_of_slot, boxes)
         # The atlas of `exact` holds no depth (every texel empty), so the test lit every
         # tested sample; the exact pass's marks shadow the ones a triangle crosses, unless
         # the test weighed a sized light's marks itself.
         marks = settings.exact and sized_mode(light, settings) is not SizedMode.EXACT_SOFT
-        return FrameResult(timings, plan, geometry, layout, texels=len(plan.drawn) * res * res, atlas=atlas,
+        return FrameResult(timings, plan, geometry, layout, texels=len(plan.drawn) * res * res, atlas=atlas, haze=haze,
                            tile_of_slot=tile_of_slot, mappings=mappings, count_maps=counts, boxes=boxes,
                            exact_counts=backend.exact_work() if settings.exact else None,
                            reader=_reader(backend, marks, media if backend.sample_media.live else None,

@@ -203,3 +203,27 @@ def _clear_of_figure(scene, positions: np.ndarray, shape) -> np.ndarray:
     """Samples far from the figure's shadow: a sized light's own penumbra is not asked here."""
     figure = np.array([0.2, 0.3, 0.6])
     return (np.linalg.norm(positions[:, :2] - figure[:2], axis=1) > 1.2).reshape(shape)
+
+
+def test_the_transmittance_map_comes_with_the_atlas(gl_backend):
+    """A frame that keeps its atlas keeps the haze's transmittance too (the overlay's and the
+    report's map): below one where texels see the fog, as low as the thickest slab lets
+    through, one elsewhere; a scene without media has none."""
+    scene, samples, hard, evaluable = _case()
+    fog, medium = _fog(), Medium("fog", 0.9)
+    resident = _resident(scene, fog, medium)
+    pipe = ShadowPipeline(gl_backend)
+    try:
+        result = pipe.render(scene.light, resident, samples, ShadowSettings("dpsm", 256, warp="notw"), keep_atlas=True)
+    finally:
+        gl_backend.release_scene(resident)
+    assert result.haze is not None and result.haze.shape == result.atlas.shape
+    foggy = result.haze < 1.0
+    # No slab of the box is longer than its diagonal, and every ray that meets it crosses it.
+    assert foggy.sum() > 1000 and result.haze.min() >= np.exp(-0.9 * np.linalg.norm(FOG_SIZE)) - 1e-3
+    assert (result.haze[foggy] < np.exp(-0.9 * 0.5)).any()  # some rays cross more than 0.5 m
+    plain = ResidentScene.of_triangles(scene.world_triangles())
+    try:
+        assert pipe.render(scene.light, plain, samples, ShadowSettings("dpsm", 256), keep_atlas=True).haze is None
+    finally:
+        gl_backend.release_scene(plain)

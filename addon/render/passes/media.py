@@ -107,6 +107,21 @@ def media_frame(scene, light, parts: list) -> MediaFrame:
     return MediaFrame(scale, sigma, offset)
 
 
+def read_haze(backend) -> np.ndarray | None:
+    """The maps' transmittance past each atlas texel's media, (H, W) float32, row 0 at the
+    bottom (1 where its ray meets none): the mean over RGB of exp(-optical depth) of the
+    haze's whole sum, what the overlay shows; None when this atlas drew no media."""
+    if not backend.haze.live:
+        return None
+    device = backend.device
+    device.barrier()
+    held = backend.haze.by_name()
+    near = device.read(held["ow_haze_near"], "R32UI")
+    depth = np.stack([device.read(held[f"ow_haze_{c}"], "R32UI").view(np.int32) for c in "rgb"], axis=-1)
+    kept = core_media.visibility(np.maximum(depth / backend.media.scale, 0.0)) if backend.media.on else 1.0
+    return np.where(near != 0, kept, 1.0).astype(np.float32)
+
+
 class SampleMedia:
     """The exact pass's optical depths: one R32UI image of three rows of words a view
     sample (channel c of the sample at (x, y) at (x, y + c * H)), cleared at each

@@ -65,7 +65,7 @@ SAMPLE_FLAGS = MappingProxyType({"tested": 0, "no_geometry": 1, "outside": 2, "n
 # Modes of the map thumbnails (overlay.frag, ow_mode), the edge-distance passes
 # (edge_distance.frag, ow_edge_pass), the planning statistics' passes (sample_stats.comp,
 # ow_stats_pass) and the count-map scatter (scatter.comp, ow_scatter_mode).
-OVERLAY_MODES = MappingProxyType({"depth": 0, "count": 1, "legend": 2})
+OVERLAY_MODES = MappingProxyType({"depth": 0, "count": 1, "legend": 2, "transmittance": 3})
 EDGE_PASSES = MappingProxyType({"along_x": 0, "along_y": 1})
 STATS_PASSES = MappingProxyType({"fields": 0, "histogram": 1, "cut": 2, "copy": 3})
 SCATTER_MODE_CODES = MappingProxyType({"crop": 0, "rows": 1, "warp": 2})  # after the crop; the row warps; the full warp
