@@ -17,7 +17,7 @@
 #include "lib/veil.glsl"
 #endif
 #ifdef OW_HAZE
-#include "lib/media.glsl"
+#include "lib/haze.glsl"
 #endif
 
 // A spot's or sun's map (sm, psm) at a light-centred point: its z01 (the map's depth, PSM's

@@ -2,9 +2,9 @@
 // the light a receiver gets through them is exp(-sigma L) per channel, L the length of its
 // segment to the light inside the medium. Each crossing of the segment adds its signed
 // distance: entering the medium (against the triangle's outward normal, walking from the
-// light) or leaving it. Sums are 32-bit integers in the frame's units (ow_medium_sigma
-// holds sigma times core/media.fixed_scale's units per optical depth), so atomics add them
-// in any order and two's complement wraps back.
+// light) or leaving it. Sums are 32-bit integers in the frame's units (a medium part's sigma
+// uniform holds sigma times core/media.fixed_scale's units per optical depth), so atomics add
+// them in any order and two's complement wraps back.
 
 // Whether a direction on the inner side of an edge plane: `side` its signed distance,
 // `edge` the plane's normal. On the plane (side 0), as if moved by (e, e^2, e^3) for a
@@ -26,7 +26,8 @@ uint ow_medium_units(float length_signed, float sigma)
   return uint(int(floor(length_signed * sigma + 0.5)));
 }
 
-#if defined(OW_EXACT) && defined(OW_MEDIUM)
+#ifdef OW_MEDIUM
+#ifdef OW_EXACT
 // The exact pass: the sample at `at` gets this crossing's signed optical depth per channel,
 // channel c in row at.y + c * rows of ow_media (passes/media.py). `s`: the crossing's distance
 // from the sample, positive when the walk from the light enters the medium there.
@@ -37,7 +38,6 @@ void ow_media_mark(ivec2 at, int rows, float s)
   imageAtomicAdd(ow_media, at + ivec2(0, 2 * rows), ow_medium_units(s, ow_medium_sigma.b));
 }
 #endif
-
 #ifdef OW_HAZE
 // A map's haze: the media a texel's ray from the light crosses, in five R32UI words a texel
 // (shaders.HAZE_IMAGES): per channel, A = the sum of sigma u over the crossings, u their
@@ -47,7 +47,6 @@ void ow_media_mark(ivec2 at, int rows, float s)
 // the optical depth A; one before the first, sigma_light times its distance (the media
 // around the light); between the two, the line between those (exact for one convex medium,
 // a box or a sphere of fog, with the receiver inside it or not).
-#ifdef OW_MEDIUM
 void ow_haze_add(ivec2 texel, float u, bool entering)
 {
   float signed_u = entering ? -u : u;
@@ -56,29 +55,6 @@ void ow_haze_add(ivec2 texel, float u, bool entering)
   imageAtomicAdd(ow_haze_b, texel, ow_medium_units(signed_u, ow_medium_sigma.b));
   imageAtomicMax(ow_haze_near, texel, ~floatBitsToUint(u));
   imageAtomicMax(ow_haze_far, texel, floatBitsToUint(u));
-}
-#else
-
-// The optical depth per channel of the texel's haze at distance `u` from the light (the
-// shadow test's haze variant).
-vec3 ow_haze_depth(ivec2 texel, float u)
-{
-  vec3 around = ow_media_light * u;  // the media the light lies in, in optical depth a metre
-  uint near_bits = imageLoad(ow_haze_near, texel).x;
-  if (near_bits == 0u) {
-    return around;
-  }
-  vec3 whole = vec3(float(int(imageLoad(ow_haze_r, texel).x)), float(int(imageLoad(ow_haze_g, texel).x)),
-                    float(int(imageLoad(ow_haze_b, texel).x))) / ow_media_scale;
-  float last = uintBitsToFloat(imageLoad(ow_haze_far, texel).x);
-  float first = any(greaterThan(ow_media_light, vec3(0.0))) ? 0.0 : uintBitsToFloat(~near_bits);
-  if (u >= last) {
-    return whole;
-  }
-  if (u <= first) {
-    return around;
-  }
-  return mix(ow_media_light * first, whole, (u - first) / max(last - first, 1e-30));
 }
 #endif
 #endif
