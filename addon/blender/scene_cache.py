@@ -49,6 +49,7 @@ import numpy as np
 from ..core.errors import InputError
 from ..core.alpha import Surface
 from ..reference.material_alpha import MaterialAlpha, material_alpha
+from ..reference.material_media import MediumFound, material_medium
 from ..core.blockers import Pieces
 from ..reference.render_geometry import GEOMETRY_TYPES, local_geometry
 from ..reference import reference_materials
@@ -146,6 +147,7 @@ class SceneGeometryCache:
         # See-through materials (issue 25): each material's alpha as read, and the surface
         # of each read source (by the id of its triangle array, which it keeps alive).
         self._materials: dict[str, MaterialAlpha] = {}
+        self._media: dict[str, MediumFound] = {}  # homogeneous media by material (material_media.py)
         self._surfaces: dict[int, tuple[np.ndarray, Surface]] = {}
         self._dirty_materials: set[str] = set()
         self.pieces = ScenePieces()  # hair and points (scene_pieces.py)
@@ -207,7 +209,23 @@ class SceneGeometryCache:
                 self._materials[name] = found
                 self._dirty_materials.add(name)
                 changed = True
-        return changed
+        return changed | self._medium_changed(original)
+
+    def _medium_changed(self, original: Any) -> bool:
+        """Whether an edited material changes a homogeneous medium (issue 43): its users
+        are then flagged for a re-read, as for an alpha."""
+        name = getattr(original, "name_full", None)
+        material = bpy.data.materials.get(name) if name else None
+        if material is None or (name not in self._media and not reference_materials.is_medium(material)):
+            return False
+        held = self._media.get(name)
+        found = material_medium(material)
+        key = (lambda f: None if f is None or f[0] is None else f[0].digest)
+        if held is not None and key(held) == key(found) and held[1] == found[1]:
+            return False
+        self._media[name] = found
+        self._dirty_materials.add(name)
+        return True
 
     def mark_updates(self, updates: Iterable[Any]) -> tuple[bool, bool]:
         """`mark_dirty` for every update; return (any geometry, any other change to redraw)."""
@@ -400,7 +418,7 @@ class SceneGeometryCache:
         """Read one evaluated object's triangles (counted); a failed read gives none."""
         self.stats["geometry_reads"] += 1
         try:
-            local, surface, _ = local_geometry(obj, depsgraph, self._materials)
+            local, surface, _ = local_geometry(obj, depsgraph, self._materials, self._media)
         except (RuntimeError, ReferenceError) as exc:
             log.warning("could not read the geometry of %r: %s; it casts no shadow", obj.name, exc)
             return _EMPTY_LOCAL

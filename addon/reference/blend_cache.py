@@ -26,8 +26,10 @@ if TYPE_CHECKING:  # pragma: no cover - typing only
 # version 2 of a file's reference: one cached before has neither, so it is captured again.
 # Version 3: hair and points are drawn, so no longer among the notes. Version 4: the
 # strands know whether the scene draws them as ribbons (Strands.flat). Version 5: the
-# reference renders volume shaders (reference_materials), with their noise.
-NOTES_VERSION = 5
+# reference renders volume shaders (reference_materials), with their noise. Version 6:
+# media stay seen by camera rays but act on shadow rays alone (a receiver inside one is
+# shadowed by it), and the triangles carry their homogeneous media (Surface.medium).
+NOTES_VERSION = 6
 
 log = logging.getLogger(__name__)
 

@@ -24,7 +24,10 @@ Conventions (verified in tests/blender/test_reference.py):
 - `surface` (core/alpha.Surface): the see-through materials of `triangles` as the
   capture read them (reference/material_alpha.py), stored as `uvs`, `material` and one
   `alpha{i}_image` / `alpha{i}_transfer` pair a map (their names, interpolations and
-  extensions in meta["alpha_maps"]); a file without them is all opaque.
+  extensions in meta["alpha_maps"]); a file without them is all opaque. The homogeneous
+  media (core/media.py) the triangles bound are `medium` (T,) int32 (-1: none) and
+  `media_sigma` (M, 3) float64, their names in meta["media"] (issue 43); a file without
+  them has no media (its `uvs` and `material` are then written for media alone too).
 - The light's size as rendered (`light_shape()`, core/light_shape.py) is meta["light_shape"],
   as the file has it meta["light_shape_file"]; files without them are hard. A sized light's
   reference also stores `visibility_noise` (H, W): half the difference of the two halves'
@@ -52,6 +55,7 @@ from ..core.blockers import Spheres, Strands
 from ..core.camera import CameraSpec, Window
 from ..core.errors import ReferenceCaptureError
 from ..core.light_shape import LightShape, shape_from_dict
+from ..core.media import Medium
 from ..core.scene import LightSpec
 
 log = logging.getLogger(__name__)
@@ -87,7 +91,7 @@ class ReferenceData:
     camera_window: Window | None = None
     camera_ortho: bool = False
     camera_clip: tuple[float, float] | None = None  # (start, end); None: CameraSpec's defaults
-    surface: Surface | None = None  # see-through materials of `triangles`; None: all opaque
+    surface: Surface | None = None  # see-through materials and media of `triangles`; None: opaque, none
     visibility_noise: np.ndarray | None = None  # (H, W) float32, a sized light's or a medium's; None: noise-free
     spheres: Spheres | None = None  # point clouds that block the light; None: none
     strands: Strands | None = None  # hair curves that block the light; None: none
@@ -183,7 +187,8 @@ class ReferenceData:
                          shape=self.light_shape(), spot_blend=float(self.meta.get("spot_blend", 0.0)))
 
     def scene_surface(self) -> Surface:
-        """The triangles' see-through materials (all opaque for a file without them)."""
+        """The triangles' see-through materials and homogeneous media (`Surface.medium`,
+        `Surface.media`); all opaque, without media, for a file without them."""
         return self.surface if self.surface is not None else Surface.opaque(len(self.triangles))
 
     def lit_domain(self, eps: float = 1e-6) -> np.ndarray:
@@ -202,11 +207,15 @@ class ReferenceData:
         return arrays
 
     def _surface_arrays(self, meta: dict[str, Any]) -> dict[str, np.ndarray]:
-        """The see-through materials as arrays (none for an all-opaque scene); their
-        descriptions go to `meta`."""
-        if self.surface is None or not self.surface.see_through:
+        """The see-through materials and media as arrays (none for an all-opaque scene
+        without media); their descriptions go to `meta`."""
+        if self.surface is None or not (self.surface.see_through or self.surface.has_media):
             return {}
         arrays = {"uvs": self.surface.uvs, "material": self.surface.material}
+        if self.surface.has_media:
+            arrays["medium"] = self.surface.medium
+            arrays["media_sigma"] = np.array([m.sigma for m in self.surface.media], dtype=np.float64).reshape(-1, 3)
+            meta["media"] = [m.name for m in self.surface.media]
         for index, amap in enumerate(self.surface.maps):
             arrays[f"alpha{index}_image"] = amap.image
             if amap.transfer is not None:
@@ -328,7 +337,10 @@ def _stored_surface(npz, meta: dict[str, Any]) -> Surface | None:
     maps = tuple(AlphaMap(d["name"], npz[f"alpha{i}_image"], d["interpolation"], d["extension"],
                           npz[f"alpha{i}_transfer"] if f"alpha{i}_transfer" in npz.files else None)
                  for i, d in enumerate(meta.get("alpha_maps", ())))
-    return Surface(npz["uvs"], npz["material"], maps)
+    if "medium" not in npz.files:  # written before media, or without any
+        return Surface(npz["uvs"], npz["material"], maps)
+    media = tuple(Medium(name, sigma) for name, sigma in zip(meta.get("media", ()), npz["media_sigma"]))
+    return Surface(npz["uvs"], npz["material"], maps, npz["medium"], media)
 
 
 def _stored_spot_size(npz, meta: dict[str, Any]) -> float:

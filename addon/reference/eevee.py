@@ -303,7 +303,8 @@ def _apply_eevee_settings(scene, view_layer, light_obj, visible: set[str], engin
     s(view_layer, "use_pass_combined", True)
     s(view_layer, "use_pass_diffuse_direct", True)
     s(view_layer, "samples", 0)
-    reference_materials.apply(scene, view_layer, overrides)  # keeps each material's transparent shadows
+    # Keeps each material's transparent shadows, and its volumes as EEVEE renders them.
+    reference_materials.apply(scene, view_layer, overrides, shadow_rays_only=False)
 
     light = light_obj.data
     if hard:

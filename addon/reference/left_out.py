@@ -4,9 +4,13 @@ The render depsgraph (`render_geometry.collect`) hands over every instance Cycle
 renders. Most become triangles. These do not, or not as Cycles renders them, and the
 rows, the report, the comparison panel and the log must say so:
 
-- **volumes**: Volume geometry (OpenVDB grids, geometry nodes' volumes), and a
-  **volume material** on a mesh without a surface shader (a smoke or fog box): Cycles
-  and the reference (reference_materials) render a medium, the maps an opaque surface;
+- **volumes**: Volume geometry (OpenVDB grids, geometry nodes' volumes);
+- a **volume material** on a mesh without a surface shader (a smoke or fog box) whose
+  medium `material_media.material_medium` cannot follow (a density that varies in space,
+  a light-path trick, an unknown node): Cycles and the reference (reference_materials)
+  render the medium, the maps an opaque surface; the note says why for each material. A
+  homogeneous medium is drawn (issue 43: its triangles carry it, `Surface.medium`), so
+  it is not named;
 - **true displacement**: a material that displaces its surface at render time (the
   maps draw the undisplaced triangles, and so does the reference, whose white
   materials displace nothing).
@@ -26,14 +30,15 @@ from collections.abc import Iterator
 from typing import Any, Callable
 
 from ..render import blender_compat
+from .material_media import material_medium
 
 log = logging.getLogger(__name__)
 
 # Each kind's note, in the order notes are given; the owners' names follow it.
 KINDS = {
     "volume": "volumes that Cycles shadows with, not drawn by OmniWarp's methods",
-    "volume_material": ("volume materials without a surface shader, a medium in Cycles (and in the "
-                        "reference), drawn as opaque surfaces by OmniWarp's methods"),
+    "volume_material": ("volume materials without a surface shader whose medium OmniWarp does not follow, "
+                        "a medium in Cycles (and in the reference), drawn as opaque surfaces by OmniWarp's methods"),
     "displacement": ("true displacement, which OmniWarp's methods and the reference (its white materials "
                      "displace nothing) leave out"),
 }
@@ -47,25 +52,33 @@ class LeftOut:
     """The owners (object, instancer or None) of each kind of geometry the methods leave out."""
 
     found: dict[str, set[tuple[str, str | None]]] = field(default_factory=dict)
+    # Per kind and owner, why (as "material: reason"), where a kind has reasons.
+    why: dict[str, dict[tuple[str, str | None], set[str]]] = field(default_factory=dict)
 
-    def add(self, kind: str, name: str, parent: str | None = None) -> None:
+    def add(self, kind: str, name: str, parent: str | None = None, why: str | None = None) -> None:
         self.found.setdefault(kind, set()).add((name, parent))
+        if why is not None:
+            self.why.setdefault(kind, {}).setdefault((name, parent), set()).add(why)
 
     def notes(self, keep: Callable[[str, str | None], bool] | None = None) -> list[str]:
         """One note per kind, naming the objects whose geometry `keep(name, parent)` (a
-        light's `ShadowRule.blocks`) accepts; every owner without `keep`."""
+        light's `ShadowRule.blocks`) accepts (every owner without `keep`), after the
+        reasons of their materials in parentheses; the object names come last."""
         out = []
         for kind, note in KINDS.items():
-            owners = self.found.get(kind, set())
-            names = sorted({parent or name for name, parent in owners if keep is None or keep(name, parent)})
-            if names:
-                out.append(f"{note}: {', '.join(names)}")
+            owners = [o for o in self.found.get(kind, set()) if keep is None or keep(*o)]
+            names = sorted({parent or name for name, parent in owners})
+            if not names:
+                continue
+            reasons = sorted({r for owner in owners for r in self.why.get(kind, {}).get(owner, ())})
+            why = f" ({', '.join(reasons)})" if reasons else ""
+            out.append(f"{note}{why}: {', '.join(names)}")
         return out
 
 
-def scan_instance(left: LeftOut, inst: Any, materials: dict[str, tuple[str, ...]]) -> None:
+def scan_instance(left: LeftOut, inst: Any, materials: dict[str, tuple[tuple[str, str | None], ...]]) -> None:
     """Record what of one depsgraph instance the methods leave out. `materials` caches
-    each material's kinds by name."""
+    each material's kinds (and why) by name."""
     obj = inst.object
     parent = inst.parent if inst.is_instance else None
     name = obj.original.name_full
@@ -85,8 +98,8 @@ def scan_instance(left: LeftOut, inst: Any, materials: dict[str, tuple[str, ...]
         kinds = materials.get(material.name_full)
         if kinds is None:
             kinds = materials[material.name_full] = material_kinds(material)
-        for found in kinds:
-            left.add(found, name, parent_name)
+        for found, why in kinds:
+            left.add(found, name, parent_name, why)
 
 
 def path_hair_systems(obj: Any) -> Iterator[Any]:
@@ -110,18 +123,19 @@ def _output(material: Any) -> Any | None:
     return next((n for n in tree.nodes if n.type == "OUTPUT_MATERIAL" and n.is_active_output), None)
 
 
-def material_kinds(material: Any) -> tuple[str, ...]:
-    """The kinds a material makes of its surface: a volume without a surface shader
-    (Cycles renders the surface transparent, the medium inside), true displacement."""
+def material_kinds(material: Any) -> tuple[tuple[str, str | None], ...]:
+    """The kinds a material makes of its surface that no method draws, each with why
+    ("material: reason") or None: a volume without a surface shader whose medium is not
+    followed (Cycles renders the surface transparent, the medium inside), true displacement."""
     output = _output(material)
     if output is None:
         return ()
-    kinds = []
-    volume, surface = output.inputs.get("Volume"), output.inputs.get("Surface")
-    if volume is not None and volume.is_linked and (surface is None or not surface.is_linked):
-        kinds.append("volume_material")
+    kinds: list[tuple[str, str | None]] = []
+    medium, why = material_medium(material)
+    if medium is None and why is not None:
+        kinds.append(("volume_material", f"{material.name}: {why}"))
     displacement = output.inputs.get("Displacement")
     if (getattr(material, "displacement_method", "BUMP") in ("DISPLACEMENT", "BOTH")
             and displacement is not None and displacement.is_linked):
-        kinds.append("displacement")
+        kinds.append(("displacement", None))
     return tuple(kinds)

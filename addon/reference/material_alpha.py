@@ -413,18 +413,27 @@ def triangle_uvs(mesh: Any, uv_map: str) -> np.ndarray:
     return uv.reshape(-1, 2)[loops].reshape(count, 3, 2)
 
 
+def triangle_slots(obj: Any, mesh: Any) -> tuple[list[Any], np.ndarray]:
+    """An (evaluated) object's slot materials (None for an empty slot) and each loop
+    triangle's slot index, clamped as Cycles clamps an index past the last slot."""
+    count = _triangle_count(mesh)
+    slots = [slot.material for slot in obj.material_slots] if len(obj.material_slots) else list(mesh.materials)
+    index = np.zeros(count, dtype=np.int32)
+    if count and slots:
+        mesh.loop_triangles.foreach_get("material_index", index)
+        index = np.clip(index, 0, len(slots) - 1)
+    return slots, index
+
+
 def mesh_surface(obj: Any, mesh: Any, cache: dict[str, MaterialAlpha] | None = None
                  ) -> tuple[Surface, dict[str, str]]:
     """The see-through surface of an (evaluated) object's mesh, and material name -> note for
     the materials not followed. `cache` (material name -> MaterialAlpha) may be shared
     between objects of one scene."""
     count = _triangle_count(mesh)
-    slots = [slot.material for slot in obj.material_slots] if len(obj.material_slots) else list(mesh.materials)
+    slots, index = triangle_slots(obj, mesh)
     if count == 0 or not slots:
         return Surface.opaque(count), {}
-    index = np.empty(count, dtype=np.int32)
-    mesh.loop_triangles.foreach_get("material_index", index)
-    index = np.clip(index, 0, len(slots) - 1)  # Cycles clamps an index past the last slot
     cache = {} if cache is None else cache
     uvs = np.zeros((count, 3, 2), dtype=np.float32)
     material = np.full(count, -1, dtype=np.int32)

@@ -19,10 +19,18 @@ a Principled BSDF's Alpha, Transparent BSDFs (alpha 0), and Mix Shaders of them,
 
 Volumes keep their shaders (issue 43): a material with a Volume output gets a copy that
 keeps the volume graph (density, absorption and scattering as the file has them) and the
-white for its surface if it has one. A medium (a volume material with no surface shader,
-and Volume objects) is hidden from camera rays: the reference measures the light that
-reaches surfaces, and a camera ray that crosses a medium may end in it (measured in the
-notebook, 2026-12-volumes.md), while shadow rays still cross it as Cycles renders them.
+white for its surface if it has one. The reference measures the light that reaches
+surfaces, and a camera ray that crosses a medium may end in it (measured in the
+notebook, 2026-12-volumes.md), so the copy's volume acts on shadow rays alone:
+
+    volume = Mix(Is Shadow Ray, nothing, the file's volume)
+
+Camera rays still cross the medium's faces, so a receiver inside it (a figure standing
+in fog) has the medium in its volume stack and its shadow ray is attenuated from the
+receiver on; a homogeneous medium stays exact at one sample (exp(-sigma L) to 1e-6).
+Hiding the medium from camera rays instead (`visible_camera` off, the first version)
+left such receivers unshadowed (errors up to 0.8). Volume objects (OpenVDB grids), which
+no method draws, are still hidden from camera rays.
 """
 from __future__ import annotations
 
@@ -167,9 +175,9 @@ def _is_medium_object(obj) -> bool:
     return obj.type == "VOLUME" or (bool(materials) and all(is_medium(m) for m in materials))
 
 
-def _volume_copy(material, overrides):
-    """A copy of a material with a volume: its volume graph, the white for its surface
-    when it has one, no surface when it has none."""
+def _volume_copy(material, overrides, guard: bool = True):
+    """A copy of a material with a volume: its volume graph for shadow rays alone
+    (`shadow_only`), the white for its surface when it has one, no surface when it has none."""
     import bpy
 
     copy = material.copy()
@@ -179,8 +187,22 @@ def _volume_copy(material, overrides):
     surface = output.inputs["Surface"]
     if _linked_from(surface) is not None:
         tree.links.new(_white_diffuse(tree), surface)
+    volume = output.inputs["Volume"]
+    if guard:
+        tree.links.new(shadow_only(tree, _linked_from(volume)), volume)
     _normal_aov(tree)
     return copy
+
+
+def shadow_only(tree, volume) -> Any:
+    """A volume shader that shadow rays see in full and every other ray not at all:
+    Mix Shader(Is Shadow Ray, nothing, volume). Cycles still takes a homogeneous volume
+    so guarded as homogeneous (exact at one sample, measured on 5.2.3)."""
+    light_path = tree.nodes.new("ShaderNodeLightPath")
+    mix = tree.nodes.new("ShaderNodeMixShader")
+    tree.links.new(light_path.outputs["Is Shadow Ray"], mix.inputs[0])
+    tree.links.new(volume, mix.inputs[2])
+    return mix.outputs["Shader"]
 
 
 def see_through(material) -> bool:
@@ -206,7 +228,7 @@ def _has_alpha(shader_output, depth: int) -> bool:
     return False
 
 
-def _see_through_copy(material, overrides):
+def _see_through_copy(material, overrides, guard: bool = True):
     """A copy of a see-through material: its graph, with the white in front (module docstring)."""
     import bpy
 
@@ -237,15 +259,17 @@ def _see_through_copy(material, overrides):
     out.target = "ALL"
     tree.links.new(mix.outputs["Shader"], out.inputs["Surface"])
     if volume is not None:
-        tree.links.new(volume, out.inputs["Volume"])
+        tree.links.new(shadow_only(tree, volume) if guard else volume, out.inputs["Volume"])
     _normal_aov(tree)
     blender_compat.set_see_through(copy)
     return copy
 
 
-def apply(scene, view_layer, overrides) -> list[str]:
+def apply(scene, view_layer, overrides, shadow_rays_only: bool = True) -> list[str]:
     """Give the scene its reference materials (module docstring); returns notes for the
-    objects whose materials could not be replaced (linked, read-only data)."""
+    objects whose materials could not be replaced (linked, read-only data). With
+    `shadow_rays_only` off (the EEVEE row, which renders the file's volumes as EEVEE does)
+    volumes keep their graph unguarded."""
     objects = _rendered_objects(scene, view_layer)
     materials = {slot.material for obj in objects for slot in obj.material_slots if slot.material is not None}
     volumes = any(obj.type == "VOLUME" for obj in objects) or any(volume_source(m) is not None for m in materials)
@@ -253,12 +277,13 @@ def apply(scene, view_layer, overrides) -> list[str]:
         overrides.set(view_layer, "material_override", white_material(overrides))
         return []
     white = white_material(overrides)
-    copies = {m: (_see_through_copy(m, overrides) if see_through(m)
-                  else _volume_copy(m, overrides) if volume_source(m) is not None else white) for m in materials}
+    copies = {m: (_see_through_copy(m, overrides, shadow_rays_only) if see_through(m)
+                  else _volume_copy(m, overrides, shadow_rays_only) if volume_source(m) is not None else white)
+              for m in materials}
     refused = []
     for obj in objects:
         try:
-            if _is_medium_object(obj):
+            if obj.type == "VOLUME":
                 overrides.set(obj, "visible_camera", False)  # shadow rays still cross it
             if obj.type == "VOLUME" and not obj.material_slots:
                 continue  # its own default volume shader, as Cycles renders it

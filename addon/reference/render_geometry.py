@@ -11,9 +11,10 @@ reads `depsgraph.object_instances` inside its `render` call.
 
 Every instance is kept with the names of its original object and instancer
 (`Owner`), so one read serves any light's `ShadowRule`, and with its see-through
-materials (`material_alpha.mesh_surface`: per-triangle UVs and alpha maps). What the
-walk meets that the methods do not draw (hair, points, volumes, true displacement) is
-kept apart, by owner (`left_out.py`).
+materials (`material_alpha.mesh_surface`: per-triangle UVs and alpha maps) and its
+homogeneous media (`material_media.mesh_media`: a medium's index per triangle). What the
+walk meets that the methods do not draw (volumes, media not followed, true displacement)
+is kept apart, by owner (`left_out.py`).
 """
 from __future__ import annotations
 
@@ -29,6 +30,7 @@ from ..core.errors import ReferenceCaptureError
 from ..render import blender_compat
 from .left_out import LeftOut, path_hair_systems, scan_instance
 from .material_alpha import MaterialAlpha, mesh_surface
+from .material_media import MediumFound, mesh_media
 
 if TYPE_CHECKING:  # pragma: no cover - typing only
     import bpy
@@ -105,11 +107,12 @@ def local_triangles(obj: Any, depsgraph: Any) -> np.ndarray:
     return local_geometry(obj, depsgraph)[0]
 
 
-def local_geometry(obj: Any, depsgraph: Any, materials: dict[str, MaterialAlpha] | None = None
-                   ) -> tuple[np.ndarray, Surface, dict[str, str]]:
-    """Object-space triangles (n, 3, 3) float32 of an evaluated object, their surface and
-    the notes of the materials not followed; the surface is read only with `materials`
-    (a cache shared by the scene's objects), else it is opaque."""
+def local_geometry(obj: Any, depsgraph: Any, materials: dict[str, MaterialAlpha] | None = None,
+                   media: dict[str, MediumFound] | None = None) -> tuple[np.ndarray, Surface, dict[str, str]]:
+    """Object-space triangles (n, 3, 3) float32 of an evaluated object, their surface (see-
+    through materials and homogeneous media) and the notes of the materials whose alpha
+    was not followed; the surface is read only with `materials` (a cache shared by the
+    scene's objects; `media` the same for the media), else it is opaque."""
     temporary = obj.type != "MESH"
     mesh = obj.to_mesh(preserve_all_data_layers=False, depsgraph=depsgraph) if temporary else obj.data
     try:
@@ -125,7 +128,10 @@ def local_geometry(obj: Any, depsgraph: Any, materials: dict[str, MaterialAlpha]
         tris = coords.reshape(-1, 3)[indices].reshape(n_tris, 3, 3)
         if materials is None:
             return tris, Surface.opaque(n_tris), {}
-        return (tris, *mesh_surface(obj, mesh, materials))
+        surface, notes = mesh_surface(obj, mesh, materials)
+        medium, found = mesh_media(obj, mesh, media)
+        # A medium's triangles bound it: the methods draw the medium between them.
+        return tris, (surface.with_media(medium, found) if found else surface), notes
     finally:
         if temporary:
             obj.to_mesh_clear()
@@ -142,9 +148,10 @@ def collect(depsgraph: Any) -> SceneTriangles:
     surfaces: list[Surface] = []
     notes: dict[str, str] = {}
     materials: dict[str, MaterialAlpha] = {}
+    media: dict[str, MediumFound] = {}
     local_cache: dict[Any, tuple[np.ndarray, Surface]] = {}
     left = LeftOut()
-    left_materials: dict[str, tuple[str, ...]] = {}
+    left_materials: dict[str, tuple[tuple[str, str | None], ...]] = {}
     spheres: list[tuple[Owner, Spheres]] = []
     strands: list[tuple[Owner, Strands]] = []
     shape = CurveShape.of(depsgraph.scene)
@@ -178,7 +185,7 @@ def collect(depsgraph: Any) -> SceneTriangles:
             ("data", obj.data.as_pointer() if obj.data is not None else obj.as_pointer())
         held = local_cache.get(key)
         if held is None:
-            local, surface, found = local_geometry(obj, depsgraph, materials)
+            local, surface, found = local_geometry(obj, depsgraph, materials, media)
             held = local_cache[key] = (local, surface)
             notes.update(found)
         local, surface = held

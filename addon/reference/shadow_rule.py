@@ -30,7 +30,7 @@ preview and the comparison panel. The rule follows Cycles 5.2:
 What the rule cannot follow is reported in `notes`: shadow catchers and holdout
 objects (the capture renders them as plain surfaces) and materials that let shadow
 rays through (the capture replaces every material by an opaque white one). What the
-methods do not draw (hair, point clouds, volumes, true displacement) is found in the
+methods do not draw (volumes, media not followed, true displacement) is found in the
 evaluated geometry itself, by `left_out.py`.
 """
 from __future__ import annotations

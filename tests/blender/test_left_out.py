@@ -21,9 +21,9 @@ pytestmark = pytest.mark.blender
 
 # Each kind's note must name exactly these objects, for every light and for the light.
 NAMED = {"volumes that": {"Cloud"}, "volume materials": {"Fog"}, "true displacement": {"Bumps"}}
-# Rendered and drawn (Ivy's hair is instanced leaves), not rendered by Cycles (Wire's
-# curves from a mesh's geometry nodes) or not rendered at all (Hidden).
-NEVER = ("Ivy", "Wire", "Hidden", "Leaf", "Ground")
+# Rendered and drawn (Ivy's hair is instanced leaves, Mist a homogeneous medium), not
+# rendered by Cycles (Wire's curves from a mesh's geometry nodes) or not rendered at all (Hidden).
+NEVER = ("Ivy", "Wire", "Hidden", "Leaf", "Ground", "Mist")
 
 
 def _named(notes: list[str]) -> dict[str, set[str]]:
@@ -51,6 +51,9 @@ def made(tmp_path_factory):
 def test_the_walk_names_each_kind_and_nothing_else(made):
     notes, _, _, _ = made
     assert _named(notes["all"]) == NAMED and _named(notes["light"]) == NAMED
+    # A medium not followed says why (Smoke's density is a noise texture).
+    (volume,) = [note for note in notes["all"] if note.startswith("volume materials")]
+    assert "(Smoke: density varies in space (heterogeneous): not followed): Fog" in volume
     assert not any(name in note.rsplit(": ", 1)[1].split(", ") for note in notes["all"] for name in NEVER)
     # Hair and points are kept, to be drawn; Unseen casts no shadow (visible_shadow off).
     assert notes["kept"] == {"points": ["Pebbles"], "strands": ["Groom", "Strands", "Unseen"],
@@ -62,12 +65,12 @@ def test_the_walk_names_each_kind_and_nothing_else(made):
 
 def test_every_row_the_report_and_the_log_name_what_is_not_drawn(made):
     notes, rows, report, stderr = made
-    from addon.compare import UNFOLD_PIECES_NOTE
+    from addon.compare import MEDIA_NOTE, UNFOLD_PIECES_NOTE
 
     assert {row["method"] for row in rows} == {"dpsm+notw", "exact", "unfold"}
     for row in rows:
-        # unfold alone draws no hair and points, and says so.
-        own = [UNFOLD_PIECES_NOTE] if row["method"] == "unfold" else []
+        # unfold alone draws no hair and points, nor Mist's homogeneous medium, and says so.
+        own = [UNFOLD_PIECES_NOTE, MEDIA_NOTE] if row["method"] == "unfold" else []
         assert row["note"].split("; ") == notes["light"] + own, row["note"]
         assert any("holdout" in note and "Cutout" in note for note in row["scene_notes"])
     for note in notes["light"]:

@@ -547,6 +547,39 @@ def test_see_through_materials_become_alpha_parts_and_follow_edits(world):
     assert all(obj.alpha is None for obj in world.cache.resident().objects.values())
 
 
+def test_a_fog_box_becomes_a_medium_part_and_follows_edits(world):
+    """A box of Principled Volume and no surface is resident as a medium part of its
+    extinction, left out of the G-buffer's surfaces; a new density re-reads it, and an edit
+    that leaves the extinction alone (the anisotropy) reads nothing again (issue 43)."""
+    from addon.render import blender_compat
+
+    corners = [(x, y, z) for x in (0, 1) for y in (0, 1) for z in (0, 1)]
+    faces = [(0, 1, 3, 2), (4, 6, 7, 5), (0, 4, 5, 1), (2, 3, 7, 6), (0, 2, 6, 4), (1, 5, 7, 3)]
+    fog = world.mesh("fog_box", corners, faces)
+    material = bpy.data.materials.new("fog_test")
+    tree = blender_compat.ensure_node_tree(material)
+    tree.nodes.clear()
+    output = tree.nodes.new("ShaderNodeOutputMaterial")
+    volume = tree.nodes.new("ShaderNodeVolumePrincipled")
+    volume.inputs["Density"].default_value = 0.7
+    tree.links.new(volume.outputs["Volume"], output.inputs["Volume"])
+    fog.data.materials.append(material)
+    world.datablocks.append((bpy.data.materials, material.name_full))
+    world.evaluate()
+    media = [obj.medium for obj in world.cache.resident().objects.values() if obj.triangles]
+    # The defaults (colour 0.5, absorption colour 0) make the extinction the density itself.
+    assert len(media) == 1 and media[0] is not None and media[0].sigma == pytest.approx(np.full(3, 0.7))
+    reads = world.cache.stats["geometry_reads"]
+    volume.inputs["Anisotropy"].default_value = 0.3  # not the extinction
+    world.evaluate()
+    assert world.cache.stats["geometry_reads"] == reads
+    volume.inputs["Density"].default_value = 1.4
+    world.evaluate()
+    assert world.cache.stats["geometry_reads"] == reads + 1
+    media = [obj.medium for obj in world.cache.resident().objects.values() if obj.triangles]
+    assert len(media) == 1 and media[0].sigma == pytest.approx(np.full(3, 1.4))
+
+
 # ----------------------------------------------------------------------------
 # hair and points
 # ----------------------------------------------------------------------------

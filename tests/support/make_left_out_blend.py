@@ -11,7 +11,9 @@ Built the way an artist builds it, on a ground plane under a point light and a c
 - `Groom`: a mesh with a hair particle system drawn as strands; `Ivy`: one whose hair
   particles are drawn as instanced objects (meshes: drawn, so no note);
 - `Cloud`: a mesh whose geometry nodes output a volume (Volume Cube);
-- `Fog`: a box with a Principled Volume and no surface shader;
+- `Fog`: a box with a Principled Volume whose density is a noise texture, and no surface
+  shader (a heterogeneous medium, not followed); `Mist`: a box of a constant Volume
+  Absorption (a homogeneous medium, drawn: no note);
 - `Bumps`: a plane with true displacement;
 - `Hidden`: points like the pebbles, but hidden from renders (no note);
 - `Unseen`: a strand like the strands, but with `visible_shadow` off (no note for the light);
@@ -237,9 +239,16 @@ def build(out: Path) -> None:
 
     fog = _mesh("Fog", 1.0, (0.0, -1.5, 0.6))
     material, tree, output = _material("Smoke")
-    volume = _node(tree, "ShaderNodeVolumePrincipled", Density=1.5)
+    volume = _node(tree, "ShaderNodeVolumePrincipled")
+    noise = _node(tree, "ShaderNodeTexNoise")  # a density that varies: not followed
+    tree.links.new(noise.outputs["Fac"], volume.inputs["Density"])
     tree.links.new(volume.outputs[0], output.inputs["Volume"])
     fog.data.materials.append(material)
+    mist = _mesh("Mist", 0.6, (0.0, 0.0, 1.6))  # a homogeneous medium: drawn, so not named
+    material, tree, output = _material("Haze")
+    volume = _node(tree, "ShaderNodeVolumeAbsorption", Density=0.5)
+    tree.links.new(volume.outputs[0], output.inputs["Volume"])
+    mist.data.materials.append(material)
 
     bumps = _mesh("Bumps", 0.6, (-1.5, -1.5, 0.3))
     material, tree, output = _material("Bumpy")
