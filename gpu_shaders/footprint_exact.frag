@@ -14,6 +14,9 @@
 #endif
 #ifdef OW_MEDIUM
 #include "lib/media.glsl"
+#ifdef OW_EXACT_SOFT
+#include "lib/exact_soft_medium.glsl"
+#endif
 #endif
 #include "lib/exact_walk.glsl"
 

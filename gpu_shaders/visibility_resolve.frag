@@ -14,12 +14,18 @@ void main()
     result.x *= ((word & OW_HIT_OPAQUE) != 0u) ? 0.0 : exp(-depth);
   }
   if (ow_media_on != 0) {
-    // The media's optical depths (lib/media.glsl), and those around the light.
+    // The media's optical depths (lib/media.glsl), and those around the light, per light point
+    // the exact pass followed (one for a hard light): the mean of the light they keep.
     int rows = textureSize(ow_positions, 0).y;
-    vec3 depth = vec3(float(int(imageLoad(ow_media, pix).x)), float(int(imageLoad(ow_media, pix + ivec2(0, rows)).x)),
-                      float(int(imageLoad(ow_media, pix + ivec2(0, 2 * rows)).x))) / ow_media_scale
-                 + ow_media_light * length(texelFetch(ow_positions, pix, 0).xyz);
-    result.x *= ow_media_light_kept(depth);
+    vec3 around = ow_media_light * length(texelFetch(ow_positions, pix, 0).xyz);
+    float kept = 0.0;
+    for (int j = 0; j < ow_media_points; j++) {
+      ivec2 at = pix + ivec2(0, 3 * j * rows);
+      vec3 depth = vec3(float(int(imageLoad(ow_media, at).x)), float(int(imageLoad(ow_media, at + ivec2(0, rows)).x)),
+                        float(int(imageLoad(ow_media, at + ivec2(0, 2 * rows)).x))) / ow_media_scale;
+      kept += ow_media_light_kept(depth + around);
+    }
+    result.x *= kept / float(max(ow_media_points, 1));
   }
   ow_visibility = result;
 }

@@ -67,7 +67,7 @@ from .frame import (
     settings_for,
 )
 from .footprint_runs import RunMemo, footprint_draws, region_uniforms
-from .passes.media import NO_MEDIA, MediaFrame, MediaMemo, read_haze
+from .passes.media import NO_MEDIA, MediaFrame, MediaMemo, media_points, read_haze
 from .parameterizations import DrawInputs, parameterization, slot_rotations_and_crops
 from .plan_memo import PlanMemo
 from .resident import ResidentScene
@@ -137,12 +137,12 @@ class ShadowPipeline:
         return analysis.count_maps(self.backend, light, plan, mappings, size, mode, weighted)
 
     def link_lists(self, light: LightSpec, plan: Plan, mappings: dict[int, LayerMapping], size: int,
-                   words: int = 1, media: bool = False) -> None:
+                   words: int = 1, media: int = 0) -> None:
         """Link the uploaded samples into per-texel lists through the full mapping of each
         drawn layer, at `size` texels a side (the irregular z-buffer's lists; the backend
         keeps them, `read_links` reads them back), with `words` words of marks a sample
-        (soft.hit_words), and with `media` the samples' optical depths cleared. The warp tables
-        must be bound."""
+        (soft.hit_words), and the samples' optical depths of `media` light points each cleared
+        (0: none). The warp tables must be bound."""
         uniforms = analysis.scatter_uniforms(light, plan, mappings, size, 2, False)
         self.backend.link_samples(size, max(len(plan.drawn), 1), uniforms, hit_words=words, media=media)
 
@@ -249,6 +249,10 @@ class ShadowPipeline:
             if media.on and not media_drawn(light, settings):
                 log.debug("media not drawn by this frame (%s): left out", settings.parameterization)
                 media = NO_MEDIA
+            elif media.on and sized_mode(light, settings) is SizedMode.EXACT_SOFT:
+                # A sized light's exact pass follows a share of its points through the media.
+                points = media_points(settings.exact_samples, int(np.prod(samples.shape)))
+                media = dataclasses.replace(media, points=points)
             backend.media = media
             inputs = DrawInputs(plan, settings, geometry, layout, tile_of_slot, mappings, size, boxes,
                                 footprint_draws(scene, light, media), region_uniforms(plan, light, settings.cull),
@@ -259,7 +263,8 @@ class ShadowPipeline:
             backend.begin_atlas(layout, {tile_of_slot[slot]: box for slot, box in boxes.items()})
             if settings.exact:
                 # The irregular z-buffer's lists.
-                self.link_lists(light, plan, mappings, res, hit_words(light, settings), media=media.on)
+                self.link_lists(light, plan, mappings, res, hit_words(light, settings),
+                                media=media.points if media.on else 0)
             edge_radius = scheme.draw(backend, inputs)
             if settings.exact and (sync_stages or count_work):
                 # A measuring frame draws the exact pass's later rounds in its own time; any

@@ -93,13 +93,14 @@ int ow_exact_cluster(int c, OwLightView view, mat3 side_matrix, bool crossing)
   return (crossing && all(greaterThan(mid - half_range, margin))) ? 1 : 0;
 }
 
-// A sized light (lib/exact_soft.glsl): the light points of sample p (light-centred, at
-// texel `at` of the sample texture, `rows` its height) whose segment this triangle
-// crosses, more than ow_exact_eps of its length from p, set their bits in p's words. A
-// sun's rays go on forever: they must cross more than ow_exact_eps |p| from p, as the hard
-// sun's do (ow_projective_blocks).
-void ow_exact_soft_mark(vec3 p, ivec2 at, int rows)
+// Whether triangle may block some light point of sample p (not culled by the light's reach,
+// not p's own plane); then h, p's height over its plane, and e0..e2, the edge planes
+// through p with inner sides positive (each edge's vertices in one order for every
+// triangle that has it: neighbours get the same normals negated).
+bool ow_exact_soft_edges(vec3 p, out float h, out vec3 e0, out vec3 e1, out vec3 e2)
 {
+  h = 0.0;
+  e0 = e1 = e2 = vec3(0.0);
   // Farther from the triangle's image than the light's angle from it: nothing to shadow
   // (a sun's v_cull never culls).
   vec3 dir = p * inversesqrt(max(dot(p, p), 1e-30));
@@ -112,28 +113,44 @@ void ow_exact_soft_mark(vec3 p, ivec2 at, int rows)
     float d = v_cull1.w;
     float dist = length(p);
     if (dist < d) {
-      return;
+      return false;
     }
     reach_sin = min(reach_sin, ow_soft_reach_sin(d, ow_exact_reach, dist) + 1e-4);
   }
   if (dot(dir, v_cull0.xyz) < -reach_sin || dot(dir, v_cull1.xyz) < -reach_sin || dot(dir, v_cull2.xyz) < -reach_sin) {
-    return;
+    return false;
   }
-  precise float h = dot(v_plane.xyz, p - v_edge_at0);  // p's height over the triangle's plane
-  if (h == 0.0) {
-    return;  // on the plane: the receiver itself
+  precise float height = dot(v_plane.xyz, p - v_edge_at0);  // p's height over the triangle's plane
+  if (height == 0.0) {
+    return false;  // on the plane: the receiver itself
   }
+  h = height;
   // Edge planes through p, each edge's vertices in one order for every triangle that has
   // it: neighbours get the same normal negated, and no segment passes between them. The
   // segment crosses the triangle when it lies on the inner side of all three, that side
   // being the one of det(v0 - p, v1 - p, v2 - p), whose sign is -sign(h).
   float side = (h > 0.0) ? -1.0 : 1.0;
-  precise vec3 e0 = cross(v_edge_at0 - p, v_edge_hi0.xyz - p);
-  precise vec3 e1 = cross(v_edge_at1 - p, v_edge_hi1.xyz - p);
-  precise vec3 e2 = cross(v_edge_at2 - p, v_edge_hi2.xyz - p);
-  e0 *= v_edge_hi0.w * side;
-  e1 *= v_edge_hi1.w * side;
-  e2 *= v_edge_hi2.w * side;
+  precise vec3 c0 = cross(v_edge_at0 - p, v_edge_hi0.xyz - p);
+  precise vec3 c1 = cross(v_edge_at1 - p, v_edge_hi1.xyz - p);
+  precise vec3 c2 = cross(v_edge_at2 - p, v_edge_hi2.xyz - p);
+  e0 = c0 * (v_edge_hi0.w * side);  // times +-1: exact
+  e1 = c1 * (v_edge_hi1.w * side);
+  e2 = c2 * (v_edge_hi2.w * side);
+  return true;
+}
+
+// A sized light (lib/exact_soft.glsl): the light points of sample p (light-centred, at
+// texel `at` of the sample texture, `rows` its height) whose segment this triangle
+// crosses, more than ow_exact_eps of its length from p, set their bits in p's words. A
+// sun's rays go on forever: they must cross more than ow_exact_eps |p| from p, as the hard
+// sun's do (ow_projective_blocks).
+void ow_exact_soft_mark(vec3 p, ivec2 at, int rows)
+{
+  float h;
+  vec3 e0, e1, e2;
+  if (!ow_exact_soft_edges(p, h, e0, e1, e2)) {
+    return;
+  }
   int whole = ow_exact_soft_whole(p, h, e0, e1, e2);
   if (whole < 0) {
     return;

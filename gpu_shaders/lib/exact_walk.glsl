@@ -63,6 +63,7 @@ void ow_exact_mark(ivec2 at, vec3 sides)
 }
 
 #ifdef OW_MEDIUM
+#ifndef OW_EXACT_SOFT
 // A medium's triangle (shaders.medium_of, lib/media.glsl): where the segment from the light
 // to sample p crosses it, more than ow_exact_eps of the way from the sample, the crossing's
 // distance from the sample goes to the sample's optical depths, signed by whether the walk
@@ -104,6 +105,7 @@ void ow_medium_entry(ivec2 at, vec3 p)
   }
 }
 #endif
+#endif
 
 // One list entry: sample `at` (p light-centred) marked if this triangle blocks its light: a
 // sized light's points (the soft variant's mark, above), a spot's or a sun's segment
@@ -111,7 +113,11 @@ void ow_medium_entry(ivec2 at, vec3 p)
 void ow_exact_entry(ivec2 at, vec3 p)
 {
 #ifdef OW_MEDIUM
+#ifdef OW_EXACT_SOFT
+  ow_medium_soft_entry(p, at, textureSize(ow_positions, 0).y);  // lib/exact_soft_medium.glsl
+#else
   ow_medium_entry(at, p);  // a medium's crossing (lib/media.glsl)
+#endif
   return;
 #endif
 #ifdef OW_PIECES

@@ -28,14 +28,20 @@ uint ow_medium_units(float length_signed, float sigma)
 
 #ifdef OW_MEDIUM
 #ifdef OW_EXACT
-// The exact pass: the sample at `at` gets this crossing's signed optical depth per channel,
-// channel c in row at.y + c * rows of ow_media (passes/media.py). `s`: the crossing's distance
-// from the sample, positive when the walk from the light enters the medium there.
+// The exact pass: the sample at `at` gets a crossing's signed optical depth per channel,
+// for its light point j (0 for a hard light; lib/exact_soft_medium.glsl): channel c in row
+// at.y + (3 j + c) * rows of ow_media (passes/media.py). `s`: the crossing's distance from
+// the sample, positive when the walk from the light enters the medium there.
+void ow_media_mark_point(ivec2 at, int rows, int j, float s)
+{
+  imageAtomicAdd(ow_media, at + ivec2(0, 3 * j * rows), ow_medium_units(s, ow_medium_sigma.r));
+  imageAtomicAdd(ow_media, at + ivec2(0, (3 * j + 1) * rows), ow_medium_units(s, ow_medium_sigma.g));
+  imageAtomicAdd(ow_media, at + ivec2(0, (3 * j + 2) * rows), ow_medium_units(s, ow_medium_sigma.b));
+}
+
 void ow_media_mark(ivec2 at, int rows, float s)
 {
-  imageAtomicAdd(ow_media, at, ow_medium_units(s, ow_medium_sigma.r));
-  imageAtomicAdd(ow_media, at + ivec2(0, rows), ow_medium_units(s, ow_medium_sigma.g));
-  imageAtomicAdd(ow_media, at + ivec2(0, 2 * rows), ow_medium_units(s, ow_medium_sigma.b));
+  ow_media_mark_point(at, rows, 0, s);
 }
 #endif
 #ifdef OW_HAZE

@@ -76,11 +76,11 @@ def _lists(backend, caller: str) -> ExactLists:
 
 
 def link_samples(backend, size: int, tiles: int, uniforms: UniformValues, hit_words: int = 1,
-                 media: bool = False) -> None:
+                 media: int = 0) -> None:
     """Link every uploaded sample into the list of the map texel it falls in, through the
     full warp (shaders.link_variant, the scatter's uniforms with ow_count_size = the map
-    resolution), with `hit_words` words of marks a sample (a sized light's bits), and with
-    `media` the samples' optical depths cleared (passes/media.py)."""
+    resolution), with `hit_words` words of marks a sample (a sized light's bits), and the
+    samples' optical depths of `media` light points each cleared (passes/media.py; 0: none)."""
     if backend.samples.size is None:
         raise BackendError("link_samples called before upload_samples")
     device = backend.device
@@ -93,7 +93,7 @@ def link_samples(backend, size: int, tiles: int, uniforms: UniformValues, hit_wo
     for image in held.all():
         device.clear_image(image)
     if media:
-        backend.sample_media.ready(device, (width, height))
+        backend.sample_media.ready(device, (width, height), media)
     else:
         backend.sample_media.live = False
     held.work_done = dict.fromkeys(WORK_KEYS, 0)  # a new dict: an earlier frame keeps its own

@@ -9,7 +9,7 @@ import numpy as np
 from ...core.errors import BackendError
 from ..device import Geometry, UniformValues
 from ..shaders import FOOTPRINT_PROGRAM, FOOTPRINT_VERTICES, RAY_TABLE_PROGRAM, ProgramInterface, program_variant
-from ..shaders import EXACT_SOFT_KEY, alpha_of, exact_variant, medium_of, pieces_of
+from ..shaders import alpha_of, exact_variant, medium_of, pieces_of
 from .atlas import layer_viewport
 
 
@@ -75,10 +75,6 @@ def footprint_program(backend, draw: FootprintDraw, uniforms: UniformValues, exa
         raise BackendError(f"object {draw.key!r} is not resident; call sync_scene first")
     see_through = backend.alpha.see_through(draw.key)
     if exact:
-        if draw.medium:
-            # A sized light's exact pass walks a medium's crossings along each sample's segment
-            # to the light's centre (pipeline.media_drawn): the hard light's walk.
-            uniforms = {**uniforms, EXACT_SOFT_KEY: 0}
         iface = exact_variant(uniforms, points, see_through=see_through, pieces=draw.pieces, medium=draw.medium)
         images = backend.exact.images(iface)
         if draw.medium:

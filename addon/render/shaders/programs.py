@@ -34,6 +34,8 @@ EXACT_SOFT_PROGRAMS = tuple(exact_soft_of(iface) for iface in (*EXACT_PROGRAMS, 
                             or is_shadow_test(iface))
 # Media (issue 43): the exact pass's and the maps' medium variants, the haze's shadow tests.
 MEDIA_PROGRAMS = tuple(medium_of(exact_of(iface, count)) for iface in _FOOTPRINTS for count in (False, True)) + tuple(
+    medium_of(exact_soft_of(exact_of(iface, count))) for iface in _FOOTPRINTS for count in (False, True)
+    if POINTS_DEFINE not in iface.defines) + tuple(
     medium_of(iface) for iface in _FOOTPRINTS) + tuple(haze_of(iface) for iface in (*_SHADOW_TESTS, *VEIL_PROGRAMS,
                                                                                   *SOFT_PROGRAMS))
 PROGRAMS = (*VARIANT_PROGRAMS, *MEDIA_PROGRAMS, *EXACT_PROGRAMS, *ALPHA_PROGRAMS, *PIECES_PROGRAMS, *VEIL_PROGRAMS, *SOFT_PROGRAMS,

@@ -174,20 +174,15 @@ def exact_variant(uniforms: dict, points: bool = False, see_through: bool = Fals
     triangle crosses, instead of storing a depth; `see_through` for an object with alpha,
     `pieces` for a part of hair or points, the counting variant when
     uniforms[EXACT_COUNT_KEY] is set, and the sized light's (exact_soft_of) when
-    uniforms[EXACT_SOFT_KEY] counts its points; `medium` for a part of a medium (medium_of),
-    hard lights only."""
+    uniforms[EXACT_SOFT_KEY] counts its points; `medium` for a part of a medium (medium_of)."""
     base = program_variant(FOOTPRINT_PROGRAM, uniforms, points)
     base = pieces_of(base) if pieces else (alpha_of(base) if see_through else base)
     held = exact_of(base, bool(uniforms.get(EXACT_COUNT_KEY, 0)))
-    if medium:
-        if int(uniforms.get(EXACT_SOFT_KEY, 0)) > 0:
-            raise BackendError("the exact pass of a sized light does not draw media")
-        return medium_of(held)
     if int(uniforms.get(EXACT_SOFT_KEY, 0)) > 0:
         if points:
             raise BackendError("the exact pass of a sized light draws quads: its footprints grow past a point sprite")
         held = exact_soft_of(held)
-    return held
+    return medium_of(held) if medium else held
 
 
 def exact_soft_of(base: ProgramInterface) -> ProgramInterface:
@@ -250,8 +245,9 @@ def medium_of(base: ProgramInterface) -> ProgramInterface:
         raise BackendError(f"program {base.name!r} has no medium variant")
     sigma = uniform_list("vec3 ow_medium_sigma")
     if EXACT_DEFINE in base.defines:
-        return derive(base, base.name + "_medium", defines={MEDIUM_DEFINE: "1"}, uniforms=sigma,
-                      images=base.images + (MEDIA_IMAGE,))
+        # ow_media_points: the light points a sample keeps optical depths for (1: hard).
+        return derive(base, base.name + "_medium", defines={MEDIUM_DEFINE: "1"},
+                      uniforms=sigma + uniform_list("int ow_media_points"), images=base.images + (MEDIA_IMAGE,))
     return derive(base, base.name + "_medium", defines={MEDIUM_DEFINE: "1", HAZE_DEFINE: "1"},
                   uniforms=sigma + uniform_list("float ow_media_offset"), images=HAZE_IMAGES,
                   fragment_file=FOOTPRINT_MEDIUM_FILE)
