@@ -19,6 +19,9 @@
 #ifdef OW_HAZE
 #include "lib/haze.glsl"
 #endif
+#ifdef OW_GRIDS
+#include "lib/grids.glsl"
+#endif
 
 // A spot's or sun's map (sm, psm) at a light-centred point: its z01 (the map's depth, PSM's
 // inverted light turned round), and the atlas texel holding it, or false outside the map.
@@ -180,7 +183,7 @@ float ow_exact_soft_share(vec3 p, vec3 n, ivec2 pix)
 }
 #endif
 
-void main()
+void ow_test_sample()
 {
   ivec2 pix = ivec2(gl_FragCoord.xy);
   vec4 pw = texelFetch(ow_positions, pix, 0);
@@ -314,4 +317,16 @@ void main()
   visibility *= ow_media_light_kept(ow_haze_depth(texel + ivec2(tile.xy), dist));
 #endif
   ow_result = vec2(visibility, OW_FLAG_TESTED);
+}
+
+// The test, then with OW_GRIDS (shaders.grids_of) the light the density grids let through
+// along the sample's segment (lib/grids.glsl), for every method alike.
+void main()
+{
+  ow_test_sample();
+#ifdef OW_GRIDS
+  if (ow_result.y == OW_FLAG_TESTED && ow_result.x > 0.0) {
+    ow_result.x *= ow_grid_kept(texelFetch(ow_positions, ivec2(gl_FragCoord.xy), 0).xyz);
+  }
+#endif
 }

@@ -113,7 +113,7 @@ def test_every_program_loads_and_uses_only_declared_names(iface):
     # (shaders.exact_of, shaders.alpha_of, shaders.veil_of, shaders.soft_of, shaders.exact_soft_of,
     # shaders.pieces_of, shaders.medium_of, shaders.haze_of).
     for define in (S.EXACT_DEFINE, S.ALPHA_DEFINE, S.VEIL_DEFINE, S.SOFT_DEFINE, S.EXACT_SOFT_DEFINE, S.PIECES_DEFINE,
-                   S.MEDIUM_DEFINE, S.HAZE_DEFINE):
+                   S.MEDIUM_DEFINE, S.HAZE_DEFINE, S.GRIDS_DEFINE):
         if define not in iface.defines:
             body = _strip_block(body, define)
     declared = {u.name for u in iface.uniforms} | set(iface.samplers) | {name for _, name in iface.images}

@@ -20,7 +20,7 @@ from .device import FULLSCREEN_CORNERS, Device, Rect, Target, UniformValues
 from .passes.alpha import AlphaStore, Veil
 from .passes.atlas import Atlas, AtlasLayout
 from .passes.exact import ExactLists
-from .passes.media import NO_MEDIA, Haze, MediaFrame, SampleMedia
+from .passes.media import NO_MEDIA, GridStore, Haze, MediaFrame, SampleMedia
 from .passes.footprints import FootprintDraw, corner_capacity, corner_indices
 from .passes.samples import SampleTargets, pack_warp_table
 from .passes.warp import WarpBuild
@@ -61,6 +61,7 @@ class ShadowBackend:
         self.haze = Haze()  # the maps' media (lib/media.glsl)
         self.sample_media = SampleMedia()  # the exact pass's optical depths per sample
         self.media: MediaFrame = NO_MEDIA  # this frame's media units and extinction at the light
+        self.grids = GridStore()  # density grids, by digest (lib/grids.glsl)
         self.exact: ExactLists | None = None  # the irregular z-buffer's lists (passes/exact.py)
         self.edge_targets: tuple[Target, ...] = ()  # edge-distance passes' targets
         self.ray_target: Target | None = None  # the ray table's, the atlas's size
@@ -99,6 +100,8 @@ class ShadowBackend:
                 self.vertices[key] = (obj.revision, self.device.texture((width, rows), "RGBA32F", texels))
                 self.geometry_bytes += int(texels.nbytes)
                 self.geometry_bytes += self.alpha.hold(self.device, key, obj.alpha)
+        if scene.grids:
+            self.geometry_bytes += self.grids.sync(self.device, scene.grids.values(), self.max_texture_size())
 
     def _drop_part(self, key: str) -> None:
         held = self.vertices.pop(key, None)
@@ -108,10 +111,13 @@ class ShadowBackend:
 
     @_on_device
     def release_scene(self, scene) -> None:
-        """Free the vertex textures (and alpha maps no other part uses) of every object of `scene`."""
+        """Free the vertex textures (and alpha maps no other part uses) of every object of
+        `scene`, and its density grids."""
         for key in list(scene.objects) + list(scene.removed):
             if key in self.vertices:
                 self._drop_part(key)
+        gone = {grid.digest for grid in scene.grids.values()}
+        self.grids.drop(self.device, set(self.grids.textures) - gone)
 
     def resident_objects(self) -> int:
         """Objects whose vertex textures this backend holds."""
@@ -219,6 +225,7 @@ class ShadowBackend:
             self.alpha.release(device)
             self.veil.release(device)
             self.haze.release(device)
+            self.grids.release(device)
             self.sample_media.release(device)
             held = (*self.textures.values(), *self.warp_tables.values(), self.no_warp)
             device.free(*{id(t): t for t in held if t is not None}.values())

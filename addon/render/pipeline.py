@@ -272,7 +272,7 @@ class ShadowPipeline:
                 backend.finish_lists()
 
         with clock.part("test", "shadow_test"):
-            test = self._shadow_test(light, settings, plan, geometry, layout, tile_of_slot, mappings, size,
+            test = self._shadow_test(light, scene, settings, plan, geometry, layout, tile_of_slot, mappings, size,
                                      edge_radius, boxes)
         timings = clock.wall_ms()
 
@@ -328,7 +328,8 @@ class ShadowPipeline:
         self.backend.upload_samples(pos, nrm)
         self.backend.samples.source = key
 
-    def _shadow_test(self, light: LightSpec, settings: ShadowSettings, plan: Plan, geometry: PreparedGeometry,
+    def _shadow_test(self, light: LightSpec, scene: ResidentScene, settings: ShadowSettings, plan: Plan,
+                     geometry: PreparedGeometry,
                      layout: AtlasLayout, tile_of_slot: dict[int, int], mappings: dict[int, LayerMapping],
                      warp_size: int, edge_radius: int = 0,
                      boxes: dict[int, tuple[int, int, int, int]] | None = None) -> dict:
@@ -370,6 +371,9 @@ class ShadowPipeline:
         }
         uniforms.update(parameterization(plan.parameterization).test_uniforms(plan))
         uniforms.update(soft_uniforms(light, settings))
+        if scene.grids:  # density grids, marched along each sample's segment (lib/grids.glsl)
+            grid_uniforms, samplers = self.backend.grids.bind(self.backend.device, scene.grids.values(), light)
+            uniforms.update(grid_uniforms, ow_grid_samplers=samplers)
         self.backend.run_shadow_test(uniforms)
         return uniforms
 

@@ -38,7 +38,7 @@ import numpy as np
 from ..core.alpha import AlphaMap, Surface
 from ..core.blockers import Pieces
 from ..core.errors import InputError
-from ..core.media import Medium
+from ..core.media import GridMedium, Medium
 from ..core.projection import MAX_COORDINATE
 from .shaders import VERTEX_TEXTURE_WIDTH
 
@@ -255,6 +255,9 @@ class ResidentScene:
 
     def __init__(self) -> None:
         self.objects: dict[str, ResidentObject] = {}
+        # Density grids (core/media.GridMedium, world space), by key: Volume objects' media,
+        # marched by the shadow test (lib/grids.glsl).
+        self.grids: dict[str, GridMedium] = {}
         self.removed: set[str] = set()  # keys removed since the last sync: the backend frees them
         self._parts: dict[str, list[str]] = {}  # object key -> its parts' keys (set_geometry)
         self._world: tuple[tuple, np.ndarray] | None = None
@@ -374,20 +377,30 @@ class ResidentScene:
                                                 hi - origin + grow)
         self.removed.discard(part_key)
 
+    def set_grid(self, key: str, grid: GridMedium) -> None:
+        """Add or replace a density grid (a Volume object's medium); the next frame uploads it
+        unless a grid of the same digest is held already."""
+        if not isinstance(grid, GridMedium):
+            raise InputError(f"grid {key!r}: expected a core.media.GridMedium, got {type(grid).__name__}")
+        self.grids[key] = grid
+
     def subset(self, keys: Iterable[str]) -> "ResidentScene":
         """A scene of some of this scene's objects (by the keys `set_geometry` took), sharing
         them and so their vertex textures: one light's blockers, or what the camera sees.
         Edit the whole scene, never a subset."""
         part = ResidentScene()
         for key in keys:
+            if key in self.grids:
+                part.grids[key] = self.grids[key]
+                continue
             part._parts[key] = list(self._parts[key])
             for part_key in part._parts[key]:
                 part.objects[part_key] = self.objects[part_key]
         return part
 
     def keys(self) -> list[str]:
-        """The keys objects were set with (an object's parts share one)."""
-        return list(self._parts)
+        """The keys objects and grids were set with (an object's parts share one)."""
+        return list(self._parts) + [key for key in self.grids if key not in self._parts]
 
     def set_matrix(self, key: str, matrix: np.ndarray) -> None:
         """Move an object: no upload, only its uniforms change."""
@@ -396,7 +409,8 @@ class ResidentScene:
             self.objects[part_key].matrix = matrix.copy()
 
     def remove(self, key: str) -> None:
-        """Drop an object; the next sync frees its vertex textures."""
+        """Drop an object (or a grid); the next sync frees its vertex textures."""
+        self.grids.pop(key, None)
         for part_key in self._parts.pop(key, ()):
             if self.objects.pop(part_key, None) is not None:
                 self.removed.add(part_key)

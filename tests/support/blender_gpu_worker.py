@@ -123,6 +123,7 @@ def media_frames(pipeline):
     spot, and the maps' haze."""
     from addon.core.media import Medium
     from addon.render.frame import settings_for
+    from addon.render.resident import ResidentScene
     from tests.gl.test_media_pass import _case, _fog, _resident
 
     frames = {}
@@ -135,6 +136,16 @@ def media_frames(pipeline):
             result = pipeline.render(scene.light, resident, samples, settings_for(method, 256, scene.light.emission))
             frames[f"media_{name}_{method}_visibility"] = result.visibility
         pipeline.backend.release_scene(resident)
+    from tests.gl.test_grid_pass import _case as cloud_case
+    from tests.gl.test_grid_pass import cloud
+
+    scene, samples, _, _ = cloud_case()
+    resident = ResidentScene.of_triangles(scene.world_triangles())
+    resident.set_grid("cloud", cloud())
+    for method in ("exact", "dpsm+notw"):
+        result = pipeline.render(scene.light, resident, samples, settings_for(method, 256, scene.light.emission))
+        frames[f"media_grid_{method}_visibility"] = result.visibility
+    pipeline.backend.release_scene(resident)
     return frames
 
 

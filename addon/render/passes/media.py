@@ -18,7 +18,7 @@ from typing import Any
 import numpy as np
 
 from ...core import media as core_media
-from ..shaders import HAZE_IMAGES
+from ..shaders import GRID_MAX, GRID_SAMPLERS, HAZE_IMAGES
 
 log = logging.getLogger(__name__)
 
@@ -193,3 +193,73 @@ class Haze:
         device.free(*(self.images or ()))
         self.images = self.size = None
         self.live = False
+
+
+def grid_texels(density: np.ndarray, max_width: int) -> tuple[np.ndarray, int]:
+    """A density grid (nz, ny, nx) as the 2D texture lib/grids.glsl reads: its z slices
+    side by side, `cols` to a row (as many as fit `max_width`), row 0 first; and cols."""
+    nz, ny, nx = density.shape
+    cols = max(1, min(nz, max_width // max(nx, 1)))
+    rows = -(-nz // cols)
+    out = np.zeros((rows * ny, cols * nx), dtype=np.float32)
+    for k in range(nz):
+        r, c = divmod(k, cols)
+        out[r * ny:(r + 1) * ny, c * nx:(c + 1) * nx] = density[k]
+    return out, cols
+
+
+class GridStore:
+    """Density grids on the GPU (R32F textures of their slices, grid_texels), by digest:
+    uploaded once, freed when no resident scene holds them any more."""
+
+    def __init__(self) -> None:
+        self.textures: dict[str, tuple[Any, int]] = {}  # digest -> (texture, slices a row)
+        self.dummy: Any = None
+
+    def sync(self, device, grids, max_width: int) -> int:
+        """Upload the grids not yet held; returns the bytes uploaded."""
+        uploaded = 0
+        for grid in grids:
+            if grid.digest not in self.textures:
+                texels, cols = grid_texels(grid.density, max_width)
+                rows, width = texels.shape
+                self.textures[grid.digest] = (device.texture((width, rows), "R32F", texels), cols)
+                uploaded += int(texels.nbytes)
+        return uploaded
+
+    def drop(self, device, keep: set[str]) -> None:
+        """Free the grids whose digests are not in `keep`."""
+        for digest in [d for d in self.textures if d not in keep]:
+            device.free(self.textures.pop(digest)[0])
+
+    def bind(self, device, grids, light) -> tuple[dict[str, Any], dict[str, Any]]:
+        """The shadow test's grid uniforms and samplers for up to GRID_MAX held grids:
+        index-space matrices from light-centred points, sizes, extinctions, and how far
+        upstream a sun's march starts."""
+        if self.dummy is None:
+            self.dummy = device.texture((1, 1), "R32F", np.zeros((1, 1), np.float32))
+        grids = list(grids)[:GRID_MAX]
+        to_index = np.tile(np.eye(4), (GRID_MAX, 1, 1))
+        size = np.ones((GRID_MAX, 4))
+        sigma = np.zeros((GRID_MAX, 4))
+        samplers = {name: self.dummy for name in GRID_SAMPLERS}
+        reach = 0.0
+        centre = np.eye(4)
+        centre[:3, 3] = light.position  # light-centred -> world
+        for g, grid in enumerate(grids):
+            texture, cols = self.textures[grid.digest]
+            to_index[g] = grid.to_index @ centre
+            nz, ny, nx = grid.density.shape
+            size[g] = (nx, ny, nz, cols)
+            sigma[g, :3] = grid.sigma
+            samplers[GRID_SAMPLERS[g]] = texture
+            lo, hi = grid.world_bounds()
+            reach = max(reach, float(np.linalg.norm(hi - lo)) + float(np.linalg.norm(0.5 * (lo + hi) - light.position)))
+        uniforms = {"ow_grid_count": len(grids), "ow_grid_to_index": to_index, "ow_grid_size": size,
+                    "ow_grid_sigma": sigma, "ow_grid_reach": 2.0 * reach}
+        return uniforms, samplers
+
+    def release(self, device) -> None:
+        self.drop(device, set())
+        device.free(self.dummy)
+        self.dummy = None

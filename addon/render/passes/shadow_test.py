@@ -9,7 +9,7 @@ from ..device import Target, UniformValues
 from .exact import _lists
 from ..shaders import (EXACT_SOFT_KEY, RESOLVE_PROGRAM, SHADOW_TEST_PROGRAM, ProgramInterface, exact_soft_of,
                        program_variant)
-from ..shaders import haze_of, soft_of, veil_of
+from ..shaders import grids_of, haze_of, soft_of, veil_of
 
 
 def test_program(backend, uniforms: UniformValues) -> tuple[ProgramInterface, dict[str, object]]:
@@ -29,6 +29,8 @@ def test_program(backend, uniforms: UniformValues) -> tuple[ProgramInterface, di
         iface, images = exact_soft_of(iface), {"ow_hits": backend.exact.hits}
     if backend.haze.live:
         iface, images = haze_of(iface), {**images, **backend.haze.by_name()}
+    if int(uniforms.get("ow_grid_count", 0)) > 0:
+        iface = grids_of(iface)  # density grids (lib/grids.glsl); their samplers come with the uniforms
     return iface, images
 
 
@@ -45,11 +47,14 @@ def run_shadow_test(backend, uniforms: UniformValues) -> None:
     iface, images = test_program(backend, uniforms)
     if backend.haze.live:
         uniforms = {**uniforms, **backend.media.uniforms()}
+    textures = backend.textures
+    if int(uniforms.get("ow_grid_count", 0)) > 0:
+        textures = {**textures, **uniforms["ow_grid_samplers"]}
     if images:
         device.barrier()  # the depth pass's image atomics, before the test's loads
     target = held.test[1]
     with device.drawing(target, (0, 0) + held.size):
-        device.draw(iface, uniforms, backend.textures, images=images)
+        device.draw(iface, uniforms, textures, images=images)
 
 
 def read_shadow_test(backend) -> np.ndarray:

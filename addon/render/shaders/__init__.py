@@ -36,10 +36,12 @@ from .variants import (ALPHA_DEFINE, ALPHA_SAMPLERS, EXACT_COUNT_DEFINE, EXACT_C
                        SOFT_UNIFORMS, VEIL_DEFINE, VEIL_IMAGES, alpha_of, derive, exact_of, exact_soft_of,
                        exact_variant, link_variant, pieces_of, program_variant, scatter_variant, soft_of, veil_of,
                        warp_step_variant)
-from .variants import HAZE_DEFINE, HAZE_IMAGES, MEDIA_IMAGE, MEDIUM_DEFINE, haze_of, medium_of
+from .variants import (GRID_SAMPLERS, GRIDS_DEFINE, HAZE_DEFINE, HAZE_IMAGES, MEDIA_IMAGE, MEDIUM_DEFINE, grids_of,
+                       haze_of, medium_of)
+from .constants import GRID_MAX, GRID_MAX_STEPS
 
 __all__ = [
-    "HAZE_DEFINE", "HAZE_IMAGES", "haze_of", "MEDIA_IMAGE", "MEDIA_PROGRAMS", "MEDIUM_DEFINE", "medium_of",
+    "GRID_MAX", "GRID_MAX_STEPS", "GRID_SAMPLERS", "GRIDS_DEFINE", "grids_of", "HAZE_DEFINE", "HAZE_IMAGES", "haze_of", "MEDIA_IMAGE", "MEDIA_PROGRAMS", "MEDIUM_DEFINE", "medium_of",
     "ADVANCE_PROGRAM", "ALPHA_DEFINE", "ALPHA_INTERPOLATIONS", "alpha_of", "ALPHA_PROGRAMS", "ALPHA_SAMPLERS",
     "BARRIER_PROGRAM", "CODES", "Codes", "COMPUTE_PROGRAMS", "ComputeInterface", "DEPTH_PLAIN_PROGRAM",
     "DEPTH_PROGRAM", "derive", "EDGE_PASSES", "EDGE_PROGRAM", "EXACT_COUNT_DEFINE", "EXACT_COUNT_KEY", "EXACT_DEFINE",

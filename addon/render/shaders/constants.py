@@ -129,6 +129,11 @@ EXACT_SOFT_MAX_POINTS = 256
 EXACT_SOFT_WORDS = EXACT_SOFT_MAX_POINTS // 32
 EXACT_SOFT_CLUSTER = 16
 
+# Density grids (lib/grids.glsl, issue 43): the most a frame marches through (one sampler
+# each), and the most steps of half a voxel a sample's segment takes through one of them.
+GRID_MAX = 4
+GRID_MAX_STEPS = 1024
+
 # Soft shadows of a sized light (lib/soft.glsl, issue 27): the light's points a shadow test
 # reads (core/light_shape.stratified_points, at most SOFT_MAX_POINTS), and the steps of its
 # blocker search along each segment to the light.
@@ -159,6 +164,7 @@ def _shared_defines() -> dict[str, str]:
         "OW_WORK_FRAGMENTS": str(WORK_FRAGMENTS), "OW_WORK_BOX": str(WORK_BOX),
         "OW_EXACT_SOFT_MAX_POINTS": str(EXACT_SOFT_MAX_POINTS), "OW_EXACT_SOFT_CLUSTER": str(EXACT_SOFT_CLUSTER),
         "OW_SOFT_MAX_POINTS": str(SOFT_MAX_POINTS), "OW_SOFT_SEARCH_STEPS": str(SOFT_SEARCH_STEPS),
+        "OW_GRID_MAX": str(GRID_MAX), "OW_GRID_MAX_STEPS": str(GRID_MAX_STEPS),
     })
     return defines
 

@@ -9,7 +9,7 @@ from .interfaces import (ADVANCE_PROGRAM, BARRIER_PROGRAM, DEPTH_PROGRAM, EDGE_P
                          SHADOW_TEST_PROGRAM)
 from .variants import (VARIANT_BASES, EXACT_DEFINE, FIXED_KIND_NAMES, POINTS_DEFINE, is_footprint,
                        is_shadow_test, link_kind_variant, scatter_mode_variant, base_variant, alpha_of, exact_of,
-                       exact_soft_of, haze_of, medium_of, pieces_of, soft_of, veil_of, warp_step_variant)
+                       exact_soft_of, grids_of, haze_of, medium_of, pieces_of, soft_of, veil_of, warp_step_variant)
 
 DEPTH_PLAIN_PROGRAM = base_variant(DEPTH_PROGRAM.name, False, None)
 SHADOW_TEST_PLAIN_PROGRAM = base_variant(SHADOW_TEST_PROGRAM.name, False, None)
@@ -38,7 +38,11 @@ MEDIA_PROGRAMS = tuple(medium_of(exact_of(iface, count)) for iface in _FOOTPRINT
     if POINTS_DEFINE not in iface.defines) + tuple(
     medium_of(iface) for iface in _FOOTPRINTS) + tuple(haze_of(iface) for iface in (*_SHADOW_TESTS, *VEIL_PROGRAMS,
                                                                                   *SOFT_PROGRAMS))
-PROGRAMS = (*VARIANT_PROGRAMS, *MEDIA_PROGRAMS, *EXACT_PROGRAMS, *ALPHA_PROGRAMS, *PIECES_PROGRAMS, *VEIL_PROGRAMS, *SOFT_PROGRAMS,
+# Density grids: the shadow test of every plain, veil, haze, soft and exact soft variant.
+GRID_PROGRAMS = tuple(grids_of(iface) for iface in (*_SHADOW_TESTS, *VEIL_PROGRAMS, *SOFT_PROGRAMS,
+                                                    *(i for i in MEDIA_PROGRAMS if is_shadow_test(i)),
+                                                    *(i for i in EXACT_SOFT_PROGRAMS if is_shadow_test(i))))
+PROGRAMS = (*VARIANT_PROGRAMS, *MEDIA_PROGRAMS, *GRID_PROGRAMS, *EXACT_PROGRAMS, *ALPHA_PROGRAMS, *PIECES_PROGRAMS, *VEIL_PROGRAMS, *SOFT_PROGRAMS,
             *EXACT_SOFT_PROGRAMS, GBUFFER_ALPHA_PROGRAM, RAY_TABLE_PROGRAM, GBUFFER_PROGRAM,
             GBUFFER_SAMPLES_PROGRAM, PREVIEW_PROGRAM, OVERLAY_PROGRAM, EDGE_PROGRAM, RESOLVE_PROGRAM)
 COMPUTE_PROGRAMS = (SCATTER_PROGRAM, SAMPLE_STATS_PROGRAM, BARRIER_PROGRAM, ADVANCE_PROGRAM,

@@ -20,7 +20,7 @@ from typing import TypeVar
 
 from ...core import projection
 from ...core.errors import BackendError
-from .constants import (EXACT_SOFT_CLUSTER, EXACT_SOFT_MAX_POINTS, NO_SPLIT, SCATTER_MODE_CODES, SCATTER_MODES,
+from .constants import (GRID_MAX, EXACT_SOFT_CLUSTER, EXACT_SOFT_MAX_POINTS, NO_SPLIT, SCATTER_MODE_CODES, SCATTER_MODES,
                         SOFT_MAX_POINTS, SOFT_MAX_SEARCH, WARP_STEPS)
 from .interfaces import (DEPTH_PROGRAM, FOOTPRINT_PROGRAM, SCATTER_PROGRAM, SHADOW_TEST_PROGRAM, WARP_BUILD_PROGRAM,
                          ComputeInterface, ProgramInterface, Uniform, Varying, uniform_list)
@@ -50,6 +50,8 @@ VEIL_DEFINE = "OW_VEIL"
 # per sample (ow_media), the maps per texel (the haze, read by the shadow test's haze variant).
 MEDIUM_DEFINE = "OW_MEDIUM"
 HAZE_DEFINE = "OW_HAZE"
+# Density grids (lib/grids.glsl): the shadow test marches each sample's segment through them.
+GRIDS_DEFINE = "OW_GRIDS"
 SOFT_DEFINE = "OW_SOFT"
 SCATTER_MODE_DEFINE = "OW_SCATTER_MODE"
 LINK_DEFINE = "OW_LINK"
@@ -260,6 +262,21 @@ def haze_of(base: ProgramInterface) -> ProgramInterface:
         raise BackendError(f"program {base.name!r} has no haze variant")
     return derive(base, base.name + "_haze", defines={HAZE_DEFINE: "1"}, uniforms=MEDIA_TEST_UNIFORMS,
                   images=base.images + HAZE_IMAGES)
+
+
+GRID_SAMPLERS = tuple(f"ow_grid{g}" for g in range(GRID_MAX))
+GRID_UNIFORMS = uniform_list("int ow_grid_count", f"mat4 ow_grid_to_index[{GRID_MAX}]", f"vec4 ow_grid_size[{GRID_MAX}]",
+                             f"vec4 ow_grid_sigma[{GRID_MAX}]", "float ow_grid_reach")
+
+
+def grids_of(base: ProgramInterface) -> ProgramInterface:
+    """The shadow test's variant that marches each sample's segment to the light through
+    the frame's density grids (lib/grids.glsl, issue 43), for any method. Frames without
+    grids keep their test, unchanged."""
+    if not is_shadow_test(base):
+        raise BackendError(f"program {base.name!r} has no grids variant")
+    return derive(base, base.name + "_grids", defines={GRIDS_DEFINE: "1"}, uniforms=GRID_UNIFORMS,
+                  samplers=GRID_SAMPLERS)
 
 
 def soft_of(base: ProgramInterface) -> ProgramInterface:
