@@ -157,14 +157,16 @@ def scene_has_media(scene: ResidentScene) -> bool:
 
 
 def resident_scene(ref: ReferenceData) -> ResidentScene:
-    """The reference's triangles as one resident object, and its hair and points as one
-    object of pieces: build it once per reference and pass it to every row, so the GPU
-    holds the scene across rows and frames."""
+    """The reference's triangles as one resident object, its hair and points as one object
+    of pieces, and its density grids: build it once per reference and pass it to every
+    row, so the GPU holds the scene across rows and frames."""
     scene = ResidentScene.of_triangles(ref.triangles.astype(np.float64), key=f"reference:{id(ref)}",
                                        surface=ref.surface)
     pieces = blockers.pieces(ref.spheres, ref.strands)
     if len(pieces):
         scene.set_pieces(f"reference:{id(ref)}:pieces", pieces)
+    for index, grid in enumerate(ref.grids):  # Volume objects' density, marched by the shadow test
+        scene.set_grid(f"reference:{id(ref)}:grid{index}", grid)
     return scene
 
 

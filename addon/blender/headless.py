@@ -106,6 +106,8 @@ def main(argv: list[str] | None = None) -> int:
                 held = pieces(found.select_spheres(keep), found.select_strands(keep))
                 if len(held):
                     scene.set_pieces(f"pieces:{key}", held)
+                for index, grid in enumerate(found.select_grids(keep)):  # Volume objects' density
+                    scene.set_grid(f"grid:{key}:{index}", grid)
                 return scene
 
             rules = rules_for(scene, [name for name, _, _ in lights])

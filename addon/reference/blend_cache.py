@@ -29,7 +29,9 @@ if TYPE_CHECKING:  # pragma: no cover - typing only
 # reference renders volume shaders (reference_materials), with their noise. Version 6:
 # media stay seen by camera rays but act on shadow rays alone (a receiver inside one is
 # shadowed by it), and the triangles carry their homogeneous media (Surface.medium).
-NOTES_VERSION = 6
+# Version 7: Volume geometry's density grids are read (ReferenceData.grids), Volume
+# objects are seen by camera rays with their volume for shadow rays alone.
+NOTES_VERSION = 7
 
 log = logging.getLogger(__name__)
 

@@ -605,7 +605,17 @@ def capture(scene: "bpy.types.Scene", samples: int = DEFAULT_SAMPLES, *, light: 
     hit = alpha > 0.5
     # Pixels whose samples disagree on hitting geometry (only when samples > 1).
     mixed = int(np.count_nonzero((alpha > 1e-6) & (alpha < 1.0 - 1e-6)))
-    position = np.where(hit[..., None], _stack(lit, name, "Position", "XYZ"), 0.0)
+    # Cycles writes Position at sample 0 only; in a heterogeneous volume (seen by camera rays,
+    # its closure empty for them) that sample's camera path may end before the surface: with
+    # media, take another render's (seed), and leave a pixel none gives out of `hit` (meta
+    # positions_lost). Without media a surface may well pass through the origin.
+    found = [_stack(c, name, "Position", "XYZ") for c in ((lit, *lits[1:], *frees) if media else (lit,))]
+    position = found[0]
+    for other in found[1:]:
+        position = np.where(np.all(position == 0.0, axis=-1, keepdims=True), other, position)
+    lost = hit & np.all(position == 0.0, axis=-1) if media else np.zeros_like(hit)
+    hit &= ~lost
+    position = np.where(hit[..., None], position, 0.0)
     normal = _stack(lit, name, AOV_NORMAL, "RGB")
     length = np.linalg.norm(normal, axis=-1, keepdims=True)
     # Several samples average the AOV; re-normalize (only silhouettes can shrink it).
@@ -632,6 +642,7 @@ def capture(scene: "bpy.types.Scene", samples: int = DEFAULT_SAMPLES, *, light: 
         "blender_version": bpy.app.version_string,
         "samples": int(soft_samples if noisy else samples),
         "mixed_pixels": mixed,
+        "positions_lost": int(lost.sum()),
         # The light as the reference rendered it, and as the file has it.
         "light_shape": (authored if sized else POINT).as_dict(),
         "light_shape_file": authored.as_dict(),
@@ -642,6 +653,7 @@ def capture(scene: "bpy.types.Scene", samples: int = DEFAULT_SAMPLES, *, light: 
         "occluder_triangles": int(len(triangles)),
         "occluder_spheres": int(len(spheres)),
         "occluder_strands": int(len(strands)),
+        "occluder_grids": len(scene_triangles.select_grids(rule.blocks)),
         "scene_triangles": int(sum(len(t) for t in scene_triangles.triangles)),
         "light_casts_shadows": rule.casts_shadows,
         "notes": list(rule.notes) + material_notes + scene_triangles.alpha_notes(),
@@ -681,4 +693,5 @@ def capture(scene: "bpy.types.Scene", samples: int = DEFAULT_SAMPLES, *, light: 
         visibility_noise=noise,
         spheres=spheres if len(spheres) else None,
         strands=strands if len(strands) else None,
+        grids=scene_triangles.select_grids(rule.blocks),  # Volume geometry's density grids
     )

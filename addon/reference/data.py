@@ -35,6 +35,10 @@ Conventions (verified in tests/blender/test_reference.py):
 - `spheres` and `strands` (core/blockers.py): the point clouds and hair curves that block
   the light, world space, as `sphere_centres`/`sphere_radii` and `strand_points`/
   `strand_radii`/`strand_offsets`/`strand_linear`; a file without them has none (issue 42).
+- `grids` (core/media.GridMedium): the heterogeneous media of the Volume geometry that
+  blocks the light (reference/volume_grids.py), as `grid{i}_density` (nz, ny, nx) float32,
+  `grid{i}_to_index` (4, 4) and `grid{i}_sigma` (3,), their names in meta["grids"]; a
+  file without them has none (issue 43).
 """
 from __future__ import annotations
 
@@ -55,7 +59,7 @@ from ..core.blockers import Spheres, Strands
 from ..core.camera import CameraSpec, Window
 from ..core.errors import ReferenceCaptureError
 from ..core.light_shape import LightShape, shape_from_dict
-from ..core.media import Medium
+from ..core.media import GridMedium, Medium
 from ..core.scene import LightSpec
 
 log = logging.getLogger(__name__)
@@ -95,6 +99,7 @@ class ReferenceData:
     visibility_noise: np.ndarray | None = None  # (H, W) float32, a sized light's or a medium's; None: noise-free
     spheres: Spheres | None = None  # point clouds that block the light; None: none
     strands: Strands | None = None  # hair curves that block the light; None: none
+    grids: tuple[GridMedium, ...] = ()  # Volume geometry's density grids that block the light
 
     def __post_init__(self) -> None:
         self.position = np.asarray(self.position, dtype=np.float32)
@@ -114,6 +119,7 @@ class ReferenceData:
         if self.camera_window is not None:
             self.camera_window = tuple(float(v) for v in self.camera_window)  # type: ignore[assignment]
         self.camera_ortho = bool(self.camera_ortho)
+        self.grids = tuple(self.grids)
         if self.camera_clip is not None:
             self.camera_clip = (float(self.camera_clip[0]), float(self.camera_clip[1]))
         if self.camera_ortho and self.camera_window is None:
@@ -235,6 +241,16 @@ class ReferenceData:
                           strand_flat=self.strands.flat)
         return arrays
 
+    def _grid_arrays(self, meta: dict[str, Any]) -> dict[str, np.ndarray]:
+        """The grid media as arrays (none without them); their names go to `meta`."""
+        arrays: dict[str, np.ndarray] = {}
+        for index, grid in enumerate(self.grids):
+            arrays.update({f"grid{index}_density": grid.density, f"grid{index}_to_index": grid.to_index,
+                           f"grid{index}_sigma": grid.sigma})
+        if self.grids:
+            meta["grids"] = [grid.name for grid in self.grids]
+        return arrays
+
     def save(self, path: str | os.PathLike) -> Path:
         """Write a compressed .npz atomically (a temp file renamed into place)."""
         path = Path(path)
@@ -263,6 +279,7 @@ class ReferenceData:
                     **self._surface_arrays(meta),
                     **({} if self.visibility_noise is None else {"visibility_noise": self.visibility_noise}),
                     **self._blocker_arrays(),
+                    **self._grid_arrays(meta),
                     meta=np.array(json.dumps(meta, sort_keys=True)),
                 )
             os.replace(tmp, path)
@@ -302,6 +319,7 @@ class ReferenceData:
                     visibility_noise=npz["visibility_noise"] if "visibility_noise" in npz.files else None,
                     **_stored_camera(npz),
                     **_stored_blockers(npz),
+                    grids=_stored_grids(npz, meta),
                 )
         except _UNREADABLE as exc:
             raise ReferenceCaptureError(f"cannot read reference file {path}: {_reason(exc)}") from exc
@@ -317,6 +335,12 @@ def _stored_blockers(npz) -> dict[str, Any]:
                                     npz["strand_linear"] if "strand_linear" in npz.files else None,
                                     npz["strand_flat"] if "strand_flat" in npz.files else None)
     return fields
+
+
+def _stored_grids(npz, meta: dict[str, Any]) -> tuple[GridMedium, ...]:
+    """The grid media of a loaded file (older files have none)."""
+    return tuple(GridMedium(name, npz[f"grid{i}_sigma"], npz[f"grid{i}_density"], npz[f"grid{i}_to_index"])
+                 for i, name in enumerate(meta.get("grids", ())))
 
 
 def _stored_camera(npz) -> dict[str, Any]:

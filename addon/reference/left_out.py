@@ -4,7 +4,9 @@ The render depsgraph (`render_geometry.collect`) hands over every instance Cycle
 renders. Most become triangles. These do not, or not as Cycles renders them, and the
 rows, the report, the comparison panel and the log must say so:
 
-- **volumes**: Volume geometry (OpenVDB grids, geometry nodes' volumes);
+- **volumes**: Volume geometry (OpenVDB grids, geometry nodes' volumes) whose density
+  grid `volume_grids` could not read, each with why (a grid read is a grid medium,
+  `render_geometry.SceneTriangles.grids`, and is not named);
 - a **volume material** on a mesh without a surface shader (a smoke or fog box) whose
   medium `material_media.material_medium` cannot follow (a density that varies in space,
   a light-path trick, an unknown node): Cycles and the reference (reference_materials)
@@ -59,6 +61,11 @@ class LeftOut:
         self.found.setdefault(kind, set()).add((name, parent))
         if why is not None:
             self.why.setdefault(kind, {}).setdefault((name, parent), set()).add(why)
+
+    def discard(self, kind: str, name: str, parent: str | None = None) -> None:
+        """Forget an owner of a kind (a volume whose grid was read: the methods draw it)."""
+        self.found.get(kind, set()).discard((name, parent))
+        self.why.get(kind, {}).pop((name, parent), None)
 
     def notes(self, keep: Callable[[str, str | None], bool] | None = None) -> list[str]:
         """One note per kind, naming the objects whose geometry `keep(name, parent)` (a

@@ -207,3 +207,80 @@ def mesh_media(obj: Any, mesh: Any, cache: dict[str, MediumFound] | None = None
             medium[index == slot] = len(media)
             media.append(found[0])
     return medium, tuple(media)
+
+
+# Cycles renders a Volume object without a material with its default volume shader, a
+# Principled Volume of default inputs (scene/shader.cpp, `default_volume`): density 1 times
+# the "density" grid, colour 0.5, no absorption colour, so an extinction of
+# 0.5 + 0.5 (1 - sqrt(0)) = 1 per unit density (measured: make_cloud_blend.py --variant inside).
+DEFAULT_GRID_SIGMA = np.ones(3)
+DEFAULT_DENSITY_GRID = "density"
+# What `grid_sigma` finds: (extinction per unit density, the grid's name), or (None, why).
+GridSigma = tuple[np.ndarray | None, str]
+
+
+def grid_sigma(material: Any) -> GridSigma:
+    """The extinction per unit density of a Volume object's material and the name of the
+    grid it multiplies (a Principled Volume's Density Attribute, or an Attribute node on a
+    volume node's Density, times constants): (sigma (3,), name), or (None, why it was not
+    followed). No material: Cycles' default volume shader (`DEFAULT_GRID_SIGMA`)."""
+    if material is None:
+        return DEFAULT_GRID_SIGMA.copy(), DEFAULT_DENSITY_GRID
+    if reference_materials.volume_source(material) is None:
+        return None, f"{material.name}: no volume shader: not followed"
+    # A Volume object renders its material's volume alone (a surface shader draws nothing).
+    volume = reference_materials.surface_output(material.node_tree).inputs["Volume"]
+    reader = _GridReader()
+    try:
+        source, _, groups = reader.linked(volume, ())
+        sigma = np.zeros(3) if source is None else reader.extinction(source, groups)
+    except _Unfollowed as why:
+        log.debug("material %r: grid medium not followed: %s", material.name, why)
+        return None, f"{material.name}: {why}"
+    if reader.grid is None:
+        return None, f"{material.name}: no density grid read: not followed"
+    if np.any(sigma < 0.0) or not np.all(np.isfinite(sigma)):
+        return None, f"{material.name}: a negative or infinite extinction: not followed"
+    return sigma, reader.grid
+
+
+class _GridReader(_Reader):
+    """Follows a Volume object's volume graph: each volume node's density is constants times
+    one grid, the same grid for every node (`grid`), read by name."""
+
+    grid: str | None = None
+
+    def _use(self, name: str) -> None:
+        if not name:
+            raise _Unfollowed("a density without a grid (homogeneous over the grids' bounds): not followed")
+        if self.grid is not None and self.grid != name:
+            raise _Unfollowed(f"densities of two grids ({self.grid}, {name}): not followed")
+        self.grid = name
+
+    def density(self, node: Any, groups: _Groups) -> float:
+        if node.type == "PRINCIPLED_VOLUME":
+            # Cycles multiplies the Density input by the Density Attribute's grid.
+            attribute = node.inputs.get("Density Attribute")
+            if attribute is None or reference_materials._linked_from(attribute) is not None:
+                raise _Unfollowed("a linked density attribute: not followed")
+            self._use(str(attribute.default_value))
+            return max(self.scalar(node.inputs["Density"], groups, "density"), 0.0)
+        return max(self.grid_scalar(node.inputs["Density"], groups), 0.0)
+
+    def grid_scalar(self, socket: Any, groups: _Groups) -> float:
+        """A Density input that is a grid's Attribute node times constants (Math Multiply)."""
+        out, _, inner = self.linked(socket, groups)
+        node = None if out is None else out.node
+        if node is not None and node.type == "ATTRIBUTE" and out.name == "Fac" \
+                and getattr(node, "attribute_type", "GEOMETRY") == "GEOMETRY":
+            self._use(str(node.attribute_name))
+            return 1.0
+        if node is not None and node.type == "MATH" and node.operation == "MULTIPLY" and not node.use_clamp:
+            a, b = list(node.inputs)[:2]
+            for grid, constant in ((a, b), (b, a)):
+                try:
+                    scale = self.scalar(constant, inner, "density")
+                except _Unfollowed:
+                    continue
+                return scale * self.grid_scalar(grid, inner)
+        raise _Unfollowed("a density that is not a grid times constants: not followed")

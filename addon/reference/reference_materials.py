@@ -29,8 +29,14 @@ Camera rays still cross the medium's faces, so a receiver inside it (a figure st
 in fog) has the medium in its volume stack and its shadow ray is attenuated from the
 receiver on; a homogeneous medium stays exact at one sample (exp(-sigma L) to 1e-6).
 Hiding the medium from camera rays instead (`visible_camera` off, the first version)
-left such receivers unshadowed (errors up to 0.8). Volume objects (OpenVDB grids), which
-no method draws, are still hidden from camera rays.
+left such receivers unshadowed (errors up to 0.8). Volume objects (OpenVDB grids) are
+guarded the same way and stay seen by camera rays (issue 43, grid media), so a receiver
+inside a cloud is shadowed by it from itself on; one without a material gets a guarded
+copy of Cycles' default volume shader (a Principled Volume of default inputs), and a
+material that geometry nodes set on a volume (Set Material), in no object's slots, is
+swapped for its guarded copy by `ID.user_remap` for the capture. Where this Blender
+cannot read grids (`blender_compat.grid_nodes_available`), Volume objects are hidden from
+camera rays as before.
 """
 from __future__ import annotations
 
@@ -167,7 +173,8 @@ def is_medium(material) -> bool:
 def media(scene, view_layer) -> list[str]:
     """The rendered objects that are media: Volume objects, and objects whose every
     material is a volume without a surface (read-only)."""
-    return sorted(obj.name for obj in _rendered_objects(scene, view_layer) if _is_medium_object(obj))
+    named = {obj.name for obj in _rendered_objects(scene, view_layer) if _is_medium_object(obj)}
+    return sorted(named | set(media_instances(view_layer)))
 
 
 def _is_medium_object(obj) -> bool:
@@ -272,6 +279,9 @@ def apply(scene, view_layer, overrides, shadow_rays_only: bool = True) -> list[s
     volumes keep their graph unguarded."""
     objects = _rendered_objects(scene, view_layer)
     materials = {slot.material for obj in objects for slot in obj.material_slots if slot.material is not None}
+    # Materials geometry nodes set on volumes (Set Material): in no rendered object's slots.
+    node_set = _volume_instance_materials(view_layer) - materials
+    materials |= node_set
     volumes = any(obj.type == "VOLUME" for obj in objects) or any(volume_source(m) is not None for m in materials)
     if not volumes and not any(see_through(m) for m in materials):
         overrides.set(view_layer, "material_override", white_material(overrides))
@@ -280,16 +290,28 @@ def apply(scene, view_layer, overrides, shadow_rays_only: bool = True) -> list[s
     copies = {m: (_see_through_copy(m, overrides, shadow_rays_only) if see_through(m)
                   else _volume_copy(m, overrides, shadow_rays_only) if volume_source(m) is not None else white)
               for m in materials}
+    for material in node_set:
+        _remap(material, copies[material], overrides)
+
+    readable = blender_compat.grid_nodes_available()
+    default_volume = None
     refused = []
     for obj in objects:
         try:
-            if obj.type == "VOLUME":
+            if obj.type == "VOLUME" and not readable:
                 overrides.set(obj, "visible_camera", False)  # shadow rays still cross it
-            if obj.type == "VOLUME" and not obj.material_slots:
-                continue  # its own default volume shader, as Cycles renders it
+                if not obj.material_slots:
+                    continue  # its own default volume shader, as Cycles renders it
+            if obj.type == "VOLUME" and not any(slot.material for slot in obj.material_slots):
+                if default_volume is None:
+                    default_volume = _default_volume(overrides, shadow_rays_only)
+                for slot in obj.material_slots:  # empty slots: Cycles' default shader too
+                    overrides.set(slot, "material", default_volume)
+                if not obj.material_slots:
+                    _append_material(obj, default_volume, overrides)
+                continue
             if not obj.material_slots and obj.data is not None and hasattr(obj.data, "materials"):
-                obj.data.materials.append(white)
-                overrides.on_restore(lambda data=obj.data: data.materials.pop())
+                _append_material(obj, white, overrides)
             for slot in obj.material_slots:
                 overrides.set(slot, "material", copies.get(slot.material, white))
         except (AttributeError, TypeError, RuntimeError) as exc:
@@ -300,6 +322,60 @@ def apply(scene, view_layer, overrides, shadow_rays_only: bool = True) -> list[s
     if refused:
         return [f"objects whose materials the reference could not replace (read-only data): {', '.join(refused)}"]
     return []
+
+
+def _append_material(obj, material, overrides) -> None:
+    """Give an object without materials one, for the capture."""
+    obj.data.materials.append(material)
+    overrides.on_restore(lambda data=obj.data: data.materials.pop())
+
+
+def _remap(material, copy, overrides) -> None:
+    """Every user of `material` (a geometry-nodes Set Material) uses `copy` until restore."""
+    material.user_remap(copy)
+    overrides.on_restore(lambda: copy.user_remap(material))
+
+
+def default_volume_material(name: str = "OmniWarp default volume"):
+    """Cycles' default volume shader as a material: a Principled Volume of default inputs
+    (what Cycles renders a Volume object without a material with, scene/shader.cpp)."""
+    import bpy
+
+    mat = bpy.data.materials.new(name)
+    tree = blender_compat.ensure_node_tree(mat)
+    tree.nodes.clear()
+    out = tree.nodes.new("ShaderNodeOutputMaterial")
+    out.target = "ALL"
+    tree.links.new(tree.nodes.new("ShaderNodeVolumePrincipled").outputs[0], out.inputs["Volume"])
+    return mat
+
+
+def _default_volume(overrides, guard: bool):
+    """The default volume shader's reference copy (guarded), removed on restore."""
+    import bpy
+
+    plain = default_volume_material()
+    try:
+        return _volume_copy(plain, overrides, guard)
+    finally:
+        bpy.data.materials.remove(plain)
+
+
+def _volume_instance_materials(view_layer) -> set:
+    """The original materials of the volume instances of the layer's evaluated depsgraph."""
+    depsgraph = getattr(view_layer, "depsgraph", None)
+    found = set()
+    for instance in () if depsgraph is None else depsgraph.object_instances:
+        if instance.object.type == "VOLUME":
+            found |= {slot.material.original for slot in instance.object.material_slots if slot.material is not None}
+    return found
+
+
+def media_instances(view_layer) -> list[str]:
+    """The owners of the layer's volume geometry (a mesh's geometry-nodes volume too)."""
+    depsgraph = getattr(view_layer, "depsgraph", None)
+    return sorted({i.object.original.name for i in (() if depsgraph is None else depsgraph.object_instances)
+                   if i.object.type == "VOLUME"})
 
 
 _SURFACE_TYPES = {"MESH", "CURVE", "SURFACE", "META", "FONT", "CURVES", "POINTCLOUD", "VOLUME"}

@@ -12,9 +12,11 @@ reads `depsgraph.object_instances` inside its `render` call.
 Every instance is kept with the names of its original object and instancer
 (`Owner`), so one read serves any light's `ShadowRule`, and with its see-through
 materials (`material_alpha.mesh_surface`: per-triangle UVs and alpha maps) and its
-homogeneous media (`material_media.mesh_media`: a medium's index per triangle). What the
-walk meets that the methods do not draw (volumes, media not followed, true displacement)
-is kept apart, by owner (`left_out.py`).
+homogeneous media (`material_media.mesh_media`: a medium's index per triangle). Volume
+geometry's density grids are read in a second render-depsgraph pass
+(`volume_grids.read`), into grid media by owner. What the walk meets that the methods
+do not draw (volumes whose grid was not read, media not followed, true displacement) is
+kept apart, by owner (`left_out.py`).
 """
 from __future__ import annotations
 
@@ -27,10 +29,13 @@ import numpy as np
 from ..core.alpha import Surface
 from ..core.blockers import Spheres, Strands
 from ..core.errors import ReferenceCaptureError
+from ..core.media import GridMedium
 from ..render import blender_compat
 from .left_out import LeftOut, path_hair_systems, scan_instance
 from .material_alpha import MaterialAlpha, mesh_surface
-from .material_media import MediumFound, mesh_media
+from .material_media import GridSigma, MediumFound, mesh_media
+from .volume_grids import VolumeSource, volume_source
+from . import volume_grids
 
 if TYPE_CHECKING:  # pragma: no cover - typing only
     import bpy
@@ -63,6 +68,13 @@ class SceneTriangles:
     # Point clouds and hair curves, world space, by owner (core/blockers.py).
     spheres: list[tuple[Owner, Spheres]] = field(default_factory=list)
     strands: list[tuple[Owner, Strands]] = field(default_factory=list)
+    # Volume geometry: where to read each grid (collect), then the grids read (render_triangles).
+    volumes: list[VolumeSource] = field(default_factory=list)
+    grids: list[tuple[Owner, GridMedium]] = field(default_factory=list)
+
+    def select_grids(self, keep: Callable[[str, str | None], bool]) -> tuple[GridMedium, ...]:
+        """The grid media of the owners `keep(name, parent)` accepts."""
+        return tuple(grid for owner, grid in self.grids if keep(owner.name, owner.parent))
 
     def select_spheres(self, keep: Callable[[str, str | None], bool]) -> Spheres:
         """The point clouds of the owners `keep(name, parent)` accepts, as one set."""
@@ -154,6 +166,8 @@ def collect(depsgraph: Any) -> SceneTriangles:
     left_materials: dict[str, tuple[tuple[str, str | None], ...]] = {}
     spheres: list[tuple[Owner, Spheres]] = []
     strands: list[tuple[Owner, Strands]] = []
+    volumes: list[VolumeSource] = []
+    grid_materials: dict[str, GridSigma] = {}
     shape = CurveShape.of(depsgraph.scene)
     # A view layer with "Strands" off renders no hair (Cycles' view_layer.use_hair).
     hair = bool(getattr(depsgraph.view_layer, "use_strand", True))
@@ -162,6 +176,9 @@ def collect(depsgraph: Any) -> SceneTriangles:
         if not hair and obj.type == "CURVES":
             continue
         scan_instance(left, inst, left_materials)
+        if obj.type == "VOLUME":
+            volumes.append(volume_source(inst, grid_materials))
+            continue
         if obj.type in ("POINTCLOUD", "CURVES"):
             parent = inst.parent if inst.is_instance else None
             owner = Owner(obj.original.name_full, None if parent is None else parent.original.name_full)
@@ -196,7 +213,7 @@ def collect(depsgraph: Any) -> SceneTriangles:
         owners.append(Owner(obj.original.name_full, None if parent is None else parent.original.name_full))
         triangles.append(corners.reshape(-1, 3, 3).astype(np.float32))
         surfaces.append(surface)
-    return SceneTriangles(owners, triangles, surfaces, notes, left, spheres, strands)
+    return SceneTriangles(owners, triangles, surfaces, notes, left, spheres, strands, volumes)
 
 
 # Radii Cycles gives points and curve points without a radius attribute (its Blender sync).
@@ -312,11 +329,38 @@ def _first_curve_type(data: Any, curves: int) -> int:
     return int(types[0])
 
 
-def render_triangles(scene: "bpy.types.Scene", view_layer: "bpy.types.ViewLayer") -> SceneTriangles:
-    """`collect` over the render depsgraph of one view layer (see the module docstring).
+def render_triangles(scene: "bpy.types.Scene", view_layer: "bpy.types.ViewLayer", grids: bool = True) -> SceneTriangles:
+    """`collect` over the render depsgraph of one view layer (see the module docstring),
+    and, with `grids`, the density grids of its Volume geometry (a second pass, only
+    where there is some): a grid read is no longer left out, one not read is, with why.
 
-    The scene's engine is switched for the call only and put back afterwards.
+    The scene's engine is switched for each pass only and put back afterwards.
     """
+    found: SceneTriangles = render_pass(scene, view_layer, collect)
+    if grids and found.volumes:
+        try:
+            read = volume_grids.read(scene, found.volumes, lambda fn: render_pass(scene, view_layer, fn))
+        finally:
+            # The layer's evaluated depsgraph met the readers during the pass: evaluate it
+            # again without them, or its instances would point at removed objects.
+            view_layer.update()
+        for source, grid in zip(found.volumes, read):
+            owner = Owner(source.name, source.parent)
+            if isinstance(grid, str):
+                found.left_out.add("volume", source.name, source.parent, grid)
+                continue
+            found.left_out.discard("volume", source.name, source.parent)
+            if grid is not None:
+                found.grids.append((owner, grid))
+    elif found.volumes:
+        for source in found.volumes:
+            found.left_out.add("volume", source.name, source.parent, source.why)
+    return found
+
+
+def render_pass(scene: "bpy.types.Scene", view_layer: "bpy.types.ViewLayer", fn: Callable[[Any], Any]) -> Any:
+    """`fn(depsgraph)` inside the render depsgraph of one view layer: a tiny engine
+    "renders" one frame and calls it (the module docstring)."""
     import bpy
 
     found: dict[str, Any] = {}
@@ -327,9 +371,9 @@ def render_triangles(scene: "bpy.types.Scene", view_layer: "bpy.types.ViewLayer"
 
         def render(self, depsgraph: "bpy.types.Depsgraph") -> None:
             try:
-                found["triangles"] = collect(depsgraph)
+                found["result"] = fn(depsgraph)
                 found["mode"] = depsgraph.mode
-            except (RuntimeError, ReferenceError, ValueError) as exc:  # raised again outside the engine
+            except (RuntimeError, ReferenceError, ValueError, KeyError) as exc:  # raised again outside the engine
                 found["error"] = exc
 
     bpy.utils.register_class(_Engine)
@@ -344,4 +388,4 @@ def render_triangles(scene: "bpy.types.Scene", view_layer: "bpy.types.ViewLayer"
         raise ReferenceCaptureError(f"reading the render geometry of {scene.name!r} failed: {found['error']}")
     if found.get("mode") != "RENDER":
         raise ReferenceCaptureError(f"the render geometry of {scene.name!r} was not evaluated for render")
-    return found["triangles"]
+    return found["result"]

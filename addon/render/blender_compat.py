@@ -173,6 +173,19 @@ class LineGap:
     text: str  # one line for the CLI and the panel
 
 
+# The geometry-nodes grid nodes that read a Volume object's density grid
+# (reference/volume_grids.py): in 4.x only behind an experimental flag.
+GRID_NODES = ("GeometryNodeObjectInfo", "GeometryNodeGetNamedGrid", "GeometryNodeSampleGrid")
+GRID_NODES_VERSION = (5, 0, 0)
+
+
+def grid_nodes_available() -> bool:
+    """Whether this Blender reads density grids through geometry nodes (5.0 or later)."""
+    import bpy
+
+    return version() >= GRID_NODES_VERSION and all(hasattr(bpy.types, n) for n in GRID_NODES)
+
+
 @functools.cache
 def line_gaps() -> tuple[LineGap, ...]:
     """What the running line lacks of the APIs the extension uses; empty on 5.2 (cached: the
@@ -193,6 +206,9 @@ def line_gaps() -> tuple[LineGap, ...]:
     if not has_depth_write():
         gaps.append(LineGap("depth_write", f"{line} shaders cannot declare depth_write: "
                                            "depth is written undeclared (OpenGL honours it)"))
+    if not grid_nodes_available():
+        gaps.append(LineGap("grid_nodes", f"{line} has no geometry-nodes grid nodes: Volume objects cast no "
+                                          "shadow in OmniWarp's methods (named in every row's note)"))
     if not has_get_transform():
         gaps.append(LineGap("get_transform", f"{line} has no property get_transform: "
                                              "a stale stored method shows blank; the panel names the one used"))

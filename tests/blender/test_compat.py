@@ -22,8 +22,8 @@ LINE = tuple(bpy.app.version[:2])
 # What each tested line lacks (docs/versions.md, "What a line lacks"). A new line or a
 # changed gate shows up here as a failure, not as a silent change of behaviour.
 EXPECTED_GAPS = {
-    (4, 2): {"direct_light_intensity", "depth_write", "get_transform"},
-    (4, 5): {"direct_light_intensity", "get_transform"},
+    (4, 2): {"direct_light_intensity", "depth_write", "get_transform", "grid_nodes"},
+    (4, 5): {"direct_light_intensity", "get_transform", "grid_nodes"},
     (5, 2): set(),
 }
 
@@ -48,6 +48,7 @@ def test_gaps_follow_the_api():
     eevee_props = bpy.types.SceneEEVEE.bl_rna.properties
     assert ("direct_light_intensity" in names) == ("direct_light_intensity" not in eevee_props)
     assert ("get_transform" in names) == (bpy.app.version < (5, 0, 0))
+    assert ("grid_nodes" in names) == (bpy.app.version < (5, 0, 0) or not hasattr(bpy.types, "GeometryNodeSampleGrid"))
 
 
 def test_cli_says_each_gap_in_one_line(capsys):

@@ -21,9 +21,10 @@ pytestmark = pytest.mark.blender
 
 # Each kind's note must name exactly these objects, for every light and for the light.
 NAMED = {"volumes that": {"Cloud"}, "volume materials": {"Fog"}, "true displacement": {"Bumps"}}
-# Rendered and drawn (Ivy's hair is instanced leaves, Mist a homogeneous medium), not
+# Rendered and drawn (Ivy's hair is instanced leaves, Mist a homogeneous medium, Wisp a
+# volume whose grid is read), not
 # rendered by Cycles (Wire's curves from a mesh's geometry nodes) or not rendered at all (Hidden).
-NEVER = ("Ivy", "Wire", "Hidden", "Leaf", "Ground", "Mist")
+NEVER = ("Ivy", "Wire", "Hidden", "Leaf", "Ground", "Mist", "Wisp")
 
 
 def _named(notes: list[str]) -> dict[str, set[str]]:
@@ -54,6 +55,10 @@ def test_the_walk_names_each_kind_and_nothing_else(made):
     # A medium not followed says why (Smoke's density is a noise texture).
     (volume,) = [note for note in notes["all"] if note.startswith("volume materials")]
     assert "(Smoke: density varies in space (heterogeneous): not followed): Fog" in volume
+    # A volume whose grid is not read says why (Cloud's is inside geometry-nodes instances).
+    (grid,) = [note for note in notes["all"] if note.startswith("volumes that")]
+    assert "(a volume inside geometry-nodes instances: not read): Cloud" in grid
+    assert notes["grids"] == ["Wisp"]  # read: a grid medium, not named
     assert not any(name in note.rsplit(": ", 1)[1].split(", ") for note in notes["all"] for name in NEVER)
     # Hair and points are kept, to be drawn; Unseen casts no shadow (visible_shadow off).
     assert notes["kept"] == {"points": ["Pebbles"], "strands": ["Groom", "Strands", "Unseen"],

@@ -10,7 +10,9 @@ Built the way an artist builds it, on a ground plane under a point light and a c
   does not render (no note: the walk must not report what Cycles leaves out too);
 - `Groom`: a mesh with a hair particle system drawn as strands; `Ivy`: one whose hair
   particles are drawn as instanced objects (meshes: drawn, so no note);
-- `Cloud`: a mesh whose geometry nodes output a volume (Volume Cube);
+- `Cloud`: a mesh whose geometry nodes instance a volume (Volume Cube) on its points (its
+  grids are not read: named); `Wisp`: a mesh whose geometry nodes output one (read, a
+  grid medium: no note);
 - `Fog`: a box with a Principled Volume whose density is a noise texture, and no surface
   shader (a heterogeneous medium, not followed); `Mist`: a box of a constant Volume
   Absorption (a homogeneous medium, drawn: no note);
@@ -99,7 +101,15 @@ def _hair(name: str, location) -> "bpy.types.Object":
 
 
 def _volume(tree, geometry):
-    return _node(tree, "GeometryNodeVolumeCube").outputs["Volume"]
+    return _node(tree, "GeometryNodeVolumeCube", Min=(-0.3, -0.3, 0.0), Max=(0.3, 0.3, 0.6)).outputs["Volume"]
+
+
+def _instanced_volume(tree, geometry):
+    """A small volume cube instanced on the mesh's points: OmniWarp cannot read its grid."""
+    node = _node(tree, "GeometryNodeInstanceOnPoints")
+    tree.links.new(geometry, node.inputs["Points"])
+    tree.links.new(_volume(tree, geometry), node.inputs["Instance"])
+    return node.outputs["Instances"]
 
 
 def _mesh(name: str, size: float, location) -> "bpy.types.Object":
@@ -235,7 +245,9 @@ def build(out: Path) -> None:
     ivy_settings.type, ivy_settings.count, ivy_settings.render_type = "HAIR", 20, "OBJECT"
     ivy_settings.instance_object = leaf
     cloud = _mesh("Cloud", 0.5, (1.5, 1.5, 0.5))
-    _with_nodes(cloud, _geometry_nodes("to volume", _volume))
+    _with_nodes(cloud, _geometry_nodes("instanced volume", _instanced_volume))
+    wisp = _mesh("Wisp", 0.5, (-1.5, 1.5, 0.5))
+    _with_nodes(wisp, _geometry_nodes("to volume", _volume))
 
     fog = _mesh("Fog", 1.0, (0.0, -1.5, 0.6))
     material, tree, output = _material("Smoke")
@@ -289,6 +301,7 @@ def notes(out: Path) -> None:
     out.write_text(json.dumps({"all": found.left_out.notes(), "light": found.left_out.notes(rule.blocks),
                                "names": sorted(found.names), "no_strands": no_strands.left_out.notes(),
                                "strands": [len(found.strands), len(no_strands.strands)],
+                               "grids": owners(found.grids),
                                "kept": {"points": owners(found.spheres), "strands": owners(found.strands),
                                         "light_strands": owners(found.strands, rule.blocks)}}, indent=1))
 

@@ -1,0 +1,307 @@
+"""Clouds made as artists make them, beside or around a figure (issue 43, grid media):
+
+    python tests/support/make_cloud_blend.py OUT.blend [--variant NAME] [--reference OUT.npz]
+
+- `Ground` (a 6 m plane) and `Figure` (a 0.4 x 0.4 x 1.2 m box standing on it), a hard
+  point light `Lamp` above, a camera looking down at the ground, 128 x 96 pixels;
+- by `--variant`:
+  - `mesh_to_volume` (the default): `Cloud`, a Volume object whose Mesh to Volume
+    modifier fills `Puff` (an icosphere of radius 0.6, hidden from renders) with density
+    (interior 1, ramping in over its interior band), a `Vapour` Principled Volume of
+    density 2, beside the figure;
+  - `noise`: `Noise Cloud`, a mesh object whose geometry nodes make a Volume Cube whose
+    density is a Noise Texture of the position (a heterogeneous cloud, 0 to about 3),
+    `Vapour` set on it by a Set Material node;
+  - `inside`: `Haze`, a Volume object whose geometry nodes make a Volume Cube around the
+    figure reaching below the ground, its density falling with height and varying with a
+    noise texture; no material (Cycles' default volume shader). The figure and the ground
+    stand inside it.
+
+`build` makes the scene in the running Blender; `--reference` also captures the OmniWarp
+reference of the scene (reference/capture.py) into a .npz (ReferenceData), with
+`--soft-samples` samples a pixel (two halves); `--check OUT.npz` reads the cloud's grid
+(render_geometry.render_triangles) and writes what test_cloud_reference.py checks it
+against: Sample Grid's own trilinear values at random world points (a probe object whose
+geometry nodes take the cloud in its relative space), the cloud's world bounding box,
+the datablock counts before and after, and the grid read again at a small budget.
+"""
+from __future__ import annotations
+
+import argparse
+import math
+import sys
+from pathlib import Path
+
+import numpy as np
+
+REPO = Path(__file__).resolve().parents[2]
+sys.path.insert(0, str(REPO))
+
+SIZE = (128, 96)
+LIGHT = np.array([0.4, 0.3, 3.0])
+FIGURE_CENTRE, FIGURE_HALF = np.array([1.1, 0.2, 0.6]), np.array([0.2, 0.2, 0.6])
+CLOUD_CENTRE, CLOUD_RADIUS = np.array([0.0, 0.0, 1.2]), 0.6
+VARIANTS = ("mesh_to_volume", "noise", "inside")
+# The `inside` haze's box (min, max) and the `noise` cloud's.
+HAZE_BOX = ((0.3, -0.6, -0.3), (1.9, 1.0, 1.5))
+NOISE_BOX = ((-0.7, -0.7, 0.6), (0.7, 0.7, 1.8))
+
+
+def _box(name: str, size, location):
+    import bpy  # first: bmesh is bpy's
+    import bmesh
+
+    mesh = bpy.data.meshes.new(name)
+    made = bmesh.new()
+    bmesh.ops.create_cube(made, size=1.0)
+    bmesh.ops.scale(made, vec=size, verts=made.verts)
+    made.to_mesh(mesh)
+    obj = bpy.data.objects.new(name, mesh)
+    obj.location = location
+    bpy.context.scene.collection.objects.link(obj)
+    return obj
+
+
+def vapour():
+    """A white-ish Principled Volume of density 2 (its grid times 2)."""
+    import bpy
+
+    from addon.render import blender_compat
+
+    material = bpy.data.materials.new("Vapour")
+    tree = blender_compat.ensure_node_tree(material)
+    tree.nodes.clear()
+    output = tree.nodes.new("ShaderNodeOutputMaterial")
+    node = tree.nodes.new("ShaderNodeVolumePrincipled")
+    node.inputs["Density"].default_value = 2.0
+    node.inputs["Color"].default_value = (0.8, 0.8, 0.8, 1.0)
+    tree.links.new(node.outputs[0], output.inputs["Volume"])
+    return material
+
+
+def _mesh_to_volume(scene):
+    import bpy
+
+    bpy.ops.mesh.primitive_ico_sphere_add(subdivisions=3, radius=CLOUD_RADIUS, location=tuple(CLOUD_CENTRE))
+    puff = bpy.context.active_object
+    puff.name = "Puff"
+    puff.hide_render = True
+    cloud = bpy.data.objects.new("Cloud", bpy.data.volumes.new("Cloud"))
+    scene.collection.objects.link(cloud)
+    modifier = cloud.modifiers.new("Mesh to Volume", "MESH_TO_VOLUME")
+    modifier.object = puff
+    modifier.resolution_mode = "VOXEL_SIZE"
+    modifier.voxel_size = 0.04
+    modifier.interior_band_width = 0.15
+    cloud.data.materials.append(vapour())
+    return cloud
+
+
+def _volume_cube_nodes(name: str, box, density) -> object:
+    """A node group: a Volume Cube over `box` whose density is `density(tree)` (a socket)."""
+    import bpy
+
+    tree = bpy.data.node_groups.new(name, "GeometryNodeTree")
+    tree.interface.new_socket("Geometry", in_out="INPUT", socket_type="NodeSocketGeometry")
+    tree.interface.new_socket("Geometry", in_out="OUTPUT", socket_type="NodeSocketGeometry")
+    out = tree.nodes.new("NodeGroupOutput")
+    cube = tree.nodes.new("GeometryNodeVolumeCube")
+    cube.inputs["Min"].default_value, cube.inputs["Max"].default_value = box
+    for axis, size in zip("XYZ", np.subtract(box[1], box[0])):
+        cube.inputs[f"Resolution {axis}"].default_value = int(round(size / 0.05))
+    tree.links.new(density(tree), cube.inputs["Density"])
+    tree.links.new(cube.outputs[0], out.inputs[0])
+    return tree, cube, out
+
+
+def _math(tree, operation: str, a, b):
+    node = tree.nodes.new("ShaderNodeMath")
+    node.operation = operation
+    for socket, value in zip(node.inputs[:2], (a, b)):
+        if isinstance(value, float):
+            socket.default_value = value
+        else:
+            tree.links.new(value, socket)
+    return node.outputs[0]
+
+
+def _noise(tree, scale: float):
+    noise = tree.nodes.new("ShaderNodeTexNoise")
+    noise.inputs["Scale"].default_value = scale
+    return noise.outputs["Fac"]
+
+
+def _noise_cloud(scene):
+    import bpy
+
+    # density = max(noise - 0.35, 0) * 8: patches of cloud and clear air
+    tree, cube, out = _volume_cube_nodes(
+        "noise cloud", NOISE_BOX,
+        lambda t: _math(t, "MULTIPLY", _math(t, "MAXIMUM", _math(t, "SUBTRACT", _noise(t, 2.5), 0.35), 0.0), 8.0))
+    material = tree.nodes.new("GeometryNodeSetMaterial")
+    material.inputs["Material"].default_value = vapour()
+    tree.links.new(cube.outputs[0], material.inputs["Geometry"])
+    tree.links.new(material.outputs[0], out.inputs[0])
+    obj = bpy.data.objects.new("Noise Cloud", bpy.data.meshes.new("Noise Cloud"))
+    scene.collection.objects.link(obj)
+    obj.modifiers.new("cloud", "NODES").node_group = tree
+    return obj
+
+
+def _haze(scene):
+    import bpy
+
+    def density(t):
+        z = t.nodes.new("ShaderNodeSeparateXYZ")
+        t.links.new(t.nodes.new("GeometryNodeInputPosition").outputs[0], z.inputs[0])
+        # (1.6 - z) * 0.4 * (0.5 + noise): thicker low down, patchy
+        fall = _math(t, "MULTIPLY", _math(t, "SUBTRACT", 1.6, z.outputs["Z"]), 0.4)
+        return _math(t, "MULTIPLY", fall, _math(t, "ADD", _noise(t, 3.0), 0.5))
+
+    tree, _, _ = _volume_cube_nodes("haze", HAZE_BOX, density)
+    obj = bpy.data.objects.new("Haze", bpy.data.volumes.new("Haze"))
+    scene.collection.objects.link(obj)
+    obj.modifiers.new("haze", "NODES").node_group = tree
+    return obj
+
+
+_CLOUDS = {"mesh_to_volume": _mesh_to_volume, "noise": _noise_cloud, "inside": _haze}
+
+
+def build(variant: str = "mesh_to_volume"):
+    """The scene in the running Blender (an empty file first); returns (scene, light, cloud)."""
+    import bpy
+
+    bpy.ops.wm.read_homefile(use_empty=True)
+    scene = bpy.context.scene
+    scene.name = "cloud"
+    scene.render.engine = "CYCLES"
+    scene.render.resolution_x, scene.render.resolution_y = SIZE
+    ground = bpy.data.meshes.new("Ground")
+    ground.from_pydata([(-3, -3, 0), (3, -3, 0), (3, 3, 0), (-3, 3, 0)], [], [(0, 1, 2, 3)])
+    scene.collection.objects.link(bpy.data.objects.new("Ground", ground))
+    _box("Figure", tuple(2.0 * FIGURE_HALF), tuple(FIGURE_CENTRE))
+    cloud = _CLOUDS[variant](scene)
+    light = bpy.data.objects.new("Lamp", bpy.data.lights.new("Lamp", "POINT"))
+    light.data.energy, light.data.shadow_soft_size, light.location = 1000.0, 0.0, tuple(LIGHT)
+    scene.collection.objects.link(light)
+    camera = bpy.data.objects.new("Camera", bpy.data.cameras.new("Camera"))
+    camera.location, camera.rotation_euler = (0.0, -4.0, 5.0), (math.radians(38.0), 0.0, 0.0)
+    scene.collection.objects.link(camera)
+    scene.camera = camera
+    return scene, light, cloud
+
+
+def _inside(position: np.ndarray, centre: np.ndarray, half, light: np.ndarray = LIGHT) -> np.ndarray:
+    """The length of each point's segment to the light inside a box (position (..., 3))."""
+    p = np.asarray(position, dtype=np.float64).reshape(-1, 3)
+    d = np.asarray(light, dtype=np.float64) - p
+    centre, half = np.asarray(centre, dtype=np.float64), np.asarray(half, dtype=np.float64)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        t0, t1 = (centre - half - p) / d, (centre + half - p) / d
+    enter = np.clip(np.nanmax(np.minimum(t0, t1), axis=1), 0.0, 1.0)
+    leave = np.clip(np.nanmin(np.maximum(t0, t1), axis=1), 0.0, 1.0)
+    return (np.maximum(leave - enter, 0.0) * np.linalg.norm(d, axis=1)).reshape(np.shape(position)[:-1])
+
+
+def behind_figure(position: np.ndarray, light: np.ndarray = LIGHT) -> np.ndarray:
+    """Whether each point's segment to the light crosses the figure."""
+    return _inside(position, FIGURE_CENTRE, FIGURE_HALF, light) > 1e-4
+
+
+def _sample_grid(cloud, points: np.ndarray, grid: str = "density") -> np.ndarray:
+    """Sample Grid's trilinear value of the cloud's grid at world points, through a probe
+    object at the origin (Object Info in relative space: world coordinates)."""
+    import bpy
+
+    tree = bpy.data.node_groups.new("probe", "GeometryNodeTree")
+    tree.interface.new_socket("Geometry", in_out="INPUT", socket_type="NodeSocketGeometry")
+    tree.interface.new_socket("Geometry", in_out="OUTPUT", socket_type="NodeSocketGeometry")
+    nodes = tree.nodes
+    info, named, sample = (nodes.new(n) for n in ("GeometryNodeObjectInfo", "GeometryNodeGetNamedGrid",
+                                                   "GeometryNodeSampleGrid"))
+    info.transform_space = "RELATIVE"
+    info.inputs["Object"].default_value = cloud
+    named.inputs["Name"].default_value = grid
+    sample.inputs["Interpolation"].default_value = "Trilinear"
+    store = nodes.new("GeometryNodeStoreNamedAttribute")
+    store.inputs["Name"].default_value = "probe"
+    tree.links.new(info.outputs["Geometry"], named.inputs["Volume"])
+    tree.links.new(named.outputs["Grid"], sample.inputs["Grid"])
+    tree.links.new(nodes.new("GeometryNodeInputPosition").outputs[0], sample.inputs["Position"])
+    tree.links.new(nodes.new("NodeGroupInput").outputs[0], store.inputs["Geometry"])
+    tree.links.new(sample.outputs["Value"], store.inputs["Value"])
+    tree.links.new(store.outputs[0], nodes.new("NodeGroupOutput").inputs[0])
+    mesh = bpy.data.meshes.new("probe")
+    mesh.vertices.add(len(points))
+    mesh.vertices.foreach_set("co", points.astype(np.float32).ravel())
+    probe = bpy.data.objects.new("probe", mesh)
+    probe.modifiers.new("probe", "NODES").node_group = tree
+    bpy.context.scene.collection.objects.link(probe)
+    depsgraph = bpy.context.evaluated_depsgraph_get()
+    attribute = probe.evaluated_get(depsgraph).data.attributes["probe"]
+    values = np.empty(len(points), dtype=np.float32)
+    attribute.data.foreach_get("value", values)
+    bpy.data.objects.remove(probe)
+    bpy.data.meshes.remove(mesh)
+    bpy.data.node_groups.remove(tree)
+    return values
+
+
+def check(variant: str, out: Path) -> None:
+    """What test_cloud_reference.py checks the grid read against (module docstring)."""
+    import bpy
+
+    from addon.reference import volume_grids
+    from addon.reference.render_geometry import render_pass, render_triangles
+
+    scene, _, cloud = build(variant)
+    layer = scene.view_layers[0]
+    counts = lambda: [len(getattr(bpy.data, k)) for k in ("objects", "meshes", "node_groups", "materials")]  # noqa: E731
+    before = counts()
+    found = render_triangles(scene, layer)
+    after = counts()
+    (medium,) = [grid for _, grid in found.grids]
+    small = volume_grids.read(scene, found.volumes, lambda fn: render_pass(scene, layer, fn), budget=16 ** 3)[0]
+    depsgraph = bpy.context.evaluated_depsgraph_get()
+    evaluated = cloud.evaluated_get(depsgraph)
+    # The cloud's bounding box, world (a mesh's geometry-nodes volume: the volume's own).
+    volume = next(i.object for i in depsgraph.object_instances
+                  if i.object.type == "VOLUME" and i.object.original == cloud)
+    corners = np.array(volume.bound_box, dtype=np.float64) @ np.array(evaluated.matrix_world)[:3, :3].T \
+        + np.array(evaluated.matrix_world)[:3, 3]
+    lo, hi = corners.min(axis=0), corners.max(axis=0)
+    rng = np.random.default_rng(7)
+    margin = 2.0 * medium.voxel_size()
+    points = rng.uniform(lo - margin, hi + margin, size=(3000, 3))
+    np.savez(out, density=medium.density, to_index=medium.to_index, sigma=medium.sigma, name=medium.name,
+             small_density=small.density, small_to_index=small.to_index, points=points,
+             sampled=_sample_grid(cloud, points), box=np.array([lo, hi]), before=before, after=after,
+             left_out=np.array(found.left_out.notes(), dtype=str))
+
+
+def main(argv: list[str] | None = None) -> int:
+    import bpy
+
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("out", type=Path)
+    parser.add_argument("--variant", choices=VARIANTS, default="mesh_to_volume")
+    parser.add_argument("--reference", type=Path, default=None)
+    parser.add_argument("--soft-samples", type=int, default=None)
+    parser.add_argument("--check", type=Path, default=None)
+    args = parser.parse_args(argv)
+    if args.check is not None:
+        check(args.variant, args.check)
+        return 0
+    build(args.variant)
+    bpy.ops.wm.save_as_mainfile(filepath=str(args.out))
+    if args.reference is not None:
+        from addon.reference.capture import capture
+
+        samples = {} if args.soft_samples is None else {"soft_samples": args.soft_samples}
+        capture(bpy.context.scene, **samples).save(args.reference)
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
