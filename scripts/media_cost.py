@@ -1,5 +1,5 @@
-"""The cost of a scene's media: each method's frame with the media and without them, in one
-run (issue 43).
+"""The cost of a scene's media: each method's frame with the media (homogeneous ones and
+density grids) and without them, in one run (issue 43).
 
     .venv/bin/python scripts/media_cost.py REFERENCE.npz [--methods exact,dpsm+notw,dpsm,cube]
                                            [--resolution 1024] [--frames 5]
@@ -32,9 +32,9 @@ from addon.render.resident import ResidentScene  # noqa: E402
 
 
 def without_media(ref: ReferenceData) -> ResidentScene:
-    """The reference's scene with its media's triangles taken away."""
+    """The reference's scene with its media's triangles and its density grids taken away."""
     surface = ref.surface
-    keep = np.flatnonzero(surface.medium < 0) if surface is not None else np.arange(len(ref.triangles))
+    keep = np.flatnonzero(surface.medium < 0) if surface is not None else np.arange(len(ref.triangles))  # no grids
     scene = ResidentScene.of_triangles(ref.triangles.astype(np.float64)[keep], key=f"no_media:{id(ref)}",
                                        surface=surface.take(keep) if surface is not None else None)
     return scene
@@ -48,19 +48,23 @@ def main() -> int:
     parser.add_argument("--frames", type=int, default=5)
     args = parser.parse_args()
     ref = ReferenceData.load(args.reference)
-    if ref.surface is None or not ref.surface.has_media:
-        print(f"{args.reference}: the reference holds no media", file=sys.stderr)
+    has_media = ref.surface is not None and ref.surface.has_media
+    if not has_media and not ref.grids:
+        print(f"{args.reference}: the reference holds no media and no density grids", file=sys.stderr)
         return 2
     light = light_from_reference(ref)
     samples = samples_from_reference(ref)
     pipeline = ShadowPipeline(ModernGLBackend())
     scenes = {"with media": resident_scene(ref), "without": without_media(ref)}
     evaluable = metrics.evaluable_mask(ref.position, ref.normal, ref.hit, ref.unshadowed, light)
-    media = ", ".join(f"{m.name} (sigma {', '.join(f'{v:.3g}' for v in m.sigma)} /m)" for m in ref.surface.media)
+    media = ", ".join([f"{m.name} (sigma {', '.join(f'{v:.3g}' for v in m.sigma)} /m)"
+                       for m in (ref.surface.media if has_media else ())]
+                      + [f"grid {g.name} ({'x'.join(str(n) for n in g.density.shape[::-1])} voxels)" for g in ref.grids])
     print(f"- measured: {datetime.datetime.now(datetime.timezone.utc):%Y-%m-%d %H:%M} UTC, "
           f"{pipeline.backend.renderer()}")
     print(f"- reference: {ref.meta.get('blend', ref.meta.get('preset'))}, {ref.resolution[0]}x{ref.resolution[1]}, "
-          f"media: {media}; {int(np.count_nonzero(ref.surface.medium >= 0))} of {len(ref.triangles)} triangles")
+          f"media: {media}; {int(np.count_nonzero(ref.surface.medium >= 0)) if has_media else 0} of "
+          f"{len(ref.triangles)} triangles")
     print(f"- maps at {args.resolution}; medians of {args.frames} frames after a warm-up, the two scenes "
           "alternating frame by frame; soft error % against the reference (with its media), as "
           "`compare` measures it\n")

@@ -127,3 +127,19 @@ def test_the_grids_are_stored_and_loaded_back(cloud, tmp_path):
     kept["meta"] = np.array(json.dumps({**meta, "format_version": json.loads(str(kept["meta"]))["format_version"]}))
     np.savez(tmp_path / "old.npz", **kept)
     assert ReferenceData.load(tmp_path / "old.npz").grids == ()
+
+
+def test_the_reference_matches_a_plain_render(cloud):
+    """Within 1 point of a plain Cycles render's mean visibility (the file's own materials,
+    one sample) over the pixels both hit: the plain render's camera rays cross the cloud,
+    so some of its pixels end there and are left out."""
+    _, ref, path = cloud
+    blend = path.parent / "cloud.blend"
+    python_ok(SUPPORT / "plain_cycles.py", blend, path.parent / "plain.npz")
+    plain = dict(np.load(path.parent / "plain.npz"))
+    eps = metrics.UNSHADOWED_EPS
+    both = ref.hit & (plain["alpha"] > 0.5) & (ref.unshadowed > eps) & (plain["unshadowed"] > eps)
+    assert both.sum() > 0.5 * ref.hit.sum()
+    ours = metrics.reference_ratio(ref.shadowed, ref.unshadowed)[both].mean()
+    theirs = metrics.reference_ratio(plain["shadowed"], plain["unshadowed"])[both].mean()
+    assert abs(ours - theirs) < 0.01, (ours, theirs)
