@@ -141,7 +141,7 @@ def _median_gpu_times(frames: Sequence[dict[str, float] | None]) -> dict[str, fl
 UNFOLD_ALPHA_NOTE = "unfold draws see-through materials opaque (its tessellated stream carries no UVs)"
 UNFOLD_PIECES_NOTE = "unfold draws no hair or points (its tessellated stream holds triangles only)"
 MEDIA_NOTE = ("this method draws no media: the scene's homogeneous volumes (fog, smoke) cast no shadow here "
-              "(every other method draws them, render/passes/media.py; density grids it marches as they do)")
+              "(every other method draws them, render/passes/media.py), though it marches density grids as they do")
 HARD_SIZED_NOTE = ("the light has a size, but this method's shadows are hard (render/soft.py softens "
                    "the sphere, area and sun shapes on their lights' maps)")
 

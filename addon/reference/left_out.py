@@ -67,6 +67,16 @@ class LeftOut:
         self.found.get(kind, set()).discard((name, parent))
         self.why.get(kind, {}).pop((name, parent), None)
 
+    def forget(self, kind: str, name: str, parent: str | None, why: str) -> None:
+        """Forget one reason an owner was named for (a medium read after all); the owner
+        goes when no reason is left."""
+        whys = self.why.get(kind, {}).get((name, parent))
+        if whys is None:
+            return
+        whys.discard(why)
+        if not whys:
+            self.discard(kind, name, parent)
+
     def notes(self, keep: Callable[[str, str | None], bool] | None = None) -> list[str]:
         """One note per kind, naming the objects whose geometry `keep(name, parent)` (a
         light's `ShadowRule.blocks`) accepts (every owner without `keep`), after the

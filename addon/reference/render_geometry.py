@@ -14,7 +14,9 @@ Every instance is kept with the names of its original object and instancer
 materials (`material_alpha.mesh_surface`: per-triangle UVs and alpha maps) and its
 homogeneous media (`material_media.mesh_media`: a medium's index per triangle). Volume
 geometry's density grids are read in a second render-depsgraph pass
-(`volume_grids.read`), into grid media by owner. What the walk meets that the methods
+(`volume_grids.read`), into grid media by owner, and so are the media of meshes whose
+density is a shader texture (`shader_density.read`: their triangles are no surface, their
+density a grid). What the walk meets that the methods
 do not draw (volumes whose grid was not read, media not followed, true displacement) is
 kept apart, by owner (`left_out.py`).
 """
@@ -32,10 +34,10 @@ from ..core.errors import ReferenceCaptureError
 from ..core.media import GridMedium
 from ..render import blender_compat
 from .left_out import LeftOut, path_hair_systems, scan_instance
-from .material_alpha import MaterialAlpha, mesh_surface
+from .material_alpha import MaterialAlpha, mesh_surface, triangle_slots
 from .material_media import GridSigma, MediumFound, mesh_media
 from .volume_grids import VolumeSource, volume_source
-from . import volume_grids
+from . import shader_density, volume_grids
 
 if TYPE_CHECKING:  # pragma: no cover - typing only
     import bpy
@@ -71,6 +73,8 @@ class SceneTriangles:
     # Volume geometry: where to read each grid (collect), then the grids read (render_triangles).
     volumes: list[VolumeSource] = field(default_factory=list)
     grids: list[tuple[Owner, GridMedium]] = field(default_factory=list)
+    # Meshes whose medium's density is a shader texture: where to read it (collect, `densities`).
+    densities: list[shader_density.DensitySource] = field(default_factory=list)
 
     def select_grids(self, keep: Callable[[str, str | None], bool]) -> tuple[GridMedium, ...]:
         """The grid media of the owners `keep(name, parent)` accepts."""
@@ -119,12 +123,21 @@ def local_triangles(obj: Any, depsgraph: Any) -> np.ndarray:
     return local_geometry(obj, depsgraph)[0]
 
 
+# A mesh medium whose density is a shader texture: (original material name_full, its
+# object-space triangles, the mesh's texture space location and size).
+DensityPart = tuple[str, np.ndarray, tuple[np.ndarray, np.ndarray]]
+
+
 def local_geometry(obj: Any, depsgraph: Any, materials: dict[str, MaterialAlpha] | None = None,
-                   media: dict[str, MediumFound] | None = None) -> tuple[np.ndarray, Surface, dict[str, str]]:
+                   media: dict[str, MediumFound] | None = None,
+                   densities: tuple[dict[str, bool], list[DensityPart]] | None = None
+                   ) -> tuple[np.ndarray, Surface, dict[str, str]]:
     """Object-space triangles (n, 3, 3) float32 of an evaluated object, their surface (see-
     through materials and homogeneous media) and the notes of the materials whose alpha
     was not followed; the surface is read only with `materials` (a cache shared by the
-    scene's objects; `media` the same for the media), else it is opaque."""
+    scene's objects; `media` the same for the media), else it is opaque. With `densities`
+    (a cache of material name_full -> whether its density is a shader graph read, and a
+    list), the triangles of such media are left out and appended to the list instead."""
     temporary = obj.type != "MESH"
     mesh = obj.to_mesh(preserve_all_data_layers=False, depsgraph=depsgraph) if temporary else obj.data
     try:
@@ -143,17 +156,45 @@ def local_geometry(obj: Any, depsgraph: Any, materials: dict[str, MaterialAlpha]
         surface, notes = mesh_surface(obj, mesh, materials)
         medium, found = mesh_media(obj, mesh, media)
         # A medium's triangles bound it: the methods draw the medium between them.
-        return tris, (surface.with_media(medium, found) if found else surface), notes
+        surface = surface.with_media(medium, found) if found else surface
+        if densities is not None:
+            tris, surface = _density_parts(obj, mesh, tris, surface, *densities)
+        return tris, surface, notes
     finally:
         if temporary:
             obj.to_mesh_clear()
 
 
-def collect(depsgraph: Any) -> SceneTriangles:
+def _density_parts(obj: Any, mesh: Any, tris: np.ndarray, surface: Surface, cache: dict[str, bool],
+                   parts: list[DensityPart]) -> tuple[np.ndarray, Surface]:
+    """The triangles and surface less those of media whose density is a shader graph that
+    `shader_density` reads, which go to `parts`."""
+    slots, index = triangle_slots(obj, mesh)
+    keep = np.ones(len(tris), dtype=bool)
+    for slot in np.unique(index) if slots and len(tris) else ():
+        material = slots[slot]
+        if material is None:
+            continue
+        name = material.original.name_full
+        if name not in cache:
+            cache[name] = shader_density.density_graph(material)[0] is not None
+        if cache[name]:
+            chosen = index == slot
+            texspace = (np.array(mesh.texspace_location, dtype=np.float64),
+                        np.array(mesh.texspace_size, dtype=np.float64))
+            parts.append((name, tris[chosen].copy(), texspace))
+            keep &= ~chosen
+    if keep.all():
+        return tris, surface
+    return tris[keep], surface.take(np.nonzero(keep)[0])
+
+
+def collect(depsgraph: Any, densities: bool = False) -> SceneTriangles:
     """Every instance of an evaluated depsgraph that has surface triangles, in world space.
 
     The object-space triangles of a source object are read once, however many
-    instances it has.
+    instances it has. With `densities`, the media whose density is a shader texture
+    are kept apart (`SceneTriangles.densities`) for `shader_density.read`.
     """
     owners: list[Owner] = []
     triangles: list[np.ndarray] = []
@@ -161,7 +202,9 @@ def collect(depsgraph: Any) -> SceneTriangles:
     notes: dict[str, str] = {}
     materials: dict[str, MaterialAlpha] = {}
     media: dict[str, MediumFound] = {}
-    local_cache: dict[Any, tuple[np.ndarray, Surface]] = {}
+    local_cache: dict[Any, tuple[np.ndarray, Surface, list[DensityPart]]] = {}
+    density_cache: dict[str, bool] = {}
+    density_sources: list[shader_density.DensitySource] = []
     left = LeftOut()
     left_materials: dict[str, tuple[tuple[str, str | None], ...]] = {}
     spheres: list[tuple[Owner, Spheres]] = []
@@ -202,18 +245,27 @@ def collect(depsgraph: Any) -> SceneTriangles:
             ("data", obj.data.as_pointer() if obj.data is not None else obj.as_pointer())
         held = local_cache.get(key)
         if held is None:
-            local, surface, found = local_geometry(obj, depsgraph, materials, media)
-            held = local_cache[key] = (local, surface)
+            parts: list[DensityPart] = []
+            local, surface, found = local_geometry(obj, depsgraph, materials, media,
+                                                   (density_cache, parts) if densities else None)
+            held = local_cache[key] = (local, surface, parts)
             notes.update(found)
-        local, surface = held
+        local, surface, parts = held
+        matrix = np.array(inst.matrix_world, dtype=np.float64)
+        for material, part, texspace in parts:
+            density_sources.append(shader_density.DensitySource(
+                obj.original.name_full, None if parent is None else parent.original.name_full, matrix,
+                material, part, texspace, key=(key, material)))
         if not len(local):
             continue
-        matrix = np.array(inst.matrix_world, dtype=np.float64)
         corners = local.reshape(-1, 3).astype(np.float64) @ matrix[:3, :3].T + matrix[:3, 3]
         owners.append(Owner(obj.original.name_full, None if parent is None else parent.original.name_full))
         triangles.append(corners.reshape(-1, 3, 3).astype(np.float32))
         surfaces.append(surface)
-    return SceneTriangles(owners, triangles, surfaces, notes, left, spheres, strands, volumes)
+    for source in density_sources:  # read: no longer left out (re-added with why if the read fails)
+        left.forget("volume_material", source.name, source.parent, shader_density.left_out_why(source.material))
+    return SceneTriangles(owners, triangles, surfaces, notes, left, spheres, strands, volumes,
+                          densities=density_sources)
 
 
 # Radii Cycles gives points and curve points without a radius attribute (its Blender sync).
@@ -336,7 +388,9 @@ def render_triangles(scene: "bpy.types.Scene", view_layer: "bpy.types.ViewLayer"
 
     The scene's engine is switched for each pass only and put back afterwards.
     """
-    found: SceneTriangles = render_pass(scene, view_layer, collect)
+    found: SceneTriangles = render_pass(scene, view_layer, lambda depsgraph: collect(depsgraph, densities=grids))
+    if found.densities:
+        _read_densities(scene, view_layer, found)
     if grids and found.volumes:
         try:
             read = volume_grids.read(scene, found.volumes, lambda fn: render_pass(scene, view_layer, fn))
@@ -356,6 +410,26 @@ def render_triangles(scene: "bpy.types.Scene", view_layer: "bpy.types.ViewLayer"
         for source in found.volumes:
             found.left_out.add("volume", source.name, source.parent, source.why)
     return found
+
+
+def _read_densities(scene: "bpy.types.Scene", view_layer: "bpy.types.ViewLayer", found: SceneTriangles) -> None:
+    """The grids of the media whose density is a shader texture; one not read is drawn
+    opaque and named, with why."""
+    try:
+        read = shader_density.read(scene, found.densities, lambda fn: render_pass(scene, view_layer, fn))
+    finally:
+        view_layer.update()  # as after the grid readers
+    for source, grid in zip(found.densities, read):
+        owner = Owner(source.name, source.parent)
+        if isinstance(grid, str):
+            found.left_out.add("volume_material", source.name, source.parent, f"{source.material}: {grid}")
+            world = source.triangles.reshape(-1, 3) @ source.matrix[:3, :3].T + source.matrix[:3, 3]
+            found.owners.append(owner)
+            found.triangles.append(world.reshape(-1, 3, 3).astype(np.float32))
+            if found.surfaces is not None:
+                found.surfaces.append(Surface.opaque(len(source.triangles)))
+        elif grid is not None:
+            found.grids.append((owner, grid))
 
 
 def render_pass(scene: "bpy.types.Scene", view_layer: "bpy.types.ViewLayer", fn: Callable[[Any], Any]) -> Any:

@@ -52,7 +52,7 @@ def made(tmp_path_factory):
 def test_the_walk_names_each_kind_and_nothing_else(made):
     notes, _, _, _ = made
     assert _named(notes["all"]) == NAMED and _named(notes["light"]) == NAMED
-    # A medium not followed says why (Smoke's density is a noise texture).
+    # A medium not followed says why (Smoke's density is a noise texture of an attribute).
     (volume,) = [note for note in notes["all"] if note.startswith("volume materials")]
     assert "(Smoke: density varies in space (heterogeneous): not followed): Fog" in volume
     # A volume whose grid is not read says why (Cloud's is inside geometry-nodes instances).

@@ -13,8 +13,9 @@ Built the way an artist builds it, on a ground plane under a point light and a c
 - `Cloud`: a mesh whose geometry nodes instance a volume (Volume Cube) on its points (its
   grids are not read: named); `Wisp`: a mesh whose geometry nodes output one (read, a
   grid medium: no note);
-- `Fog`: a box with a Principled Volume whose density is a noise texture, and no surface
-  shader (a heterogeneous medium, not followed); `Mist`: a box of a constant Volume
+- `Fog`: a box with a Principled Volume whose density is a noise texture of an attribute's
+  coordinates, and no surface shader (a heterogeneous medium, not followed: an attribute
+  has no geometry-nodes twin for `shader_density`); `Mist`: a box of a constant Volume
   Absorption (a homogeneous medium, drawn: no note);
 - `Bumps`: a plane with true displacement;
 - `Hidden`: points like the pebbles, but hidden from renders (no note);
@@ -254,6 +255,8 @@ def build(out: Path) -> None:
     volume = _node(tree, "ShaderNodeVolumePrincipled")
     noise = _node(tree, "ShaderNodeTexNoise")  # a density that varies: not followed
     tree.links.new(noise.outputs["Fac"], volume.inputs["Density"])
+    # At an attribute's coordinates: not read as a grid either (shader_density.py).
+    tree.links.new(_node(tree, "ShaderNodeAttribute").outputs["Vector"], noise.inputs["Vector"])
     tree.links.new(volume.outputs[0], output.inputs["Volume"])
     fog.data.materials.append(material)
     mist = _mesh("Mist", 0.6, (0.0, 0.0, 1.6))  # a homogeneous medium: drawn, so not named
