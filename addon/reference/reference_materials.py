@@ -34,9 +34,10 @@ guarded the same way and stay seen by camera rays (issue 43, grid media), so a r
 inside a cloud is shadowed by it from itself on; one without a material gets a guarded
 copy of Cycles' default volume shader (a Principled Volume of default inputs), and a
 material that geometry nodes set on a volume (Set Material), in no object's slots, is
-swapped for its guarded copy by `ID.user_remap` for the capture. Where this Blender
-cannot read grids (`blender_compat.grid_nodes_available`), Volume objects are hidden from
-camera rays as before.
+swapped for its guarded copy by `ID.user_remap` for the capture. This holds on every
+line: where Blender cannot read grids (`blender_compat.grid_nodes_available`, 4.x) the
+methods draw no Volume object, but the reference is still Cycles' (hiding them from camera
+rays there would leave receivers inside them unshadowed).
 """
 from __future__ import annotations
 
@@ -293,15 +294,10 @@ def apply(scene, view_layer, overrides, shadow_rays_only: bool = True) -> list[s
     for material in node_set:
         _remap(material, copies[material], overrides)
 
-    readable = blender_compat.grid_nodes_available()
     default_volume = None
     refused = []
     for obj in objects:
         try:
-            if obj.type == "VOLUME" and not readable:
-                overrides.set(obj, "visible_camera", False)  # shadow rays still cross it
-                if not obj.material_slots:
-                    continue  # its own default volume shader, as Cycles renders it
             if obj.type == "VOLUME" and not any(slot.material for slot in obj.material_slots):
                 if default_volume is None:
                     default_volume = _default_volume(overrides, shadow_rays_only)

@@ -23,6 +23,7 @@ pytest.importorskip("bpy", reason="the clouds and their reference need bpy")
 from addon.core import media, metrics  # noqa: E402
 from addon.core.media import GridMedium  # noqa: E402
 from addon.reference.data import ReferenceData  # noqa: E402
+from addon.render.blender_compat import grid_nodes_available  # noqa: E402
 from tests.support.cli_run import SUPPORT, python_ok  # noqa: E402
 from tests.support.make_cloud_blend import VARIANTS, behind_figure  # noqa: E402
 
@@ -37,6 +38,9 @@ SOFT_SAMPLES = 64
 @pytest.fixture(scope="module", params=VARIANTS)
 def checked(request, tmp_path_factory):
     """(variant, the check's arrays: make_cloud_blend.check)."""
+    if not grid_nodes_available():
+        pytest.skip("this Blender line has no grid nodes to read or probe grids with (a line gap, "
+                    "test_the_reference_is_the_grids_oracle checks what it does instead)")
     folder = tmp_path_factory.mktemp(f"check_{request.param}")
     python_ok(SUPPORT / "make_cloud_blend.py", folder / "cloud.blend", "--variant", request.param,
               "--check", folder / "check.npz")
@@ -85,6 +89,12 @@ def cloud(request, tmp_path_factory):
 
 def test_the_reference_is_the_grids_oracle(cloud):
     name, ref, _ = cloud
+    if not grid_nodes_available():
+        # No grid is read on this line: the cloud is named, and every row says so.
+        from addon.reference.volume_grids import NO_GRID_NODES
+
+        assert ref.grids == () and any(NO_GRID_NODES in note for note in ref.meta["left_out"])
+        return
     assert len(ref.grids) == 1 and np.allclose(ref.grids[0].sigma, SIGMA[name])
     assert not ref.meta["left_out"] and ref.meta["occluder_grids"] == 1
     # Camera rays cross the cloud (its volume acts on shadow rays alone): nearly every
@@ -114,6 +124,8 @@ def test_the_reference_is_the_grids_oracle(cloud):
 
 
 def test_the_grids_are_stored_and_loaded_back(cloud, tmp_path):
+    if not grid_nodes_available():
+        pytest.skip("this Blender line reads no grids (test_the_reference_is_the_grids_oracle checks it)")
     _, ref, path = cloud
     again = ReferenceData.load(ref.save(tmp_path / "again.npz"))
     (a,), (b,) = ref.grids, again.grids

@@ -98,6 +98,8 @@ _INSIDE = {"around", "tinted", "light_inside"}
 @pytest.fixture(scope="module", params=sorted(VARIANTS))
 def variant(request, tmp_path_factory):
     """(name, its reference)."""
+    if request.param == "scatter_add" and not hasattr(bpy.types, "ShaderNodeVolumeCoefficients"):
+        pytest.skip("this Blender line has no Volume Coefficients node (4.5 on): the variant mixes one in")
     folder = tmp_path_factory.mktemp(request.param)
     python_ok(SUPPORT / "make_fog_blend.py", folder / "fog.blend", "--variant", request.param,
               "--reference", folder / "ref.npz")
@@ -215,9 +217,10 @@ def test_absorption_scatter_and_coefficients(scratch):
     assert np.allclose(_sigma(mat), 2.0 * np.array([0.8, 0.4, 0.1]), atol=1e-6)
     mat, _ = scratch.medium("ShaderNodeVolumeScatter", Density=3.0, Color=(0.2, 0.6, 0.9, 1.0))
     assert np.allclose(_sigma(mat), 3.0 * np.array([0.2, 0.6, 0.9]), atol=1e-6)
-    mat, _ = scratch.medium("ShaderNodeVolumeCoefficients", Absorption_Coefficients=(0.4, 1.0, 2.0),
-                            Scatter_Coefficients=(0.5, 0.2, 0.1))
-    assert np.allclose(_sigma(mat), [0.9, 1.2, 2.1], atol=1e-6)
+    if hasattr(bpy.types, "ShaderNodeVolumeCoefficients"):  # 4.5 on
+        mat, _ = scratch.medium("ShaderNodeVolumeCoefficients", Absorption_Coefficients=(0.4, 1.0, 2.0),
+                                Scatter_Coefficients=(0.5, 0.2, 0.1))
+        assert np.allclose(_sigma(mat), [0.9, 1.2, 2.1], atol=1e-6)
 
 
 def test_add_and_mix_shaders_reroutes_and_math(scratch):
