@@ -78,11 +78,35 @@ vec3 ow_grid_depth(vec3 p, vec3 q)
   return depth;
 }
 
-// The light sample p (light-centred) keeps through the grids: towards a point light's
-// centre, or upstream along a sun's axis (ow_grid_reach past p); the mean over RGB.
+// The light sample p (light-centred) keeps through the grids, the mean over RGB: towards a
+// point light's centre, or upstream along a sun's axis (ow_grid_reach past p); a sized
+// light's (ow_grid_light_kind: an OW_LIGHT_* code; 0 for a hard light) towards each of
+// its ow_grid_light_count points, averaged (core/light_shape.stratified_points: a sphere's
+// on the disk facing the sample, an area light's in its frame, a sun's directions towards it).
 float ow_grid_kept(vec3 p)
 {
-  vec3 q = (ow_sun != 0) ? p - ow_light_axis * ow_grid_reach : vec3(0.0);
-  vec3 kept = exp(-ow_grid_depth(p, q));
-  return (kept.r + kept.g + kept.b) / 3.0;
+  bool sized = ow_grid_light_kind == OW_LIGHT_SPHERE || ow_grid_light_kind == OW_LIGHT_AREA
+               || ow_grid_light_kind == OW_LIGHT_SUN_DISK;
+  int count = sized ? clamp(ow_grid_light_count, 1, OW_GRID_LIGHT_POINTS) : 1;
+  vec3 w = -p / max(length(p), 1e-30);  // towards a sphere's centre
+  vec3 helper = (abs(w.z) < 0.9) ? vec3(0.0, 0.0, 1.0) : vec3(1.0, 0.0, 0.0);
+  vec3 a = normalize(cross(w, helper));
+  vec3 b = cross(w, a);
+  float kept = 0.0;
+  for (int k = 0; k < count; k++) {
+    vec3 point = ow_grid_light_points[k].xyz;
+    vec3 q;
+    if (ow_grid_light_kind == OW_LIGHT_SPHERE) {
+      q = point.x * a + point.y * b;
+    } else if (ow_grid_light_kind == OW_LIGHT_AREA) {
+      q = ow_grid_light_frame * point;
+    } else if (ow_grid_light_kind == OW_LIGHT_SUN_DISK) {
+      q = p + (ow_grid_light_frame * point) * ow_grid_reach;
+    } else {
+      q = (ow_sun != 0) ? p - ow_light_axis * ow_grid_reach : vec3(0.0);
+    }
+    vec3 light = exp(-ow_grid_depth(p, q));
+    kept += (light.r + light.g + light.b) / 3.0;
+  }
+  return kept / float(count);
 }

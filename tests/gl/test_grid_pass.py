@@ -106,3 +106,43 @@ def test_without_the_grid_the_frame_is_unchanged(gl_backend):
     finally:
         gl_backend.release_scene(resident)
     assert set(np.unique(got[evaluable])) <= {0.0, 1.0}
+
+
+@pytest.mark.parametrize("method", ["exact", "dpsm+notw"])
+def test_a_sized_light_marches_towards_its_points(gl_backend, method):
+    """A sphere light of 0.3 m over a cloud with a sharp edge (a box of constant density):
+    each sample marches towards 8 of the light's points, so its light is their mean, within
+    0.01 of the mean over 64 points of the disk of the sphere facing it (the centre alone
+    errs more near the cloud's edge, where the points part)."""
+    from addon.core.light_shape import Sphere, stratified_points
+    from addon.core.scene import LightSpec
+    from addon.render.frame import settings_for
+
+    scene, samples, hard, evaluable = _case((0.9, -0.4, 2.6))
+    sized = LightSpec("omni", scene.light.matrix_world, shape=Sphere(0.3))
+    box = np.ones((8, 10, 12), np.float32)
+    to_world = np.diag([0.15, 0.15, 0.15, 1.0])
+    to_world[:3, 3] = (-0.9, -0.7, 0.9)
+    grid = GridMedium("slab", 2.0, box, np.linalg.inv(to_world))
+    positions = samples.positions.reshape(-1, 3)
+    light = scene.light.position
+    w = light - positions
+    w /= np.maximum(np.linalg.norm(w, axis=1, keepdims=True), 1e-30)
+    a = np.cross(w, np.where(np.abs(w[:, 2:3]) < 0.9, [0.0, 0.0, 1.0], [1.0, 0.0, 0.0]))
+    a /= np.linalg.norm(a, axis=1, keepdims=True)
+    b = np.cross(w, a)
+    disk = stratified_points(Sphere(0.3), 64)
+    mean_kept = np.mean([visibility(grid_optical_depths(light + x * a + y * b, positions, (grid,), steps=256))
+                         for x, y, _ in disk], axis=0).reshape(hard.shape)
+    centre = visibility(grid_optical_depths(light, positions, (grid,), steps=256)).reshape(hard.shape)
+    resident = ResidentScene.of_triangles(scene.world_triangles())
+    resident.set_grid("slab", grid)
+    try:
+        got = ShadowPipeline(gl_backend).render(sized, resident, samples, settings_for(method, 512, "omni")).visibility
+    finally:
+        gl_backend.release_scene(resident)
+    clear = evaluable & hard & (np.linalg.norm(positions[:, :2] - [0.2, 0.3], axis=1) > 1.2).reshape(hard.shape)
+    edge = clear & (np.abs(mean_kept - centre) > 0.05)  # where the light's points part at the edge
+    assert clear.sum() > 1000 and edge.sum() > 50, (int(clear.sum()), int(edge.sum()))
+    assert np.abs(got - mean_kept)[clear].mean() < 0.01
+    assert np.abs(got - mean_kept)[edge].mean() < 0.5 * np.abs(centre - mean_kept)[edge].mean()

@@ -18,7 +18,8 @@ from typing import Any
 import numpy as np
 
 from ...core import media as core_media
-from ..shaders import GRID_MAX, GRID_SAMPLERS, HAZE_IMAGES
+from ...core.light_shape import stratified_points
+from ..shaders import GRID_LIGHT_POINTS, GRID_MAX, GRID_SAMPLERS, HAZE_IMAGES, LIGHT_KINDS
 
 log = logging.getLogger(__name__)
 
@@ -208,6 +209,18 @@ def grid_texels(density: np.ndarray, max_width: int) -> tuple[np.ndarray, int]:
     return out, cols
 
 
+def grid_light(light) -> dict[str, Any]:
+    """The grids march's light: a sized light's kind (shaders.LIGHT_KINDS) and its
+    GRID_LIGHT_POINTS points (core/light_shape.stratified_points, in its frame), and the
+    frame; kind 0 for a hard one."""
+    points = np.zeros((GRID_LIGHT_POINTS, 4))
+    kind = LIGHT_KINDS.get(light.shape.kind, 0) if light.sized else 0
+    if kind:
+        points[:, :3] = stratified_points(light.shape, GRID_LIGHT_POINTS)
+    return {"ow_grid_light_kind": kind, "ow_grid_light_count": GRID_LIGHT_POINTS if kind else 1,
+            "ow_grid_light_points": points, "ow_grid_light_frame": light.rotation}
+
+
 class GridStore:
     """Density grids on the GPU (R32F textures of their slices, grid_texels), by digest:
     uploaded once, freed when no resident scene holds them any more."""
@@ -256,7 +269,7 @@ class GridStore:
             lo, hi = grid.world_bounds()
             reach = max(reach, float(np.linalg.norm(hi - lo)) + float(np.linalg.norm(0.5 * (lo + hi) - light.position)))
         uniforms = {"ow_grid_count": len(grids), "ow_grid_to_index": to_index, "ow_grid_size": size,
-                    "ow_grid_sigma": sigma, "ow_grid_reach": 2.0 * reach}
+                    "ow_grid_sigma": sigma, "ow_grid_reach": 2.0 * reach, **grid_light(light)}
         return uniforms, samplers
 
     def release(self, device) -> None:

@@ -38,10 +38,10 @@ from .variants import (ALPHA_DEFINE, ALPHA_SAMPLERS, EXACT_COUNT_DEFINE, EXACT_C
                        warp_step_variant)
 from .variants import (GRID_SAMPLERS, GRIDS_DEFINE, HAZE_DEFINE, HAZE_IMAGES, MEDIA_IMAGE, MEDIUM_DEFINE, grids_of,
                        haze_of, medium_of)
-from .constants import GRID_MAX, GRID_MAX_STEPS
+from .constants import GRID_LIGHT_POINTS, GRID_MAX, GRID_MAX_STEPS
 
 __all__ = [
-    "GRID_MAX", "GRID_MAX_STEPS", "GRID_SAMPLERS", "GRIDS_DEFINE", "grids_of", "HAZE_DEFINE", "HAZE_IMAGES", "haze_of", "MEDIA_IMAGE", "MEDIA_PROGRAMS", "MEDIUM_DEFINE", "medium_of",
+    "GRID_LIGHT_POINTS", "GRID_MAX", "GRID_MAX_STEPS", "GRID_SAMPLERS", "GRIDS_DEFINE", "grids_of", "HAZE_DEFINE", "HAZE_IMAGES", "haze_of", "MEDIA_IMAGE", "MEDIA_PROGRAMS", "MEDIUM_DEFINE", "medium_of",
     "ADVANCE_PROGRAM", "ALPHA_DEFINE", "ALPHA_INTERPOLATIONS", "alpha_of", "ALPHA_PROGRAMS", "ALPHA_SAMPLERS",
     "BARRIER_PROGRAM", "CODES", "Codes", "COMPUTE_PROGRAMS", "ComputeInterface", "DEPTH_PLAIN_PROGRAM",
     "DEPTH_PROGRAM", "derive", "EDGE_PASSES", "EDGE_PROGRAM", "EXACT_COUNT_DEFINE", "EXACT_COUNT_KEY", "EXACT_DEFINE",

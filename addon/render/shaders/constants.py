@@ -80,7 +80,7 @@ CODES = (
     Codes("OW_KIND_", LAYER_KINDS, ("ow_layer_kind",)),
     Codes("OW_", {"no_split": NO_SPLIT}, ("ow_unfold_split",)),
     Codes("OW_", {"no_tile": NO_TILE}, ("ow_slot_tile",)),
-    Codes("OW_LIGHT_", LIGHT_KINDS, ("ow_soft_kind", "ow_exact_light.x")),
+    Codes("OW_LIGHT_", LIGHT_KINDS, ("ow_soft_kind", "ow_exact_light.x", "ow_grid_light_kind")),
     Codes("OW_OUTLINE_", OUTLINES, ("ow_exact_light.w",)),
     Codes("OW_", {"no_spot": NO_SPOT, "no_spot_below": NO_SPOT_BELOW}, ("ow_soft_spot.x", "ow_exact_spot.x")),
     Codes("OW_", {"no_spread": NO_SPREAD, "no_spread_below": NO_SPREAD_BELOW}, ("ow_soft_spread", "ow_exact_spread")),
@@ -133,6 +133,9 @@ EXACT_SOFT_CLUSTER = 16
 # each), and the most steps of half a voxel a sample's segment takes through one of them.
 GRID_MAX = 4
 GRID_MAX_STEPS = 1024
+# A sized light's points each view sample's march follows through the grids (its stratified
+# pattern, core/light_shape.stratified_points), the light they let through averaged.
+GRID_LIGHT_POINTS = 16
 
 # Soft shadows of a sized light (lib/soft.glsl, issue 27): the light's points a shadow test
 # reads (core/light_shape.stratified_points, at most SOFT_MAX_POINTS), and the steps of its
@@ -165,6 +168,7 @@ def _shared_defines() -> dict[str, str]:
         "OW_EXACT_SOFT_MAX_POINTS": str(EXACT_SOFT_MAX_POINTS), "OW_EXACT_SOFT_CLUSTER": str(EXACT_SOFT_CLUSTER),
         "OW_SOFT_MAX_POINTS": str(SOFT_MAX_POINTS), "OW_SOFT_SEARCH_STEPS": str(SOFT_SEARCH_STEPS),
         "OW_GRID_MAX": str(GRID_MAX), "OW_GRID_MAX_STEPS": str(GRID_MAX_STEPS),
+        "OW_GRID_LIGHT_POINTS": str(GRID_LIGHT_POINTS),
     })
     return defines
 

@@ -20,7 +20,7 @@ from typing import TypeVar
 
 from ...core import projection
 from ...core.errors import BackendError
-from .constants import (GRID_MAX, EXACT_SOFT_CLUSTER, EXACT_SOFT_MAX_POINTS, NO_SPLIT, SCATTER_MODE_CODES, SCATTER_MODES,
+from .constants import (GRID_LIGHT_POINTS, GRID_MAX, EXACT_SOFT_CLUSTER, EXACT_SOFT_MAX_POINTS, NO_SPLIT, SCATTER_MODE_CODES, SCATTER_MODES,
                         SOFT_MAX_POINTS, SOFT_MAX_SEARCH, WARP_STEPS)
 from .interfaces import (DEPTH_PROGRAM, FOOTPRINT_PROGRAM, SCATTER_PROGRAM, SHADOW_TEST_PROGRAM, WARP_BUILD_PROGRAM,
                          ComputeInterface, ProgramInterface, Uniform, Varying, uniform_list)
@@ -266,7 +266,9 @@ def haze_of(base: ProgramInterface) -> ProgramInterface:
 
 GRID_SAMPLERS = tuple(f"ow_grid{g}" for g in range(GRID_MAX))
 GRID_UNIFORMS = uniform_list("int ow_grid_count", f"mat4 ow_grid_to_index[{GRID_MAX}]", f"vec4 ow_grid_size[{GRID_MAX}]",
-                             f"vec4 ow_grid_sigma[{GRID_MAX}]", "float ow_grid_reach")
+                             f"vec4 ow_grid_sigma[{GRID_MAX}]", "float ow_grid_reach", "int ow_grid_light_kind",
+                             "int ow_grid_light_count", f"vec4 ow_grid_light_points[{GRID_LIGHT_POINTS}]",
+                             "mat3 ow_grid_light_frame")
 
 
 def grids_of(base: ProgramInterface) -> ProgramInterface:
