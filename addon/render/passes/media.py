@@ -1,6 +1,7 @@
-"""Homogeneous media on the GPU (issue 43, core/media.py, lib/media.glsl): the frame's
-fixed-point units and the extinction at the light, the exact pass's optical depths per
-view sample, and the maps' haze per texel.
+"""Volumes on the GPU (issue 43, core/media.py): for homogeneous media (lib/media.glsl)
+the frame's fixed-point units and the extinction at the light, the exact pass's optical
+depths per view sample and the maps' haze per texel; and the density grids (GridStore,
+lib/grids.glsl) that the shadow test marches.
 
 A frame with media draws each medium's part with the medium variant of the footprint pass
 (shaders.medium_of): the exact pass adds every listed sample's signed crossings to its
