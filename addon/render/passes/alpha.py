@@ -59,21 +59,23 @@ def _channel(device, data) -> Any:
     return device.texture((columns, rows), "R32F", data)
 
 
-class Veil:
-    """The veil's R32UI images (VEIL_IMAGES), the atlas's size: made at the first see-through
-    draw, cleared once per atlas (`live` from that clear until the next begin_atlas)."""
+class AtlasWords:
+    """R32UI images of the atlas's size, by name (`images`: (type, name) pairs, as
+    shaders.VEIL_IMAGES): made at the first draw that writes them, cleared once per atlas
+    (`live` from that clear until the next begin_atlas). The veil is one (see-through
+    parts), the haze another (passes/media.py, media)."""
 
-    def __init__(self) -> None:
+    def __init__(self, images: tuple[tuple[str, str], ...]) -> None:
+        self.names = tuple(name for _, name in images)
         self.images: tuple[Any, ...] | None = None
         self.size: tuple[int, int] | None = None
         self.live = False
 
     def ready(self, device, size: tuple[int, int]) -> dict[str, Any]:
-        """The veil's images by name, made for `size` and cleared at the first see-through
-        draw into this atlas."""
+        """The images by name, made for `size` and cleared at the first draw into this atlas."""
         if self.images is None or self.size != size:
             self.release(device)
-            self.images = tuple(device.texture(size, "R32UI") for _ in VEIL_IMAGES)
+            self.images = tuple(device.texture(size, "R32UI") for _ in self.names)
             self.size = size
         if not self.live:
             for image in self.images:
@@ -82,10 +84,15 @@ class Veil:
         return self.by_name()
 
     def by_name(self) -> dict[str, Any]:
-        return dict(zip((name for _, name in VEIL_IMAGES), self.images))
+        return dict(zip(self.names, self.images))
 
     def release(self, device) -> None:
         """Free the images (a new atlas size, or the backend's release)."""
         device.free(*(self.images or ()))
         self.images = self.size = None
         self.live = False
+
+
+def Veil() -> AtlasWords:  # noqa: N802 - the veil's words, named as the backend holds them
+    """The maps' veil (lib/veil.glsl): see-through crossings per atlas texel."""
+    return AtlasWords(VEIL_IMAGES)

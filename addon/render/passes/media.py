@@ -20,6 +20,7 @@ import numpy as np
 
 from ...core import media as core_media
 from ...core.light_shape import stratified_points
+from .alpha import AtlasWords
 from ..shaders import GRID_LIGHT_POINTS, GRID_MAX, GRID_SAMPLERS, HAZE_IMAGES, LIGHT_KINDS
 
 log = logging.getLogger(__name__)
@@ -168,33 +169,10 @@ class SampleMedia:
         self.live = False
 
 
-class Haze:
-    """The maps' haze (HAZE_IMAGES, the atlas's size): made at the first medium draw, cleared
-    once per atlas (`live` from that clear until the next begin_atlas), as the veil is."""
-
-    def __init__(self) -> None:
-        self.images: tuple[Any, ...] | None = None
-        self.size: tuple[int, int] | None = None
-        self.live = False
-
-    def ready(self, device, size: tuple[int, int]) -> dict[str, Any]:
-        if self.images is None or self.size != size:
-            self.release(device)
-            self.images = tuple(device.texture(size, "R32UI") for _ in HAZE_IMAGES)
-            self.size = size
-        if not self.live:
-            for image in self.images:
-                device.clear_image(image)
-            self.live = True
-        return self.by_name()
-
-    def by_name(self) -> dict[str, Any]:
-        return dict(zip((name for _, name in HAZE_IMAGES), self.images))
-
-    def release(self, device) -> None:
-        device.free(*(self.images or ()))
-        self.images = self.size = None
-        self.live = False
+def Haze() -> AtlasWords:  # noqa: N802 - the haze's words, named as the backend holds them
+    """The maps' haze (HAZE_IMAGES, lib/media.glsl): media crossings per atlas texel, made at
+    the first medium draw and cleared once per atlas, as the veil is (passes/alpha.py)."""
+    return AtlasWords(HAZE_IMAGES)
 
 
 def grid_texels(density: np.ndarray, max_width: int) -> tuple[np.ndarray, int]:
