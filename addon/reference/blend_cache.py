@@ -30,8 +30,9 @@ if TYPE_CHECKING:  # pragma: no cover - typing only
 # media stay seen by camera rays but act on shadow rays alone (a receiver inside one is
 # shadowed by it), and the triangles carry their homogeneous media (Surface.medium).
 # Version 7: Volume geometry's density grids are read (ReferenceData.grids), Volume
-# objects are seen by camera rays with their volume for shadow rays alone.
-NOTES_VERSION = 7
+# objects are seen by camera rays with their volume for shadow rays alone. Version 8: a
+# smoke domain is Volume geometry (smoke_domains.py), not a mesh medium.
+NOTES_VERSION = 8
 
 log = logging.getLogger(__name__)
 

@@ -4,9 +4,14 @@ A .blend starts with "BLENDER"; Blender 3 and later may write it compressed, wit
 zstd (Blender 4.x and 5.x) or gzip (older files). A truncated file can still have a
 good header: Blender's load then raises RuntimeError ("Missing DNA block"), which
 becomes one line naming the file. bpy is imported only by `open_blend`.
+
+A file with a fluid simulation crashes the PyPI bpy when Python exits (Mantaflow frees its
+solver by running Python code after the interpreter is gone: exit status 139 after the
+work is done). `free_fluids_at_exit` empties bpy's data while Python still runs.
 """
 from __future__ import annotations
 
+import atexit
 import gzip
 import logging
 import os
@@ -66,6 +71,30 @@ def open_blend(path: str | os.PathLike, option: str = "--blend") -> None:
         reason = " ".join(str(exc).replace("Error:", " ").split()).split(": ")[-1]
         raise InputError(f"{option} {path}: Blender cannot load it ({reason}); "
                          "the file is damaged or truncated, save it again from Blender") from None
+    free_fluids_at_exit()
+
+
+_fluid_exit: list[bool] = []  # registered once per process
+
+
+def free_fluids_at_exit() -> None:
+    """In background bpy, once the data holds a fluid modifier: empty the data at exit, before
+    Python's own shutdown (the module docstring). Blender's UI quits its own way."""
+    import bpy
+
+    if _fluid_exit or not bpy.app.background:
+        return
+    if not any(m.type == "FLUID" for obj in bpy.data.objects for m in obj.modifiers):
+        return
+
+    def free() -> None:
+        try:
+            bpy.ops.wm.read_factory_settings(use_empty=True)
+        except RuntimeError as exc:  # nothing else to do at exit
+            log.debug("emptying the data at exit: %s", exc)
+
+    _fluid_exit.append(True)
+    atexit.register(free)
 
 
 def open_scene(path: Path, camera: str | None = None, light: str | None = None, frame: int | None = None):

@@ -33,6 +33,7 @@ from typing import Any, Callable
 
 from ..render import blender_compat
 from .material_media import material_medium
+from .smoke_domains import is_gas_domain
 
 log = logging.getLogger(__name__)
 
@@ -104,7 +105,7 @@ def scan_instance(left: LeftOut, inst: Any, materials: dict[str, tuple[tuple[str
     if kind is not None:
         left.add(kind, name, parent_name)
         return
-    if obj.type != "MESH":
+    if obj.type != "MESH" or is_gas_domain(obj):  # a smoke domain is Volume geometry (render_geometry)
         return
     if parent is None and obj.is_instancer and not obj.original.show_instancer_for_render:
         return  # an emitter Cycles does not draw: its surface, materials and all

@@ -37,7 +37,7 @@ from .left_out import LeftOut, path_hair_systems, scan_instance
 from .material_alpha import MaterialAlpha, mesh_surface, triangle_slots
 from .material_media import GridSigma, MediumFound, mesh_media
 from .volume_grids import VolumeSource, volume_source
-from . import shader_density, volume_grids
+from . import shader_density, smoke_domains, volume_grids
 
 if TYPE_CHECKING:  # pragma: no cover - typing only
     import bpy
@@ -138,6 +138,8 @@ def local_geometry(obj: Any, depsgraph: Any, materials: dict[str, MaterialAlpha]
     scene's objects; `media` the same for the media), else it is opaque. With `densities`
     (a cache of material name_full -> whether its density is a shader graph read, and a
     list), the triangles of such media are left out and appended to the list instead."""
+    if smoke_domains.is_gas_domain(obj):  # Cycles renders it as Volume geometry (its grids)
+        return np.zeros((0, 3, 3), dtype=np.float32), Surface.opaque(0), {}
     temporary = obj.type != "MESH"
     mesh = obj.to_mesh(preserve_all_data_layers=False, depsgraph=depsgraph) if temporary else obj.data
     try:
@@ -210,6 +212,7 @@ def collect(depsgraph: Any, densities: bool = False) -> SceneTriangles:
     spheres: list[tuple[Owner, Spheres]] = []
     strands: list[tuple[Owner, Strands]] = []
     volumes: list[VolumeSource] = []
+    grids: list[tuple[Owner, GridMedium]] = []
     grid_materials: dict[str, GridSigma] = {}
     shape = CurveShape.of(depsgraph.scene)
     # A view layer with "Strands" off renders no hair (Cycles' view_layer.use_hair).
@@ -235,6 +238,9 @@ def collect(depsgraph: Any, densities: bool = False) -> SceneTriangles:
         if obj.type != "MESH":
             continue
         parent = inst.parent if inst.is_instance else None
+        if smoke_domains.is_gas_domain(obj):
+            _smoke(inst, depsgraph, grid_materials, grids, left, densities)
+            continue
         if parent is None and hair:
             for found in particle_strands(obj, shape):
                 strands.append((Owner(obj.original.name_full), found))
@@ -264,8 +270,22 @@ def collect(depsgraph: Any, densities: bool = False) -> SceneTriangles:
         surfaces.append(surface)
     for source in density_sources:  # read: no longer left out (re-added with why if the read fails)
         left.forget("volume_material", source.name, source.parent, shader_density.left_out_why(source.material))
-    return SceneTriangles(owners, triangles, surfaces, notes, left, spheres, strands, volumes,
+    return SceneTriangles(owners, triangles, surfaces, notes, left, spheres, strands, volumes, grids,
                           densities=density_sources)
+
+
+def _smoke(inst: Any, depsgraph: Any, materials: dict[str, GridSigma], grids: list[tuple[Owner, GridMedium]],
+           left: LeftOut, read: bool) -> None:
+    """A smoke domain instance: its grid medium (`smoke_domains`) into `grids`, or named
+    as left out with why (`read` False: grids are not read in this pass)."""
+    parent = inst.parent if inst.is_instance else None
+    owner = Owner(inst.object.original.name_full, None if parent is None else parent.original.name_full)
+    found = smoke_domains.smoke_medium(inst, depsgraph.scene.frame_current, materials) if read else \
+        "grids are not read in this pass"
+    if isinstance(found, str):
+        left.add("volume", owner.name, owner.parent, found)
+    elif found is not None:
+        grids.append((owner, found))
 
 
 # Radii Cycles gives points and curve points without a radius attribute (its Blender sync).
