@@ -2,7 +2,7 @@
 
 tests/support/make_cloud_blend.py builds clouds as artists make them: a Mesh to Volume
 modifier filling an icosphere, a geometry-nodes Volume Cube of noise density on a mesh
-(its material set by Set Material), and a haze of Cycles' default volume shader around
+(its material set by Set Material), a Volume object loading a saved .vdb file, and a haze of Cycles' default volume shader around
 a figure, reaching below the ground. `volume_grids` reads each grid into a GridMedium:
 
 - the read grid is Sample Grid's own trilinear field at random world points, its bounds
@@ -31,7 +31,7 @@ pytestmark = pytest.mark.blender
 
 # Each variant's extinction per unit density: Vapour's Principled Volume (density 2, colour
 # 0.8: 2 (0.8 + 0.2)), and Cycles' default volume shader's (1) for the haze without a material.
-SIGMA = {"mesh_to_volume": 2.0, "noise": 2.0, "inside": 1.0}
+SIGMA = {"mesh_to_volume": 2.0, "noise": 2.0, "vdb": 2.0, "inside": 1.0}
 SOFT_SAMPLES = 64
 
 
@@ -57,10 +57,11 @@ def test_the_grid_is_sample_grids_field(checked):
     error = np.abs(grid.density_at(found["points"]) - sampled)
     assert error.max() < 1e-5 * sampled.max() + 1e-6, (name, error.max())
     assert np.allclose(grid.sigma, SIGMA[name])
-    # Cropped to its non-zero voxels plus one: within the cloud's bounds and a voxel.
+    # Cropped to its non-zero voxels plus one: within the cloud's bounds and a voxel (a
+    # voxel's world box: up to sqrt(3) voxels wide for a turned grid, the vdb's).
     lo, hi = grid.world_bounds()
-    voxel = grid.voxel_size()
-    assert np.all(lo >= found["box"][0] - 1.01 * voxel) and np.all(hi <= found["box"][1] + 1.01 * voxel), (lo, hi)
+    voxel = 1.01 * np.sqrt(3.0) * grid.voxel_size()
+    assert np.all(lo >= found["box"][0] - voxel) and np.all(hi <= found["box"][1] + voxel), (lo, hi)
     inside = (found["points"] >= lo).all(axis=1) & (found["points"] <= hi).all(axis=1)
     assert not np.any(sampled[~inside] > 0.0)
     assert list(found["before"]) == list(found["after"])  # no reader left in bpy.data

@@ -12,6 +12,10 @@
   - `noise`: `Noise Cloud`, a mesh object whose geometry nodes make a Volume Cube whose
     density is a Noise Texture of the position (a heterogeneous cloud, 0 to about 3),
     `Vapour` set on it by a Set Material node;
+  - `vdb`: `VDB Cloud`, a Volume object that loads a saved OpenVDB file (`cloud.vdb`
+    beside the .blend, written by a geometry-nodes Bake node from a Volume Cube of noise
+    density, as a simulation or another program leaves one), turned and moved by its
+    object transform, with `Vapour`;
   - `inside`: `Haze`, a Volume object whose geometry nodes make a Volume Cube around the
     figure reaching below the ground, its density falling with height and varying with a
     noise texture; no material (Cycles' default volume shader). The figure and the ground
@@ -41,10 +45,12 @@ SIZE = (128, 96)
 LIGHT = np.array([0.4, 0.3, 3.0])
 FIGURE_CENTRE, FIGURE_HALF = np.array([1.1, 0.2, 0.6]), np.array([0.2, 0.2, 0.6])
 CLOUD_CENTRE, CLOUD_RADIUS = np.array([0.0, 0.0, 1.2]), 0.6
-VARIANTS = ("mesh_to_volume", "noise", "inside")
+VARIANTS = ("mesh_to_volume", "noise", "vdb", "inside")
 # The `inside` haze's box (min, max) and the `noise` cloud's.
 HAZE_BOX = ((0.3, -0.6, -0.3), (1.9, 1.0, 1.5))
 NOISE_BOX = ((-0.7, -0.7, 0.6), (0.7, 0.7, 1.8))
+# The saved cloud's box in its file, and the Volume object's transform on top of it.
+VDB_BOX, VDB_TURN, VDB_AT = ((-0.6, -0.5, -0.35), (0.6, 0.5, 0.35)), 30.0, (0.1, 0.2, 1.3)
 
 
 def _box(name: str, size, location):
@@ -165,11 +171,62 @@ def _haze(scene):
     return obj
 
 
-_CLOUDS = {"mesh_to_volume": _mesh_to_volume, "noise": _noise_cloud, "inside": _haze}
+def _vdb_cloud(scene, folder: Path):
+    """Bake a Volume Cube of noise density to `folder`/cloud.vdb (the baking object is
+    removed afterwards), then a Volume object that loads the file."""
+    import shutil
+
+    import bpy
+
+    tree, cube, out = _volume_cube_nodes(
+        "saved cloud", VDB_BOX,
+        lambda t: _math(t, "MULTIPLY", _math(t, "MAXIMUM", _math(t, "SUBTRACT", _noise(t, 1.8), 0.4), 0.0), 10.0))
+    bake = tree.nodes.new("GeometryNodeBake")
+    if not len(bake.bake_items):
+        bake.bake_items.new("GEOMETRY", "Geometry")
+    tree.links.new(cube.outputs[0], bake.inputs[0])
+    tree.links.new(bake.outputs[0], out.inputs[0])
+    baker = bpy.data.objects.new("Baker", bpy.data.meshes.new("Baker"))
+    scene.collection.objects.link(baker)
+    modifier = baker.modifiers.new("bake", "NODES")
+    modifier.node_group = tree
+    modifier.bake_directory = str(folder / "cloud_bake")
+    if hasattr(modifier, "bake_target"):  # 4.3+; 4.2 bakes to disk
+        modifier.bake_target = "DISK"
+    item = modifier.bakes[0]
+    if hasattr(item, "bake_mode"):
+        item.bake_mode = "STILL"
+    bpy.context.view_layer.objects.active = baker
+    if not bpy.data.filepath:  # 4.2 bakes a saved file only
+        bpy.ops.wm.save_as_mainfile(filepath=str(folder / "baking.blend"))
+        (folder / "baking.blend").unlink()
+    bpy.ops.object.geometry_node_bake_single(session_uid=baker.session_uid, modifier_name=modifier.name,
+                                             bake_id=item.bake_id)
+    found = sorted((folder / "cloud_bake").rglob("*.vdb"))
+    if len(found) != 1:
+        raise RuntimeError(f"the Bake node wrote {len(found)} .vdb files, not 1")
+    saved = folder / "cloud.vdb"
+    shutil.copyfile(found[0], saved)
+    shutil.rmtree(folder / "cloud_bake")
+    mesh = baker.data
+    bpy.data.objects.remove(baker)
+    bpy.data.meshes.remove(mesh)
+    bpy.data.node_groups.remove(tree)
+    volume = bpy.data.volumes.new("VDB Cloud")
+    volume.filepath = str(saved)
+    cloud = bpy.data.objects.new("VDB Cloud", volume)
+    cloud.location, cloud.rotation_euler = VDB_AT, (0.0, 0.0, math.radians(VDB_TURN))
+    scene.collection.objects.link(cloud)
+    volume.materials.append(vapour())
+    return cloud
 
 
-def build(variant: str = "mesh_to_volume"):
-    """The scene in the running Blender (an empty file first); returns (scene, light, cloud)."""
+_CLOUDS = {"mesh_to_volume": _mesh_to_volume, "noise": _noise_cloud, "vdb": _vdb_cloud, "inside": _haze}
+
+
+def build(variant: str = "mesh_to_volume", folder: Path | None = None):
+    """The scene in the running Blender (an empty file first); returns (scene, light, cloud).
+    `folder`: where the `vdb` variant saves its OpenVDB file (the current directory if None)."""
     import bpy
 
     bpy.ops.wm.read_homefile(use_empty=True)
@@ -181,7 +238,7 @@ def build(variant: str = "mesh_to_volume"):
     ground.from_pydata([(-3, -3, 0), (3, -3, 0), (3, 3, 0), (-3, 3, 0)], [], [(0, 1, 2, 3)])
     scene.collection.objects.link(bpy.data.objects.new("Ground", ground))
     _box("Figure", tuple(2.0 * FIGURE_HALF), tuple(FIGURE_CENTRE))
-    cloud = _CLOUDS[variant](scene)
+    cloud = _vdb_cloud(scene, Path(folder or ".").resolve()) if variant == "vdb" else _CLOUDS[variant](scene)
     light = bpy.data.objects.new("Lamp", bpy.data.lights.new("Lamp", "POINT"))
     light.data.energy, light.data.shadow_soft_size, light.location = 1000.0, 0.0, tuple(LIGHT)
     scene.collection.objects.link(light)
@@ -255,7 +312,7 @@ def check(variant: str, out: Path) -> None:
     from addon.reference import volume_grids
     from addon.reference.render_geometry import render_pass, render_triangles
 
-    scene, _, cloud = build(variant)
+    scene, _, cloud = build(variant, out.parent)
     layer = scene.view_layers[0]
     counts = lambda: [len(getattr(bpy.data, k)) for k in ("objects", "meshes", "node_groups", "materials")]  # noqa: E731
     before = counts()
@@ -293,7 +350,7 @@ def main(argv: list[str] | None = None) -> int:
     if args.check is not None:
         check(args.variant, args.check)
         return 0
-    build(args.variant)
+    build(args.variant, args.out.parent)
     bpy.ops.wm.save_as_mainfile(filepath=str(args.out))
     if args.reference is not None:
         from addon.reference.capture import capture
