@@ -20,11 +20,14 @@ What is handled:
   when its instancer is flagged or moved, when one of its source objects is
   flagged, or when one of its instanced collections is flagged;
 - hair curves and point clouds as pieces, one resident object each
-  (`scene_pieces.py`).
+  (`scene_pieces.py`);
+- density grids (`scene_grids.py`): smoke domains, Volume geometry and meshes whose
+  medium's density is a shader texture, as resident grids. Those read through geometry
+  nodes wait for `read_grids`, which the viewport runs from a timer (not in the draw).
 
 What is not handled:
-- object types without surface triangles or pieces (VOLUME, GREASEPENCIL)
-  contribute nothing;
+- object types without surface triangles, pieces or grids (GREASEPENCIL) contribute
+  nothing;
 - geometry changes are only seen through the `depsgraph_update_post` flags fed
   to `mark_dirty` (and on first sight of an object): comparing vertex data would
   cost as much as re-reading it. Without a handler, only additions, removals,
@@ -51,20 +54,21 @@ from ..core.alpha import Surface
 from ..reference.material_alpha import MaterialAlpha, material_alpha
 from ..reference.material_media import MediumFound, material_medium
 from ..core.blockers import Pieces
-from ..reference.render_geometry import GEOMETRY_TYPES, local_geometry
-from ..reference import reference_materials
+from ..reference.render_geometry import GEOMETRY_TYPES, DensityPart, local_geometry
+from ..reference import reference_materials, shader_density
 from ..reference.shadow_rule import rules_for
 from ..reference.shadow_rule import shadow_inputs as _shadow_inputs
 from ..render.resident import ResidentScene
 from . import events
 from .depsgraph_ids import GEOMETRY, TRANSFORM, Dirty, Key, id_key, matrix_of
+from .scene_grids import SceneGrids
 from .scene_pieces import ScenePieces
 
 log = logging.getLogger(__name__)
 
 # Data-block types whose geometry flag means "objects using it need a re-read".
 # (Text and surface curves are "CURVE" ids too.)
-_GEOMETRY_DATA_TYPES = {"MESH", "CURVE", "META", "CURVES", "POINTCLOUD"}
+_GEOMETRY_DATA_TYPES = {"MESH", "CURVE", "META", "CURVES", "POINTCLOUD", "VOLUME"}
 _EMPTY_LOCAL = np.zeros((0, 3, 3), dtype=np.float32)
 _EMPTY_LOCAL.flags.writeable = False
 
@@ -151,6 +155,11 @@ class SceneGeometryCache:
         self._surfaces: dict[int, tuple[np.ndarray, Surface]] = {}
         self._dirty_materials: set[str] = set()
         self.pieces = ScenePieces()  # hair and points (scene_pieces.py)
+        self.grids = SceneGrids()  # density grids (scene_grids.py)
+        # Media whose density is a shader texture, by the id of their source's triangle
+        # array: (the array, its parts, the read's serial); and which materials are such.
+        self._density_parts: dict[int, tuple[np.ndarray, list[DensityPart], int]] = {}
+        self._density_materials: dict[str, bool] = {}
         self.stats: dict[str, int] = {
             "geometry_reads": 0, "matrix_updates": 0, "instance_collections": 0, "version": 0,
         }
@@ -270,12 +279,18 @@ class SceneGeometryCache:
         changed |= self._sync_instances(instancers, depsgraph)
         changed |= self._drop(lambda k: k[0] == "instances" and k[1] not in instancers)
         changed |= self.pieces.sync(depsgraph, self._dirty)
+        changed |= self.grids.sync(depsgraph, self._dirty, self._density_sources())
         self._dirty.clear()  # flags of objects not seen are moot: they are read afresh on sight
         if changed and self._surfaces:
             live = {id(held[0]) for part in self._parts.values() for held in part.sources}
             live |= {id(held[0]) for held in self._sources.values()}
             for stale in [k for k in self._surfaces if k not in live]:
                 del self._surfaces[stale]  # sources no longer held
+        if changed and self._density_parts:
+            live = {id(held[0]) for part in self._parts.values() for held in part.sources}
+            live |= {id(held[0]) for held in self._sources.values()}
+            for stale in [k for k in self._density_parts if k not in live]:
+                del self._density_parts[stale]
         if changed:
             self._world_valid = False
             self.stats["version"] += 1
@@ -289,6 +304,7 @@ class SceneGeometryCache:
                 key = id_key(obj)
                 self._dirty.objects[key] = self._dirty.objects.get(key, 0) | GEOMETRY
         self._dirty_materials.clear()
+        self._density_materials.clear()
 
     def surface_of(self, local: np.ndarray) -> Surface | None:
         """The see-through surface (or media) of a source's triangles, or None when opaque."""
@@ -417,14 +433,44 @@ class SceneGeometryCache:
     def _read(self, obj: Any, depsgraph: Any) -> np.ndarray:
         """Read one evaluated object's triangles (counted); a failed read gives none."""
         self.stats["geometry_reads"] += 1
+        parts: list[DensityPart] = []
         try:
-            local, surface, _ = local_geometry(obj, depsgraph, self._materials, self._media)
+            local, surface, _ = local_geometry(obj, depsgraph, self._materials, self._media,
+                                               (self._density_materials, parts))
         except (RuntimeError, ReferenceError) as exc:
             log.warning("could not read the geometry of %r: %s; it casts no shadow", obj.name, exc)
             return _EMPTY_LOCAL
         if surface.see_through or surface.has_media:
             self._surfaces[id(local)] = (local, surface)
+        if parts:  # their triangles are a grid's bounds, no surface (scene_grids.py)
+            self._density_parts[id(local)] = (local, parts, self.stats["geometry_reads"])
         return local
+
+    def _density_sources(self):
+        """(resident key, signature, source) of every instance of a medium whose density is
+        a shader texture (`scene_grids.SceneGrids.sync`); the signature changes when the
+        source's triangles are read again."""
+        for (kind, key), part in self._parts.items():
+            for index, ((local, matrices), owner) in enumerate(zip(part.sources, part.owners)):
+                held = self._density_parts.get(id(local))
+                if held is None or held[0] is not local:
+                    continue
+                _, parts, serial = held
+                for instance, matrix in enumerate(matrices):
+                    for material, triangles, texspace in parts:
+                        source = shader_density.DensitySource(owner[0], owner[1], matrix, material, triangles,
+                                                              texspace, key=(serial, material))
+                        yield f"density:{kind}:{key}:{index}:{instance}:{material}", (serial, material), source
+
+    def read_grids(self, scene: Any, view_layer: Any) -> bool:
+        """Read the grids that wait for geometry nodes (`SceneGrids.read_pending`), outside
+        any draw; returns whether any was read (the viewport then redraws)."""
+        if self._identity != (id_key(scene), view_layer.name) or not self.grids.pending:
+            return False
+        if not self.grids.read_pending(scene, view_layer):
+            return False
+        self.stats["version"] += 1
+        return True
 
     # ------------------------------------------------------------------ output
     def world_triangles(self) -> np.ndarray:
@@ -497,6 +543,12 @@ class SceneGeometryCache:
                     wanted[f"{kind}:{key}:{index}:{instance}"] = (local, matrix, owner)
         wanted.update(self.pieces.held)
         scene = self._resident
+        grids = self.grids.held
+        for key in [k for k in scene.grids if k not in grids]:
+            scene.remove(key)
+        for key, (medium, _) in grids.items():
+            if scene.grids.get(key) is not medium:
+                scene.set_grid(key, medium)
         for key in [k for k in self._resident_held if k not in wanted]:
             scene.remove(key)
             del self._resident_held[key]
@@ -538,7 +590,9 @@ class SceneGeometryCache:
         cached = self._resident_selections.get(key)
         if cached is not None and cached[0] == self._resident_version:
             return cached[1]
-        subset = scene.subset(k for k, (_, _, owner) in self._resident_held.items() if keep(*owner))
+        keys = [k for k, (_, _, owner) in self._resident_held.items() if keep(*owner)]
+        keys += [k for k, (_, owner) in self.grids.held.items() if keep(*owner)]
+        subset = scene.subset(keys)
         self._resident_selections[key] = (self._resident_version, subset)
         return subset
 
@@ -553,6 +607,8 @@ class SceneGeometryCache:
         self._parts.clear()
         self._sources.clear()
         self._surfaces.clear()
+        self._density_parts.clear()
+        self._density_materials.clear()
         self._materials.clear()
         self._dirty.clear()
         self._layout.clear()
@@ -568,6 +624,7 @@ class SceneGeometryCache:
         self._resident_selections.clear()
         self._resident_version = -1
         had |= self.pieces.clear()
+        had |= self.grids.clear()
         if had:
             self.stats["version"] += 1
 

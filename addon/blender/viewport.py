@@ -64,6 +64,7 @@ class _State:
     results: dict[Any, _ViewResult] = field(default_factory=dict)  # by region
     version: int = 0  # bumped by every change that makes all views stale
     timer_pending: bool = False
+    grid_layer: tuple[str, str] | None = None  # (scene, view layer) whose grids `_read_grids` reads
     last_drawn: str = ""  # what the last redraw drew: "computed", "cached", "reprojected" or "none"
     last_error: str = ""
     reported: set[str] = field(default_factory=set)  # errors already logged once
@@ -92,8 +93,9 @@ def unregister() -> None:
     for handlers, callback in reversed(_APP_HANDLERS):
         while callback in handlers:
             handlers.remove(callback)
-    if bpy.app.timers.is_registered(_throttle_elapsed):
-        bpy.app.timers.unregister(_throttle_elapsed)
+    for timer in (_throttle_elapsed, _read_grids):
+        if bpy.app.timers.is_registered(timer):
+            bpy.app.timers.unregister(timer)
     _STATE.timer_pending = False
     if _STATE.handler is not None:
         bpy.types.SpaceView3D.draw_handler_remove(_STATE.handler, "WINDOW")
@@ -158,7 +160,34 @@ def _throttle_elapsed() -> None:
     return None  # one-shot timer
 
 
-# Computation ----------------------------------------------------------------------
+def _read_grids() -> None:
+    """Read the density grids that need geometry nodes (scene_grids.py): they add objects
+    to bpy.data, which a draw may not, so the draw leaves them to this one-shot timer, for
+    the scene and view layer it drew."""
+    from .scene_cache import CACHE
+
+    names, _STATE.grid_layer = _STATE.grid_layer, None
+    scene = bpy.data.scenes.get(names[0]) if names else None
+    layer = scene.view_layers.get(names[1]) if scene is not None else None
+    if layer is None:
+        return None
+    try:
+        if CACHE.read_grids(scene, layer):
+            request_update("density grids read")
+    except (RuntimeError, ReferenceError, KeyError, ValueError) as exc:
+        log.warning("the viewport could not read its density grids: %s", exc)
+    return None
+
+
+def _schedule_grid_read(scene: bpy.types.Scene, depsgraph) -> None:
+    """Register `_read_grids` when the cache has grids waiting for it."""
+    from .scene_cache import CACHE
+
+    if CACHE.grids.pending and bpy.app.timers is not None and not bpy.app.timers.is_registered(_read_grids):
+        _STATE.grid_layer = (scene.name_full, depsgraph.view_layer.name)
+        bpy.app.timers.register(_read_grids, first_interval=0.0)
+
+
 def compute_view(backend, pipeline: ShadowPipeline, seen: ResidentScene, view_matrix: np.ndarray,
                  projection: np.ndarray, size: tuple[int, int], lights: list,
                  occluders: dict[str, ResidentScene] | None = None, overlay: bool = True) -> tuple[Any, list]:
@@ -255,6 +284,7 @@ def draw_view(scene: bpy.types.Scene, depsgraph, view_matrix: np.ndarray, projec
             try:
                 _ensure_backend()
                 CACHE.update(depsgraph)
+                _schedule_grid_read(scene, depsgraph)
                 lights = properties.enabled_lights(scene, depsgraph)
                 # Only objects that changed since the last view are uploaded; removed ones are freed.
                 _STATE.backend.sync_scene(CACHE.resident())

@@ -173,7 +173,8 @@ def test_viewport_draw_path_robustness(tmp_path):
     the final unregister leave no handler and no GPU object; a failure in the draw
     path is caught, logged once, shown, and recovered from; a NaN bias or strength pauses
     the preview with a message naming it (also in the light panel's check) until fixed;
-    deleting the light is safe. A view that orbits for 30 redraws within the throttle draws
+    deleting the light is safe. A Volume object's grid is read by the viewport's timer, not
+    the draw, and darkens the next draw. A view that orbits for 30 redraws within the throttle draws
     the last result reprojected every time, close to a fresh compute of its view."""
     out = tmp_path / "viewport.json"
     _worker("viewport", out)
@@ -187,6 +188,7 @@ def test_viewport_draw_path_robustness(tmp_path):
            "nan_bias_paused", "nan_bias_panel", "nan_bias_warned_once", "nan_bias_recovered",
            "nan_strength_paused", "nan_strength_recovered",
            "after_load_draw", "undo_marks_stale", "orbit_reprojected", "overlay_economy",
+           "grid_read_by_timer",  # a Volume object's grid, read by the viewport's timer
            "handler_installed", "handler_removed", "handlers_restored", "pointer_removed")
     assert (r["lights"], r["param"], r["warp"]) == (1, "cube", "notw")
     assert 1 <= r["passes"] <= 5  # hemispherical light

@@ -261,6 +261,25 @@ def backends(out: str, reference: str | None = None) -> None:
     np.savez(out, **arrays)
 
 
+def _grid_cloud(scene, centre) -> object:
+    """A Volume object whose geometry nodes make a 1 m Volume Cube of density 3 at `centre`
+    (Cycles' default volume shader: an extinction of 3 a metre)."""
+    import bpy
+
+    tree = bpy.data.node_groups.new("viewport cloud", "GeometryNodeTree")
+    tree.interface.new_socket("Geometry", in_out="INPUT", socket_type="NodeSocketGeometry")
+    tree.interface.new_socket("Geometry", in_out="OUTPUT", socket_type="NodeSocketGeometry")
+    cube = tree.nodes.new("GeometryNodeVolumeCube")
+    cube.inputs["Density"].default_value = 3.0
+    cube.inputs["Min"].default_value, cube.inputs["Max"].default_value = (-0.5,) * 3, (0.5,) * 3
+    tree.links.new(cube.outputs[0], tree.nodes.new("NodeGroupOutput").inputs[0])
+    cloud = bpy.data.objects.new("viewport cloud", bpy.data.volumes.new("viewport cloud"))
+    cloud.location = tuple(float(v) for v in centre)
+    cloud.modifiers.new("cloud", "NODES").node_group = tree
+    scene.collection.objects.link(cloud)
+    return cloud
+
+
 def viewport(out: str) -> None:
     """Register the extension, preview a preset light through the viewport's own draw
     path with explicit matrices into an offscreen target, then check robustness."""
@@ -483,6 +502,42 @@ def viewport(out: str) -> None:
     drew = draw(view)
     report["nan_strength_recovered"] = drew and vp.last_error() == ""
     report["nan_strength_recovered_values"] = outcome(drew)
+    # A cloud (a Volume object of geometry nodes) under the light: the draw leaves its grid
+    # to a timer (geometry nodes add reader objects, which a draw may not); the timer's
+    # read adds it and the next draw is darker. Removed, the shadow is as before.
+    from addon.render.blender_compat import grid_nodes_available
+
+    if grid_nodes_available():
+        def mean_visibility() -> float:
+            result = vp._STATE.results["test-region"]
+            texture = read_texture(result.lights[0][5], "RG32F")[::-1][..., 0]
+            return float(texture[result.gbuffer.hit].mean())
+
+        clear = mean_visibility()
+        cloud = _grid_cloud(scene, np.asarray(light_obj.matrix_world)[:3, 3] - (0.0, 0.0, 0.8))
+        depsgraph = evaluated_depsgraph(scene)
+        vp.request_update("cloud added")
+        draw(view)
+        scheduled = bool(bpy.app.timers.is_registered(vp._read_grids)) and bool(CACHE.grids.pending)
+        unread = mean_visibility()
+        if bpy.app.timers.is_registered(vp._read_grids):
+            bpy.app.timers.unregister(vp._read_grids)
+        vp._read_grids()  # what the timer runs
+        depsgraph = evaluated_depsgraph(scene)
+        draw(view)
+        read = mean_visibility()
+        bpy.data.objects.remove(cloud)
+        depsgraph = evaluated_depsgraph(scene)
+        vp.request_update("cloud removed")
+        draw(view)
+        gone = mean_visibility()
+        report["grid_read_by_timer"] = scheduled and abs(unread - clear) < 1e-6 and read < clear - 0.02 \
+            and abs(gone - clear) < 1e-6 and not CACHE.grids.pending
+        report["grid_read_by_timer_values"] = {"scheduled": scheduled, "clear": clear, "unread": unread,
+                                               "read": read, "gone": gone}
+    else:
+        report["grid_read_by_timer"] = True
+        report["grid_read_by_timer_values"] = {"skipped": "no grid nodes on this line"}
     # File load and undo between draws: results are dropped or marked stale, never reused.
     vp._on_load_post()
     report["after_load_live"] = vp.live_resources()
