@@ -133,3 +133,50 @@ def test_the_visibility_drawn_into_a_texture_is_the_frames_and_nothing_is_read(g
     finally:
         device.free(target, texture)
         pipeline.release()
+
+
+def _media_scene(scene):
+    """The room with a fog box (a homogeneous medium) round its middle and a density grid
+    (8 voxels a side) by the light: both resident (issue 43)."""
+    from addon.core.alpha import Surface
+    from addon.core.media import GridMedium, Medium
+    from addon.core.scene import SceneBuilder
+    from addon.render.resident import ResidentScene
+
+    triangles = scene.world_triangles()
+    lo, hi = triangles.reshape(-1, 3).min(axis=0), triangles.reshape(-1, 3).max(axis=0)
+    box = SceneBuilder("fog", (8, 8))
+    box.box("fog", tuple(0.5 * (lo + hi)), tuple(0.4 * (hi - lo)))
+    box.point_light(tuple(hi + 1.0))
+    box.camera(tuple(hi + 2.0), tuple(lo), fov_deg=60.0)
+    fog = box.finish().world_triangles()
+    resident = ResidentScene()
+    resident.set_geometry("room", triangles)
+    resident.set_geometry("fog", fog, surface=Surface.opaque(len(fog)).with_media(
+        np.zeros(len(fog), np.int32), (Medium("fog", 0.8),)))
+    to_world = np.diag([*(0.05 * (hi - lo)), 1.0])
+    to_world[:3, 3] = np.asarray(scene.light.position) - 0.2 * (hi - lo)
+    resident.set_grid("cloud", GridMedium("cloud", 1.5, np.ones((8, 8, 8), np.float32), np.linalg.inv(to_world)))
+    return resident
+
+
+@pytest.mark.parametrize("method", ["dpsm+notw", "cube", "exact"])
+def test_a_steady_frame_with_media_keeps_the_bounds(gl_backend, case, method):
+    """A medium and a grid add resident words and a texture, not traffic: the steady frame
+    keeps issue 41's bounds, and the media do darken it (issue 43)."""
+    scene, samples = case
+    pipeline = ShadowPipeline(gl_backend)
+    settings = settings_for(method, 256, scene.light.emission)
+    resident = _media_scene(scene)
+    try:
+        traffic = steady_traffic(pipeline, scene.light, resident, samples, settings)
+        with_media = pipeline.render(scene.light, resident, samples, settings).visibility
+        clear = pipeline.render(scene.light, scene.world_triangles(), samples, settings).visibility
+    finally:
+        pipeline.release()
+    assert traffic.finishes == 0, traffic.calls
+    assert traffic.waits <= MAX_WAITS, traffic.calls
+    assert traffic.read_bytes <= MAX_READ_BYTES, traffic.calls
+    assert traffic.upload_bytes <= MAX_UPLOAD_BYTES, traffic.calls
+    hit = samples.hit
+    assert float(with_media[hit].mean()) < float(clear[hit].mean()) - 0.01
