@@ -28,8 +28,8 @@ from typing import Any
 import numpy as np
 
 from ..core.media import GridMedium
-from .material_media import GridSigma, grid_sigma
-from .volume_grids import BUDGET, VolumeSource, dense_medium, lattice
+from .material_media import GridSigma
+from .volume_grids import BUDGET, VolumeSource, dense_medium, lattice, object_grid_sigma
 
 log = logging.getLogger(__name__)
 
@@ -93,12 +93,7 @@ def smoke_medium(inst: Any, frame: float, materials: dict[str, GridSigma] | None
         return None
     if not settings.cache_frame_start <= frame <= settings.cache_frame_end:
         return None  # Cycles clears the grids outside the cache's frames
-    material = next((slot.material for slot in obj.material_slots if slot.material is not None), None)
-    key = "" if material is None else material.original.name_full
-    cache = {} if materials is None else materials
-    if key not in cache:
-        cache[key] = grid_sigma(material)
-    sigma, grid = cache[key]
+    sigma, grid = object_grid_sigma(obj, materials)
     if sigma is None:
         return grid
     if grid not in SMOKE_GRIDS:

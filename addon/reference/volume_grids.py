@@ -92,12 +92,7 @@ def volume_source(inst: Any, materials: dict[str, GridSigma] | None = None) -> V
     if parent is not None and parent.original == obj.original and not np.allclose(
             matrix, np.array(parent.matrix_world, dtype=np.float64), atol=1e-6):
         return unread("a volume inside geometry-nodes instances: not read")
-    material = next((slot.material for slot in obj.material_slots if slot.material is not None), None)
-    key = "" if material is None else material.original.name_full
-    cache = {} if materials is None else materials
-    if key not in cache:
-        cache[key] = grid_sigma(material)
-    sigma, grid_name = cache[key]
+    sigma, grid_name = object_grid_sigma(obj, materials)
     if sigma is None:
         return unread(grid_name)
     grids = obj.data.grids
@@ -117,6 +112,17 @@ def volume_source(inst: Any, materials: dict[str, GridSigma] | None = None) -> V
     lo, hi = np.floor(index.min(axis=0) - 1e-6).astype(int), np.ceil(index.max(axis=0) + 1e-6).astype(int)
     return VolumeSource(name, parent_name, matrix, grid_name, np.asarray(sigma, dtype=np.float64), to_object,
                         (tuple(int(v) for v in lo), tuple(int(v) for v in hi)))
+
+
+def object_grid_sigma(obj: Any, materials: dict[str, GridSigma] | None = None) -> GridSigma:
+    """`grid_sigma` of an evaluated object's first material (Cycles renders Volume geometry
+    with it), cached by the material's name in `materials`."""
+    material = next((slot.material for slot in obj.material_slots if slot.material is not None), None)
+    key = "" if material is None else material.original.name_full
+    cache = {} if materials is None else materials
+    if key not in cache:
+        cache[key] = grid_sigma(material)
+    return cache[key]
 
 
 def lattice(box: tuple[tuple[int, ...], tuple[int, ...]], budget: int = BUDGET) -> tuple[int, list[np.ndarray]]:

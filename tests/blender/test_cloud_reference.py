@@ -25,7 +25,8 @@ from addon.core.media import GridMedium  # noqa: E402
 from addon.reference.data import ReferenceData  # noqa: E402
 from addon.render.blender_compat import grid_nodes_available  # noqa: E402
 from tests.support.cli_run import SUPPORT, python_ok  # noqa: E402
-from tests.support.make_cloud_blend import VARIANTS, behind_figure  # noqa: E402
+from tests.support.make_cloud_blend import VARIANTS  # noqa: E402
+from tests.support.make_fog_blend import behind_figure  # noqa: E402
 
 pytestmark = pytest.mark.blender
 

@@ -20,6 +20,14 @@ MAX_READ_BYTES = 4096
 MAX_UPLOAD_BYTES = 64 * 1024
 
 
+def _assert_bounds(traffic: Traffic) -> None:
+    """Issue 41's bounds on one steady frame's traffic."""
+    assert traffic.finishes == 0, traffic.calls
+    assert traffic.waits <= MAX_WAITS, traffic.calls
+    assert traffic.read_bytes <= MAX_READ_BYTES, traffic.calls
+    assert traffic.upload_bytes <= MAX_UPLOAD_BYTES, traffic.calls
+
+
 @pytest.fixture(scope="module")
 def case():
     scene = build_preset("room_omni", (64, 48))
@@ -41,10 +49,7 @@ def test_a_steady_frame_waits_once_and_uploads_nothing(gl_backend, case, method)
         traffic = steady_traffic(pipeline, scene.light, triangles, samples, settings)
     finally:
         pipeline.release()
-    assert traffic.finishes == 0, traffic.calls
-    assert traffic.waits <= MAX_WAITS, traffic.calls
-    assert traffic.read_bytes <= MAX_READ_BYTES, traffic.calls
-    assert traffic.upload_bytes <= MAX_UPLOAD_BYTES, traffic.calls
+    _assert_bounds(traffic)
 
 
 def test_the_result_is_read_when_first_asked_for_and_equals_a_synced_frame(gl_backend, case):
@@ -174,9 +179,6 @@ def test_a_steady_frame_with_media_keeps_the_bounds(gl_backend, case, method):
         clear = pipeline.render(scene.light, scene.world_triangles(), samples, settings).visibility
     finally:
         pipeline.release()
-    assert traffic.finishes == 0, traffic.calls
-    assert traffic.waits <= MAX_WAITS, traffic.calls
-    assert traffic.read_bytes <= MAX_READ_BYTES, traffic.calls
-    assert traffic.upload_bytes <= MAX_UPLOAD_BYTES, traffic.calls
+    _assert_bounds(traffic)
     hit = samples.hit
     assert float(with_media[hit].mean()) < float(clear[hit].mean()) - 0.01

@@ -2,8 +2,9 @@
 
     python tests/support/make_cloud_blend.py OUT.blend [--variant NAME] [--reference OUT.npz]
 
-- `Ground` (a 6 m plane) and `Figure` (a 0.4 x 0.4 x 1.2 m box standing on it), a hard
-  point light `Lamp` above, a camera looking down at the ground, 128 x 96 pixels;
+- make_fog_blend.py's `stage`: `Ground` (a 6 m plane) and `Figure` (a 0.4 x 0.4 x 1.2 m
+  box standing on it), a hard point light `Lamp` above, a camera looking down at the
+  ground, 128 x 96 pixels;
 - by `--variant`:
   - `mesh_to_volume` (the default): `Cloud`, a Volume object whose Mesh to Volume
     modifier fills `Puff` (an icosphere of radius 0.6, hidden from renders) with density
@@ -41,9 +42,8 @@ import numpy as np
 REPO = Path(__file__).resolve().parents[2]
 sys.path.insert(0, str(REPO))
 
-SIZE = (128, 96)
-LIGHT = np.array([0.4, 0.3, 3.0])
-FIGURE_CENTRE, FIGURE_HALF = np.array([1.1, 0.2, 0.6]), np.array([0.2, 0.2, 0.6])
+from tests.support.make_fog_blend import save_and_capture, stage  # noqa: E402
+
 CLOUD_CENTRE, CLOUD_RADIUS = np.array([0.0, 0.0, 1.2]), 0.6
 VARIANTS = ("mesh_to_volume", "noise", "vdb", "inside")
 # The `inside` haze's box (min, max) and the `noise` cloud's.
@@ -51,21 +51,6 @@ HAZE_BOX = ((0.3, -0.6, -0.3), (1.9, 1.0, 1.5))
 NOISE_BOX = ((-0.7, -0.7, 0.6), (0.7, 0.7, 1.8))
 # The saved cloud's box in its file, and the Volume object's transform on top of it.
 VDB_BOX, VDB_TURN, VDB_AT = ((-0.6, -0.5, -0.35), (0.6, 0.5, 0.35)), 30.0, (0.1, 0.2, 1.3)
-
-
-def _box(name: str, size, location):
-    import bpy  # first: bmesh is bpy's
-    import bmesh
-
-    mesh = bpy.data.meshes.new(name)
-    made = bmesh.new()
-    bmesh.ops.create_cube(made, size=1.0)
-    bmesh.ops.scale(made, vec=size, verts=made.verts)
-    made.to_mesh(mesh)
-    obj = bpy.data.objects.new(name, mesh)
-    obj.location = location
-    bpy.context.scene.collection.objects.link(obj)
-    return obj
 
 
 def vapour():
@@ -227,43 +212,9 @@ _CLOUDS = {"mesh_to_volume": _mesh_to_volume, "noise": _noise_cloud, "vdb": _vdb
 def build(variant: str = "mesh_to_volume", folder: Path | None = None):
     """The scene in the running Blender (an empty file first); returns (scene, light, cloud).
     `folder`: where the `vdb` variant saves its OpenVDB file (the current directory if None)."""
-    import bpy
-
-    bpy.ops.wm.read_homefile(use_empty=True)
-    scene = bpy.context.scene
-    scene.name = "cloud"
-    scene.render.engine = "CYCLES"
-    scene.render.resolution_x, scene.render.resolution_y = SIZE
-    ground = bpy.data.meshes.new("Ground")
-    ground.from_pydata([(-3, -3, 0), (3, -3, 0), (3, 3, 0), (-3, 3, 0)], [], [(0, 1, 2, 3)])
-    scene.collection.objects.link(bpy.data.objects.new("Ground", ground))
-    _box("Figure", tuple(2.0 * FIGURE_HALF), tuple(FIGURE_CENTRE))
+    scene, light = stage("cloud")
     cloud = _vdb_cloud(scene, Path(folder or ".").resolve()) if variant == "vdb" else _CLOUDS[variant](scene)
-    light = bpy.data.objects.new("Lamp", bpy.data.lights.new("Lamp", "POINT"))
-    light.data.energy, light.data.shadow_soft_size, light.location = 1000.0, 0.0, tuple(LIGHT)
-    scene.collection.objects.link(light)
-    camera = bpy.data.objects.new("Camera", bpy.data.cameras.new("Camera"))
-    camera.location, camera.rotation_euler = (0.0, -4.0, 5.0), (math.radians(38.0), 0.0, 0.0)
-    scene.collection.objects.link(camera)
-    scene.camera = camera
     return scene, light, cloud
-
-
-def _inside(position: np.ndarray, centre: np.ndarray, half, light: np.ndarray = LIGHT) -> np.ndarray:
-    """The length of each point's segment to the light inside a box (position (..., 3))."""
-    p = np.asarray(position, dtype=np.float64).reshape(-1, 3)
-    d = np.asarray(light, dtype=np.float64) - p
-    centre, half = np.asarray(centre, dtype=np.float64), np.asarray(half, dtype=np.float64)
-    with np.errstate(divide="ignore", invalid="ignore"):
-        t0, t1 = (centre - half - p) / d, (centre + half - p) / d
-    enter = np.clip(np.nanmax(np.minimum(t0, t1), axis=1), 0.0, 1.0)
-    leave = np.clip(np.nanmin(np.maximum(t0, t1), axis=1), 0.0, 1.0)
-    return (np.maximum(leave - enter, 0.0) * np.linalg.norm(d, axis=1)).reshape(np.shape(position)[:-1])
-
-
-def behind_figure(position: np.ndarray, light: np.ndarray = LIGHT) -> np.ndarray:
-    """Whether each point's segment to the light crosses the figure."""
-    return _inside(position, FIGURE_CENTRE, FIGURE_HALF, light) > 1e-4
 
 
 def _sample_grid(cloud, points: np.ndarray, grid: str = "density") -> np.ndarray:
@@ -338,8 +289,6 @@ def check(variant: str, out: Path) -> None:
 
 
 def main(argv: list[str] | None = None) -> int:
-    import bpy
-
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("out", type=Path)
     parser.add_argument("--variant", choices=VARIANTS, default="mesh_to_volume")
@@ -351,12 +300,7 @@ def main(argv: list[str] | None = None) -> int:
         check(args.variant, args.check)
         return 0
     build(args.variant, args.out.parent)
-    bpy.ops.wm.save_as_mainfile(filepath=str(args.out))
-    if args.reference is not None:
-        from addon.reference.capture import capture
-
-        samples = {} if args.soft_samples is None else {"soft_samples": args.soft_samples}
-        capture(bpy.context.scene, **samples).save(args.reference)
+    save_and_capture(args.out, args.reference, args.soft_samples)
     return 0
 
 

@@ -15,9 +15,10 @@
     Absorption, mixed half and half with a Volume Coefficients node;
 - a hard point light above, a camera looking down at the ground, 128 x 96 pixels.
 
-`build` makes the scene in the running Blender; `scripts/fog_box_probe.py` renders it
-with its own settings; `--reference` also captures the OmniWarp reference of the scene
-(reference/capture.py) into a .npz (ReferenceData).
+`build` makes the scene in the running Blender (on `stage`, which the other volume test
+files share); `scripts/fog_box_probe.py` renders it with its own settings; `--reference`
+also captures the OmniWarp reference of the scene (reference/capture.py) into a .npz
+(ReferenceData).
 """
 from __future__ import annotations
 
@@ -143,29 +144,37 @@ def _fog_material(shader: str, noise: bool):
     return material
 
 
-def build(noise: bool = False, variant: str = "beside"):
-    """The scene in the running Blender (an empty file first); returns (scene, light, fog)."""
+def stage(name: str, light_at=tuple(LIGHT)):
+    """An empty file's scene for Cycles at SIZE with `Ground` (a 6 m plane), `Figure` (a
+    0.4 x 0.4 x 1.2 m box on it), a hard 1 kW point light `Lamp` at `light_at` and a camera
+    looking down at the ground; returns (scene, light). The volume tests' files share it."""
     import bpy
 
-    spec = VARIANTS[variant]
     bpy.ops.wm.read_homefile(use_empty=True)
     scene = bpy.context.scene
-    scene.name = "fog"
+    scene.name = name
     scene.render.engine = "CYCLES"
     scene.render.resolution_x, scene.render.resolution_y = SIZE
     ground = bpy.data.meshes.new("Ground")
     ground.from_pydata([(-3, -3, 0), (3, -3, 0), (3, 3, 0), (-3, 3, 0)], [], [(0, 1, 2, 3)])
     scene.collection.objects.link(bpy.data.objects.new("Ground", ground))
     _box("Figure", tuple(2.0 * FIGURE_HALF), tuple(FIGURE_CENTRE))
-    fog = _box("Fog", tuple(2.0 * np.array(spec.half)), spec.centre)
-    fog.data.materials.append(_fog_material(spec.shader, noise))
     light = bpy.data.objects.new("Lamp", bpy.data.lights.new("Lamp", "POINT"))
-    light.data.energy, light.data.shadow_soft_size, light.location = 1000.0, 0.0, spec.light
+    light.data.energy, light.data.shadow_soft_size, light.location = 1000.0, 0.0, light_at
     scene.collection.objects.link(light)
     camera = bpy.data.objects.new("Camera", bpy.data.cameras.new("Camera"))
     camera.location, camera.rotation_euler = (0.0, -4.0, 5.0), (math.radians(38.0), 0.0, 0.0)
     scene.collection.objects.link(camera)
     scene.camera = camera
+    return scene, light
+
+
+def build(noise: bool = False, variant: str = "beside"):
+    """The scene in the running Blender (an empty file first); returns (scene, light, fog)."""
+    spec = VARIANTS[variant]
+    scene, light = stage("fog", spec.light)
+    fog = _box("Fog", tuple(2.0 * np.array(spec.half)), spec.centre)
+    fog.data.materials.append(_fog_material(spec.shader, noise))
     return scene, light, fog
 
 
@@ -192,18 +201,20 @@ def behind_figure(position: np.ndarray, light: np.ndarray = LIGHT) -> np.ndarray
     return _inside(position, FIGURE_CENTRE, FIGURE_HALF, light) > 1e-4
 
 
-def capture_reference(out: Path) -> None:
-    """The OmniWarp reference of the scene just built, saved as a ReferenceData .npz."""
+def save_and_capture(out: Path, reference: Path | None = None, soft_samples: int | None = None) -> None:
+    """Save the scene just built to `out` and, with `reference`, capture its OmniWarp
+    reference (reference/capture.py; `soft_samples` a pixel) into that .npz."""
     import bpy
 
-    from addon.reference.capture import capture
+    bpy.ops.wm.save_as_mainfile(filepath=str(out))
+    if reference is not None:
+        from addon.reference.capture import capture
 
-    capture(bpy.context.scene).save(out)
+        samples = {} if soft_samples is None else {"soft_samples": soft_samples}
+        capture(bpy.context.scene, **samples).save(reference)
 
 
 def main(argv: list[str] | None = None) -> int:
-    import bpy
-
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("out", type=Path)
     parser.add_argument("--noise", action="store_true")
@@ -211,9 +222,7 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--reference", type=Path, default=None)
     args = parser.parse_args(argv)
     build(args.noise, args.variant)
-    bpy.ops.wm.save_as_mainfile(filepath=str(args.out))
-    if args.reference is not None:
-        capture_reference(args.reference)
+    save_and_capture(args.out, args.reference)
     return 0
 
 

@@ -22,6 +22,8 @@ import numpy as np
 REPO = Path(__file__).resolve().parents[2]
 sys.path.insert(0, str(REPO))
 
+from tests.support.make_fog_blend import save_and_capture  # noqa: E402
+
 VARIANTS = ("noise", "mapped")
 # The extinction per unit density of each variant's Principled Volume (make_fog_blend:
 # colour 0.5, no absorption colour: 1; `mapped`: colour 0.8: 0.8 + 0.2 = 1).
@@ -76,8 +78,6 @@ def check(variant: str, out: Path) -> None:
 
 
 def main(argv: list[str] | None = None) -> int:
-    import bpy
-
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("out", type=Path)
     parser.add_argument("--variant", choices=VARIANTS, default="noise")
@@ -89,12 +89,7 @@ def main(argv: list[str] | None = None) -> int:
         check(args.variant, args.check)
         return 0
     build(args.variant)
-    bpy.ops.wm.save_as_mainfile(filepath=str(args.out))
-    if args.reference is not None:
-        from addon.reference.capture import capture
-
-        samples = {} if args.soft_samples is None else {"soft_samples": args.soft_samples}
-        capture(bpy.context.scene, **samples).save(args.reference)
+    save_and_capture(args.out, args.reference, args.soft_samples)
     return 0
 
 

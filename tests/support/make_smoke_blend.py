@@ -2,8 +2,7 @@
 
     python tests/support/make_smoke_blend.py OUT.blend
 
-The fog scene's ground, figure, light and camera (make_fog_blend.py) without its fog box,
-and a 0.3 m cube emitter under Object > Quick Effects > Quick Smoke: a gas domain box
+The volume tests' ground, figure, light and camera (make_fog_blend.py's `stage`) and a 0.3 m cube emitter under Object > Quick Effects > Quick Smoke: a gas domain box
 around it (Principled Volume, density 5 times the simulation's density grid) that reaches
 above the light. Mantaflow does not run in the PyPI bpy (its scripts fail on first use), so
 the domain holds no smoke: Cycles renders it as empty Volume geometry and the emitter,
@@ -26,10 +25,9 @@ def build():
     """The scene in the running Blender; returns (scene, the domain object)."""
     import bpy
 
-    from tests.support.make_fog_blend import build as build_fog
+    from tests.support.make_fog_blend import stage
 
-    scene, _, fog = build_fog()
-    bpy.data.objects.remove(fog)
+    scene, _ = stage("smoke")
     bpy.ops.mesh.primitive_cube_add(size=EMITTER_SIZE, location=EMITTER_AT)
     emitter = bpy.context.active_object
     emitter.name = "Emitter"
