@@ -25,6 +25,7 @@ from addon.core.media import GridMedium  # noqa: E402
 from addon.reference.data import ReferenceData  # noqa: E402
 from addon.render.blender_compat import grid_nodes_available  # noqa: E402
 from tests.support.cli_run import SUPPORT, python_ok  # noqa: E402
+from tests.support.plain_cycles import mean_visibilities  # noqa: E402
 from tests.support.make_cloud_blend import VARIANTS  # noqa: E402
 from tests.support.make_fog_blend import behind_figure  # noqa: E402
 
@@ -148,12 +149,5 @@ def test_the_reference_matches_a_plain_render(cloud):
     one sample) over the pixels both hit: the plain render's camera rays cross the cloud,
     so some of its pixels end there and are left out."""
     _, ref, path = cloud
-    blend = path.parent / "cloud.blend"
-    python_ok(SUPPORT / "plain_cycles.py", blend, path.parent / "plain.npz")
-    plain = dict(np.load(path.parent / "plain.npz"))
-    eps = metrics.UNSHADOWED_EPS
-    both = ref.hit & (plain["alpha"] > 0.5) & (ref.unshadowed > eps) & (plain["unshadowed"] > eps)
-    assert both.sum() > 0.5 * ref.hit.sum()
-    ours = metrics.reference_ratio(ref.shadowed, ref.unshadowed)[both].mean()
-    theirs = metrics.reference_ratio(plain["shadowed"], plain["unshadowed"])[both].mean()
-    assert abs(ours - theirs) < 0.01, (ours, theirs)
+    ours, theirs, share = mean_visibilities(ref, path.parent / "cloud.blend", path.parent / "plain.npz")
+    assert share > 0.5 and abs(ours - theirs) < 0.01, (ours, theirs, share)

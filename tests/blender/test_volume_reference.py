@@ -25,6 +25,7 @@ from addon.reference.data import ReferenceData  # noqa: E402
 from addon.reference.material_media import material_medium  # noqa: E402
 from addon.render import blender_compat  # noqa: E402
 from tests.support.cli_run import SUPPORT, python_ok  # noqa: E402
+from tests.support.plain_cycles import mean_visibilities  # noqa: E402
 from tests.support.make_fog_blend import VARIANTS, behind_figure, transmittance  # noqa: E402
 
 pytestmark = pytest.mark.blender
@@ -68,14 +69,8 @@ def test_the_reference_matches_a_plain_render(fog):
     """Within 1 point of the plain render's mean visibility over the pixels both hit (its
     camera rays cross the fog, so some of its pixels end there and are left out)."""
     ref, _, blend, folder = fog
-    python_ok(SUPPORT / "plain_cycles.py", blend, folder / "plain.npz")
-    plain = dict(np.load(folder / "plain.npz"))
-    eps = metrics.UNSHADOWED_EPS
-    both = ref.hit & (plain["alpha"] > 0.5) & (ref.unshadowed > eps) & (plain["unshadowed"] > eps)
-    assert both.sum() > 0.8 * ref.hit.sum()
-    ours = metrics.reference_ratio(ref.shadowed, ref.unshadowed)[both].mean()
-    theirs = metrics.reference_ratio(plain["shadowed"], plain["unshadowed"])[both].mean()
-    assert abs(ours - theirs) < 0.01, (ours, theirs)
+    ours, theirs, share = mean_visibilities(ref, blend, folder / "plain.npz")
+    assert share > 0.8 and abs(ours - theirs) < 0.01, (ours, theirs, share)
 
 
 def test_a_file_without_media_loads_without_them(fog, tmp_path):

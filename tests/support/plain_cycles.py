@@ -18,6 +18,22 @@ import numpy as np
 sys.path.insert(0, str(Path(__file__).resolve().parents[2]))
 
 
+def mean_visibilities(ref, blend: Path, out: Path) -> tuple[float, float, float]:
+    """Render `blend` plainly (a child process) into `out`; the reference's and the plain
+    render's mean visibility over the pixels both hit and both light, and that share of the
+    reference's hits (a plain render's camera rays can end inside a volume: those go)."""
+    from addon.core import metrics
+    from tests.support.cli_run import python_ok
+
+    python_ok(Path(__file__), blend, out)
+    plain = dict(np.load(out))
+    eps = metrics.UNSHADOWED_EPS
+    both = ref.hit & (plain["alpha"] > 0.5) & (ref.unshadowed > eps) & (plain["unshadowed"] > eps)
+    ours = float(metrics.reference_ratio(ref.shadowed, ref.unshadowed)[both].mean())
+    theirs = float(metrics.reference_ratio(plain["shadowed"], plain["unshadowed"])[both].mean())
+    return ours, theirs, float(both.sum()) / max(int(ref.hit.sum()), 1)
+
+
 def main(blend: str, out: str) -> None:
     import bpy
 
