@@ -53,17 +53,23 @@ def material_medium(material: Any) -> MediumFound:
     followed, one short line); (None, None) for a material that is no medium at all."""
     if material is None or not reference_materials.is_medium(material):
         return None, None
+    sigma, why = _extinction(material, _Reader())
+    return (None, why) if sigma is None else (Medium(material.name, sigma), None)
+
+
+def _extinction(material: Any, reader: "_Reader") -> tuple[np.ndarray | None, str | None]:
+    """The summed extinction (3,) of a material's volume graph as `reader` follows it, or
+    (None, why): a node it does not follow, or a negative or infinite sum."""
     volume = reference_materials.surface_output(material.node_tree).inputs["Volume"]
-    reader = _Reader()
     try:
         source, _, groups = reader.linked(volume, ())
         sigma = np.zeros(3) if source is None else reader.extinction(source, groups)
     except _Unfollowed as why:
-        log.debug("material %r: medium not followed: %s", material.name, why)
+        log.debug("material %r: volume not followed: %s", material.name, why)
         return None, str(why)
     if np.any(sigma < 0.0) or not np.all(np.isfinite(sigma)):
         return None, f"a negative or infinite extinction {tuple(round(float(s), 4) for s in sigma)}: not followed"
-    return Medium(material.name, sigma), None
+    return sigma, None
 
 
 def _label(node: Any) -> str:
@@ -229,18 +235,12 @@ def grid_sigma(material: Any) -> GridSigma:
     if reference_materials.volume_source(material) is None:
         return None, f"{material.name}: no volume shader: not followed"
     # A Volume object renders its material's volume alone (a surface shader draws nothing).
-    volume = reference_materials.surface_output(material.node_tree).inputs["Volume"]
     reader = _GridReader()
-    try:
-        source, _, groups = reader.linked(volume, ())
-        sigma = np.zeros(3) if source is None else reader.extinction(source, groups)
-    except _Unfollowed as why:
-        log.debug("material %r: grid medium not followed: %s", material.name, why)
+    sigma, why = _extinction(material, reader)
+    if sigma is None:
         return None, f"{material.name}: {why}"
     if reader.grid is None:
         return None, f"{material.name}: no density grid read: not followed"
-    if np.any(sigma < 0.0) or not np.all(np.isfinite(sigma)):
-        return None, f"{material.name}: a negative or infinite extinction: not followed"
     return sigma, reader.grid
 
 
