@@ -13,6 +13,8 @@
 // Outside the variants' blocks: the loader includes a file once, preprocessor-blind, and both
 // soft variants (lib/soft.glsl, lib/exact_soft.glsl) weigh a spot's cone with it.
 #include "lib/spot_cone.glsl"
+// The same for the media's helpers: the haze variant and the exact soft media variant read them.
+#include "lib/media.glsl"
 #ifdef OW_VEIL
 #include "lib/veil.glsl"
 #endif
@@ -146,9 +148,8 @@ vec2 ow_projective_test(vec3 p, vec3 n)
 // The exact pass's answer for a sized light: the weighted share of the light points it left
 // unmarked in this sample's words (n towards the light); the plain share where no point
 // weighs (a receiver grazed by the whole light).
-float ow_exact_soft_share(vec3 p, vec3 n, ivec2 pix)
+float ow_exact_soft_surfaces(vec3 p, vec3 n, ivec2 pix, int rows)
 {
-  int rows = textureSize(ow_positions, 0).y;
   // Most samples are wholly lit or wholly shadowed: then the share is 1 or 0 whatever the
   // weights, and only a penumbra's samples weigh their points.
   uint words[OW_EXACT_SOFT_MAX_POINTS / 32];
@@ -180,6 +181,50 @@ float ow_exact_soft_share(vec3 p, vec3 n, ivec2 pix)
     }
   }
   return (total > 0.0) ? lit / total : float(open) / float(ow_exact_points);
+}
+
+#ifdef OW_EXACT_SOFT_MEDIA
+// The light the media keep along the segments of the light points the exact pass followed
+// through them (lib/media.glsl's ow_media_point), weighed as the surfaces''
+// points are and over those the surfaces leave open: the surfaces' share times this is the
+// weighted mean over the light of what both let through, however a penumbra of surfaces
+// and one of media overlap. `len`: the segment's length, for the media around the light.
+float ow_exact_soft_media(vec3 p, vec3 n, ivec2 pix, ivec2 size)
+{
+  OwLightView view = ow_light_view(p);
+  bool sun = int(ow_exact_light.x) == OW_LIGHT_SUN_DISK;
+  float kept_open = 0.0, weight_open = 0.0, kept_all = 0.0, weight_all = 0.0, plain = 0.0;
+  for (int j = 0; j < ow_media_points; j++) {
+    int k = ow_media_point(j);
+    vec3 segment = ow_light_segment(p, view, k);
+    float kept = ow_media_light_kept(ow_media_depth(pix, size, j) + ow_media_light * (sun ? length(p) : length(segment)));
+    float weight = ow_light_weight(segment, n);
+    bool blocked = ((imageLoad(ow_hits, pix + ivec2(0, (k >> 5) * size.y)).x >> uint(k & 31)) & 1u) != 0u;
+    plain += kept;
+    kept_all += weight * kept;
+    weight_all += weight;
+    if (!blocked) {
+      kept_open += weight * kept;
+      weight_open += weight;
+    }
+  }
+  if (weight_open > 0.0) {
+    return kept_open / weight_open;
+  }
+  return (weight_all > 0.0) ? kept_all / weight_all : plain / float(max(ow_media_points, 1));
+}
+#endif
+
+float ow_exact_soft_share(vec3 p, vec3 n, ivec2 pix)
+{
+  ivec2 size = textureSize(ow_positions, 0);
+  float share = ow_exact_soft_surfaces(p, n, pix, size.y);
+#ifdef OW_EXACT_SOFT_MEDIA
+  if (share > 0.0) {
+    share *= ow_exact_soft_media(p, n, pix, size);
+  }
+#endif
+  return share;
 }
 #endif
 

@@ -16,14 +16,11 @@ void main()
   if (ow_media_on != 0) {
     // The media's optical depths (lib/media.glsl), and those around the light, per light point
     // the exact pass followed (one for a hard light): the mean of the light they keep.
-    int rows = textureSize(ow_positions, 0).y;
+    ivec2 size = textureSize(ow_positions, 0);
     vec3 around = ow_media_light * length(texelFetch(ow_positions, pix, 0).xyz);
     float kept = 0.0;
     for (int j = 0; j < ow_media_points; j++) {
-      ivec2 at = pix + ivec2(0, 3 * j * rows);
-      vec3 depth = vec3(float(int(imageLoad(ow_media, at).x)), float(int(imageLoad(ow_media, at + ivec2(0, rows)).x)),
-                        float(int(imageLoad(ow_media, at + ivec2(0, 2 * rows)).x))) / ow_media_scale;
-      kept += ow_media_light_kept(depth + around);
+      kept += ow_media_light_kept(ow_media_depth(pix, size, j) + around);
     }
     result.x *= kept / float(max(ow_media_points, 1));
   }

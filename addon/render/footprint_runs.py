@@ -243,7 +243,7 @@ def footprint_draws(scene: ResidentScene, light: LightSpec, media: MediaFrame = 
                 uniforms["ow_alpha_mode"] = obj.alpha.mode  # the see-through variant's
             if obj.medium is not None:
                 uniforms.update(ow_medium_sigma=media.sigma_uniform(obj.medium), ow_region_count=0,
-                                ow_media_offset=media.offset, ow_media_points=media.points)
+                                ow_media_offset=media.offset, **media.share_uniforms())
             draws.append(FootprintDraw(key, 0, obj.triangles, uniforms, pieces=obj.pieces,
                                        medium=obj.medium is not None))
     return draws

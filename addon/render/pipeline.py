@@ -72,7 +72,7 @@ from .parameterizations import DrawInputs, parameterization, slot_rotations_and_
 from .plan_memo import PlanMemo
 from .resident import ResidentScene
 from .shaders import PARAM_CODES, SLOTS
-from .soft import SizedMode, hit_words, list_resolution, sized_mode, soft_uniforms
+from .soft import SizedMode, hit_words, list_resolution, share_points, sized_mode, soft_uniforms
 from .stage_clock import StageClock
 from .unfold import edge_aa_parameters
 
@@ -137,14 +137,16 @@ class ShadowPipeline:
         return analysis.count_maps(self.backend, light, plan, mappings, size, mode, weighted)
 
     def link_lists(self, light: LightSpec, plan: Plan, mappings: dict[int, LayerMapping], size: int,
-                   words: int = 1, media: int = 0) -> None:
+                   words: int = 1, media: MediaFrame | None = None) -> None:
         """Link the uploaded samples into per-texel lists through the full mapping of each
         drawn layer, at `size` texels a side (the irregular z-buffer's lists; the backend
         keeps them, `read_links` reads them back), with `words` words of marks a sample
-        (soft.hit_words), and the samples' optical depths of `media` light points each cleared
-        (0: none). The warp tables must be bound."""
+        (soft.hit_words), and the samples' optical depths of `media`'s light points each
+        cleared (None: no media). The warp tables must be bound."""
         uniforms = analysis.scatter_uniforms(light, plan, mappings, size, 2, False)
-        self.backend.link_samples(size, max(len(plan.drawn), 1), uniforms, hit_words=words, media=media)
+        points, across = (media.points, media.across) if media is not None else (0, 1)
+        self.backend.link_samples(size, max(len(plan.drawn), 1), uniforms, hit_words=words, media=points,
+                                  media_across=across)
 
     def render(self, light: LightSpec, scene: ResidentScene | np.ndarray, samples: ViewSamples | GBufferSamples,
                settings: ShadowSettings, keep_atlas: bool = False, count_work: bool = False,
@@ -251,8 +253,9 @@ class ShadowPipeline:
                 media = NO_MEDIA
             elif media.on and sized_mode(light, settings) is SizedMode.EXACT_SOFT:
                 # A sized light's exact pass follows a share of its points through the media.
-                points = media_points(settings.exact_samples, int(np.prod(samples.shape)))
-                media = dataclasses.replace(media, points=points)
+                points, across = media_points(settings.exact_samples, samples.shape, backend.max_texture_size())
+                media = dataclasses.replace(media, points=points, across=across,
+                                            indices=share_points(int(settings.exact_samples), points))
             backend.media = media
             inputs = DrawInputs(plan, settings, geometry, layout, tile_of_slot, mappings, size, boxes,
                                 footprint_draws(scene, light, media), region_uniforms(plan, light, settings.cull),
@@ -264,7 +267,7 @@ class ShadowPipeline:
             if settings.exact:
                 # The irregular z-buffer's lists.
                 self.link_lists(light, plan, mappings, res, hit_words(light, settings),
-                                media=media.points if media.on else 0)
+                                media=media if media.on else None)
             edge_radius = scheme.draw(backend, inputs)
             if settings.exact and (sync_stages or count_work):
                 # A measuring frame draws the exact pass's later rounds in its own time; any
@@ -287,7 +290,7 @@ class ShadowPipeline:
         return FrameResult(timings, plan, geometry, layout, texels=len(plan.drawn) * res * res, atlas=atlas, haze=haze,
                            tile_of_slot=tile_of_slot, mappings=mappings, count_maps=counts, boxes=boxes,
                            exact_counts=backend.exact_work() if settings.exact else None,
-                           reader=_reader(backend, marks, media if backend.sample_media.live else None,
+                           reader=_reader(backend, marks, media if backend.sample_media.unweighed else None,
                                           clock.gpu_reader()), exact_marks=marks,
                            completer=_completer(backend, None if marks else test) if settings.exact else None)
 

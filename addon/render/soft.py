@@ -167,6 +167,29 @@ def cluster_order(count: int) -> np.ndarray:
     return np.lexsort((col % tile, row % tile, col // tile, row // tile))
 
 
+@functools.lru_cache(maxsize=64)
+def share_points(count: int, share: int) -> tuple[int, ...]:
+    """The indices, in the exact pass's table of a light's `count` points
+    (`_exact_pattern`, in cluster order), of `share` of them spread over the light as the
+    whole pattern is: the point nearest each cell centre of a near-square grid of `share`
+    cells over the pattern's unit square (light_shape.stratified_unit_square, which the
+    table maps onto the light area for area). A table order taken every k-th point would
+    leave each 4 x 4 tile's first corner, a share biased towards the light's centre and
+    its edges' sharper shadows."""
+    if share >= count:
+        return tuple(range(count))
+    uv = stratified_unit_square(count)[cluster_order(count)]
+    cols = int(math.ceil(math.sqrt(share)))
+    rows = int(math.ceil(share / cols))
+    taken: list[int] = []
+    for i in range(share):
+        target = np.array([(i % cols + 0.5) / cols, (i // cols + 0.5) / rows])
+        distance = np.sum((uv - target) ** 2, axis=1)
+        distance[taken] = np.inf
+        taken.append(int(np.argmin(distance)))
+    return tuple(taken)
+
+
 @functools.lru_cache(maxsize=32)
 def _exact_pattern(shape: LightShape, count: int) -> np.ndarray:
     """The exact pass's table of `count` light points (lib/exact_soft.glsl), zero-padded to

@@ -71,7 +71,7 @@ void ow_exact_mark(ivec2 at, vec3 sides)
 // surface as for an opaque triangle; a sun's walk comes along its axis from upstream.
 void ow_medium_entry(ivec2 at, vec3 p)
 {
-  int rows = textureSize(ow_positions, 0).y;
+  ivec2 size = textureSize(ow_positions, 0);
   vec3 q = p;
 #ifndef OW_FIXED_KIND
   if (ow_projective != 0) {
@@ -90,7 +90,7 @@ void ow_medium_entry(ivec2 at, vec3 p)
     float across = dot(v_plane.xyz, ow_light_axis);
     float t = h / across;  // q - t axis lies on the plane
     if (across != 0.0 && t > ow_exact_eps * length(q)) {
-      ow_media_mark(at, rows, (across < 0.0) ? t : -t);
+      ow_media_mark(at, size, (across < 0.0) ? t : -t);
     }
     return;
   }
@@ -101,7 +101,7 @@ void ow_medium_entry(ivec2 at, vec3 p)
   }
   float rest = h / along;  // the crossing's distance from the sample, over |q|
   if (rest > ow_exact_eps && rest < 1.0) {
-    ow_media_mark(at, rows, ((along < 0.0) ? rest : -rest) * length(q));
+    ow_media_mark(at, size, ((along < 0.0) ? rest : -rest) * length(q));
   }
 }
 #endif
@@ -114,7 +114,7 @@ void ow_exact_entry(ivec2 at, vec3 p)
 {
 #ifdef OW_MEDIUM
 #ifdef OW_EXACT_SOFT
-  ow_medium_soft_entry(p, at, textureSize(ow_positions, 0).y);  // lib/exact_soft_medium.glsl
+  ow_medium_soft_entry(p, at, textureSize(ow_positions, 0));  // lib/exact_soft_medium.glsl
 #else
   ow_medium_entry(at, p);  // a medium's crossing (lib/media.glsl)
 #endif

@@ -26,23 +26,53 @@ uint ow_medium_units(float length_signed, float sigma)
   return uint(int(floor(length_signed * sigma + 0.5)));
 }
 
-#ifdef OW_MEDIUM
-#ifdef OW_EXACT
-// The exact pass: the sample at `at` gets a crossing's signed optical depth per channel,
-// for its light point j (0 for a hard light; lib/exact_soft_medium.glsl): channel c in row
-// at.y + (3 j + c) * rows of ow_media (passes/media.py). `s`: the crossing's distance from
-// the sample, positive when the walk from the light enters the medium there.
-void ow_media_mark_point(ivec2 at, int rows, int j, float s)
+// Where channel c of light point j of the sample at `pix` lies in ow_media: blocks of the
+// samples' `size`, `across` points a row of blocks and three rows of blocks a row of points
+// (passes/media.py's SampleMedia); a hard light's one point: three blocks down.
+ivec2 ow_media_word(ivec2 pix, ivec2 size, int across, int j, int c)
 {
-  imageAtomicAdd(ow_media, at + ivec2(0, 3 * j * rows), ow_medium_units(s, ow_medium_sigma.r));
-  imageAtomicAdd(ow_media, at + ivec2(0, (3 * j + 1) * rows), ow_medium_units(s, ow_medium_sigma.g));
-  imageAtomicAdd(ow_media, at + ivec2(0, (3 * j + 2) * rows), ow_medium_units(s, ow_medium_sigma.b));
+  return pix + ivec2((j % across) * size.x, (3 * (j / across) + c) * size.y);
 }
 
-void ow_media_mark(ivec2 at, int rows, float s)
+#ifdef OW_MEDIA_WORDS
+// Programs that hold the exact pass's words (ow_media, ow_media_across, ow_media_scale,
+// ow_media_index: shaders.MEDIA_WORDS_DEFINE).
+
+// The optical depths (RGB) of light point j of the sample at `pix` (of the samples' `size`).
+vec3 ow_media_depth(ivec2 pix, ivec2 size, int j)
 {
-  ow_media_mark_point(at, rows, 0, s);
+  return vec3(float(int(imageLoad(ow_media, ow_media_word(pix, size, ow_media_across, j, 0)).x)),
+              float(int(imageLoad(ow_media, ow_media_word(pix, size, ow_media_across, j, 1)).x)),
+              float(int(imageLoad(ow_media, ow_media_word(pix, size, ow_media_across, j, 2)).x))) / ow_media_scale;
 }
+
+// The pattern index (lib/exact_soft.glsl's ow_exact_pattern) of the j-th light point a
+// sample follows through the media: a share spread over the light as the whole pattern is
+// (passes/media.py's share_points), four indices a vec4.
+int ow_media_point(int j)
+{
+  return int(ow_media_index[j >> 2][j & 3]);
+}
+#endif
+
+#ifdef OW_MEDIUM
+#ifdef OW_EXACT
+// The exact pass: the sample at `at` (of the samples' `size`) gets a crossing's signed
+// optical depth per channel, for its light point j (0 for a hard light;
+// lib/exact_soft_medium.glsl), where ow_media_word puts it. `s`: the crossing's distance
+// from the sample, positive when the walk from the light enters the medium there.
+void ow_media_mark_point(ivec2 at, ivec2 size, int j, float s)
+{
+  imageAtomicAdd(ow_media, ow_media_word(at, size, ow_media_across, j, 0), ow_medium_units(s, ow_medium_sigma.r));
+  imageAtomicAdd(ow_media, ow_media_word(at, size, ow_media_across, j, 1), ow_medium_units(s, ow_medium_sigma.g));
+  imageAtomicAdd(ow_media, ow_media_word(at, size, ow_media_across, j, 2), ow_medium_units(s, ow_medium_sigma.b));
+}
+
+void ow_media_mark(ivec2 at, ivec2 size, float s)
+{
+  ow_media_mark_point(at, size, 0, s);
+}
+
 #endif
 #ifdef OW_HAZE
 // A map's haze: the media a texel's ray from the light crosses, in five R32UI words a texel

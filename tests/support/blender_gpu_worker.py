@@ -119,8 +119,8 @@ def pieces_frames(pipeline):
 
 def media_frames(pipeline):
     """Visibility of the fog box around a figure (tests/gl/test_media_pass.py), by key: the
-    exact pass's optical depths under a point light (outside the fog and inside it) and a
-    spot, and the maps' haze."""
+    exact pass's optical depths under a point light (outside the fog and inside it), a spot
+    and a sphere light of 0.5 m, and the maps' haze."""
     from addon.core.media import Medium
     from addon.render.frame import settings_for
     from addon.render.resident import ResidentScene
@@ -136,6 +136,17 @@ def media_frames(pipeline):
             result = pipeline.render(scene.light, resident, samples, settings_for(method, 256, scene.light.emission))
             frames[f"media_{name}_{method}_visibility"] = result.visibility
         pipeline.backend.release_scene(resident)
+    # A sphere light of 0.5 m: the exact pass follows a share of its points through the fog
+    # and the test weighs them with the surfaces' marks (shadow_test.frag's media variant).
+    from addon.core.light_shape import Sphere
+    from addon.core.scene import LightSpec
+
+    scene, samples, _, _ = _case()
+    sized = LightSpec("omni", scene.light.matrix_world, shape=Sphere(0.5))
+    resident = _resident(scene, _fog(), Medium("fog", (0.5, 0.9, 1.4)))
+    result = pipeline.render(sized, resident, samples, settings_for("exact", 256, "omni"))
+    frames["media_sized_exact_visibility"] = result.visibility
+    pipeline.backend.release_scene(resident)
     from tests.gl.test_grid_pass import _case as cloud_case
     from tests.gl.test_grid_pass import cloud
 

@@ -1,6 +1,7 @@
 """A fog box by a figure, as an artist builds one (issue 43):
 
-    python tests/support/make_fog_blend.py OUT.blend [--noise] [--variant NAME] [--reference OUT.npz]
+    python tests/support/make_fog_blend.py OUT.blend [--noise] [--variant NAME] [--light-size R]
+        [--reference OUT.npz]
 
 - `Ground` (a 6 m plane) and `Figure` (a 0.4 x 0.4 x 1.2 m box standing on it);
 - `Fog`: a box of volume shader and no surface shader (a medium); by `--variant`:
@@ -13,7 +14,8 @@
   - `tinted`: the `around` box of a Principled Volume with a colour and an absorption colour;
   - `scatter_add`: the `beside` box of a coloured Volume Scatter added to a Volume
     Absorption, mixed half and half with a Volume Coefficients node;
-- a hard point light above, a camera looking down at the ground, 128 x 96 pixels.
+- a hard point light above (`--light-size`: a sphere of that radius), a camera looking down
+  at the ground, 128 x 96 pixels.
 
 `build` makes the scene in the running Blender (on `stage`, which the other volume test
 files share); `scripts/fog_box_probe.py` renders it with its own settings; `--reference`
@@ -169,10 +171,12 @@ def stage(name: str, light_at=tuple(LIGHT)):
     return scene, light
 
 
-def build(noise: bool = False, variant: str = "beside"):
-    """The scene in the running Blender (an empty file first); returns (scene, light, fog)."""
+def build(noise: bool = False, variant: str = "beside", light_size: float = 0.0):
+    """The scene in the running Blender (an empty file first); returns (scene, light, fog).
+    `light_size`: the point light's radius (0: hard)."""
     spec = VARIANTS[variant]
     scene, light = stage("fog", spec.light)
+    light.data.shadow_soft_size = light_size
     fog = _box("Fog", tuple(2.0 * np.array(spec.half)), spec.centre)
     fog.data.materials.append(_fog_material(spec.shader, noise))
     return scene, light, fog
@@ -219,9 +223,10 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("out", type=Path)
     parser.add_argument("--noise", action="store_true")
     parser.add_argument("--variant", choices=sorted(VARIANTS), default="beside")
+    parser.add_argument("--light-size", type=float, default=0.0, help="the light's radius in metres (0: hard)")
     parser.add_argument("--reference", type=Path, default=None)
     args = parser.parse_args(argv)
-    build(args.noise, args.variant)
+    build(args.noise, args.variant, args.light_size)
     save_and_capture(args.out, args.reference)
     return 0
 

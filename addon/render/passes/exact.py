@@ -76,11 +76,12 @@ def _lists(backend, caller: str) -> ExactLists:
 
 
 def link_samples(backend, size: int, tiles: int, uniforms: UniformValues, hit_words: int = 1,
-                 media: int = 0) -> None:
+                 media: int = 0, media_across: int = 1) -> None:
     """Link every uploaded sample into the list of the map texel it falls in, through the
     full warp (shaders.link_variant, the scatter's uniforms with ow_count_size = the map
     resolution), with `hit_words` words of marks a sample (a sized light's bits), and the
-    samples' optical depths of `media` light points each cleared (passes/media.py; 0: none)."""
+    samples' optical depths of `media` light points each cleared, `media_across` of them a
+    row of blocks (passes/media.py's SampleMedia; 0: none)."""
     if backend.samples.size is None:
         raise BackendError("link_samples called before upload_samples")
     device = backend.device
@@ -93,7 +94,7 @@ def link_samples(backend, size: int, tiles: int, uniforms: UniformValues, hit_wo
     for image in held.all():
         device.clear_image(image)
     if media:
-        backend.sample_media.ready(device, (width, height), media)
+        backend.sample_media.ready(device, (width, height), media, media_across)
     else:
         backend.sample_media.live = False
     held.work_done = dict.fromkeys(WORK_KEYS, 0)  # a new dict: an earlier frame keeps its own
@@ -110,8 +111,8 @@ def read_links(backend) -> tuple[np.ndarray, np.ndarray]:
 
 
 def read_media(backend) -> np.ndarray | None:
-    """The exact pass's optical depths since the last `link_samples`, (3 * H, W) uint32
-    (passes/media.py), or None for a frame without media."""
+    """The exact pass's optical depths since the last `link_samples`, uint32 in
+    SampleMedia's layout (passes/media.py), or None for a frame without media."""
     if not backend.sample_media.live:
         return None
     backend.device.barrier()

@@ -13,6 +13,7 @@ reader: sigma_light times the sample's distance.
 from __future__ import annotations
 
 import logging
+import math
 from dataclasses import dataclass
 from typing import Any
 
@@ -21,7 +22,7 @@ import numpy as np
 from ...core import media as core_media
 from ...core.light_shape import stratified_points
 from .alpha import AtlasWords
-from ..shaders import GRID_LIGHT_POINTS, GRID_MAX, GRID_SAMPLERS, HAZE_IMAGES, LIGHT_KINDS
+from ..shaders import GRID_LIGHT_POINTS, GRID_MAX, GRID_SAMPLERS, HAZE_IMAGES, LIGHT_KINDS, MEDIA_POINTS
 
 log = logging.getLogger(__name__)
 
@@ -37,8 +38,11 @@ class MediaFrame:
     light: np.ndarray
     offset: float = 0.0
     # The light points a sample of the exact pass keeps optical depths for: 1 for a hard
-    # light, a stratified share of a sized light's (MEDIA_POINTS at most).
+    # light, a stratified share of a sized light's (MEDIA_POINTS at most), by their index in
+    # the exact pass's pattern (soft.py's `share_points`).
     points: int = 1
+    indices: tuple[int, ...] = (0,)
+    across: int = 1  # points a row of blocks in SampleMedia's image
 
     @property
     def on(self) -> bool:
@@ -47,37 +51,52 @@ class MediaFrame:
     def uniforms(self) -> dict[str, Any]:
         """What the readers of the sums take (the shadow test's haze variant, the resolve)."""
         return {"ow_media_light": self.light, "ow_media_scale": self.scale if self.on else 1.0,
-                "ow_media_offset": self.offset, "ow_media_points": self.points}
+                "ow_media_offset": self.offset, **self.share_uniforms()}
+
+    def share_uniforms(self) -> dict[str, Any]:
+        """ow_media_points and ow_media_index: the light points followed, by pattern index."""
+        index = np.zeros(MEDIA_POINTS)
+        index[:len(self.indices)] = self.indices
+        return {"ow_media_points": self.points, "ow_media_across": self.across, "ow_media_index": index.reshape(-1, 4)}
 
     def sigma_uniform(self, medium: core_media.Medium) -> np.ndarray:
         """A medium part's ow_medium_sigma: its extinction in the frame's units a metre."""
         return medium.sigma * self.scale
 
     def kept(self, words: np.ndarray, distance: np.ndarray) -> np.ndarray:
-        """The light kept per sample, from the exact pass's words (3 * points * H, W) uint32
+        """The light kept per sample, from the exact pass's words (SampleMedia's layout)
         and each sample's distance from the light (H, W): lib/media.glsl's
         ow_media_light_kept, averaged over the sample's light points."""
-        rows = words.shape[0] // (3 * self.points)
-        per_point = words.view(np.int32).astype(np.float64).reshape(self.points, 3, rows, -1)
+        height, width = np.shape(distance)
+        down = words.shape[0] // (3 * height)
+        blocks = words.view(np.int32).astype(np.float64).reshape(down, 3, height, self.across, width)
+        per_point = blocks.transpose(0, 3, 1, 2, 4).reshape(down * self.across, 3, height, width)[:self.points]
         depth = np.moveaxis(per_point, 1, -1) / (self.scale if self.on else 1.0)  # (points, H, W, 3)
         depth += np.asarray(distance, dtype=np.float64)[None, ..., None] * self.light
         return core_media.visibility(np.maximum(depth, 0.0)).mean(axis=0)
 
 
 NO_MEDIA = MediaFrame(0.0, np.zeros(3))
-# The light points of a sized light whose segments the exact pass follows through media:
-# each keeps three words a view sample (lib/exact_soft_medium.glsl). On the foggy courtyard
-# under a sphere of 0.15 m the soft error was 0.108 % along the centre's segment alone,
-# 0.055 % with 8 points and 0.030 % with 16 (docs/volumes.md); MEDIA_WORDS bounds the words
-# (64 MB), so a large view follows fewer.
-MEDIA_POINTS = 16
-MEDIA_WORDS = 1 << 24
+# A sized light's exact pass follows MEDIA_POINTS of its points (shaders' constant) through
+# media, each keeping three words a view sample (lib/exact_soft_medium.glsl); MEDIA_WORDS
+# bounds the words (128 MB), so a large view follows fewer.
+MEDIA_WORDS = 1 << 25
 
 
-def media_points(exact_samples: int, samples: int) -> int:
-    """The light points a sized light's exact pass follows through media for `samples`
-    view samples: MEDIA_POINTS, or fewer for a light of fewer points or a large view."""
-    return max(1, min(MEDIA_POINTS, int(exact_samples), MEDIA_WORDS // max(3 * int(samples), 1)))
+def media_points(exact_samples: int, size: tuple[int, int], max_texture: int) -> tuple[int, int]:
+    """(the light points a sized light's exact pass follows through media, how many a row
+    of blocks in SampleMedia's image) for view samples of `size` (H, W): MEDIA_POINTS, or
+    fewer for a light of fewer points, a large view (MEDIA_WORDS) or one whose blocks do
+    not fit the device's `max_texture`; a square number (64, 49, ... 1) below the light's
+    own count, so that soft.py's `share_points` covers the light evenly."""
+    height, width = (max(int(v), 1) for v in size)
+    across = max(int(max_texture) // width, 1)
+    capacity = across * max(int(max_texture) // (3 * height), 1)
+    bound = max(1, min(MEDIA_POINTS, MEDIA_WORDS // (3 * height * width), capacity))
+    points = max(1, int(exact_samples)) if int(exact_samples) <= bound else int(math.isqrt(bound)) ** 2
+    return points, min(points, across)
+
+
 
 
 class MediaMemo:
@@ -143,30 +162,42 @@ def read_haze(backend) -> np.ndarray | None:
 
 
 class SampleMedia:
-    """The exact pass's optical depths: one R32UI image of three rows of words a view
-    sample and light point (channel c of point j of the sample at (x, y) at
-    (x, y + (3 j + c) * H)), cleared at each link_samples of a frame with media (`live`
-    until the next)."""
+    """The exact pass's optical depths: one R32UI image of blocks of the samples' size (W, H),
+    `across` light points a row of blocks, three rows of blocks (one a channel) a row of
+    points: channel c of point j of the sample at (x, y) at
+    (x + (j % across) W, y + (3 (j // across) + c) H) (lib/media.glsl's ow_media_word).
+    Cleared at each link_samples of a frame with media (`live` until the next)."""
 
     def __init__(self) -> None:
         self.image: Any = None
         self.size: tuple[int, int] | None = None
         self.live = False
+        # A sized light's shadow test weighed them per light point with the surfaces'
+        # weights and marks (shadow_test.frag): the readers and the resolve leave them.
+        self.weighed = False
 
-    def ready(self, device, size: tuple[int, int], points: int = 1) -> Any:
+    def ready(self, device, size: tuple[int, int], points: int = 1, across: int = 1) -> Any:
         width, height = size
-        if self.image is None or self.size != (width, 3 * points * height):
+        across = max(1, min(int(across), int(points)))
+        wanted = (width * across, 3 * height * (-(-int(points) // across)))
+        if self.image is None or self.size != wanted:
             self.release(device)
-            self.size = (width, 3 * points * height)
+            self.size = wanted
             self.image = device.texture(self.size, "R32UI")
         device.clear_image(self.image)
         self.live = True
+        self.weighed = False
         return self.image
+
+    @property
+    def unweighed(self) -> bool:
+        """Whether this frame's sums wait for a reader or the resolve to weigh them in."""
+        return self.live and not self.weighed
 
     def release(self, device) -> None:
         device.free(*((self.image,) if self.image is not None else ()))
         self.image = self.size = None
-        self.live = False
+        self.live = self.weighed = False
 
 
 def Haze() -> AtlasWords:  # noqa: N802 - the haze's words, named as the backend holds them

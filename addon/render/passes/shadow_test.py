@@ -9,14 +9,15 @@ from ..device import Target, UniformValues
 from .exact import _lists
 from ..shaders import (EXACT_SOFT_KEY, RESOLVE_PROGRAM, SHADOW_TEST_PROGRAM, ProgramInterface, exact_soft_of,
                        program_variant)
-from ..shaders import grids_of, haze_of, soft_of, veil_of
+from ..shaders import exact_soft_media_of, grids_of, haze_of, soft_of, veil_of
 
 
 def test_program(backend, uniforms: UniformValues) -> tuple[ProgramInterface, dict[str, object]]:
     """The shadow test's variant for `uniforms` and the images it reads: the veil's when this
     atlas drew see-through parts, none otherwise (the plain test, unchanged); the soft
     variant when the uniforms carry a sized light's points; the exact soft variant, which
-    weighs the light points the exact pass left unmarked, with its marks."""
+    weighs the light points the exact pass left unmarked, with its marks (and the media it
+    summed per light point, which it weighs the same way)."""
     iface = program_variant(SHADOW_TEST_PROGRAM, uniforms)
     images = {}
     if backend.veil.live:
@@ -27,6 +28,10 @@ def test_program(backend, uniforms: UniformValues) -> tuple[ProgramInterface, di
         if backend.exact is None:
             raise BackendError("the exact soft shadow test needs the exact pass's marks (link_samples)")
         iface, images = exact_soft_of(iface), {"ow_hits": backend.exact.hits}
+        if backend.sample_media.live:
+            # The media its exact pass summed per light point, weighed with the surfaces' marks.
+            iface, images = exact_soft_media_of(iface), {**images, "ow_media": backend.sample_media.image}
+            backend.sample_media.weighed = True
     if backend.haze.live:
         iface, images = haze_of(iface), {**images, **backend.haze.by_name()}
     if int(uniforms.get("ow_grid_count", 0)) > 0:
@@ -45,7 +50,7 @@ def run_shadow_test(backend, uniforms: UniformValues) -> None:
         # Bound even when no antialiasing runs (ow_edge_radius = 0 never reads it).
         backend.textures["ow_edges"] = device.texture((1, 1), "R32F", np.zeros(1, np.float32))
     iface, images = test_program(backend, uniforms)
-    if backend.haze.live:
+    if backend.haze.live or backend.sample_media.weighed:
         uniforms = {**uniforms, **backend.media.uniforms()}
     textures = backend.textures
     if int(uniforms.get("ow_grid_count", 0)) > 0:
@@ -79,7 +84,7 @@ def resolve_visibility(backend, target: Target, marks: bool) -> None:
     if marks:
         device.barrier()  # the exact pass's atomics, before the loads
         hits = _lists(backend, "resolve_visibility").hits
-    media_on = backend.sample_media.live
+    media_on = backend.sample_media.unweighed
     if media_on:
         media = backend.sample_media.image
     uniforms = {"ow_marks": int(marks), "ow_media_on": int(media_on), **backend.media.uniforms()}

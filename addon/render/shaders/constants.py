@@ -136,6 +136,10 @@ GRID_MAX_STEPS = 1024
 # A sized light's points each view sample's march follows through the grids (its stratified
 # pattern, core/light_shape.stratified_points), the light they let through averaged.
 GRID_LIGHT_POINTS = 16
+# The most light points of a sized light whose segments the exact pass follows through
+# homogeneous media (passes/media.py's media_points; ow_media_index holds their pattern
+# indices, four a vec4).
+MEDIA_POINTS = 144
 
 # Soft shadows of a sized light (lib/soft.glsl, issue 27): the light's points a shadow test
 # reads (core/light_shape.stratified_points, at most SOFT_MAX_POINTS), and the steps of its
@@ -168,7 +172,7 @@ def _shared_defines() -> dict[str, str]:
         "OW_EXACT_SOFT_MAX_POINTS": str(EXACT_SOFT_MAX_POINTS), "OW_EXACT_SOFT_CLUSTER": str(EXACT_SOFT_CLUSTER),
         "OW_SOFT_MAX_POINTS": str(SOFT_MAX_POINTS), "OW_SOFT_SEARCH_STEPS": str(SOFT_SEARCH_STEPS),
         "OW_GRID_MAX": str(GRID_MAX), "OW_GRID_MAX_STEPS": str(GRID_MAX_STEPS),
-        "OW_GRID_LIGHT_POINTS": str(GRID_LIGHT_POINTS),
+        "OW_GRID_LIGHT_POINTS": str(GRID_LIGHT_POINTS), "OW_MEDIA_POINTS": str(MEDIA_POINTS),
     })
     return defines
 

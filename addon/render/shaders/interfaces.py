@@ -12,7 +12,7 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 
 from ...core import samples, warping
-from .constants import (FOOTPRINT_VERTICES, MAX_POINT_SIZE, REGION_PLANES, SHARED_DEFINES, SLOTS,
+from .constants import (FOOTPRINT_VERTICES, MAX_POINT_SIZE, MEDIA_POINTS, REGION_PLANES, SHARED_DEFINES, SLOTS,
                         VERTEX_TEXTURE_WIDTH)
 
 
@@ -188,9 +188,10 @@ RESOLVE_PROGRAM = ProgramInterface(
     fragment_file="visibility_resolve.frag",
     fragment_out=(("vec2", "ow_visibility"),),
     uniforms=uniform_list("int ow_marks", "int ow_media_on", "vec3 ow_media_light", "float ow_media_scale",
-                          "int ow_media_points"),
+                          "int ow_media_points", "int ow_media_across", f"vec4 ow_media_index[{MEDIA_POINTS // 4}]"),
     samplers=("ow_test", "ow_positions"),
     images=(("r32ui", "ow_hits"), ("r32ui", "ow_media")),
+    defines={"OW_MEDIA_WORDS": "1"},  # variants.MEDIA_WORDS_DEFINE: it reads the exact pass's words
     **_FULLSCREEN,
 )
 

@@ -9,7 +9,8 @@ from .interfaces import (ADVANCE_PROGRAM, BARRIER_PROGRAM, DEPTH_PROGRAM, EDGE_P
                          SHADOW_TEST_PROGRAM)
 from .variants import (VARIANT_BASES, EXACT_DEFINE, FIXED_KIND_NAMES, POINTS_DEFINE, is_footprint,
                        is_shadow_test, link_kind_variant, scatter_mode_variant, base_variant, alpha_of, exact_of,
-                       exact_soft_of, grids_of, haze_of, medium_of, pieces_of, soft_of, veil_of, warp_step_variant)
+                       exact_soft_of, exact_soft_media_of, grids_of, haze_of, medium_of, pieces_of, soft_of, veil_of,
+                       warp_step_variant)
 
 DEPTH_PLAIN_PROGRAM = base_variant(DEPTH_PROGRAM.name, False, None)
 SHADOW_TEST_PLAIN_PROGRAM = base_variant(SHADOW_TEST_PROGRAM.name, False, None)
@@ -32,12 +33,14 @@ EXACT_SOFT_PROGRAMS = tuple(exact_soft_of(iface) for iface in (*EXACT_PROGRAMS, 
                                                               *VARIANT_PROGRAMS)
                             if (EXACT_DEFINE in iface.defines and POINTS_DEFINE not in iface.defines)
                             or is_shadow_test(iface))
-# Media (issue 43): the exact pass's and the maps' medium variants, the haze's shadow tests.
+# Media (issue 43): the exact pass's and the maps' medium variants, the haze's shadow tests,
+# and the exact soft shadow tests that weigh the media per light point.
 MEDIA_PROGRAMS = tuple(medium_of(exact_of(iface, count)) for iface in _FOOTPRINTS for count in (False, True)) + tuple(
     medium_of(exact_soft_of(exact_of(iface, count))) for iface in _FOOTPRINTS for count in (False, True)
     if POINTS_DEFINE not in iface.defines) + tuple(
     medium_of(iface) for iface in _FOOTPRINTS) + tuple(haze_of(iface) for iface in (*_SHADOW_TESTS, *VEIL_PROGRAMS,
-                                                                                  *SOFT_PROGRAMS))
+                                                                                  *SOFT_PROGRAMS)) + tuple(
+    exact_soft_media_of(iface) for iface in EXACT_SOFT_PROGRAMS if is_shadow_test(iface))
 # Density grids: the shadow test of every plain, veil, haze, soft and exact soft variant.
 GRID_PROGRAMS = tuple(grids_of(iface) for iface in (*_SHADOW_TESTS, *VEIL_PROGRAMS, *SOFT_PROGRAMS,
                                                     *(i for i in MEDIA_PROGRAMS if is_shadow_test(i)),

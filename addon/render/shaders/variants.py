@@ -20,7 +20,7 @@ from typing import TypeVar
 
 from ...core import projection
 from ...core.errors import BackendError
-from .constants import (GRID_LIGHT_POINTS, GRID_MAX, EXACT_SOFT_CLUSTER, EXACT_SOFT_MAX_POINTS, NO_SPLIT, SCATTER_MODE_CODES, SCATTER_MODES,
+from .constants import (GRID_LIGHT_POINTS, GRID_MAX, MEDIA_POINTS, EXACT_SOFT_CLUSTER, EXACT_SOFT_MAX_POINTS, NO_SPLIT, SCATTER_MODE_CODES, SCATTER_MODES,
                         SOFT_MAX_POINTS, SOFT_MAX_SEARCH, WARP_STEPS)
 from .interfaces import (DEPTH_PROGRAM, FOOTPRINT_PROGRAM, SCATTER_PROGRAM, SHADOW_TEST_PROGRAM, WARP_BUILD_PROGRAM,
                          ComputeInterface, ProgramInterface, Uniform, Varying, uniform_list)
@@ -73,6 +73,12 @@ MEDIA_IMAGE = ("r32ui", "ow_media")  # the exact pass's optical depths, three ro
 HAZE_IMAGES = (("r32ui", "ow_haze_r"), ("r32ui", "ow_haze_g"), ("r32ui", "ow_haze_b"), ("r32ui", "ow_haze_near"),
                ("r32ui", "ow_haze_far"))
 MEDIA_TEST_UNIFORMS = uniform_list("vec3 ow_media_light", "float ow_media_scale", "float ow_media_offset")
+# The light points a sample keeps optical depths for (1: a hard light's) and their indices in
+# the exact pass's pattern (passes/media.py's share_points), four a vec4.
+MEDIA_SHARE_UNIFORMS = uniform_list("int ow_media_points", "int ow_media_across", "float ow_media_scale",
+                                    f"vec4 ow_media_index[{MEDIA_POINTS // 4}]")
+# Programs that hold the exact pass's words and MEDIA_SHARE_UNIFORMS (lib/media.glsl's readers).
+MEDIA_WORDS_DEFINE = "OW_MEDIA_WORDS"
 EXACT_SOFT_UNIFORMS = uniform_list("vec4 ow_exact_light", "float ow_exact_reach", "float ow_exact_spread",
                                    "vec2 ow_exact_spot", "mat3 ow_exact_frame", f"int {EXACT_SOFT_KEY}",
                                    f"vec4 ow_exact_pattern[{EXACT_SOFT_MAX_POINTS}]",
@@ -208,6 +214,21 @@ def exact_soft_of(base: ProgramInterface) -> ProgramInterface:
                   uniforms=EXACT_SOFT_UNIFORMS, varyings=varyings, images=images)
 
 
+EXACT_SOFT_MEDIA_DEFINE = "OW_EXACT_SOFT_MEDIA"
+
+
+def exact_soft_media_of(base: ProgramInterface) -> ProgramInterface:
+    """The exact soft shadow test's variant for a frame whose exact pass summed media per
+    light point (lib/exact_soft_medium.glsl): it weighs them with the surfaces' weights and
+    marks (shadow_test.frag), so readers and the resolve leave them (passes/media.py's
+    SampleMedia.weighed)."""
+    if not is_shadow_test(base) or EXACT_SOFT_DEFINE not in base.defines:
+        raise BackendError(f"program {base.name!r} has no exact soft media variant")
+    return derive(base, base.name + "_media", defines={EXACT_SOFT_MEDIA_DEFINE: "1", MEDIA_WORDS_DEFINE: "1"},
+                  uniforms=uniform_list("vec3 ow_media_light") + MEDIA_SHARE_UNIFORMS,
+                  images=base.images + (MEDIA_IMAGE,))
+
+
 def alpha_of(base: ProgramInterface) -> ProgramInterface:
     """The see-through variant of a footprint or G-buffer program (issue 25): the texel's
     ray meets the triangle, its barycentrics give the UV and the material's alpha
@@ -248,8 +269,8 @@ def medium_of(base: ProgramInterface) -> ProgramInterface:
     sigma = uniform_list("vec3 ow_medium_sigma")
     if EXACT_DEFINE in base.defines:
         # ow_media_points: the light points a sample keeps optical depths for (1: hard).
-        return derive(base, base.name + "_medium", defines={MEDIUM_DEFINE: "1"},
-                      uniforms=sigma + uniform_list("int ow_media_points"), images=base.images + (MEDIA_IMAGE,))
+        return derive(base, base.name + "_medium", defines={MEDIUM_DEFINE: "1", MEDIA_WORDS_DEFINE: "1"},
+                      uniforms=sigma + MEDIA_SHARE_UNIFORMS, images=base.images + (MEDIA_IMAGE,))
     return derive(base, base.name + "_medium", defines={MEDIUM_DEFINE: "1", HAZE_DEFINE: "1"},
                   uniforms=sigma + uniform_list("float ow_media_offset"), images=HAZE_IMAGES,
                   fragment_file=FOOTPRINT_MEDIUM_FILE)
