@@ -87,7 +87,7 @@ def media_points(exact_samples: int, size: tuple[int, int], max_texture: int) ->
     """(the light points a sized light's exact pass follows through media, how many a row
     of blocks in SampleMedia's image) for view samples of `size` (H, W): MEDIA_POINTS, or
     fewer for a light of fewer points, a large view (MEDIA_WORDS) or one whose blocks do
-    not fit the device's `max_texture`; a square number (64, 49, ... 1) below the light's
+    not fit the device's `max_texture`; a square number (144, 121, ... 1) below the light's
     own count, so that soft.py's `share_points` covers the light evenly."""
     height, width = (max(int(v), 1) for v in size)
     across = max(int(max_texture) // width, 1)
