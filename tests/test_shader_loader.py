@@ -111,9 +111,10 @@ def test_every_program_loads_and_uses_only_declared_names(iface):
     body = S.load_source(iface.fragment_file) + S.load_source(iface.vertex_file)
     # The exact pass's and the see-through code are compiled only into their own variants
     # (shaders.exact_of, shaders.alpha_of, shaders.veil_of, shaders.soft_of, shaders.exact_soft_of,
-    # shaders.pieces_of, shaders.medium_of, shaders.haze_of).
+    # shaders.pieces_of, shaders.medium_of, shaders.haze_of, shaders.exact_soft_media_of, and the
+    # readers of the exact pass's media words).
     for define in (S.EXACT_DEFINE, S.ALPHA_DEFINE, S.VEIL_DEFINE, S.SOFT_DEFINE, S.EXACT_SOFT_DEFINE, S.PIECES_DEFINE,
-                   S.MEDIUM_DEFINE, S.HAZE_DEFINE, S.GRIDS_DEFINE):
+                   S.MEDIUM_DEFINE, S.HAZE_DEFINE, S.GRIDS_DEFINE, S.EXACT_SOFT_MEDIA_DEFINE, S.MEDIA_WORDS_DEFINE):
         if define not in iface.defines:
             body = _strip_block(body, define)
     declared = {u.name for u in iface.uniforms} | set(iface.samplers) | {name for _, name in iface.images}

@@ -26,7 +26,7 @@ uint ow_medium_units(float length_signed, float sigma)
   return uint(int(floor(length_signed * sigma + 0.5)));
 }
 
-// Where channel c of light point j of the sample at `pix` lies in ow_media: blocks of the
+// Where channel c of light point j of the sample at `pix` lies in the media words: blocks of the
 // samples' `size`, `across` points a row of blocks and three rows of blocks a row of points
 // (passes/media.py's SampleMedia); a hard light's one point: three blocks down.
 ivec2 ow_media_word(ivec2 pix, ivec2 size, int across, int j, int c)
@@ -46,7 +46,7 @@ vec3 ow_media_depth(ivec2 pix, ivec2 size, int j)
               float(int(imageLoad(ow_media, ow_media_word(pix, size, ow_media_across, j, 2)).x))) / ow_media_scale;
 }
 
-// The pattern index (lib/exact_soft.glsl's ow_exact_pattern) of the j-th light point a
+// The pattern index (in lib/exact_soft.glsl's table of light points) of the j-th light point a
 // sample follows through the media: a share spread over the light as the whole pattern is
 // (passes/media.py's share_points), four indices a vec4.
 int ow_media_point(int j)
