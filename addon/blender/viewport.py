@@ -160,12 +160,15 @@ def _throttle_elapsed() -> None:
     return None  # one-shot timer
 
 
-def _read_grids() -> None:
+def _read_grids() -> float | None:
     """Read the density grids that need geometry nodes (scene_grids.py): they add objects
     to bpy.data, which a draw may not, so the draw leaves them to this one-shot timer, for
-    the scene and view layer it drew."""
+    the scene and view layer it drew. While a render runs it waits (a second at a time):
+    the readers' objects are not added under a render's feet."""
     from .scene_cache import CACHE
 
+    if getattr(bpy.app, "is_job_running", None) is not None and bpy.app.is_job_running("RENDER"):
+        return 1.0
     names, _STATE.grid_layer = _STATE.grid_layer, None
     scene = bpy.data.scenes.get(names[0]) if names else None
     layer = scene.view_layers.get(names[1]) if scene is not None else None
