@@ -49,8 +49,7 @@ def moved(medium: GridMedium, before: np.ndarray, after: np.ndarray) -> GridMedi
     """The medium of a grid whose object moved from matrix `before` to `after`."""
     if np.array_equal(before, after):
         return medium
-    to_index = medium.to_index @ before @ np.linalg.inv(after)
-    return GridMedium(medium.name, medium.sigma, medium.density, to_index)
+    return medium.moved(medium.to_index @ before @ np.linalg.inv(after))
 
 
 class SceneGrids:
@@ -97,20 +96,9 @@ class SceneGrids:
                 signature = ("volume", source.grid, source.sigma.tobytes(), source.index_to_object.tobytes(),
                              source.box)
                 changed |= self._keep(key, signature, matrix, owner, stale, known, source)
-            else:
-                signature = ("smoke", frame)
-                held = self._known.get(key)
-                if held is not None and held.signature == signature and not stale:
-                    known[key] = self._move(held, matrix)
-                    changed |= known[key] is not held
-                    continue
-                found = smoke_domains.smoke_medium(inst, frame, self._materials)
-                self.reads += 1
-                if isinstance(found, str):
-                    self.notes[key] = found
-                    found = None
-                known[key] = _Held(signature, matrix, found, owner)
-                changed = True
+            else:  # a smoke domain: its grid is read at once, no geometry nodes needed
+                changed |= self._keep(key, ("smoke", frame), matrix, owner, stale, known,
+                                      read=lambda inst=inst: smoke_domains.smoke_medium(inst, frame, self._materials))
         for key, signature, source in densities:
             changed |= self._keep(key, signature, source.matrix, (source.name, source.parent), False, known, source)
         changed |= bool(self._known.keys() - known.keys())
@@ -119,15 +107,28 @@ class SceneGrids:
         return changed
 
     def _keep(self, key: str, signature: Any, matrix: np.ndarray, owner: Owner, stale: bool,
-              known: dict[str, _Held], source: Any) -> bool:
-        """Keep a grid read before (moved if need be), or note it for `read_pending`."""
+              known: dict[str, _Held], source: Any = None,
+              read: Callable[[], GridMedium | str | None] | None = None) -> bool:
+        """Keep a grid read before (moved if need be); else read it now with `read`, or note
+        `source` for `read_pending`. Returns whether the drawn grids changed."""
         held = self._known.get(key)
         if held is not None and held.signature == signature and not stale:
             known[key] = self._move(held, matrix)
             return known[key] is not held
-        self.pending[key] = source
-        known[key] = _Held(signature, matrix, None, owner)
-        return held is not None and held.medium is not None
+        if read is None:
+            self.pending[key] = source
+            known[key] = _Held(signature, matrix, None, owner)
+            return held is not None and held.medium is not None
+        known[key] = _Held(signature, matrix, self._settle(key, read()), owner)
+        return True
+
+    def _settle(self, key: str, found: GridMedium | str | None) -> GridMedium | None:
+        """A read's medium (None: empty, or not read, its why noted), counted."""
+        self.reads += 1
+        if isinstance(found, str):
+            self.notes[key] = found
+            return None
+        return found
 
     @staticmethod
     def _move(held: _Held, matrix: np.ndarray) -> _Held:
@@ -160,13 +161,8 @@ class SceneGrids:
             view_layer.update()  # without the readers
         for key, medium in found:
             held = self._known.get(key)
-            if held is None:
-                continue  # gone since
-            if isinstance(medium, str):
-                self.notes[key] = medium
-                medium = None
-            self._known[key] = _Held(held.signature, held.matrix, medium, held.owner)
-            self.reads += 1
+            if held is not None:  # else gone since
+                self._known[key] = _Held(held.signature, held.matrix, self._settle(key, medium), held.owner)
         return bool(found)
 
     def clear(self) -> bool:

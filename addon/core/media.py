@@ -177,27 +177,38 @@ class GridMedium:
     sigma: np.ndarray  # (3,) float64, per unit density
     density: np.ndarray  # (nz, ny, nx) float32, >= 0
     to_index: np.ndarray  # (4, 4) float64
+    # The density's own digest (what the GPU's copy is keyed by); `moved` hands it over with
+    # the density, so a moved grid is neither checked nor hashed again.
+    density_digest: str = field(default="", repr=False)
     digest: str = field(init=False, default="")
 
     def __post_init__(self) -> None:
         sigma = np.asarray(self.sigma, dtype=np.float64).reshape(-1)
         if sigma.size == 1:
             sigma = np.repeat(sigma, 3)
-        density = np.ascontiguousarray(np.asarray(self.density, dtype=np.float32))
         to_index = np.asarray(self.to_index, dtype=np.float64)
         if sigma.shape != (3,) or not np.all(np.isfinite(sigma)) or np.any(sigma < 0.0):
             raise InputError(f"grid medium {self.name!r}: sigma must be 1 or 3 finite values >= 0")
-        if density.ndim != 3 or min(density.shape) < 1 or not np.all(np.isfinite(density)):
-            raise InputError(f"grid medium {self.name!r}: the density must be a finite 3D array, "
-                             f"got {density.shape}")
         if to_index.shape != (4, 4) or not np.all(np.isfinite(to_index)):
             raise InputError(f"grid medium {self.name!r}: to_index must be a finite 4x4 matrix")
+        if not self.density_digest:
+            density = np.ascontiguousarray(np.asarray(self.density, dtype=np.float32))
+            if density.ndim != 3 or min(density.shape) < 1 or not np.all(np.isfinite(density)):
+                raise InputError(f"grid medium {self.name!r}: the density must be a finite 3D array, "
+                                 f"got {density.shape}")
+            density = np.maximum(density, 0.0)
+            object.__setattr__(self, "density", density)
+            object.__setattr__(self, "density_digest",
+                               hashlib.sha1(f"{density.shape}|".encode() + density.tobytes()).hexdigest()[:16])
         object.__setattr__(self, "sigma", sigma)
-        object.__setattr__(self, "density", np.maximum(density, 0.0))
         object.__setattr__(self, "to_index", to_index)
-        h = hashlib.sha1(f"{self.name}|{density.shape}|".encode() + sigma.tobytes() + to_index.tobytes())
-        h.update(density.tobytes())
+        h = hashlib.sha1(f"{self.name}|{self.density_digest}|".encode() + sigma.tobytes() + to_index.tobytes())
         object.__setattr__(self, "digest", h.hexdigest()[:16])
+
+    def moved(self, to_index: np.ndarray) -> "GridMedium":
+        """The same grid under another world-to-index matrix (its object moved): the
+        density and its digest are shared, not copied."""
+        return GridMedium(self.name, self.sigma, self.density, to_index, density_digest=self.density_digest)
 
     def voxel_size(self) -> float:
         """The smallest voxel edge in world units."""

@@ -259,6 +259,7 @@ class ResidentScene:
         # marched by the shadow test (lib/grids.glsl).
         self.grids: dict[str, GridMedium] = {}
         self.removed: set[str] = set()  # keys removed since the last sync: the backend frees them
+        self.removed_grids: set[str] = set()  # density digests of grids dropped since the last sync
         self._parts: dict[str, list[str]] = {}  # object key -> its parts' keys (set_geometry)
         self._world: tuple[tuple, np.ndarray] | None = None
 
@@ -382,6 +383,9 @@ class ResidentScene:
         unless a grid of the same digest is held already."""
         if not isinstance(grid, GridMedium):
             raise InputError(f"grid {key!r}: expected a core.media.GridMedium, got {type(grid).__name__}")
+        held = self.grids.get(key)
+        if held is not None and held.density_digest != grid.density_digest:
+            self.removed_grids.add(held.density_digest)
         self.grids[key] = grid
 
     def subset(self, keys: Iterable[str]) -> "ResidentScene":
@@ -409,8 +413,10 @@ class ResidentScene:
             self.objects[part_key].matrix = matrix.copy()
 
     def remove(self, key: str) -> None:
-        """Drop an object (or a grid); the next sync frees its vertex textures."""
-        self.grids.pop(key, None)
+        """Drop an object (or a grid); the next sync frees its vertex textures (or density)."""
+        grid = self.grids.pop(key, None)
+        if grid is not None:
+            self.removed_grids.add(grid.density_digest)
         for part_key in self._parts.pop(key, ()):
             if self.objects.pop(part_key, None) is not None:
                 self.removed.add(part_key)

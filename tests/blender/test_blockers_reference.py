@@ -13,8 +13,6 @@ points lie inside the swept tube the oracle tests.
 """
 from __future__ import annotations
 
-import json
-
 import numpy as np
 import pytest
 
@@ -24,7 +22,7 @@ from addon.compare import light_from_reference  # noqa: E402
 from addon.core import metrics  # noqa: E402
 from addon.core.blockers import Spheres, Strands  # noqa: E402
 from addon.reference.data import ReferenceData  # noqa: E402
-from tests.support.cli_run import SUPPORT, python_ok  # noqa: E402
+from tests.support.cli_run import SUPPORT, compared, python_ok  # noqa: E402
 from tests.support.oracle import ray_hits  # noqa: E402
 
 pytestmark = pytest.mark.blender
@@ -52,10 +50,7 @@ def reference(request, tmp_path_factory):
     blend = folder / "blockers.blend"
     python_ok(SUPPORT / "make_left_out_blend.py", blend, "--blockers")
     _set_shape(blend, request.param)
-    python_ok("-m", "addon.cli", "compare", "--blend", blend, "--methods", "dpsm", "--resolutions", "256",
-              "--repeats", "1", "--no-images", "--out", folder / "out", "--cache-dir", folder / "cache")
-    (path,) = (folder / "cache").glob("*.npz")
-    rows = json.loads((folder / "out" / "results.json").read_text())
+    path, rows = compared(blend, folder, "dpsm")
     return ReferenceData.load(path), rows, request.param
 
 

@@ -20,14 +20,13 @@ import pytest
 
 pytest.importorskip("bpy", reason="the clouds and their reference need bpy")
 
-from addon.core import media, metrics  # noqa: E402
 from addon.core.media import GridMedium  # noqa: E402
 from addon.reference.data import ReferenceData  # noqa: E402
 from addon.render.blender_compat import grid_nodes_available  # noqa: E402
-from tests.support.cli_run import SUPPORT, python_ok  # noqa: E402
+from tests.support.cli_run import SUPPORT, checked_arrays, python_ok  # noqa: E402
 from tests.support.plain_cycles import mean_visibilities  # noqa: E402
 from tests.support.make_cloud_blend import VARIANTS  # noqa: E402
-from tests.support.make_fog_blend import behind_figure  # noqa: E402
+from tests.support.make_fog_blend import grids_oracle  # noqa: E402
 
 pytestmark = pytest.mark.blender
 
@@ -44,10 +43,7 @@ def checked(request, tmp_path_factory):
         pytest.skip("this Blender line has no grid nodes to read or probe grids with (a line gap, "
                     "test_the_reference_is_the_grids_oracle checks what it does instead)")
     folder = tmp_path_factory.mktemp(f"check_{request.param}")
-    python_ok(SUPPORT / "make_cloud_blend.py", folder / "cloud.blend", "--variant", request.param,
-              "--check", folder / "check.npz")
-    with np.load(folder / "check.npz") as npz:
-        return request.param, {key: npz[key] for key in npz.files}
+    return request.param, checked_arrays(SUPPORT / "make_cloud_blend.py", folder, "cloud.blend", request.param)
 
 
 def test_the_grid_is_sample_grids_field(checked):
@@ -103,13 +99,7 @@ def test_the_reference_is_the_grids_oracle(cloud):
     # Camera rays cross the cloud (its volume acts on shadow rays alone): nearly every
     # pixel hits, a few whose first sample ended in the haze lose their position.
     assert ref.hit.mean() > 0.97 and ref.meta["positions_lost"] < 0.03 * ref.hit.size
-    ratio = metrics.reference_ratio(ref.shadowed, ref.unshadowed)
-    lit = ref.lit_domain() & ~behind_figure(ref.position)
-    ground = lit & (np.abs(ref.position[..., 2]) < 1e-3)
-    oracle = np.ones(ratio.shape)
-    oracle[lit] = media.visibility(media.grid_optical_depths(ref.light_position, ref.position[lit], ref.grids,
-                                                             steps=512))
-    under = ground & (oracle < 0.99)
+    ratio, lit, ground, oracle, under = grids_oracle(ref)
     assert under.sum() > 1000 and float(oracle[under].mean()) < 0.9, (name, under.sum())
     noise = ref.visibility_noise
     for pixels in (ground, under):

@@ -19,12 +19,11 @@ import pytest
 
 pytest.importorskip("bpy", reason="the fog boxes and their reference need bpy")
 
-from addon.core import media, metrics  # noqa: E402
 from addon.core.media import GridMedium  # noqa: E402
 from addon.reference.data import ReferenceData  # noqa: E402
 from addon.render import blender_compat  # noqa: E402
-from tests.support.cli_run import SUPPORT, python_ok  # noqa: E402
-from tests.support.make_fog_blend import BOX_CENTRE, BOX_HALF, behind_figure  # noqa: E402
+from tests.support.cli_run import SUPPORT, checked_arrays, python_ok  # noqa: E402
+from tests.support.make_fog_blend import BOX_CENTRE, BOX_HALF, grids_oracle  # noqa: E402
 from tests.support.make_shader_density_blend import SIGMA, VARIANTS  # noqa: E402
 
 pytestmark = pytest.mark.blender
@@ -35,10 +34,7 @@ SOFT_SAMPLES = 64
 @pytest.fixture(scope="module", params=VARIANTS)
 def checked(request, tmp_path_factory):
     folder = tmp_path_factory.mktemp(f"check_{request.param}")
-    python_ok(SUPPORT / "make_shader_density_blend.py", folder / "fog.blend", "--variant", request.param,
-              "--check", folder / "check.npz")
-    with np.load(folder / "check.npz") as npz:
-        return request.param, {key: npz[key] for key in npz.files}
+    return request.param, checked_arrays(SUPPORT / "make_shader_density_blend.py", folder, "fog.blend", request.param)
 
 
 def test_the_box_is_a_grid_not_a_surface(checked):
@@ -71,13 +67,7 @@ def test_the_reference_is_the_grids_oracle(fog):
     name, ref = fog
     assert len(ref.grids) == 1 and np.allclose(ref.grids[0].sigma, SIGMA[name])
     assert not ref.meta["left_out"] and ref.meta["occluder_grids"] == 1
-    ratio = metrics.reference_ratio(ref.shadowed, ref.unshadowed)
-    lit = ref.lit_domain() & ~behind_figure(ref.position)
-    ground = lit & (np.abs(ref.position[..., 2]) < 1e-3)
-    oracle = np.ones(ratio.shape)
-    oracle[lit] = media.visibility(media.grid_optical_depths(ref.light_position, ref.position[lit], ref.grids,
-                                                             steps=512))
-    under = ground & (oracle < 0.99)
+    ratio, lit, ground, oracle, under = grids_oracle(ref)
     assert under.sum() > 1000 and float(oracle[under].mean()) < 0.9, (name, under.sum())
     noise = ref.visibility_noise
     # On 4.2 and 4.5 the mapped noise read through geometry nodes differs from Cycles' by

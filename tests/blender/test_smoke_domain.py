@@ -9,16 +9,13 @@ method meets the reference.
 """
 from __future__ import annotations
 
-import json
-
-import numpy as np
 import pytest
 
 bpy = pytest.importorskip("bpy", reason="the reference needs bpy")
 
 from addon.core import metrics  # noqa: E402
 from addon.reference.data import ReferenceData  # noqa: E402
-from tests.support.cli_run import SUPPORT, python_ok  # noqa: E402
+from tests.support.cli_run import SUPPORT, compared, python_ok  # noqa: E402
 
 pytestmark = pytest.mark.blender
 
@@ -29,11 +26,7 @@ def smoke(tmp_path_factory):
     folder = tmp_path_factory.mktemp("smoke")
     blend = folder / "smoke.blend"
     python_ok(SUPPORT / "make_smoke_blend.py", blend)
-    python_ok("-m", "addon.cli", "compare", "--blend", blend, "--methods", "exact,dpsm+notw,cube",
-              "--resolutions", "512", "--repeats", "1", "--no-images", "--out", folder / "out",
-              "--cache-dir", folder / "cache")
-    (path,) = (folder / "cache").glob("*.npz")
-    rows = json.loads((folder / "out" / "results.json").read_text())
+    path, rows = compared(blend, folder, "exact,dpsm+notw,cube", "512")
     return ReferenceData.load(path), {row["method"]: row for row in rows}
 
 

@@ -13,8 +13,6 @@ extinction, and says why it does not follow the others.
 """
 from __future__ import annotations
 
-import json
-
 import numpy as np
 import pytest
 
@@ -24,7 +22,7 @@ from addon.core import media, metrics  # noqa: E402
 from addon.reference.data import ReferenceData  # noqa: E402
 from addon.reference.material_media import material_medium  # noqa: E402
 from addon.render import blender_compat  # noqa: E402
-from tests.support.cli_run import SUPPORT, python_ok  # noqa: E402
+from tests.support.cli_run import SUPPORT, compared, python_ok  # noqa: E402
 from tests.support.plain_cycles import mean_visibilities  # noqa: E402
 from tests.support.make_fog_blend import VARIANTS, behind_figure, transmittance  # noqa: E402
 
@@ -37,10 +35,7 @@ def fog(tmp_path_factory):
     folder = tmp_path_factory.mktemp("fog")
     blend = folder / "fog.blend"
     python_ok(SUPPORT / "make_fog_blend.py", blend)
-    python_ok("-m", "addon.cli", "compare", "--blend", blend, "--methods", "dpsm", "--resolutions", "256",
-              "--repeats", "1", "--no-images", "--out", folder / "out", "--cache-dir", folder / "cache")
-    (path,) = (folder / "cache").glob("*.npz")
-    rows = json.loads((folder / "out" / "results.json").read_text())
+    path, rows = compared(blend, folder, "dpsm")
     return ReferenceData.load(path), rows, blend, folder
 
 

@@ -146,3 +146,33 @@ def test_a_sized_light_marches_towards_its_points(gl_backend, method):
     assert clear.sum() > 1000 and edge.sum() > 50, (int(clear.sum()), int(edge.sum()))
     assert np.abs(got - mean_kept)[clear].mean() < 0.01
     assert np.abs(got - mean_kept)[edge].mean() < 0.5 * np.abs(centre - mean_kept)[edge].mean()
+
+
+def test_a_moved_grid_keeps_its_texture_and_a_dropped_one_is_freed(gl_backend):
+    """The GPU holds a grid's density by its own digest: a moved grid (the viewport's moved
+    Volume object) shares it, uploads nothing and hashes nothing again; a grid whose density
+    changed, or that its scene dropped, frees its texture at the next sync."""
+    grid = cloud()
+    scene = ResidentScene()
+    scene.set_grid("cloud", grid)
+    gl_backend.sync_scene(scene)
+    held = dict(gl_backend.grids.textures)
+    assert list(held) == [grid.density_digest]
+    shift = np.eye(4)
+    shift[:3, 3] = (0.5, 0.0, 0.0)
+    moved = grid.moved(grid.to_index @ np.linalg.inv(shift))
+    assert moved.density is grid.density and moved.density_digest == grid.density_digest
+    assert moved.digest != grid.digest
+    assert moved.density_at(np.array([[0.5, 0.0, 0.4]]))[0] == grid.density_at(np.array([[0.0, 0.0, 0.4]]))[0]
+    scene.set_grid("cloud", moved)
+    uploaded = gl_backend.geometry_bytes
+    gl_backend.sync_scene(scene)
+    assert gl_backend.geometry_bytes == uploaded and gl_backend.grids.textures == held
+    denser = GridMedium("cloud", grid.sigma, 2.0 * grid.density, grid.to_index)
+    scene.set_grid("cloud", denser)
+    gl_backend.sync_scene(scene)
+    assert list(gl_backend.grids.textures) == [denser.density_digest]
+    scene.remove("cloud")
+    gl_backend.sync_scene(scene)
+    assert not gl_backend.grids.textures
+    gl_backend.release_scene(scene)

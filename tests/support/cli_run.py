@@ -48,6 +48,27 @@ def python_ok(*args: str | os.PathLike, env: dict[str, str] | None = None, timeo
     return proc.stdout
 
 
+def compared(blend: Path, folder: Path, methods: str, resolutions: str = "256") -> tuple[Path, list[dict]]:
+    """`omniwarp compare` of a .blend into `folder` (out/ and cache/, one repeat, no
+    images): (the reference .npz it cached, its rows)."""
+    import json
+
+    python_ok("-m", "addon.cli", "compare", "--blend", blend, "--methods", methods, "--resolutions", resolutions,
+              "--repeats", "1", "--no-images", "--out", folder / "out", "--cache-dir", folder / "cache")
+    (path,) = (folder / "cache").glob("*.npz")
+    return path, json.loads((folder / "out" / "results.json").read_text())
+
+
+def checked_arrays(script: Path, folder: Path, blend: str, variant: str) -> dict:
+    """The arrays a volume test file's `--check` writes for `variant` (make_fog_blend's
+    variant_main), its .blend named `blend` in `folder`."""
+    import numpy as np
+
+    python_ok(script, folder / blend, "--variant", variant, "--check", folder / "check.npz")
+    with np.load(folder / "check.npz") as npz:
+        return {key: npz[key] for key in npz.files}
+
+
 def stderr_lines(text: str) -> list[str]:
     """Non-empty stderr lines, without Mesa's harmless EGL_BAD_MATCH noise."""
     return [line for line in text.splitlines() if line.strip() and "EGL_BAD" not in line]

@@ -32,7 +32,6 @@ the datablock counts before and after, and the grid read again at a small budget
 """
 from __future__ import annotations
 
-import argparse
 import math
 import sys
 from pathlib import Path
@@ -42,7 +41,7 @@ import numpy as np
 REPO = Path(__file__).resolve().parents[2]
 sys.path.insert(0, str(REPO))
 
-from tests.support.make_fog_blend import save_and_capture, stage  # noqa: E402
+from tests.support.make_fog_blend import stage, variant_main  # noqa: E402
 
 CLOUD_CENTRE, CLOUD_RADIUS = np.array([0.0, 0.0, 1.2]), 0.6
 VARIANTS = ("mesh_to_volume", "noise", "vdb", "inside")
@@ -289,19 +288,7 @@ def check(variant: str, out: Path) -> None:
 
 
 def main(argv: list[str] | None = None) -> int:
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("out", type=Path)
-    parser.add_argument("--variant", choices=VARIANTS, default="mesh_to_volume")
-    parser.add_argument("--reference", type=Path, default=None)
-    parser.add_argument("--soft-samples", type=int, default=None)
-    parser.add_argument("--check", type=Path, default=None)
-    args = parser.parse_args(argv)
-    if args.check is not None:
-        check(args.variant, args.check)
-        return 0
-    build(args.variant, args.out.parent)
-    save_and_capture(args.out, args.reference, args.soft_samples)
-    return 0
+    return variant_main(argv, __doc__.splitlines()[0], VARIANTS, "mesh_to_volume", build, check)
 
 
 if __name__ == "__main__":

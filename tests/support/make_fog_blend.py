@@ -29,6 +29,7 @@ import math
 import sys
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Callable
 
 import numpy as np
 
@@ -205,6 +206,21 @@ def behind_figure(position: np.ndarray, light: np.ndarray = LIGHT) -> np.ndarray
     return _inside(position, FIGURE_CENTRE, FIGURE_HALF, light) > 1e-4
 
 
+def grids_oracle(ref) -> tuple[np.ndarray, ...]:
+    """A reference of one of the volume files against core.media's march through the grids
+    it stores: (its visibility, the lit pixels clear of the figure's shadow, those on the
+    ground, the oracle's visibility, the ground's pixels under the grids' shadow)."""
+    from addon.core import media, metrics
+
+    ratio = metrics.reference_ratio(ref.shadowed, ref.unshadowed)
+    lit = ref.lit_domain() & ~behind_figure(ref.position)
+    ground = lit & (np.abs(ref.position[..., 2]) < 1e-3)
+    oracle = np.ones(ratio.shape)
+    oracle[lit] = media.visibility(media.grid_optical_depths(ref.light_position, ref.position[lit], ref.grids,
+                                                             steps=512))
+    return ratio, lit, ground, oracle, ground & (oracle < 0.99)
+
+
 def save_and_capture(out: Path, reference: Path | None = None, soft_samples: int | None = None) -> None:
     """Save the scene just built to `out` and, with `reference`, capture its OmniWarp
     reference (reference/capture.py; `soft_samples` a pixel) into that .npz."""
@@ -216,6 +232,27 @@ def save_and_capture(out: Path, reference: Path | None = None, soft_samples: int
 
         samples = {} if soft_samples is None else {"soft_samples": soft_samples}
         capture(bpy.context.scene, **samples).save(reference)
+
+
+def variant_main(argv: list[str] | None, description: str, variants, default: str,
+                 build: Callable[[str, Path], object], check: Callable[[str, Path], None]) -> int:
+    """The command line of a volume test file with variants (make_cloud_blend.py,
+    make_shader_density_blend.py): OUT.blend [--variant NAME] [--reference OUT.npz]
+    [--soft-samples N] [--check OUT.npz]; `build(variant, folder)` makes the scene, `check`
+    writes what its test checks instead of saving the file."""
+    parser = argparse.ArgumentParser(description=description)
+    parser.add_argument("out", type=Path)
+    parser.add_argument("--variant", choices=variants, default=default)
+    parser.add_argument("--reference", type=Path, default=None)
+    parser.add_argument("--soft-samples", type=int, default=None)
+    parser.add_argument("--check", type=Path, default=None)
+    args = parser.parse_args(argv)
+    if args.check is not None:
+        check(args.variant, args.check)
+        return 0
+    build(args.variant, args.out.parent)
+    save_and_capture(args.out, args.reference, args.soft_samples)
+    return 0
 
 
 def main(argv: list[str] | None = None) -> int:

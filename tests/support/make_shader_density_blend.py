@@ -13,7 +13,6 @@ counts before and after); `--reference` captures the OmniWarp reference (capture
 """
 from __future__ import annotations
 
-import argparse
 import sys
 from pathlib import Path
 
@@ -22,7 +21,7 @@ import numpy as np
 REPO = Path(__file__).resolve().parents[2]
 sys.path.insert(0, str(REPO))
 
-from tests.support.make_fog_blend import save_and_capture  # noqa: E402
+from tests.support.make_fog_blend import variant_main  # noqa: E402
 
 VARIANTS = ("noise", "mapped")
 # The extinction per unit density of each variant's Principled Volume (make_fog_blend:
@@ -78,19 +77,7 @@ def check(variant: str, out: Path) -> None:
 
 
 def main(argv: list[str] | None = None) -> int:
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("out", type=Path)
-    parser.add_argument("--variant", choices=VARIANTS, default="noise")
-    parser.add_argument("--reference", type=Path, default=None)
-    parser.add_argument("--soft-samples", type=int, default=None)
-    parser.add_argument("--check", type=Path, default=None)
-    args = parser.parse_args(argv)
-    if args.check is not None:
-        check(args.variant, args.check)
-        return 0
-    build(args.variant)
-    save_and_capture(args.out, args.reference, args.soft_samples)
-    return 0
+    return variant_main(argv, __doc__.splitlines()[0], VARIANTS, "noise", lambda variant, _: build(variant), check)
 
 
 if __name__ == "__main__":

@@ -232,8 +232,9 @@ def grid_light(light) -> dict[str, Any]:
 
 
 class GridStore:
-    """Density grids on the GPU (R32F textures of their slices, grid_texels), by digest:
-    uploaded once, freed when no resident scene holds them any more."""
+    """Density grids on the GPU (R32F textures of their slices, grid_texels), by the
+    density's digest (a moved grid keeps its texture): uploaded once, freed when their
+    scene drops them (ResidentScene.removed_grids) or is released."""
 
     def __init__(self) -> None:
         self.textures: dict[str, tuple[Any, int]] = {}  # digest -> (texture, slices a row)
@@ -243,10 +244,10 @@ class GridStore:
         """Upload the grids not yet held; returns the bytes uploaded."""
         uploaded = 0
         for grid in grids:
-            if grid.digest not in self.textures:
+            if grid.density_digest not in self.textures:
                 texels, cols = grid_texels(grid.density, max_width)
                 rows, width = texels.shape
-                self.textures[grid.digest] = (device.texture((width, rows), "R32F", texels), cols)
+                self.textures[grid.density_digest] = (device.texture((width, rows), "R32F", texels), cols)
                 uploaded += int(texels.nbytes)
         return uploaded
 
@@ -270,7 +271,7 @@ class GridStore:
         centre = np.eye(4)
         centre[:3, 3] = light.position  # light-centred -> world
         for g, grid in enumerate(grids):
-            texture, cols = self.textures[grid.digest]
+            texture, cols = self.textures[grid.density_digest]
             to_index[g] = grid.to_index @ centre
             nz, ny, nx = grid.density.shape
             size[g] = (nx, ny, nz, cols)
