@@ -5,9 +5,9 @@
 // ow_stats_pass 1: the histogram of view depths over the range pass 0 left in the image,
 // grown by rounding as core.samples.depth_slack grows it, at texels OW_STAT_COUNT + bin
 // (log-spaced bins for a perspective view in front of the camera).
-// ow_stats_pass 2 (one invocation): the bins of the percentile cut's samples and the
+// ow_stats_pass 2 (one work group): the bins of the percentile cut's samples and the
 // bins' spacing, at the fields cut_lo, cut_hi and cut_log (core.samples.cut_bins).
-// The last pass (2, or 3 "copy" without a histogram; one invocation) copies the
+// The last pass (2, or 3 "copy" without a histogram; one work group) copies the
 // OW_STAT_COUNT fields into ow_stats_out, which the host reads once: a texture of the
 // fields alone, since Blender's gpu reads whole textures (the histogram is 4 KB).
 // An invocation reduces OW_STAT_SPAN samples in registers and then writes each field
@@ -49,40 +49,63 @@ vec2 ow_depth_range(out bool log_bins)
   return range;
 }
 
-// The first bin whose running count exceeds `rank` (np.searchsorted(cumsum, rank + 1)).
-int ow_bin_of_rank(uint rank)
-{
-  uint running = 0u;
-  for (int bin = 0; bin < OW_HIST_BINS; bin++) {
-    running += ow_field(OW_STAT_COUNT + bin);
-    if (running > rank) {
-      return bin;
-    }
-  }
-  return OW_HIST_BINS;
-}
-
 // Pass 2: core.samples.cut_ranks in integers (the percentile in OW_CUT_STEPS steps), split
-// so that no product passes 32 bits: last * q / steps = (a q) + (b q) / steps.
+// so that no product passes 32 bits: last * q / steps = (a q) + (b q) / steps. Then the
+// first bin whose running count exceeds each rank (np.searchsorted(cumsum, rank + 1)),
+// by the whole group: invocation t sums chunk t of the histogram into the texel after it,
+// counts the chunks before its own, and walks its chunk for a rank that falls in it. A
+// GPU runs a serial loop at its memory latency, so none walks the whole histogram.
+// Called by every invocation of the group (it has barriers).
 void ow_cut()
 {
+  int lane = int(gl_LocalInvocationID.x);
+  const int chunk = OW_HIST_BINS / OW_CUT_CHUNKS;
+  int first = OW_STAT_COUNT + lane * chunk;
+  uint sum = 0u;
+  for (int k = 0; k < chunk; k++) {
+    sum += ow_field(first + k);
+  }
+  imageStore(ow_stats, ivec2(OW_STAT_COUNT + OW_HIST_BINS + lane, 0), uvec4(sum));
+  memoryBarrierImage();
+  barrier();
   uint n = ow_field(OW_STAT_count);
   if (n == 0u || OW_CUT_Q == 0) {
     return;
   }
+  uint before = 0u;
+  for (int c = 0; c < lane; c++) {
+    before += ow_field(OW_STAT_COUNT + OW_HIST_BINS + c);
+  }
   uint last = n - 1u, steps = uint(OW_CUT_STEPS), q = uint(OW_CUT_Q);
   uint a = last / steps, b = last % steps;
-  uint k_lo = a * q + (b * q) / steps;
-  uint k_hi = a * (steps - q) + (b * (steps - q) + steps - 1u) / steps;
-  bool log_bins;
-  ow_depth_range(log_bins);
-  imageStore(ow_stats, ivec2(OW_STAT_cut_lo, 0), uvec4(uint(ow_bin_of_rank(k_lo)) + 1u));
-  imageStore(ow_stats, ivec2(OW_STAT_cut_hi, 0), uvec4(uint(ow_bin_of_rank(k_hi)) + 1u));
-  imageStore(ow_stats, ivec2(OW_STAT_cut_log, 0), uvec4(log_bins ? 2u : 1u));
+  uvec2 ranks = uvec2(a * q + (b * q) / steps, a * (steps - q) + (b * (steps - q) + steps - 1u) / steps);
+  for (int end = 0; end < 2; end++) {
+    uint rank = ranks[end];
+    int bin = -1;
+    if (rank >= before && rank - before < sum) {
+      uint running = before;
+      for (int k = 0; k < chunk && bin < 0; k++) {
+        running += ow_field(first + k);
+        if (running > rank) {
+          bin = lane * chunk + k;
+        }
+      }
+    }
+    else if (lane == OW_CUT_CHUNKS - 1 && rank >= before + sum) {
+      bin = OW_HIST_BINS;  // past every sample (not reached: the ranks are below the count)
+    }
+    if (bin >= 0) {
+      imageStore(ow_stats, ivec2(end == 0 ? OW_STAT_cut_lo : OW_STAT_cut_hi, 0), uvec4(uint(bin) + 1u));
+    }
+  }
+  if (lane == 0) {
+    bool log_bins;
+    ow_depth_range(log_bins);
+    imageStore(ow_stats, ivec2(OW_STAT_cut_log, 0), uvec4(log_bins ? 2u : 1u));
+  }
 }
 
-// The fields into the texture the host reads (one invocation; its own stores are visible
-// to its own loads).
+// The fields into the texture the host reads (one invocation, after the group's barrier).
 void ow_copy_fields()
 {
   for (int field = 0; field < OW_STAT_COUNT; field++) {
@@ -93,10 +116,12 @@ void ow_copy_fields()
 void main()
 {
   if (ow_stats_pass == OW_STATS_CUT || ow_stats_pass == OW_STATS_COPY) {
-    if (gl_GlobalInvocationID.x == 0u) {
-      if (ow_stats_pass == OW_STATS_CUT) {
-        ow_cut();
-      }
+    if (ow_stats_pass == OW_STATS_CUT) {
+      ow_cut();
+      memoryBarrierImage();
+      barrier();  // the cut's bins, before one invocation copies the fields
+    }
+    if (gl_LocalInvocationID.x == 0u) {
       ow_copy_fields();
     }
     return;

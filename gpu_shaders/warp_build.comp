@@ -12,15 +12,18 @@
 //                  OW_CROP_MARGIN cells (warping.dv_crop_from_bounds), stored as (lo, scale)
 //                  at texel (A, slot A + 1) of the rows table, where every warped pass
 //                  reads it (lib/mapping.glsl's ow_crop_of). Nothing is read back.
-//  OW_WARP_LINES   one invocation per (tile, line) of the family (ow_family: rows, the map's
-//                  rows; columns, its columns): the line's counts blurred along it, its
-//                  offsets (eq. 4.7, floor share and steepness clamp) at ow_work columns
-//                  0 .. A and its total at column A + 1 (float bits).
-//  OW_WARP_SMOOTH  one work group per tile: the narrowest tent window (1, 2, 4, ... lines)
-//                  whose smoothing leaves the shear under OW_SHEAR_LIMIT (else the first
-//                  past A / 2), the smoothed offsets written to the output columns, and
-//                  the window and shear at ow_info (tile t, columns 2 family and 2 family + 1).
-//  OW_WARP_RTW     one invocation per tile: RTW's one function of the family (no smoothing).
+//  OW_WARP_LINE_BLUR  one invocation per cell: the counts blurred along the family's lines
+//                  (ow_family: rows, the map's rows; columns, its columns) at ow_work.
+//  OW_WARP_LINES   one invocation per (tile, line): the line's offsets (eq. 4.7, floor
+//                  share and steepness clamp) at ow_work columns 0 .. A and its total at
+//                  column A + 1 (float bits).
+//  OW_WARP_SMOOTH_*  the smoothing across lines (below), in four wide steps: the lines'
+//                  weights; the denominator at every candidate window (1, 2, 4, ...);
+//                  each candidate's largest shear, a node an invocation; the narrowest
+//                  window that leaves the shear under OW_SHEAR_LIMIT (else the first past
+//                  A / 2), its smoothed offsets written to the output columns, and the
+//                  window and shear at ow_info.
+//  OW_WARP_RTW_*   RTW's one function of the family (no smoothing), in three wide steps.
 //  OW_WARP_PACK    one invocation per texel of the table (ow_table, the layout of
 //                  passes/samples.pack_warp_table): nodes k and k + 1 of function i and of
 //                  function i + 1; column A holds the shear and the window. It also
@@ -130,7 +133,32 @@ void ow_write_identity(int tile, int line)
   }
 }
 
-// NoTW's line: its counts blurred along it, then its offsets and its total.
+// NoTW's lines in two steps. First an invocation a cell: the line's counts blurred along
+// it by the tent, divided by the tent of ones so that a uniform line stays uniform up to
+// its ends (warping.tent_filter zero-pads).
+void ow_line_blur(int index)
+{
+  int size = ow_count_size;
+  int k = index % size;
+  int line = (index / size) % size;
+  int tile = index / size / size;
+  if (tile >= ow_tiles) {
+    return;
+  }
+  float sum = 0.0;
+  float weight = 0.0;
+  for (int d = -ow_along; d <= ow_along; d++) {
+    int j = k + d;
+    if (j >= 0 && j < size) {
+      float w = 1.0 - float(abs(d)) / float(ow_along + 1);
+      sum += w * ow_count(tile, line, j);
+      weight += w;
+    }
+  }
+  ow_set_work(tile, line, k, sum / weight);
+}
+
+// Then an invocation a (tile, line): the line's offsets and its total.
 void ow_line(int index)
 {
   int size = ow_count_size;
@@ -139,22 +167,9 @@ void ow_line(int index)
   }
   int tile = index / size;
   int line = index % size;
-  // The tent along the line, divided by the tent of ones so that a uniform line stays
-  // uniform up to its ends (warping.tent_filter zero-pads).
   float total = 0.0;
   for (int k = 0; k < size; k++) {
-    float sum = 0.0;
-    float weight = 0.0;
-    for (int d = -ow_along; d <= ow_along; d++) {
-      int j = k + d;
-      if (j >= 0 && j < size) {
-        float w = 1.0 - float(abs(d)) / float(ow_along + 1);
-        sum += w * ow_count(tile, line, j);
-        weight += w;
-      }
-    }
-    ow_set_work(tile, line, k, sum / weight);
-    total += sum / weight;
+    total += ow_work_value(tile, line, k);
   }
   if (total > 0.0) {
     ow_write_offsets(tile, line, total);
@@ -165,22 +180,31 @@ void ow_line(int index)
   ow_set_work(tile, line, size + 1, max(total, 0.0));
 }
 
-// RTW (warping.rtw_from_counts), one invocation per tile: the family's one function, from
-// the largest count across each position (kept in line 1's columns), blurred by a
-// zero-padded tent of half-width ow_along into line 0's; written to every line's output,
-// with the window and a shear of 0 (its lines are equal).
+// RTW (warping.rtw_from_counts): the family's one function, from the largest count across
+// each position, blurred by a zero-padded tent of half-width ow_along, written to every
+// line's output, with the window and a shear of 0 (its lines are equal). Three steps, each
+// wide: the largest across (an invocation a position, into line 1's columns); the blur and
+// offsets (an invocation a tile, into line 0's); the spread (an invocation an output node).
+void ow_rtw_top(int index)
+{
+  int size = ow_count_size;
+  int k = index % size;
+  int tile = index / size;
+  if (tile >= ow_tiles) {
+    return;
+  }
+  float top = 0.0;
+  for (int line = 0; line < size; line++) {
+    top = max(top, ow_count(tile, line, k));
+  }
+  ow_set_work(tile, 1, k, top);
+}
+
 void ow_rtw(int tile)
 {
   int size = ow_count_size;
   if (tile >= ow_tiles) {
     return;
-  }
-  for (int k = 0; k < size; k++) {
-    float top = 0.0;
-    for (int line = 0; line < size; line++) {
-      top = max(top, ow_count(tile, line, k));
-    }
-    ow_set_work(tile, 1, k, top);
   }
   float total = 0.0;
   for (int k = 0; k < size; k++) {
@@ -200,38 +224,45 @@ void ow_rtw(int tile)
   else {
     ow_write_identity(tile, 0);
   }
-  for (int line = 0; line < size; line++) {
-    for (int k = 0; k <= size; k++) {
-      ow_set_work(tile, line, OW_OUT_COLUMN + k, ow_work_value(tile, 0, k));
-    }
-  }
-  imageStore(ow_info, ivec2(2 * ow_family, tile), uvec4(uint(ow_along)));
-  imageStore(ow_info, ivec2(2 * ow_family + 1, tile), uvec4(ow_bits(0.0)));
+  imageStore(ow_info, ivec2(OW_INFO_WINDOW + 2 * ow_family, tile), uvec4(uint(ow_along)));
+  imageStore(ow_info, ivec2(OW_INFO_SHEAR + 2 * ow_family, tile), uvec4(ow_bits(0.0)));
 }
 
-// The smoothing step shares its per-line numbers through the work image (Blender's `gpu`
-// declares no shared memory): column A + 2 holds each line's total over the tile's
-// largest, column A + 3 the tent of those plus the prior at the window being tried.
-// ow_info's columns 4 .. 6 of a tile hold the group's running shear maximum, its
-// populated lines and their weights' sum.
-#define OW_WEIGHT_COLUMN (ow_count_size + 2)
-#define OW_DEN_COLUMN (ow_count_size + 3)
-#define OW_INFO_SHEAR_MAX 4
-#define OW_INFO_POPULATED 5
-#define OW_INFO_WEIGHT_SUM 6
-#define OW_INFO_CROP_SCALE 8
-#define OW_INFO_SLOPE 10
-
-// Image stores of the group visible to its loads, at a point every invocation reaches.
-void ow_group_sync()
+void ow_rtw_spread(int index)
 {
-  memoryBarrierImage();
-  barrier();
+  int width = ow_count_size + 1;
+  int k = index % width;
+  int line = (index / width) % ow_count_size;
+  int tile = index / width / ow_count_size;
+  if (tile >= ow_tiles) {
+    return;
+  }
+  ow_set_work(tile, line, OW_OUT_COLUMN + k, ow_work_value(tile, 0, k));
 }
+
+// The smoothing (warping.choose_window, smooth_offsets) in four steps, each wide: the
+// candidate windows are tried side by side, each column of each by an invocation of its
+// own, so that no invocation walks more than one pass over the tile's lines (a GPU runs
+// a long serial loop at its memory latency). Work columns: A + 2 holds each line's total
+// over the tile's largest (its weight); OW_DEN_COLUMN(j) the tent of the weights plus the
+// prior at candidate window j. ow_info (a row a tile, shaders/constants.WARP_INFO) holds
+// the populated lines and their weights' sum, and each candidate's largest shear.
+#define OW_WEIGHT_COLUMN (ow_count_size + 2)
+#define OW_DEN_COLUMN(j) (2 * ow_count_size + 5 + (j))
 
 uint ow_info_value(int column, int tile)
 {
   return imageLoad(ow_info, ivec2(column, tile)).x;
+}
+
+// The candidate windows 1, 2, 4, ...: those below A / 2, then the first at or past it.
+int ow_window_count()
+{
+  int count = 1;
+  while ((1 << (count - 1)) < ow_count_size / 2) {
+    count++;
+  }
+  return count;
 }
 
 // A compensated running sum: (sum, its lost low part) plus `value`.
@@ -261,11 +292,11 @@ float ow_tent_value(int tile, int j, int k)
 // warping.tent_filter across lines at half-width `window` (weights 1 - |d| / n, n = window
 // + 1) of the weights (k < 0) or of node k's weighted offsets, by running sums: f is the
 // forward box of width n at padded line p, g the same box n lines back, b the backward box
-// of f. Then by `mode`: OW_TENT_DEN stores the tent plus `prior` (the smoothing's
-// denominator); OW_TENT_SHEAR returns the largest step of the smoothed column between
-// neighbouring lines times A (warping.max_shear); OW_TENT_STORE writes the smoothed column
-// to node k's output (warping.smooth_offsets).
-float ow_tent_pass(int tile, int k, int window, int mode, float prior)
+// of f. Then by `mode`: OW_TENT_DEN stores the tent plus `prior` at work column
+// `den_column` (the smoothing's denominator); OW_TENT_SHEAR returns the largest step of the
+// smoothed column between neighbouring lines times A (warping.max_shear); OW_TENT_STORE
+// writes the smoothed column to node k's output (warping.smooth_offsets).
+float ow_tent_pass(int tile, int k, int window, int mode, float prior, int den_column)
 {
   int size = ow_count_size;
   int n = window + 1;
@@ -287,10 +318,10 @@ float ow_tent_pass(int tile, int k, int window, int mode, float prior)
     }
     float tent = b.x / float(n);
     if (mode == OW_TENT_DEN) {
-      ow_set_work(tile, i, OW_DEN_COLUMN, tent + prior);
+      ow_set_work(tile, i, den_column, tent + prior);
       continue;
     }
-    float den = ow_work_value(tile, i, OW_DEN_COLUMN);
+    float den = ow_work_value(tile, i, den_column);
     float smoothed = den > 0.0 ? tent / den : 0.0;
     if (i > 0) {
       shear = max(shear, abs(smoothed - previous) * float(size));
@@ -303,87 +334,97 @@ float ow_tent_pass(int tile, int k, int window, int mode, float prior)
   return shear;
 }
 
-// Every invocation of the group calls this with the same window (it has barriers).
-void ow_prepare_window(int tile, int window)
-{
-  if (gl_LocalInvocationID.x == 0u) {
-    float populated = float(max(ow_info_value(OW_INFO_POPULATED, tile), 1u));
-    float prior = OW_IDENTITY_PRIOR * uintBitsToFloat(ow_info_value(OW_INFO_WEIGHT_SUM, tile)) / populated;
-    ow_tent_pass(tile, -1, window, OW_TENT_DEN, prior);
-    imageStore(ow_info, ivec2(OW_INFO_SHEAR_MAX, tile), uvec4(0u));
-  }
-  ow_group_sync();
-}
-
-// The tile's largest column shear at `window` (barriers inside: called by the whole group).
-float ow_window_shear(int tile, int window)
+// Step 1, an invocation a tile: each line's weight (its total over the tile's largest),
+// the populated lines and their weights' sum.
+void ow_smooth_weights(int tile)
 {
   int size = ow_count_size;
-  ow_prepare_window(tile, window);
-  for (int k = int(gl_LocalInvocationID.x); k <= size; k += int(gl_WorkGroupSize.x)) {
-    // Non-negative floats order as their bits.
-    imageAtomicMax(ow_info, ivec2(OW_INFO_SHEAR_MAX, tile), ow_bits(ow_tent_pass(tile, k, window, OW_TENT_SHEAR, 0.0)));
+  if (tile >= ow_tiles) {
+    return;
   }
-  ow_group_sync();
-  float shear = uintBitsToFloat(ow_info_value(OW_INFO_SHEAR_MAX, tile));
-  ow_group_sync();  // read by all before the next window resets it
-  return shear;
+  float top = 0.0;
+  for (int i = 0; i < size; i++) {
+    top = max(top, ow_work_value(tile, i, size + 1));
+  }
+  uint populated = 0u;
+  float sum = 0.0;
+  for (int i = 0; i < size; i++) {
+    float weight = top > 0.0 ? ow_work_value(tile, i, size + 1) / top : 0.0;
+    ow_set_work(tile, i, OW_WEIGHT_COLUMN, weight);
+    if (weight > 0.0) {
+      populated++;
+      sum += weight;
+    }
+  }
+  imageStore(ow_info, ivec2(OW_INFO_POPULATED, tile), uvec4(populated));
+  imageStore(ow_info, ivec2(OW_INFO_WEIGHT_SUM, tile), uvec4(ow_bits(sum)));
 }
 
-void ow_smooth(int tile)
+// Step 2, an invocation a (tile, candidate j): the denominator at window 2^j, and the
+// candidate's shear reset for step 3.
+void ow_smooth_den(int index)
+{
+  int tile = index / OW_WARP_WINDOWS;
+  int j = index % OW_WARP_WINDOWS;
+  if (tile >= ow_tiles || j >= ow_window_count()) {
+    return;
+  }
+  float populated = float(ow_info_value(OW_INFO_POPULATED, tile));
+  if (populated == 0.0) {
+    return;  // every line empty: step 4 keeps them as they are
+  }
+  float prior = OW_IDENTITY_PRIOR * uintBitsToFloat(ow_info_value(OW_INFO_WEIGHT_SUM, tile)) / populated;
+  ow_tent_pass(tile, -1, 1 << j, OW_TENT_DEN, prior, OW_DEN_COLUMN(j));
+  imageStore(ow_info, ivec2(OW_INFO_WINDOW_SHEAR + j, tile), uvec4(0u));
+}
+
+// Step 3, an invocation a (tile, candidate j, node k): node k's largest shear at window 2^j,
+// reduced over the nodes (a non-negative float orders as its bits).
+void ow_smooth_shear(int index)
+{
+  int width = ow_count_size + 1;
+  int k = index % width;
+  int tile = index / width / OW_WARP_WINDOWS;
+  int j = (index / width) % OW_WARP_WINDOWS;
+  if (tile >= ow_tiles || j >= ow_window_count() || ow_info_value(OW_INFO_POPULATED, tile) == 0u) {
+    return;
+  }
+  float shear = ow_tent_pass(tile, k, 1 << j, OW_TENT_SHEAR, 0.0, OW_DEN_COLUMN(j));
+  imageAtomicMax(ow_info, ivec2(OW_INFO_WINDOW_SHEAR + j, tile), ow_bits(shear));
+}
+
+// Step 4, an invocation a (tile, node k): the narrowest candidate below A / 2 whose shear
+// is under OW_SHEAR_LIMIT, else the last; node k smoothed at it. Node 0's invocation stores
+// the window and its shear.
+void ow_smooth_store(int index)
 {
   int size = ow_count_size;
-  uint local = gl_LocalInvocationID.x;
-  if (local == 0u) {
-    float top = 0.0;
-    for (int i = 0; i < size; i++) {
-      top = max(top, ow_work_value(tile, i, size + 1));
-    }
-    uint populated = 0u;
-    float sum = 0.0;
-    for (int i = 0; i < size; i++) {
-      float weight = top > 0.0 ? ow_work_value(tile, i, size + 1) / top : 0.0;
-      ow_set_work(tile, i, OW_WEIGHT_COLUMN, weight);
-      if (weight > 0.0) {
-        populated++;
-        sum += weight;
-      }
-    }
-    imageStore(ow_info, ivec2(OW_INFO_POPULATED, tile), uvec4(populated));
-    imageStore(ow_info, ivec2(OW_INFO_WEIGHT_SUM, tile), uvec4(ow_bits(sum)));
+  int k = index % (size + 1);
+  int tile = index / (size + 1);
+  if (tile >= ow_tiles) {
+    return;
   }
-  ow_group_sync();
   int window = 0;
-  uint populated = ow_info_value(OW_INFO_POPULATED, tile);
-  if (populated > 0u) {
-    // warping.choose_window: 1, 2, 4, ... below A / 2; the first that keeps the shear under
-    // the limit, else the first past them.
-    window = 1;
-    while (window < size / 2) {
-      if (ow_window_shear(tile, window) <= OW_SHEAR_LIMIT) {
-        break;
-      }
-      window *= 2;
-    }
-  }
   float shear = 0.0;
-  if (window > 0) {
-    shear = ow_window_shear(tile, window);
-    ow_prepare_window(tile, window);
-    for (int k = int(local); k <= size; k += int(gl_WorkGroupSize.x)) {
-      ow_tent_pass(tile, k, window, OW_TENT_STORE, 0.0);
+  if (ow_info_value(OW_INFO_POPULATED, tile) == 0u) {
+    for (int i = 0; i < size; i++) {
+      ow_set_work(tile, i, OW_OUT_COLUMN + k, ow_work_value(tile, i, k));  // every line empty: as they are
     }
   }
   else {
-    for (int k = int(local); k <= size; k += int(gl_WorkGroupSize.x)) {
-      for (int i = 0; i < size; i++) {
-        ow_set_work(tile, i, OW_OUT_COLUMN + k, ow_work_value(tile, i, k));  // every line empty: as they are
-      }
+    int last = ow_window_count() - 1;
+    int j = 0;
+    shear = uintBitsToFloat(ow_info_value(OW_INFO_WINDOW_SHEAR, tile));
+    while (j < last && shear > OW_SHEAR_LIMIT) {
+      j++;
+      shear = uintBitsToFloat(ow_info_value(OW_INFO_WINDOW_SHEAR + j, tile));
     }
+    window = 1 << j;
+    ow_tent_pass(tile, k, window, OW_TENT_STORE, 0.0, OW_DEN_COLUMN(j));
   }
-  if (local == 0u) {
-    imageStore(ow_info, ivec2(2 * ow_family, tile), uvec4(uint(window)));
-    imageStore(ow_info, ivec2(2 * ow_family + 1, tile), uvec4(ow_bits(shear)));
+  if (k == 0) {
+    imageStore(ow_info, ivec2(OW_INFO_WINDOW + 2 * ow_family, tile), uvec4(uint(window)));
+    imageStore(ow_info, ivec2(OW_INFO_SHEAR + 2 * ow_family, tile), uvec4(ow_bits(shear)));
   }
 }
 
@@ -428,8 +469,8 @@ void ow_pack(int index)
     return;  // the rows table's crop (ow_crop_store); unused in the columns table
   }
   if (k == size) {
-    texel = i == 0 ? vec4(uintBitsToFloat(imageLoad(ow_info, ivec2(2 * ow_family + 1, tile)).x),
-                          float(imageLoad(ow_info, ivec2(2 * ow_family, tile)).x), 0.0, 0.0)
+    texel = i == 0 ? vec4(uintBitsToFloat(imageLoad(ow_info, ivec2(OW_INFO_SHEAR + 2 * ow_family, tile)).x),
+                          float(imageLoad(ow_info, ivec2(OW_INFO_WINDOW + 2 * ow_family, tile)).x), 0.0, 0.0)
                    : vec4(0.0);
   }
   else {
@@ -453,12 +494,24 @@ void main()
   ow_crop_bounds(index);
 #elif OW_STEP == OW_WARP_CROP_STORE
   ow_crop_store(index);
+#elif OW_STEP == OW_WARP_LINE_BLUR
+  ow_line_blur(index);
 #elif OW_STEP == OW_WARP_LINES
   ow_line(index);
-#elif OW_STEP == OW_WARP_SMOOTH
-  ow_smooth(int(gl_WorkGroupID.x));
+#elif OW_STEP == OW_WARP_SMOOTH_WEIGHTS
+  ow_smooth_weights(index);
+#elif OW_STEP == OW_WARP_SMOOTH_DEN
+  ow_smooth_den(index);
+#elif OW_STEP == OW_WARP_SMOOTH_SHEAR
+  ow_smooth_shear(index);
+#elif OW_STEP == OW_WARP_SMOOTH_STORE
+  ow_smooth_store(index);
+#elif OW_STEP == OW_WARP_RTW_TOP
+  ow_rtw_top(index);
 #elif OW_STEP == OW_WARP_RTW
   ow_rtw(index);
+#elif OW_STEP == OW_WARP_RTW_SPREAD
+  ow_rtw_spread(index);
 #else
   ow_pack(index);
 #endif

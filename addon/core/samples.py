@@ -59,7 +59,10 @@ STAT_FIELDS = ("count", "col_lo", "col_hi", "row_lo", "row_hi", "depth_lo", "dep
                "x_lo", "y_lo", "z_lo", "x_hi", "y_hi", "z_hi", "reach", "sides", "faces",
                "cut_lo", "cut_hi", "cut_log")
 STAT_COUNT = len(STAT_FIELDS)
-STAT_TEXELS = STAT_COUNT + HIST_BINS
+# Pass 2 is one work group of CUT_CHUNKS invocations, each summing HIST_BINS / CUT_CHUNKS
+# bins into a texel after the histogram, so that no invocation walks the whole histogram.
+CUT_CHUNKS = 64
+STAT_TEXELS = STAT_COUNT + HIST_BINS + CUT_CHUNKS
 
 
 @dataclass(frozen=True)

@@ -57,7 +57,15 @@ def test_crop_bounds_are_the_occupied_rows_and_columns(gl_backend, size):
     assert bounds[-1] is None and bounds[2] == (1, 1, size - 2, size - 2)
 
 
-@pytest.mark.parametrize("size", [16, 64, 128])
+def test_the_candidate_windows_cover_the_largest_count_map():
+    """The smoothing tries windows 1, 2, ... 2^(WARP_WINDOWS - 1), each by invocations of its
+    own: the last must reach half the largest count map (warping.choose_window's last)."""
+    from addon.render.shaders.constants import WARP_WINDOWS
+
+    assert 1 << (WARP_WINDOWS - 2) < PW.MAX_GPU_WARP_SIZE // 2 <= 1 << (WARP_WINDOWS - 1)
+
+
+@pytest.mark.parametrize("size", [16, 64, 100, 128])
 def test_each_family_is_the_numpy_offsets_to_float32(gl_backend, size):
     """Rows from the counts, columns from the same counts taken as after the row warps:
     the GPU's offsets within 5e-5 map units of numpy's, the same smoothing window, and the

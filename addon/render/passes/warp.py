@@ -14,14 +14,11 @@ from ...core.errors import BackendError
 from ...core.warping import (ALONG_BLUR_SHARE, FLOOR_SHARE, MAX_SLOPE, LayerMapping, Warp, WarpParams, box_stretch,
                              rtw_blur)
 from ..shaders import NO_TILE, SLOTS, WARP_BUILD_PROGRAM, WARP_FAMILIES, warp_step_variant
+from ..shaders.constants import WARP_INFO, WARP_INFO_WIDTH, WARP_WINDOWS
 
-# The largest count-map side the GPU builds a warp for (the analysis' largest, 256).
+# The largest count-map side the GPU builds a warp for (the analysis' largest, 256): its
+# smoothing tries WARP_WINDOWS windows.
 MAX_GPU_WARP_SIZE = 256
-# Columns of the build's info image (warp_build.comp's OW_INFO_*).
-INFO_WIDTH = 12
-INFO_SHEAR = {"rows": 1, "cols": 3}
-INFO_CROP_SCALE = 8
-INFO_SLOPE = {"rows": 10, "cols": 11}
 # Relative room on the numbers the GPU reduced in float32, for the host's bound.
 ROUNDING_ROOM = 1e-3
 # The table each family writes (the samplers every warped pass reads).
@@ -33,11 +30,11 @@ class WarpBuild:
     """The images of the GPU's warp construction, kept between frames."""
 
     bounds: Any = None  # R32UI (4 * SLOTS, 1): each tile's occupied columns and rows
-    # R32UI (2 A + 5, SLOTS * A): a family's lines as float bits (offsets, total, weight,
-    # the smoothing's denominator, then the smoothed offsets: warp_build.comp)
+    # R32UI (2 A + 5 + WARP_WINDOWS, SLOTS * A): a family's lines as float bits (offsets,
+    # total, weight, the smoothed offsets, then the smoothing's denominator at each
+    # candidate window: warp_build.comp)
     work: Any = None
-    # R32UI (INFO_WIDTH, SLOTS), a row a tile: each family's window and shear (columns 0-3),
-    # the smoothing's scratch (4-6) and the crop's scale (8, 9)
+    # R32UI (WARP_INFO_WIDTH, SLOTS), a row a tile: the columns of shaders.constants.WARP_INFO
     info: Any = None
     size: int = 0
     generation: int = 0  # bumped by every build: a GpuWarp of an earlier one is stale
@@ -53,8 +50,8 @@ def _images(backend, size: int) -> WarpBuild:
     if held.size != size:
         device.free(*held.held())
         held.bounds = device.texture((4 * SLOTS, 1), "R32UI")
-        held.work = device.texture((2 * size + 5, SLOTS * size), "R32UI")
-        held.info = device.texture((INFO_WIDTH, SLOTS), "R32UI")
+        held.work = device.texture((2 * size + 5 + WARP_WINDOWS, SLOTS * size), "R32UI")
+        held.info = device.texture((WARP_INFO_WIDTH, SLOTS), "R32UI")
         held.size = size
     for name in TABLE_OF_FAMILY.values():
         table = backend.warp_tables.get(name)
@@ -120,11 +117,20 @@ def build_family(backend, size: int, tile_slots: list[int], family: str, kind: s
     tiles = len(tile_slots)
     if family == "rows":
         held.generation += 1  # the tables change from here: a warp of the previous build is stale
+    # Each step is wide (an invocation a line, a position, a candidate window, a node): a GPU
+    # runs an invocation's serial loop at its memory latency.
+    groups = WARP_BUILD_PROGRAM.groups
     if kind == "rtw":
-        _dispatch(backend, "rtw", family, size, tile_slots, WARP_BUILD_PROGRAM.groups(tiles), kind)
+        _dispatch(backend, "rtw_top", family, size, tile_slots, groups(size * tiles), kind)
+        _dispatch(backend, "rtw", family, size, tile_slots, groups(tiles), kind)
+        _dispatch(backend, "rtw_spread", family, size, tile_slots, groups((size + 1) * size * tiles), kind)
     else:
-        _dispatch(backend, "lines", family, size, tile_slots, WARP_BUILD_PROGRAM.groups(size * tiles))
-        _dispatch(backend, "smooth", family, size, tile_slots, tiles)
+        _dispatch(backend, "line_blur", family, size, tile_slots, groups(size * size * tiles))
+        _dispatch(backend, "lines", family, size, tile_slots, groups(size * tiles))
+        _dispatch(backend, "smooth_weights", family, size, tile_slots, groups(tiles))
+        _dispatch(backend, "smooth_den", family, size, tile_slots, groups(WARP_WINDOWS * tiles))
+        _dispatch(backend, "smooth_shear", family, size, tile_slots, groups((size + 1) * WARP_WINDOWS * tiles))
+        _dispatch(backend, "smooth_store", family, size, tile_slots, groups((size + 1) * tiles))
     _dispatch(backend, "pack", family, size, tile_slots, WARP_BUILD_PROGRAM.groups((size + 1) * size * tiles), kind)
 
 
@@ -176,9 +182,11 @@ class GpuWarp:
             raw = self._backend.device.read(held.info, "R32UI")
             held.info_read = (held.generation, raw.astype(np.uint32).view(np.float32))
         info = held.info_read[1][self._tile]
-        scale = float(max(info[INFO_CROP_SCALE], info[INFO_CROP_SCALE + 1]))
-        return box_stretch(scale, float(info[INFO_SLOPE["rows"]]), float(info[INFO_SHEAR["rows"]]),
-                           float(info[INFO_SLOPE["cols"]]), float(info[INFO_SHEAR["cols"]])) * (1.0 + ROUNDING_ROOM)
+        crop = WARP_INFO["crop_scale"]
+        slope = {family: float(info[WARP_INFO["slope"] + code]) for family, code in WARP_FAMILIES.items()}
+        shear = {family: float(info[WARP_INFO["shear"] + 2 * code]) for family, code in WARP_FAMILIES.items()}
+        return box_stretch(float(max(info[crop], info[crop + 1])), slope["rows"], shear["rows"], slope["cols"],
+                           shear["cols"]) * (1.0 + ROUNDING_ROOM)
 
     def crop(self) -> tuple[np.ndarray, np.ndarray]:
         """The layer's DV crop (lo, hi) as the GPU stored it beside the tables."""

@@ -72,7 +72,9 @@ SCATTER_MODE_CODES = MappingProxyType({"crop": 0, "rows": 1, "warp": 2})  # afte
 SCATTER_MODES = tuple(SCATTER_MODE_CODES.values())
 # The steps of the warp's construction on the GPU (warp_build.comp, OW_STEP) and the
 # two families of a NoTW warp (ow_family): row offsets along u, then column offsets along v.
-WARP_STEPS = MappingProxyType({"crop": 0, "crop_store": 1, "lines": 2, "smooth": 3, "rtw": 4, "pack": 5})
+WARP_STEPS = MappingProxyType({"crop": 0, "crop_store": 1, "line_blur": 2, "lines": 3, "smooth_weights": 4,
+                               "smooth_den": 5, "smooth_shear": 6, "smooth_store": 7, "rtw_top": 8, "rtw": 9,
+                               "rtw_spread": 10, "pack": 11})
 WARP_FAMILIES = MappingProxyType({"rows": 0, "cols": 1})
 
 CODES = (
@@ -94,6 +96,18 @@ CODES = (
     Codes("OW_WARP_", WARP_STEPS, ("OW_STEP",)),
     Codes("OW_FAMILY_", WARP_FAMILIES, ("ow_family",)),
 )
+
+# The GPU's warp build (warp_build.comp, passes/warp.py) ----------------------------------
+# The smoothing's candidate windows 1, 2, 4, ... (warping.choose_window) for the largest
+# count map (A = 256: 1 to 128), each tried by invocations of its own.
+WARP_WINDOWS = 8
+# Columns of the build's info image (R32UI, WARP_INFO_WIDTH x SLOTS, a row a tile): family
+# f's window and shear at 2 f and 2 f + 1; the smoothing's populated lines and weight sum;
+# the crop's scale along u and v; family f's steepest slope at slope + f (from pack); the
+# shear of candidate window j at window_shear + j.
+WARP_INFO = MappingProxyType({"window": 0, "shear": 1, "populated": 4, "weight_sum": 5, "crop_scale": 8,
+                              "slope": 10, "window_shear": 12})
+WARP_INFO_WIDTH = WARP_INFO["window_shear"] + WARP_WINDOWS
 
 # Footprints -----------------------------------------------------------------------------
 # Vertex texture of the footprint pass: texel t of an object at (t % W, t // W); vertex i
@@ -173,7 +187,9 @@ def _shared_defines() -> dict[str, str]:
         "OW_SOFT_MAX_POINTS": str(SOFT_MAX_POINTS), "OW_SOFT_SEARCH_STEPS": str(SOFT_SEARCH_STEPS),
         "OW_GRID_MAX": str(GRID_MAX), "OW_GRID_MAX_STEPS": str(GRID_MAX_STEPS),
         "OW_GRID_LIGHT_POINTS": str(GRID_LIGHT_POINTS), "OW_MEDIA_POINTS": str(MEDIA_POINTS),
+        "OW_WARP_WINDOWS": str(WARP_WINDOWS),
     })
+    defines.update({f"OW_INFO_{name.upper()}": str(column) for name, column in WARP_INFO.items()})
     return defines
 
 

@@ -216,7 +216,10 @@ SAMPLE_STATS_PROGRAM = ComputeInterface(
                           "int ow_stats_pass", "int ow_ortho"),
     samplers=("ow_positions",),
     images=(("r32ui", "ow_stats"), ("r32ui", "ow_stats_out")),
+    local_size=samples.CUT_CHUNKS,  # pass 2's one group: an invocation a chunk of the histogram
+    coherent=True,  # pass 2's invocations read each other's chunk sums
     defines={"OW_STAT_SPAN": str(samples.STAT_SPAN), "OW_HIST_BINS": str(samples.HIST_BINS),
+             "OW_CUT_CHUNKS": str(samples.CUT_CHUNKS),
              "OW_STAT_COUNT": str(samples.STAT_COUNT), "OW_ROUNDING": repr(samples.ROUNDING),
              "OW_CUT_STEPS": str(100 * samples.CUT_STEPS),
              "OW_CUT_Q": str(round(samples.CULL_DEPTH_PERCENTILE * samples.CUT_STEPS)),
@@ -245,7 +248,6 @@ WARP_BUILD_PROGRAM = ComputeInterface(
                           f"int ow_tile_slot[{SLOTS}]"),
     images=(("r32ui", "ow_counts"), ("r32ui", "ow_bounds"), ("r32ui", "ow_work"), ("r32ui", "ow_info"),
             ("rgba32f", "ow_table")),
-    coherent=True,  # the smoothing step's group shares its numbers through ow_work and ow_info
     defines={"OW_FLOOR_SHARE": repr(float(warping.FLOOR_SHARE)), "OW_MAX_SLOPE": repr(float(warping.MAX_SLOPE)),
              "OW_SHEAR_LIMIT": repr(float(warping.SHEAR_LIMIT)),
              "OW_IDENTITY_PRIOR": repr(float(warping.IDENTITY_PRIOR)),
