@@ -56,14 +56,23 @@ class _Uniforms:
         self._members = {name: (prog[name], types.get(name, "")) for name in prog
                          if hasattr(prog[name], "write")}
         self._last: dict[str, bytes] = {}
+        self._scalars: dict[str, object] = {}  # the last scalar value, compared before packing
 
     def write(self, name: str, value: object) -> None:
         found = self._members.get(name)
         if found is None:
             return  # not declared, or optimised away by the GLSL compiler
+        scalar = isinstance(value, (int, float, np.generic))
+        if scalar:
+            last = self._scalars.get(name)
+            if last is not None and type(last) is type(value) and last == value:
+                return  # most of a steady frame's uniforms: not packed again
+            self._scalars[name] = value
+        else:
+            self._scalars.pop(name, None)
         member, glsl_type = found
         integer = glsl_type == "int"
-        if isinstance(value, (int, float, np.generic)):
+        if scalar:
             raw = (_INT if integer else _FLOAT).pack(int(value) if integer else float(value))
         else:
             raw = _uniform_bytes(value, glsl_type)
