@@ -15,6 +15,8 @@ renderer and date; their ratio is the host work a frame adds above its GPU calls
 In further frames, timed apart, the wall time inside moderngl's calls ("in GL calls")
 is split from the rest ("host": Python and numpy). On llvmpipe the GPU's work runs on
 the CPU inside those calls, so there the split, not the ratio, says what is host work.
+"host alone" times the frame with the calls that make the GPU work (draws, dispatches,
+clears, barriers, waits) returning at once: its host work with nothing else.
 """
 from __future__ import annotations
 
@@ -117,6 +119,27 @@ class _GLClock:
             setattr(cls, name, original)
 
 
+class _NoGPUWork:
+    """While installed, moderngl's calls that make the GPU work (draws, dispatches, clears,
+    barriers, waits) return at once: a steady frame then costs its host work alone (its
+    reads return what the frames before left, which a steady frame reads anyway)."""
+
+    CALLS = (("VertexArray", "render"), ("ComputeShader", "run"), ("Framebuffer", "clear"),
+             ("Context", "memory_barrier"), ("Context", "finish"))
+
+    def __enter__(self) -> "_NoGPUWork":
+        import moderngl
+
+        self._saved = [(getattr(moderngl, cls), name, getattr(getattr(moderngl, cls), name)) for cls, name in self.CALLS]
+        for cls, name, _ in self._saved:
+            setattr(cls, name, lambda *args, **kwargs: None)
+        return self
+
+    def __exit__(self, *exc) -> None:
+        for cls, name, original in self._saved:
+            setattr(cls, name, original)
+
+
 class BareFrame:
     """A frame of moderngl calls alone: dispatches, clears and draws of 64x64, one wait."""
 
@@ -211,8 +234,11 @@ def main(argv: list[str] | None = None) -> int:
                 gl_ms.append(gl.seconds * 1e3)
                 host_ms.append(frame_ms - gl.seconds * 1e3)
             g, h = statistics.median(gl_ms), statistics.median(host_ms)
-            lines.append(f"| {method} | {t:.2f} | {b:.3f} | {t / b:.1f} | {g:.2f} | {h:.2f} | {calls['dispatch']} | "
-                         f"{calls['draw']} | {calls['clear'] + calls['clear_image']} |")
+            with _NoGPUWork():
+                alone = _median_ms(frame, args.frames)
+            frame()  # the GPU's work again, before the next method
+            lines.append(f"| {method} | {t:.2f} | {b:.3f} | {t / b:.1f} | {g:.2f} | {h:.2f} | {alone:.2f} | "
+                         f"{calls['dispatch']} | {calls['draw']} | {calls['clear'] + calls['clear_image']} |")
         pipeline.release()
     stamp = datetime.datetime.now(datetime.timezone.utc).strftime("%Y-%m-%d %H:%M UTC")
     text = "\n".join([
@@ -221,8 +247,9 @@ def main(argv: list[str] | None = None) -> int:
         f"Renderer: {renderer}. Measured {stamp}. Command: `python scripts/floor_bench.py "
         f"{' '.join(argv if argv is not None else sys.argv[1:])}`".rstrip() + "",
         "",
-        "| method | trivial frame ms | bare frame ms | ratio | in GL calls ms | host ms | dispatches | draws | clears |",
-        "|---|---|---|---|---|---|---|---|---|",
+        "| method | trivial frame ms | bare frame ms | ratio | in GL calls ms | host ms | host alone ms | dispatches "
+        "| draws | clears |",
+        "|---|---|---|---|---|---|---|---|---|---|",
         *lines, ""])
     print(text)
     if args.out is not None:

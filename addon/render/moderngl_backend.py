@@ -39,6 +39,7 @@ def _uniform_bytes(value: object, glsl_type: str = "") -> bytes | None:
     return None
 
 
+_ALREADY_BOUND = contextlib.nullcontext()
 _INT = struct.Struct("i")
 _FLOAT = struct.Struct("f")
 
@@ -137,14 +138,15 @@ class ModernGLDevice(Device):
         with self.bound():
             self._fullscreen = self.ctx.buffer(_FULLSCREEN.tobytes())
 
-    @contextlib.contextmanager
-    def bound(self) -> Iterator[None]:
+    def bound(self) -> contextlib.AbstractContextManager:
         # Several standalone contexts may live in one process (tests, a CLI run next to a
         # fixture); only the outermost call binds, since leaving a nested `with ctx:` would
-        # unbind it while the outer call still draws.
-        if self._bound:
-            yield
-            return
+        # unbind it while the outer call still draws. A nested call (every call inside a
+        # frame) costs one shared no-op context.
+        return _ALREADY_BOUND if self._bound else self._binding()
+
+    @contextlib.contextmanager
+    def _binding(self) -> Iterator[None]:
         with self.ctx:
             self._bound = True
             try:
