@@ -411,16 +411,17 @@ def _reader(backend: ShadowBackend, marks: bool, media: MediaFrame | None, gpu_m
     def read() -> tuple[np.ndarray, np.ndarray, dict[str, float] | None]:
         if backend.released:
             raise BackendError("a frame's result was read after its backend was released")
-        result = backend.read_shadow_test()
-        if marks:
-            hits, _ = backend.read_hits()
-            result[..., 0] *= hits_visibility(hits)  # opaque crossings and see-through ones
-        if media is not None:  # the exact pass's optical depths (passes/media.py)
-            words = backend.read_media()
-            distance = (np.linalg.norm(backend.read_positions()[..., :3], axis=-1) if media.light.any()
-                        else np.zeros(result.shape[:2]))
-            result[..., 0] *= media.kept(words, distance)
-        return result[..., 0][::-1].copy(), result[..., 1][::-1].astype(np.int8), gpu_ms()
+        with backend.device.bound():  # one binding for every read and timer below
+            result = backend.read_shadow_test()
+            if marks:
+                hits, _ = backend.read_hits()
+                result[..., 0] *= hits_visibility(hits)  # opaque crossings and see-through ones
+            if media is not None:  # the exact pass's optical depths (passes/media.py)
+                words = backend.read_media()
+                distance = (np.linalg.norm(backend.read_positions()[..., :3], axis=-1) if media.light.any()
+                            else np.zeros(result.shape[:2]))
+                result[..., 0] *= media.kept(words, distance)
+            return result[..., 0][::-1].copy(), result[..., 1][::-1].astype(np.int8), gpu_ms()
 
     return read
 
