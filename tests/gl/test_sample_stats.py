@@ -132,6 +132,16 @@ def test_gpu_cut_bins_are_the_numpy_bins_of_its_histogram(gl_backend, preset, si
     assert gpu.cull_depth == S.cut_range(reduction.cut, gpu.depth, reduction.cut_log)
 
 
+def test_the_cut_group_covers_the_histogram_in_whole_chunks():
+    """Pass 2 is one work group of CUT_CHUNKS invocations, each over HIST_BINS / CUT_CHUNKS
+    bins, with its chunk sums in the texels after the histogram."""
+    from addon.render.shaders import SAMPLE_STATS_PROGRAM
+
+    assert S.HIST_BINS % S.CUT_CHUNKS == 0
+    assert SAMPLE_STATS_PROGRAM.local_size == S.CUT_CHUNKS
+    assert S.STAT_TEXELS == S.STAT_COUNT + S.HIST_BINS + S.CUT_CHUNKS
+
+
 def test_cut_ranks_are_exact_integer_ranks():
     """The integer ranks (the GPU's arithmetic) are floor(p (n - 1) / 100) and
     ceil((100 - p) (n - 1) / 100) taken exactly, up to millions of samples; a percentile
@@ -146,3 +156,43 @@ def test_cut_ranks_are_exact_integer_ranks():
             assert k_hi == ((1 - p) * (n - 1)).__ceil__()
     with pytest.raises(InputError):
         S.cut_ranks(100, 0.25)
+
+
+@pytest.mark.parametrize("layout", ["one_bin", "first_bin", "last_bin", "chunk_edges", "spread"])
+def test_the_cut_group_finds_numpys_bins_in_any_histogram(gl_backend, layout):
+    """Pass 2 alone over a histogram written into the reduction image: the bins of the
+    cut's ranks are np.searchsorted's, wherever the samples sit (one bin, the ends, the
+    edges of the group's chunks, everywhere)."""
+    from addon.render.shaders import SAMPLE_STATS_PROGRAM, STATS_PASSES
+
+    rng = np.random.default_rng(len(layout))
+    hist = np.zeros(S.HIST_BINS, dtype=np.uint32)
+    chunk = S.HIST_BINS // S.CUT_CHUNKS
+    if layout == "one_bin":
+        hist[517] = 4000
+    elif layout == "first_bin":
+        hist[0] = 3
+    elif layout == "last_bin":
+        hist[-1] = 9000
+        hist[3] = 1
+    elif layout == "chunk_edges":
+        hist[chunk - 1::chunk] = rng.integers(1, 50, S.CUT_CHUNKS)
+        hist[chunk::chunk] = rng.integers(1, 50, S.CUT_CHUNKS - 1)
+    else:
+        hist[:] = rng.integers(0, 30, S.HIST_BINS)
+    image = np.zeros(S.STAT_TEXELS, dtype=np.uint32)
+    image[S.STAT_FIELDS.index("count")] = hist.sum()
+    image[S.STAT_COUNT:S.STAT_COUNT + S.HIST_BINS] = hist
+    device = gl_backend.device
+    with device.bound():
+        stats = device.texture((S.STAT_TEXELS, 1), "R32UI", image)
+        out = device.texture((S.STAT_COUNT, 1), "R32UI")
+        positions = device.texture((1, 1), "RGBA32F")  # not read by pass 2
+        uniforms = {"ow_light_rot": np.eye(3), "ow_view_axis": np.array([0.0, 0.0, 1.0]), "ow_view_offset": 0.0,
+                    "ow_hemi": 0, "ow_ortho": 1, "ow_stats_pass": STATS_PASSES["cut"]}
+        device.dispatch(SAMPLE_STATS_PROGRAM, uniforms, {"ow_positions": positions},
+                        {"ow_stats": stats, "ow_stats_out": out}, 1)
+        fields = device.read(out, "R32UI").ravel()
+        device.free(stats, out, positions)
+    got = (int(fields[S.STAT_FIELDS.index("cut_lo")]) - 1, int(fields[S.STAT_FIELDS.index("cut_hi")]) - 1)
+    assert got == S.cut_bins(hist)
