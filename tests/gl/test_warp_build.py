@@ -65,10 +65,10 @@ def test_the_candidate_windows_cover_the_largest_count_map():
     assert 1 << (WARP_WINDOWS - 2) < PW.MAX_GPU_WARP_SIZE // 2 <= 1 << (WARP_WINDOWS - 1)
 
 
-@pytest.mark.parametrize("size", [16, 64, 100, 128])
+@pytest.mark.parametrize("size", [16, 64, 100, 128, 256])
 def test_each_family_is_the_numpy_offsets_to_float32(gl_backend, size):
     """Rows from the counts, columns from the same counts taken as after the row warps:
-    the GPU's offsets within 5e-5 map units of numpy's, the same smoothing window, and the
+    the GPU's offsets within 5e-5 map units of numpy's (1e-4 at A = 256), the same smoothing window, and the
     table laid out as pack_warp_table lays numpy's out (its shear in column A)."""
     rng = np.random.default_rng(size + 1)
     maps = _maps(rng, size)[:4]  # four tiles, in the slots below
@@ -81,19 +81,22 @@ def test_each_family_is_the_numpy_offsets_to_float32(gl_backend, size):
         warps = {slot: PW.GpuWarp(gl_backend, slot, size) for slot in slots}
         packed = {name: gl_backend.device.read(gl_backend.warp_tables[name], "RGBA32F")
                   for name in PW.TABLE_OF_FAMILY.values()}
+    # float32's running sums lose digits in proportion to the lines they run over: 5e-5
+    # map units up to A = 128, twice that at 256 (0.2 of a texel of the 2048 maps it serves).
+    tolerance = 5e-5 * max(1.0, size / 128)
     for counts, slot in zip(maps, slots):
         rows, row_window = W.notw_rows(counts)
         cols, col_window = W.notw_cols(counts)
         warp = warps[slot]
-        assert np.abs(warp.rows - rows).max() < 5e-5
-        assert np.abs(warp.cols - cols).max() < 5e-5
+        assert np.abs(warp.rows - rows).max() < tolerance
+        assert np.abs(warp.cols - cols).max() < tolerance
         assert (warp.params.row_window, warp.params.col_window) == (row_window, col_window)
         for name, table, window in (("ow_warp_rows", rows, row_window), ("ow_warp_cols", cols, col_window)):
             stacked = np.zeros((6 * size, size + 1))
             stacked[slot * size:(slot + 1) * size] = table
             expected = passes_samples.pack_warp_table(stacked, window)[slot * size:(slot + 1) * size]
             got = packed[name][slot * size:(slot + 1) * size]
-            assert np.abs(got[:, :size] - expected[:, :size]).max() < 5e-5
+            assert np.abs(got[:, :size] - expected[:, :size]).max() < tolerance
             # The shear is a difference of offsets times A: its float32 error grows with A.
             assert got[0, size, 0] == pytest.approx(expected[0, size, 0], rel=1e-2, abs=1e-4)
             assert got[0, size, 1] == expected[0, size, 1]
