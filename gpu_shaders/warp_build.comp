@@ -386,7 +386,11 @@ void ow_smooth_shear(int index)
   int k = index % width;
   int tile = index / width / OW_WARP_WINDOWS;
   int j = (index / width) % OW_WARP_WINDOWS;
-  if (tile >= ow_tiles || j >= ow_window_count() || ow_info_value(OW_INFO_POPULATED, tile) == 0u) {
+  if (tile >= ow_tiles || j >= ow_window_count()) {
+    return;
+  }
+  uint populated = ow_info_value(OW_INFO_POPULATED, tile);
+  if (populated == 0u) {
     return;
   }
   float shear = ow_tent_pass(tile, k, 1 << j, OW_TENT_SHEAR, 0.0, OW_DEN_COLUMN(j));
@@ -406,7 +410,8 @@ void ow_smooth_store(int index)
   }
   int window = 0;
   float shear = 0.0;
-  if (ow_info_value(OW_INFO_POPULATED, tile) == 0u) {
+  uint populated = ow_info_value(OW_INFO_POPULATED, tile);
+  if (populated == 0u) {
     for (int i = 0; i < size; i++) {
       ow_set_work(tile, i, OW_OUT_COLUMN + k, ow_work_value(tile, i, k));  // every line empty: as they are
     }

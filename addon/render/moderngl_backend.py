@@ -8,7 +8,6 @@ module or renders EEVEE.
 from __future__ import annotations
 
 import contextlib
-import struct
 import logging
 from typing import Any, Iterator
 
@@ -20,6 +19,7 @@ from .backend import ShadowBackend
 from .device import (COMPONENTS, FULLSCREEN, FULLSCREEN_CORNERS, Device, Geometry, GPUTimer, Program, Rect, Target,
                      UniformValues)
 from .moderngl_glsl import moderngl_compute_source, moderngl_sources
+from .moderngl_uniforms import ProgramUniforms
 from .passes.footprints import FOOTPRINT_VERTICES, corner_capacity, corner_indices
 from .shaders import ComputeInterface, ProgramInterface
 
@@ -29,59 +29,7 @@ _FULLSCREEN = np.array(FULLSCREEN_CORNERS, dtype="f4")
 _ATTRIBUTE_FORMATS = {"float": "1f", "vec2": "2f", "vec3": "3f", "vec4": "4f"}
 
 
-def _uniform_bytes(value: object, glsl_type: str = "") -> bytes | None:
-    """Raw bytes for matrix and array uniforms (matrices column-major, as GLSL expects)."""
-    arr = np.asarray(value)
-    if glsl_type.startswith("mat") or (arr.ndim >= 2 and arr.shape[-2:] == (3, 3)):
-        return np.ascontiguousarray(np.swapaxes(arr, -1, -2), dtype="f4").tobytes()
-    if arr.ndim == 2:
-        return np.ascontiguousarray(arr, dtype="f4").tobytes()
-    return None
-
-
 _ALREADY_BOUND = contextlib.nullcontext()
-_INT = struct.Struct("i")
-_FLOAT = struct.Struct("f")
-
-
-class _Uniforms:
-    """A program's uniforms and the bytes each was last given.
-
-    A uniform keeps its value in the program between draws, so a value that did not
-    change since the last write is not sent again (a steady frame sends few).
-    """
-
-    def __init__(self, prog, iface: Program) -> None:
-        types = {u.name: u.glsl_type for u in iface.uniforms}
-        # Only what can be written: moderngl lists attributes and blocks among the members.
-        self._members = {name: (prog[name], types.get(name, "")) for name in prog
-                         if hasattr(prog[name], "write")}
-        self._last: dict[str, bytes] = {}
-        self._scalars: dict[str, object] = {}  # the last scalar value, compared before packing
-
-    def write(self, name: str, value: object) -> None:
-        found = self._members.get(name)
-        if found is None:
-            return  # not declared, or optimised away by the GLSL compiler
-        scalar = isinstance(value, (int, float, np.generic))
-        if scalar:
-            last = self._scalars.get(name)
-            if last is not None and type(last) is type(value) and last == value:
-                return  # most of a steady frame's uniforms: not packed again
-            self._scalars[name] = value
-        else:
-            self._scalars.pop(name, None)
-        member, glsl_type = found
-        integer = glsl_type == "int"
-        if scalar:
-            raw = (_INT if integer else _FLOAT).pack(int(value) if integer else float(value))
-        else:
-            raw = _uniform_bytes(value, glsl_type)
-            if raw is None:  # a vector, or an array of scalars
-                raw = np.ascontiguousarray(value, dtype="i4" if integer else "f4").tobytes()
-        if self._last.get(name) != raw:
-            member.write(raw)
-            self._last[name] = raw
 
 
 class _Timer(GPUTimer):
@@ -129,7 +77,7 @@ class ModernGLDevice(Device):
             ) from exc
         self._bound = False
         self.programs: dict[str, Any] = {}
-        self._uniforms: dict[str, _Uniforms] = {}  # per program: its members and what they hold
+        self._uniforms: dict[str, ProgramUniforms] = {}  # per program: its members and what they hold
         self._vaos: dict[str, Any] = {}  # a vertex array renders with the program it was made for
         self._clear_fbos: dict[int, Any] = {}  # id(texture) -> framebuffer that clears or reads it
         self._corners = None  # the footprint pass's corner buffer
@@ -196,7 +144,7 @@ class ModernGLDevice(Device):
         written = self._uniforms.get(iface.name)
         if written is None:
             # moderngl's `name in prog` walks every member; look them up once a program.
-            written = self._uniforms[iface.name] = _Uniforms(prog, iface)
+            written = self._uniforms[iface.name] = ProgramUniforms(prog, iface)
         for name, value in uniforms.items():
             written.write(name, value)
         for binding, sampler in enumerate(iface.samplers):
