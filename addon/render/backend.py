@@ -102,7 +102,7 @@ class ShadowBackend:
                 self.geometry_bytes += self.alpha.hold(self.device, key, obj.alpha)
         if scene.removed_grids:  # densities this scene no longer holds (edited or removed grids)
             live = {grid.density_digest for grid in scene.grids.values()}
-            self.grids.drop(self.device, set(self.grids.textures) - (scene.removed_grids - live))
+            self.grids.free(self.device, scene.removed_grids - live)
             scene.removed_grids.clear()
         if scene.grids:
             self.geometry_bytes += self.grids.sync(self.device, scene.grids.values(), self.max_texture_size())
@@ -120,8 +120,7 @@ class ShadowBackend:
         for key in list(scene.objects) + list(scene.removed):
             if key in self.vertices:
                 self._drop_part(key)
-        gone = {grid.density_digest for grid in scene.grids.values()} | scene.removed_grids
-        self.grids.drop(self.device, set(self.grids.textures) - gone)
+        self.grids.free(self.device, {grid.density_digest for grid in scene.grids.values()} | scene.removed_grids)
 
     def resident_objects(self) -> int:
         """Objects whose vertex textures this backend holds."""

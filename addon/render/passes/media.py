@@ -251,9 +251,9 @@ class GridStore:
                 uploaded += int(texels.nbytes)
         return uploaded
 
-    def drop(self, device, keep: set[str]) -> None:
-        """Free the grids whose digests are not in `keep`."""
-        for digest in [d for d in self.textures if d not in keep]:
+    def free(self, device, digests: set[str]) -> None:
+        """Free the grids of these density digests (those not held are passed over)."""
+        for digest in [d for d in self.textures if d in digests]:
             device.free(self.textures.pop(digest)[0])
 
     def bind(self, device, grids, light) -> tuple[dict[str, Any], dict[str, Any]]:
@@ -284,6 +284,6 @@ class GridStore:
         return uniforms, samplers
 
     def release(self, device) -> None:
-        self.drop(device, set())
+        self.free(device, set(self.textures))
         device.free(self.dummy)
         self.dummy = None

@@ -72,16 +72,21 @@ def _uniforms(family: str, size: int, tiles: int, tile_slots: list[int], kind: s
             "ow_tiles": tiles, "ow_along": along, "ow_tile_slot": slots}
 
 
-def _dispatch(backend, step: str, family: str, size: int, tile_slots: list[int], groups: int,
-              kind: str = "notw") -> None:
+def _steps(backend, family: str, size: int, tile_slots: list[int], kind: str = "notw"):
+    """A function that dispatches a step of the build of one family (warp_step_variant) over
+    a number of invocations: the family's uniforms and images are made once for its steps."""
     held = backend.warp_build
     counts = backend.samples.counts.get(size)
     if counts is None:
         raise BackendError("the GPU warp needs the count strip of a scatter at its size first")
     images = {"ow_counts": counts, "ow_bounds": held.bounds, "ow_work": held.work, "ow_info": held.info,
               "ow_table": backend.warp_tables[TABLE_OF_FAMILY[family]]}
-    backend.device.dispatch(warp_step_variant(step), _uniforms(family, size, len(tile_slots), tile_slots, kind),
-                            {}, images, groups)
+    uniforms = _uniforms(family, size, len(tile_slots), tile_slots, kind)
+
+    def run(step: str, invocations: int) -> None:
+        backend.device.dispatch(warp_step_variant(step), uniforms, {}, images, WARP_BUILD_PROGRAM.groups(invocations))
+
+    return run
 
 
 def build_crop(backend, size: int, tile_slots: list[int]) -> None:
@@ -92,8 +97,9 @@ def build_crop(backend, size: int, tile_slots: list[int]) -> None:
     held = _images(backend, size)
     tiles = len(tile_slots)
     backend.device.clear_image(held.bounds)
-    _dispatch(backend, "crop", "rows", size, tile_slots, WARP_BUILD_PROGRAM.groups(size * size * tiles))
-    _dispatch(backend, "crop_store", "rows", size, tile_slots, WARP_BUILD_PROGRAM.groups(tiles))
+    run = _steps(backend, "rows", size, tile_slots)
+    run("crop", size * size * tiles)
+    run("crop_store", tiles)
 
 
 def read_crop_bounds(backend, tiles: int) -> list[tuple[int, int, int, int] | None]:
@@ -119,19 +125,15 @@ def build_family(backend, size: int, tile_slots: list[int], family: str, kind: s
         held.generation += 1  # the tables change from here: a warp of the previous build is stale
     # Each step is wide (an invocation a line, a position, a candidate window, a node): a GPU
     # runs an invocation's serial loop at its memory latency.
-    groups = WARP_BUILD_PROGRAM.groups
     if kind == "rtw":
-        _dispatch(backend, "rtw_top", family, size, tile_slots, groups(size * tiles), kind)
-        _dispatch(backend, "rtw", family, size, tile_slots, groups(tiles), kind)
-        _dispatch(backend, "rtw_spread", family, size, tile_slots, groups((size + 1) * size * tiles), kind)
+        steps = (("rtw_top", size * tiles), ("rtw", tiles), ("rtw_spread", (size + 1) * size * tiles))
     else:
-        _dispatch(backend, "line_blur", family, size, tile_slots, groups(size * size * tiles))
-        _dispatch(backend, "lines", family, size, tile_slots, groups(size * tiles))
-        _dispatch(backend, "smooth_weights", family, size, tile_slots, groups(tiles))
-        _dispatch(backend, "smooth_den", family, size, tile_slots, groups(WARP_WINDOWS * tiles))
-        _dispatch(backend, "smooth_shear", family, size, tile_slots, groups((size + 1) * WARP_WINDOWS * tiles))
-        _dispatch(backend, "smooth_store", family, size, tile_slots, groups((size + 1) * tiles))
-    _dispatch(backend, "pack", family, size, tile_slots, WARP_BUILD_PROGRAM.groups((size + 1) * size * tiles), kind)
+        steps = (("line_blur", size * size * tiles), ("lines", size * tiles), ("smooth_weights", tiles),
+                 ("smooth_den", WARP_WINDOWS * tiles), ("smooth_shear", (size + 1) * WARP_WINDOWS * tiles),
+                 ("smooth_store", (size + 1) * tiles))
+    run = _steps(backend, family, size, tile_slots, kind)
+    for step, invocations in (*steps, ("pack", (size + 1) * size * tiles)):
+        run(step, invocations)
 
 
 class GpuWarp:
