@@ -41,7 +41,7 @@ from typing import TYPE_CHECKING, Any, Callable
 
 import numpy as np
 
-from ..core import interrupt, validate
+from ..core import exr, interrupt, validate
 from ..core.camera import Window, blender_camera_window, window_fov_deg
 from ..core.errors import InputError, ReferenceCaptureError
 from ..core.light_shape import POINT
@@ -454,19 +454,13 @@ def _remove_dir(path: Path) -> None:
 def read_exr_channels(path: Path) -> dict[str, np.ndarray]:
     """Every channel of a (multi-part) EXR by its full name, as (H, W) float32 arrays.
 
-    Row 0 is the top of the image: Blender writes the data window top-down.
+    Row 0 is the top of the image: Blender writes the data window top-down. Read with the
+    project's own numpy reader (core/exr.py): a stock Blender's Python has no OpenEXR.
     """
-    import OpenEXR
-
-    channels: dict[str, np.ndarray] = {}
     try:
-        with OpenEXR.File(str(path), separate_channels=True) as exr:
-            for part in exr.parts:
-                for name, channel in part.channels.items():
-                    channels[name] = np.asarray(channel.pixels, dtype=np.float32)
-    except (OSError, RuntimeError) as exc:
+        return exr.read_channels(path)
+    except exr.ExrError as exc:
         raise ReferenceCaptureError(f"cannot read Cycles output {path}: {exc}") from exc
-    return channels
 
 
 def _channel(channels: dict[str, np.ndarray], layer: str, name: str) -> np.ndarray:

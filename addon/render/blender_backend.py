@@ -20,7 +20,6 @@ from ..core.errors import BackendError
 from .backend import ShadowBackend
 from .blender_gpu import (
     CREATED,
-    VECTOR_SIZES,
     backend_type,
     compute_create_info,
     count_gpu_objects,
@@ -30,10 +29,12 @@ from .blender_gpu import (
     framebuffer,
     read_texture,
     read_uint,
+    uniform_buffer,
 )
 from .device import FULLSCREEN, FULLSCREEN_CORNERS, Device, Geometry, Program, Rect, Target, UniformValues
 from .passes.footprints import FOOTPRINT_VERTICES, corner_capacity, corner_indices
 from .passes.samples import set_size
+from .shaders.uniform_block import INSTANCE, BlockState, UniformBlock
 from .shaders import (
     BARRIER_PROGRAM,
     GBUFFER_ALPHA_PROGRAM,
@@ -45,35 +46,9 @@ from .shaders import (
 
 log = logging.getLogger(__name__)
 
-_INT_TYPES = ("int", "bool", "ivec2", "ivec3", "ivec4")
-
-
-def _set_uniform(shader, uniform, value) -> None:
-    import gpu
-
-    arr = np.asarray(value, dtype=np.float64)
-    if uniform.glsl_type in _INT_TYPES:
-        if uniform.array:
-            # uniform_int takes at most 4 values; arrays go through their location.
-            ints = [int(v) for v in arr.ravel()]
-            length = 1 if uniform.glsl_type in ("int", "bool") else int(uniform.glsl_type[-1])
-            shader.uniform_vector_int(shader.uniform_from_name(uniform.name),
-                                      gpu.types.Buffer("INT", len(ints), ints), length, len(ints) // length)
-        else:
-            shader.uniform_int(uniform.name, int(value) if arr.ndim == 0 else [int(v) for v in arr.ravel()])
-        return
-    if uniform.glsl_type.startswith("mat"):
-        # GLSL matrices are column-major: upload the transpose's rows.
-        arr = np.swapaxes(arr.reshape((-1,) + arr.shape[-2:]), -1, -2)
-    flat = np.ascontiguousarray(arr, dtype=np.float32).ravel()
-    if uniform.array:
-        location = shader.uniform_from_name(uniform.name)
-        length = VECTOR_SIZES[uniform.glsl_type]
-        shader.uniform_vector_float(location, gpu.types.Buffer("FLOAT", flat.size, flat), length, flat.size // length)
-    elif flat.size == 1:
-        shader.uniform_float(uniform.name, float(flat[0]))
-    else:
-        shader.uniform_float(uniform.name, [float(v) for v in flat])
+# Distinct uniform blocks kept per program: a steady frame's draws repeat their blocks, so
+# each is uploaded once; past this many a program's are dropped and made anew.
+BLOCKS_KEPT = 256
 
 
 class BlenderDevice(Device):
@@ -89,7 +64,12 @@ class BlenderDevice(Device):
         except ImportError as exc:
             raise BackendError("the Blender gpu backend needs Blender (bpy) to run") from exc
         self.shaders: dict[str, Any] = {}
-        self._active: dict[str, frozenset[str]] = {}  # program name -> uniforms it kept
+        self._active: dict[str, frozenset[str]] = {}  # program name -> samplers it kept
+        self._blocks: dict[str, BlockState] = {}  # program name -> its uniforms' current bytes
+        # program name -> {block bytes: GPUUniformBuf}: a block is uploaded once, then bound
+        # again wherever a draw repeats it (a new buffer per content, never one rewritten
+        # while an earlier draw that reads it may still be queued).
+        self.uniform_buffers: dict[str, dict[bytes, Any]] = {}
         self.batches: dict[str, Any] = {}
         self._corner_triangles = 0  # triangles the corner batches' buffer holds
         # Point sprites need the shader's point size, which the gpu module takes on OpenGL;
@@ -128,11 +108,8 @@ class BlenderDevice(Device):
         shader = self.shader(iface)
         shader.bind()
         active = self._active_names(iface, shader)
-        declared = {u.name: u for u in iface.uniforms}
-        for name, value in uniforms.items():
-            uniform = declared.get(name)
-            if uniform is not None and name in active:  # else not declared, or optimised away
-                _set_uniform(shader, uniform, value)
+        if iface.uniforms:
+            shader.uniform_block(INSTANCE, self._uniform_buffer(iface, uniforms))
         for sampler in iface.samplers:
             texture = textures.get(sampler)
             if texture is None:
@@ -143,14 +120,29 @@ class BlenderDevice(Device):
             shader.image(name, images[name])
         return shader
 
+    def _uniform_buffer(self, iface: Program, uniforms: UniformValues):
+        """The program's uniform block with `uniforms` written over its current values."""
+        state = self._blocks.get(iface.name)
+        if state is None:
+            state = self._blocks[iface.name] = BlockState(UniformBlock.of(iface))
+        state.update(uniforms)
+        data = state.data
+        kept = self.uniform_buffers.setdefault(iface.name, {})
+        buffer = kept.get(data)
+        if buffer is None:
+            if len(kept) >= BLOCKS_KEPT:
+                kept.clear()
+            buffer = kept[data] = uniform_buffer(data)
+        return buffer
+
     def _active_names(self, iface: Program, shader) -> frozenset[str]:
-        """Uniforms and samplers the compiled shader still has (cached per program): a variant
-        that compiles code out (OW_NO_WARP) loses the uniforms only that code read, and
-        `gpu` raises ValueError when asked to set a missing uniform."""
+        """Samplers the compiled shader still has (cached per program): a variant that
+        compiles code out (OW_NO_WARP) loses the samplers only that code read, and `gpu`
+        raises ValueError when asked to set a missing one."""
         names = self._active.get(iface.name)
         if names is None:
             found = set()
-            for name in [u.name for u in iface.uniforms] + list(iface.samplers):
+            for name in iface.samplers:
                 try:
                     shader.uniform_from_name(name)
                 except ValueError:
@@ -299,6 +291,8 @@ class BlenderDevice(Device):
         self.batches.clear()
         self.shaders.clear()
         self._active.clear()
+        self._blocks.clear()
+        self.uniform_buffers.clear()
         self._corner_triangles = 0
 
 

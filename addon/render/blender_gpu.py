@@ -15,6 +15,7 @@ import numpy as np
 
 from . import blender_compat
 from .shaders import ComputeInterface, ProgramInterface, image_type, load_source, program_defines
+from .shaders.uniform_block import INSTANCE, UniformBlock
 
 log = logging.getLogger(__name__)
 
@@ -24,7 +25,7 @@ log = logging.getLogger(__name__)
 # the distinct ones it holds (`count_gpu_objects`), and `release()` drops them all; Blender
 # frees an object when its last reference goes. The tests compare these counts across
 # register cycles and redraws, and CREATED across repeated frames.
-CREATED = {"texture": 0, "framebuffer": 0, "shader": 0}
+CREATED = {"texture": 0, "framebuffer": 0, "shader": 0, "uniform_buffer": 0}
 
 # The Python types of Blender's GPU objects (gpu.types), by name: what count_gpu_objects counts.
 _GPU_TYPES = frozenset({"GPUTexture", "GPUFrameBuffer", "GPUShader", "GPUBatch", "GPUVertBuf", "GPUIndexBuf",
@@ -59,7 +60,6 @@ _GLSL_TYPES = {
     "float": "FLOAT", "vec2": "VEC2", "vec3": "VEC3", "vec4": "VEC4", "mat3": "MAT3", "mat4": "MAT4",
     "int": "INT", "ivec2": "IVEC2", "ivec3": "IVEC3", "ivec4": "IVEC4", "bool": "BOOL",
 }
-VECTOR_SIZES = {"float": 1, "vec2": 2, "vec3": 3, "vec4": 4, "mat3": 9, "mat4": 16}
 
 
 def ensure_gpu() -> None:
@@ -90,13 +90,32 @@ def ensure_gpu() -> None:
         bpy.data.scenes.remove(scene)
 
 
+def _declare_uniforms(info: Any, iface: ProgramInterface | ComputeInterface) -> None:
+    """The program's uniforms as one std140 uniform buffer (shaders/uniform_block.py says
+    why not push constants), its members reached by their bare names through defines."""
+    block = UniformBlock.of(iface)
+    if not block.members:
+        return
+    info.typedef_source(block.glsl_struct())
+    info.uniform_buf(0, block.type_name, INSTANCE)
+    for name, member in block.member_defines().items():
+        info.define(name, member)
+
+
+def uniform_buffer(data: bytes) -> Any:
+    """A `GPUUniformBuf` holding `data` (counted in CREATED)."""
+    import gpu
+
+    CREATED["uniform_buffer"] += 1
+    return gpu.types.GPUUniformBuf(data)
+
+
 def create_info(iface: ProgramInterface) -> Any:
     """A `GPUShaderCreateInfo` declaring everything `iface` names, with the shared GLSL."""
     import gpu
 
     info = gpu.types.GPUShaderCreateInfo()
-    for uniform in iface.uniforms:
-        info.push_constant(_GLSL_TYPES[uniform.glsl_type], uniform.name, uniform.array)
+    _declare_uniforms(info, iface)
     for slot, sampler in enumerate(iface.samplers):
         info.sampler(slot, "FLOAT_2D", sampler)
     for slot, (glsl_type, name) in enumerate(iface.vertex_in):
@@ -122,13 +141,12 @@ def create_info(iface: ProgramInterface) -> Any:
 
 
 def compute_create_info(iface: ComputeInterface) -> Any:
-    """A `GPUShaderCreateInfo` for a compute program: push constants, samplers, R32UI images."""
+    """A `GPUShaderCreateInfo` for a compute program: its uniform block, samplers, images."""
     import gpu
 
     info = gpu.types.GPUShaderCreateInfo()
     info.local_group_size(iface.local_size, 1, 1)
-    for uniform in iface.uniforms:
-        info.push_constant(_GLSL_TYPES[uniform.glsl_type], uniform.name, uniform.array)
+    _declare_uniforms(info, iface)
     for slot, sampler in enumerate(iface.samplers):
         info.sampler(slot, "FLOAT_2D", sampler)
     for unit, (fmt, name) in enumerate(iface.images):
