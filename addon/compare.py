@@ -23,6 +23,7 @@ from .core import methods as method_registry
 from .core.errors import InputError
 from .core.methods import DEFAULT_METHODS
 from .core.outputs import StagedOutput
+from .core.png import colormap, write_png
 from .core.scene import POINT_EMISSIONS, PROJECTIVE_EMISSIONS, CameraSpec, LightSpec
 from .reference.data import ReferenceData
 from .render.blender_draw import pool_image
@@ -226,7 +227,7 @@ def run_row(pipeline: ShadowPipeline, ref: ReferenceData, preset: str, method: s
         image_dir.mkdir(parents=True, exist_ok=True)
         stem = f"{preset}{'_' + tag if tag else ''}_{method}_{resolution}{'' if options.cull else '_nocull'}"
         img = metrics.mismatch_image(ref.shadowed, est_lit, ref_lit, evaluable)
-        _write_png(image_dir / f"{stem}_mismatch.png", img)
+        write_png(image_dir / f"{stem}_mismatch.png", img)
         row["mismatch_image"] = f"images/{stem}_mismatch.png"
         row["map_images"] = _write_map_images(image_dir, stem, last, counts)
     return row
@@ -298,12 +299,8 @@ def _pool(image: np.ndarray, reduce) -> np.ndarray:
 
 def _write_map_images(image_dir: Path, stem: str, result: FrameResult, counts) -> list[str]:
     """Per layer: count map (log), importance map (counts after crop and warp), depth map,
-    and where the layer drew media their transmittance map."""
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
+    and where the layer drew media their transmittance map; row 0 of a map at the bottom
+    of its image."""
     names = []
     res = result.layout.resolution if result.layout else 0
     top = max(counts.max_count_before, counts.max_count_after, 1.0)
@@ -319,20 +316,14 @@ def _write_map_images(image_dir: Path, stem: str, result: FrameResult, counts) -
                 continue
             path = image_dir / f"{stem}_{tag}_{kind}.png"
             if kind == "depth":
-                plt.imsave(path, _pool(data, np.min), cmap="viridis", origin="lower", vmin=0.0, vmax=1.0)
+                rgb = colormap(_pool(data, np.min), "viridis", 0.0, 1.0)
             elif kind == "transmittance":
-                plt.imsave(path, _pool(data, np.min), cmap="gray", origin="lower", vmin=0.0, vmax=1.0)
+                rgb = colormap(_pool(data, np.min), "gray", 0.0, 1.0)
             else:
-                pooled = _pool(data, np.max)
-                plt.imsave(path, np.log1p(pooled), cmap="inferno", origin="lower", vmin=0.0, vmax=np.log1p(top))
+                rgb = colormap(np.log1p(_pool(data, np.max)), "inferno", 0.0, float(np.log1p(top)))
+            write_png(path, rgb[::-1])  # the map's row 0 at the bottom
             names.append(f"images/{path.name}")
     return names
-
-
-def _write_png(path: Path, rgb: np.ndarray) -> None:
-    import matplotlib.image as mpimg  # lazy: matplotlib is slow to import
-
-    mpimg.imsave(path, rgb)
 
 
 def _cull_variants(options: CompareOptions) -> list[CompareOptions]:
@@ -380,7 +371,7 @@ def run_compare(measure: Callable[[Path | None], list[Row]], options: CompareOpt
     moved into place at the end (`core/outputs.py`): a failed or interrupted run leaves the
     earlier results as they were, and a finished one leaves no image of an earlier run.
     """
-    # A run without matplotlib draws no plot: an earlier run's plot must not stay beside it.
+    # A run of one frame draws no frame plot: an earlier run's must not stay beside it.
     with StagedOutput(options.out_dir, replaces=("images", "error_vs_time.png", "error_vs_frame.png")) as stage:
         rows = measure(stage.path / "images" if options.write_images else None)
         check_rows(rows)

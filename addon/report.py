@@ -1,10 +1,15 @@
-"""Report outputs of `compare`: a markdown table and the error-vs-time Pareto plot."""
+"""Report outputs of `compare`: a markdown table and the error-vs-time Pareto plot.
+
+The plots are described once (`pareto_chart`, `frame_chart`) and drawn with matplotlib
+where it is installed, else with the built-in numpy painter, core/raster_plot.py.
+"""
 from __future__ import annotations
 
 import logging
 from collections.abc import Sequence
 from pathlib import Path
 
+from .core.raster_plot import MARKERS, Chart, Line, Series, write_chart
 from .rows import SHOT_FIELDS, Row, row_label
 
 log = logging.getLogger(__name__)
@@ -158,67 +163,97 @@ def _point_label(row: Row) -> str:
     return label
 
 
-def write_plot(rows: Sequence[dict], path: Path) -> bool:
-    """Error % against total ms per frame (plot_time_ms: GPU time where measured), one colour
-    per preset, a marker per method.
-
-    Returns False, with one log line, where matplotlib is missing (a bare GPU machine
-    runs `scripts/gpu_bench.sh` with numpy and moderngl only): the table still counts.
-    """
-    try:
-        import matplotlib
-    except ImportError:
-        log.warning("matplotlib is not installed: %s not drawn (the table and results.json are)", path.name)
-        return False
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    fig, ax = plt.subplots(figsize=(11, 6.5), dpi=110)
+def pareto_chart(rows: Sequence[dict]) -> Chart:
+    """The error-vs-time plot described once for both painters: error % against total ms
+    per frame (plot_time_ms: GPU time where measured), one colour per preset, a marker per
+    method, each point labelled (_point_label), and each preset's Pareto front."""
     presets = sorted({r["preset"] for r in rows})
     methods = sorted({row_label(r) for r in rows})
-    markers = "osD^v<>ph*XP8dH"
-    colours = plt.rcParams["axes.prop_cycle"].by_key()["color"]
+    mixed = any("gpu_ms" in r for r in rows)
+    items: list[Series | Line] = []
     for pi, preset in enumerate(presets):
-        colour = colours[pi % len(colours)]
         pts = []
         for mi, method in enumerate(methods):
             sel = [r for r in rows if r["preset"] == preset and row_label(r) == method]
             if not sel:
                 continue
-            xs = [plot_time_ms(r) for r in sel]
-            ys = [r["error_pct"] for r in sel]
+            xs = tuple(plot_time_ms(r) for r in sel)
+            ys = tuple(float(r["error_pct"]) for r in sel)
             pts += list(zip(xs, ys))
-            ax.scatter(xs, ys, color=colour, marker=markers[mi % len(markers)], s=40,
-                       label=f"{preset} / {method}")
-            mixed = any("gpu_ms" in r for r in rows)
-            for r, x, y in zip(sel, xs, ys):
-                wall = " wall" if mixed and "gpu_ms" not in r else ""
-                ax.annotate(_point_label(r) + wall, (x, y), textcoords="offset points", xytext=(4, 3), fontsize=7)
+            labels = tuple(_point_label(r) + (" wall" if mixed and "gpu_ms" not in r else "") for r in sel)
+            items.append(Series(f"{preset} / {method}", pi, xs, ys, marker=mi, point_labels=labels))
         front = _pareto(pts)
         if len(front) > 1:
-            ax.plot(*zip(*front), color=colour, linewidth=1, alpha=0.6)
-    ax.set_xscale("log")
+            items.append(Line(pi, *(tuple(v) for v in zip(*front))))
     errors = [r["error_pct"] for r in rows if r["error_pct"] > 0]
-    if errors and max(errors) / min(errors) > 30.0:
-        ax.set_yscale("log")  # e.g. a uniform sun map at several % next to warped maps at 0.02 %
+    # e.g. a uniform sun map at several % next to warped maps at 0.02 %
+    log_y = bool(errors) and max(errors) / min(errors) > 30.0
     timed = sum("gpu_ms" in r for r in rows)
     if timed == len(rows):
-        ax.set_xlabel("GPU time per frame, ms (log; median, all stages; timer queries)")
+        xlabel = "GPU time per frame, ms (log; median, all stages; timer queries)"
     elif timed:
-        ax.set_xlabel("time per frame, ms (log; median, all stages): GPU time (timer queries) where "
-                      "measured, wall time for the rows marked 'wall'")
+        xlabel = ("time per frame, ms (log; median, all stages): GPU time (timer queries) where "
+                  "measured, wall time for the rows marked 'wall'")
     else:
-        ax.set_xlabel("time per frame, ms (log; median, all stages; wall)")
-    ax.set_ylabel("error % of evaluated pixels vs Cycles")
-    ax.set_title("Shadow error against time (lines: Pareto front per preset)")
-    ax.grid(True, which="both", alpha=0.3)
+        xlabel = "time per frame, ms (log; median, all stages; wall)"
+    return Chart("Shadow error against time (lines: Pareto front per preset)", xlabel,
+                 "error % of evaluated pixels vs Cycles", tuple(items), log_x=True, log_y=log_y, size=(1210, 715),
+                 legend_columns=1 if len(presets) * len(methods) <= 24 else 2)
+
+
+def write_plot(rows: Sequence[dict], path: Path) -> bool:
+    """error_vs_time.png (pareto_chart): with matplotlib where it is installed, else with
+    the built-in painter (core/raster_plot.py; a stock Blender's Python has no matplotlib)."""
+    return _draw(pareto_chart(rows), path)
+
+
+def _draw(chart: Chart, path: Path) -> bool:
+    """Write the chart to `path` with matplotlib, or where it is missing with raster_plot."""
+    try:
+        import matplotlib
+    except ImportError:
+        write_chart(chart, path)
+        log.info("matplotlib is not installed: %s drawn by the built-in painter (core/raster_plot.py)", Path(path).name)
+        return True
+    matplotlib.use("Agg")
+    _draw_matplotlib(chart, path)
+    return True
+
+
+def _draw_matplotlib(chart: Chart, path: Path) -> None:
+    """The chart as matplotlib draws it: scatter markers s=40 with 7-point labels, 1-point
+    lines, a grid and the legend outside the axes."""
+    import matplotlib.pyplot as plt
+
+    fig, ax = plt.subplots(figsize=(chart.size[0] / 110, chart.size[1] / 110), dpi=110)
+    colours = plt.rcParams["axes.prop_cycle"].by_key()["color"]
+    for item in chart.items:
+        colour = colours[item.colour % len(colours)]
+        if isinstance(item, Line):
+            ax.plot(item.xs, item.ys, color=colour, linewidth=1, alpha=item.alpha)
+        elif item.joined:
+            ax.plot(item.xs, item.ys, color=colour, marker="o", markersize=3, linewidth=1, label=item.label)
+        else:
+            ax.scatter(item.xs, item.ys, color=colour, marker=MARKERS[item.marker % len(MARKERS)], s=40,
+                       label=item.label)
+        for text, x, y in zip(getattr(item, "point_labels", ()), item.xs, item.ys):
+            ax.annotate(text, (x, y), textcoords="offset points", xytext=(4, 3), fontsize=7)
+    if chart.log_x:
+        ax.set_xscale("log")
+    if chart.log_y:
+        ax.set_yscale("log")
+    ax.set_xlabel(chart.xlabel)
+    ax.set_ylabel(chart.ylabel)
+    ax.set_title(chart.title)
+    if chart.log_x or chart.log_y:
+        ax.grid(True, which="both", alpha=0.3)
+    else:
+        ax.grid(True, alpha=0.3)
     # Outside the axes: with many methods an inside legend hides the points.
-    ax.legend(fontsize=7, loc="upper left", bbox_to_anchor=(1.01, 1.0), ncol=1 if len(presets) * len(methods) <= 24 else 2)
+    ax.legend(fontsize=7, loc="upper left", bbox_to_anchor=(1.01, 1.0), ncol=chart.legend_columns)
     fig.tight_layout()
     fig.savefig(path)
     plt.close(fig)
-    return True
 
 
 def plot_time_ms(row: Row) -> float:
@@ -228,39 +263,30 @@ def plot_time_ms(row: Row) -> float:
     return float(gpu["total"]) if gpu else float(row["time_ms"]["total"])
 
 
-def write_frame_plot(rows: Sequence[dict], path: Path) -> bool:
-    """A shot's error % against frame, one line per light and method (as labelled, with
-    its resolution). Drawn only for rows of two frames or more; False otherwise, or
-    where matplotlib is missing."""
+def frame_chart(rows: Sequence[dict]) -> Chart | None:
+    """A shot's error % against frame, one line per light and method (as labelled, with its
+    resolution); None for rows of fewer than two frames."""
     framed = [r for r in rows if "frame" in r]
     if len({r["frame"] for r in framed}) < 2:
-        return False
-    try:
-        import matplotlib
-    except ImportError:
-        log.warning("matplotlib is not installed: %s not drawn (the table and results.json are)", path.name)
-        return False
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
+        return None
     lines: dict[tuple, list[tuple[int, float]]] = {}
     for r in framed:
         res = f" @{r['resolution']}" if "resolution" in r else ""
         name = (r["preset"], r.get("light", ""), r.get("camera", ""), row_label(r) + res)
         lines.setdefault(name, []).append((r["frame"], r["error_pct"]))
     several = {k: len({name[k] for name in lines}) > 1 for k in range(3)}
-    fig, ax = plt.subplots(figsize=(11, 6.0), dpi=110)
-    for name, points in sorted(lines.items()):
+    items = []
+    for i, (name, points) in enumerate(sorted(lines.items())):
         points.sort()
         label = " / ".join(part for k, part in enumerate(name) if part and (k == 3 or several[k]))
-        ax.plot([f for f, _ in points], [e for _, e in points], marker="o", markersize=3, linewidth=1, label=label)
-    ax.set_xlabel("frame")
-    ax.set_ylabel("error % of evaluated pixels vs Cycles")
-    ax.set_title("Shadow error over the shot (one line per light and method)")
-    ax.grid(True, alpha=0.3)
-    ax.legend(fontsize=7, loc="upper left", bbox_to_anchor=(1.01, 1.0), ncol=1 if len(lines) <= 24 else 2)
-    fig.tight_layout()
-    fig.savefig(path)
-    plt.close(fig)
-    return True
+        items.append(Series(label, i, tuple(f for f, _ in points), tuple(float(e) for _, e in points), joined=True))
+    return Chart("Shadow error over the shot (one line per light and method)", "frame",
+                 "error % of evaluated pixels vs Cycles", tuple(items), size=(1210, 660),
+                 legend_columns=1 if len(lines) <= 24 else 2)
+
+
+def write_frame_plot(rows: Sequence[dict], path: Path) -> bool:
+    """error_vs_frame.png (frame_chart), with matplotlib or the built-in painter. Drawn only
+    for rows of two frames or more; False otherwise."""
+    chart = frame_chart(rows)
+    return chart is not None and _draw(chart, path)

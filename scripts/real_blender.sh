@@ -25,6 +25,8 @@
 #                                      outside the repository: tools that walk the repository
 #                                      never see it)
 #   OMNIWARP_REAL_BLENDER_SCRATCH=/dir a host folder to see as /scratch inside
+#   OMNIWARP_REAL_BLENDER_USER=/path   Blender's user folder inside (BLENDER_USER_RESOURCES: its
+#                                      config and installed extensions), e.g. /scratch/user
 #   OMNIWARP_DEBIAN_MIRROR=URL         Debian mirror (default http://deb.debian.org/debian)
 set -euo pipefail
 
@@ -109,7 +111,8 @@ in_chroot() {  # CMD ARGS...: run inside, with the binds in place and a clean en
     need_root
     is_ready || die "the chroot at $ROOT is not built; run: bash scripts/real_blender.sh setup" 3
     in_namespace chroot "$ROOT" /usr/bin/env -i HOME=/root PATH=/usr/sbin:/usr/bin:/sbin:/bin \
-        LANG=C.UTF-8 TERM=dumb ${DISPLAY:+DISPLAY=$DISPLAY} "$@"
+        LANG=C.UTF-8 TERM=dumb ${DISPLAY:+DISPLAY=$DISPLAY} \
+        ${OMNIWARP_REAL_BLENDER_USER:+BLENDER_USER_RESOURCES=$OMNIWARP_REAL_BLENDER_USER} "$@"
 }
 
 case "${1:-}" in

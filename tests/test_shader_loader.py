@@ -68,13 +68,15 @@ def test_stage_headers_declare_the_interface():
     for header in (vertex, fragment):
         assert header.startswith(f"#version {S.GLSL_VERSION}\n")
         assert header.endswith("#line 1\n")  # compiler line numbers point into the body
+        # One std140 block holds the uniforms (shaders/uniform_block.py), members by bare name.
+        assert "layout(std140, binding = 0) uniform OwBlock_" in header
         for uniform in iface.uniforms:
-            assert f"uniform {uniform.glsl_type} {uniform.name}" in header
+            assert f"  {uniform.glsl_type} {uniform.name}" in header
     assert "flat out vec4 v_plane;" in vertex and "flat in vec4 v_plane;" in fragment
     assert "out vec2 v_map_xy;" in vertex and "in vec2 v_map_xy;" in fragment
     assert "layout(location = 0) in vec3 ow_position;" in vertex
     assert "layout(location = 0) out float ow_depth;" in fragment
-    assert "uniform mat3 ow_layer_rot[6];" in G.glsl_header(S.SHADOW_TEST_PROGRAM, "fragment")
+    assert "  mat3 ow_layer_rot[6];" in G.glsl_header(S.SHADOW_TEST_PROGRAM, "fragment")
     with pytest.raises(BackendError, match="stage"):
         G.glsl_header(iface, "geometry")
 
@@ -83,7 +85,7 @@ def test_compute_header_declares_work_group_and_images():
     header = G.compute_header(S.SCATTER_PROGRAM)
     assert f"layout(local_size_x = {S.SCATTER_PROGRAM.local_size}) in;" in header
     assert "layout(r32ui, binding = 0) uniform uimage2D ow_counts;" in header
-    assert "uniform int ow_slot_tile[6];" in header
+    assert "uniform OwBlock_" in header and "  int ow_slot_tile[6];" in header
     assert S.SCATTER_PROGRAM.groups(1) == 1
     assert S.SCATTER_PROGRAM.groups(64 * 3) == 3
     assert S.SCATTER_PROGRAM.groups(64 * 3 + 1) == 4

@@ -32,7 +32,6 @@ from .compare_props import (
     Report,
     _show_mismatch,
     clear_presets,
-    have_matplotlib,
     load_image,
     preset_info,
     selected_methods,
@@ -192,12 +191,10 @@ def start_job(context: bpy.types.Context, report_fn: Report) -> _Job | None:
         preset = _safe_label(scene.name)
         light_name = _scene_light(context, scene)
     out_dir = _output_dir()
-    images = have_matplotlib()
-    if not images:
-        report_fn({"WARNING"}, "matplotlib is not installed in Blender's Python: measuring without the plot "
-                               "and the mismatch images")
+    # The plot and the images need numpy only (core/png.py, core/raster_plot.py where
+    # matplotlib is missing, as in a stock Blender), so every run writes them.
     options = compare.CompareOptions(methods=methods, resolutions=resolutions, cull=bool(settings.cull),
-                                     frames=int(settings.frames), out_dir=out_dir, write_images=images)
+                                     frames=int(settings.frames), out_dir=out_dir, write_images=True)
     keep = list(_ROWS.get(scene.session_uid, [])) if settings.keep_previous else []
     if not settings.keep_previous:
         settings.results.clear()
@@ -206,7 +203,7 @@ def start_job(context: bpy.types.Context, report_fn: Report) -> _Job | None:
                camera_size=(int(settings.camera_size[0]), int(settings.camera_size[1])), light_name=light_name,
                hard=bool(settings.hard),
                tasks=[(m, r) for m in methods for r in resolutions], options=options, out_dir=out_dir,
-               image_dir=out_dir / "images" if images else None, keep_rows=keep)
+               image_dir=out_dir / "images", keep_rows=keep)
     _ROWS[scene.session_uid] = list(keep)
     settings.progress = 0.0
     settings.status = f"Starting: {_rows_text(len(job.tasks))} of {preset}"
@@ -229,6 +226,21 @@ def _job_scene(job: _Job) -> bpy.types.Scene:
     return scene
 
 
+def reference_cache_dir() -> Path | None:
+    """Where the panel caches preset references. Installed as an extension, Blender's user
+    folder for it (`extension_path_user`): the extension's own folder is replaced by every
+    update and may be read-only. None otherwise, or where $OMNIWARP_CACHE names one: the
+    command line's choice (reference/cache.py)."""
+    import os
+
+    from ..reference.cache import CACHE_ENV
+
+    package = __package__.split(".addon.", 1)[0]
+    if os.environ.get(CACHE_ENV) or not package.startswith("bl_ext."):
+        return None
+    return Path(bpy.utils.extension_path_user(package, path="reference", create=True))
+
+
 def _load_reference(job: _Job) -> None:
     """Step 0: the Cycles reference (cached for presets) and the Blender-gpu pipeline."""
     from ..reference.cache import load_or_capture
@@ -238,7 +250,7 @@ def _load_reference(job: _Job) -> None:
     from ..render.pipeline import ShadowPipeline
 
     if job.source == "PRESET":
-        reference = load_or_capture(job.preset, job.camera_size, hard=job.hard)
+        reference = load_or_capture(job.preset, job.camera_size, hard=job.hard, cache_dir=reference_cache_dir())
     else:
         reference = capture(_job_scene(job), light=job.light_name, hard=job.hard)
     compare.light_from_reference(reference)  # an unsupported light fails here, before any GPU work

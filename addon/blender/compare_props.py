@@ -7,12 +7,12 @@ compare_ops.py for the operators and compare_ui.py for the panel).
   the measured rows (`OMNIWARP_PG_result_row`), the status line and the plot.
 * One BoolProperty per pipeline method of the registry ticks it.
 
-The plot and the mismatch images need matplotlib (as `omniwarp compare` does); a
-Blender without it still measures, and says that the images are missing.
+The plot and the mismatch images need numpy only: `omniwarp compare` draws the plot with
+matplotlib where it is installed, and a stock Blender (no matplotlib) with the built-in
+painter, core/raster_plot.py; the images are written by core/png.py.
 """
 from __future__ import annotations
 
-import importlib.util
 import logging
 import re
 from pathlib import Path
@@ -110,11 +110,6 @@ def preset_info(name: str) -> PresetInfo | None:
 # ----------------------------------------------------------------------------
 # images
 # ----------------------------------------------------------------------------
-def have_matplotlib() -> bool:
-    """The plot and the mismatch images are written with matplotlib."""
-    return importlib.util.find_spec("matplotlib") is not None
-
-
 def load_image(name: str, path: Path) -> bpy.types.Image:
     """The image datablock `name` showing the file `path` (created, or reloaded in place)."""
     image = bpy.data.images.get(name)

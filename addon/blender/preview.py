@@ -14,6 +14,7 @@ import numpy as np
 
 from ..core import metrics
 from ..core import methods as method_registry
+from ..core.png import write_png
 from ..core.scene import LightSpec
 from ..reference.data import ReferenceData
 from ..render.pipeline import ShadowPipeline, ShadowSettings, count_statistics
@@ -26,9 +27,7 @@ OVERLAY_SIZE = (960, 300)
 
 
 def _write_png(path: Path, rgba_bottom_up: np.ndarray) -> None:
-    import matplotlib.image as mpimg
-
-    mpimg.imsave(path, np.clip(rgba_bottom_up[::-1], 0.0, 1.0))
+    write_png(path, rgba_bottom_up[::-1])  # clipped to [0, 1] there
 
 
 def _offscreen_draw(size: tuple[int, int], draw) -> np.ndarray:

@@ -15,8 +15,8 @@ a child process, and arrays travel through files:
     python -m addon.reference.eevee --scene-spec SPEC.npz --out DIR
 
 The child writes `DIR/eevee_<setting>.npz` per setting and a `DIR/eevee.json`
-summary. The parent side, `eevee_rows`, needs only numpy (and matplotlib for the
-mismatch images); it runs the child and turns its output into compare rows.
+summary. The parent side, `eevee_rows`, needs only numpy (its mismatch images are
+written by core/png.py); it runs the child and turns its output into compare rows.
 
 EEVEE Next facts used here (verified on 5.2.3):
 - the engine id is `BLENDER_EEVEE` in 5.x, `BLENDER_EEVEE_NEXT` in 4.2-4.5;
@@ -59,6 +59,7 @@ from ..core.errors import (
     report_error,
 )
 from ..core.light_shape import shape_from_dict
+from ..core.png import write_png
 from ..core.scene import CameraSpec, LightSpec, MeshSpec, SceneSpec, parse_size
 from ..render import blender_compat
 from ..rows import make_row
@@ -514,7 +515,7 @@ def main(argv: Sequence[str] | None = None) -> int:
 
 
 # ----------------------------------------------------------------------------
-# parent side (numpy, matplotlib)
+# parent side (numpy)
 # ----------------------------------------------------------------------------
 def _progress_line(progress: Progress | None) -> Callable[[str], None]:
     """Pass the child's progress lines on to `progress` (Blender prints on stdout too)."""
@@ -640,9 +641,7 @@ def eevee_rows(source_args: list[str], reference: ReferenceData, preset_label: s
             image_dir.mkdir(parents=True, exist_ok=True)
             stem = f"{image_stem or preset_label}_eevee_{name}"
             img = metrics.mismatch_image(reference.shadowed, est_lit, ref_lit, evaluable)
-            import matplotlib.image as mpimg  # lazy: matplotlib is slow to import
-
-            mpimg.imsave(image_dir / f"{stem}_mismatch.png", img)
+            write_png(image_dir / f"{stem}_mismatch.png", img)
             row["mismatch_image"] = f"images/{stem}_mismatch.png"
         rows.append(row)
     return rows

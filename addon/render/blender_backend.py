@@ -46,11 +46,6 @@ from .shaders import (
 
 log = logging.getLogger(__name__)
 
-# Distinct uniform blocks kept per program: a steady frame's draws repeat their blocks, so
-# each is uploaded once; past this many a program's are dropped and made anew.
-BLOCKS_KEPT = 256
-
-
 class BlenderDevice(Device):
     """device.Device on Blender's `gpu` module. Blender frees a GPU object when its last
     reference goes, so `free` has nothing to do: the holders drop their references."""
@@ -66,10 +61,11 @@ class BlenderDevice(Device):
         self.shaders: dict[str, Any] = {}
         self._active: dict[str, frozenset[str]] = {}  # program name -> samplers it kept
         self._blocks: dict[str, BlockState] = {}  # program name -> its uniforms' current bytes
-        # program name -> {block bytes: GPUUniformBuf}: a block is uploaded once, then bound
-        # again wherever a draw repeats it (a new buffer per content, never one rewritten
-        # while an earlier draw that reads it may still be queued).
-        self.uniform_buffers: dict[str, dict[bytes, Any]] = {}
+        # program name -> [GPUUniformBuf, the bytes it was last given]: one buffer a program,
+        # written only when a draw's block differs from the last one sent. Blender orders a
+        # buffer's update after the draws queued before it (OpenGL by its rules, Vulkan by its
+        # render graph), as it does a texture's.
+        self.uniform_buffers: dict[str, list] = {}
         self.batches: dict[str, Any] = {}
         self._corner_triangles = 0  # triangles the corner batches' buffer holds
         # Point sprites need the shader's point size, which the gpu module takes on OpenGL;
@@ -127,13 +123,13 @@ class BlenderDevice(Device):
             state = self._blocks[iface.name] = BlockState(UniformBlock.of(iface))
         state.update(uniforms)
         data = state.data
-        kept = self.uniform_buffers.setdefault(iface.name, {})
-        buffer = kept.get(data)
-        if buffer is None:
-            if len(kept) >= BLOCKS_KEPT:
-                kept.clear()
-            buffer = kept[data] = uniform_buffer(data)
-        return buffer
+        kept = self.uniform_buffers.get(iface.name)
+        if kept is None:
+            kept = self.uniform_buffers[iface.name] = [uniform_buffer(data), data]
+        elif kept[1] != data:
+            kept[0].update(data)
+            kept[1] = data
+        return kept[0]
 
     def _active_names(self, iface: Program, shader) -> frozenset[str]:
         """Samplers the compiled shader still has (cached per program): a variant that

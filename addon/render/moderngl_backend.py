@@ -19,7 +19,7 @@ from .backend import ShadowBackend
 from .device import (COMPONENTS, FULLSCREEN, FULLSCREEN_CORNERS, Device, Geometry, GPUTimer, Program, Rect, Target,
                      UniformValues)
 from .moderngl_glsl import moderngl_compute_source, moderngl_sources
-from .moderngl_uniforms import ProgramUniforms
+from .moderngl_uniforms import ProgramBlock
 from .passes.footprints import FOOTPRINT_VERTICES, corner_capacity, corner_indices
 from .shaders import ComputeInterface, ProgramInterface
 
@@ -77,7 +77,7 @@ class ModernGLDevice(Device):
             ) from exc
         self._bound = False
         self.programs: dict[str, Any] = {}
-        self._uniforms: dict[str, ProgramUniforms] = {}  # per program: its members and what they hold
+        self._uniforms: dict[str, ProgramBlock] = {}  # per program: its uniform block and buffer
         self._vaos: dict[str, Any] = {}  # a vertex array renders with the program it was made for
         self._clear_fbos: dict[int, Any] = {}  # id(texture) -> framebuffer that clears or reads it
         self._corners = None  # the footprint pass's corner buffer
@@ -141,12 +141,10 @@ class ModernGLDevice(Device):
     def _use(self, iface: Program, uniforms: UniformValues, textures: dict[str, Any],
              images: dict[str, Any] | None):
         prog = self.program(iface)
-        written = self._uniforms.get(iface.name)
-        if written is None:
-            # moderngl's `name in prog` walks every member; look them up once a program.
-            written = self._uniforms[iface.name] = ProgramUniforms(prog, iface)
-        for name, value in uniforms.items():
-            written.write(name, value)
+        block = self._uniforms.get(iface.name)
+        if block is None:
+            block = self._uniforms[iface.name] = ProgramBlock(self.ctx, iface)
+        block.use(uniforms)
         for binding, sampler in enumerate(iface.samplers):
             texture = textures.get(sampler)
             if texture is None:
@@ -331,6 +329,8 @@ class ModernGLDevice(Device):
             self._vaos.clear()
             self._clear_fbos.clear()
             self.programs.clear()
+            for block in self._uniforms.values():
+                block.release()
             self._uniforms.clear()
             self._fullscreen.release()
             if self._corners is not None:

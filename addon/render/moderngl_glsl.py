@@ -6,12 +6,18 @@ from __future__ import annotations
 from pathlib import Path
 
 from ..core.errors import BackendError
-from .shaders import (GLSL_VERSION, SHADER_DIR, ComputeInterface, ProgramInterface, Uniform, image_type, load_source,
+from .moderngl_uniforms import BLOCK_BINDING
+from .shaders import (GLSL_VERSION, SHADER_DIR, ComputeInterface, ProgramInterface, image_type, load_source,
                       program_defines)
+from .shaders.uniform_block import UniformBlock
 
 
-def _decl_uniform(u: Uniform) -> str:
-    return f"uniform {u.glsl_type} {u.name}{f'[{u.array}]' if u.array else ''};"
+def _uniform_block(iface: ProgramInterface | ComputeInterface) -> list[str]:
+    """The program's uniforms: one std140 block at BLOCK_BINDING (none when it has none)."""
+    block = UniformBlock.of(iface)
+    if not block.members:
+        return []
+    return [block.glsl_block().replace("layout(std140)", f"layout(std140, binding = {BLOCK_BINDING})", 1)]
 
 
 def glsl_header(iface: ProgramInterface, stage: str) -> str:
@@ -20,7 +26,7 @@ def glsl_header(iface: ProgramInterface, stage: str) -> str:
         raise BackendError(f"unknown shader stage {stage!r}")
     lines = [f"#version {GLSL_VERSION}"]
     lines += [f"#define {k} {v}" for k, v in program_defines(iface).items()]
-    lines += [_decl_uniform(u) for u in iface.uniforms]
+    lines += _uniform_block(iface)
     lines += [f"uniform sampler2D {name};" for name in iface.samplers]
     for var in iface.varyings:
         qualifier = "flat " if var.flat else ""
@@ -40,7 +46,7 @@ def compute_header(iface: ComputeInterface) -> str:
     lines = [f"#version {GLSL_VERSION}"]
     lines += [f"#define {k} {v}" for k, v in program_defines(iface).items()]
     lines.append(f"layout(local_size_x = {iface.local_size}) in;")
-    lines += [_decl_uniform(u) for u in iface.uniforms]
+    lines += _uniform_block(iface)
     lines += [f"uniform sampler2D {name};" for name in iface.samplers]
     coherent = "coherent " if iface.coherent else ""
     lines += [f"layout({fmt}, binding = {unit}) {coherent}uniform {image_type(fmt)} {name};"

@@ -43,7 +43,9 @@ def _glsl_alpha(gl_backend, amap: AlphaMap, uv: np.ndarray) -> np.ndarray:
                 texture.filter = (gl_backend._mgl.NEAREST, gl_backend._mgl.NEAREST)
                 texture.use(unit)
                 prog[name].value = unit
-            prog["ow_alpha_mode"].value = amap.mode
+            block = glsl.uniform_buffer(ctx, "alpha_harness", (Uniform("int", "ow_alpha_mode"),),
+                                        {"ow_alpha_mode": amap.mode})
+            textures.append(block)  # released with them
             fbo.use()
             fbo.viewport = (0, 0, len(uv), 1)
             vao.render()

@@ -6,6 +6,8 @@ same frames as the generic programs, including when variants alternate in one ba
 """
 from __future__ import annotations
 
+import re
+
 import numpy as np
 import pytest
 
@@ -25,6 +27,7 @@ from addon.render.shaders import (
     SHADOW_TEST_PLAIN_PROGRAM,
     SHADOW_TEST_PROGRAM,
     VARIANT_PROGRAMS,
+    load_source,
     program_variant,
     scatter_variant,
 )
@@ -134,14 +137,42 @@ def test_alternating_plain_and_warped_frames_match_fresh_backends(gl_backend):
         assert np.array_equal(got, expected)
 
 
+def _lines_outside(text: str, define: str) -> list[str]:
+    """The lines of `text` that an `#ifndef define` does not enclose (nested conditionals
+    inside one counted with it)."""
+    out, depth = [], 0
+    for line in text.splitlines():
+        word = line.strip().split()[0] if line.strip() else ""
+        if depth:
+            depth += 1 if word in ("#ifdef", "#ifndef", "#if") else -1 if word == "#endif" else 0
+            continue
+        if line.strip() == f"#ifndef {define}":
+            depth = 1
+            continue
+        out.append(line)
+    return out
+
+
 def test_fixed_kind_variants_compile_the_other_paths_out(gl_backend):
-    """The projective matrix is read only on the spot/sun path, which a fixed kind removes."""
+    """The spot/sun path is chosen only under `#ifndef OW_FIXED_KIND`: every read of its
+    switch (`ow_projective`) sits there, so a fixed kind leaves the path unreachable and the
+    compiler drops what only it calls (the projective matrix's readers among them). The
+    uniforms themselves all stay declared: a std140 block keeps every member active, so
+    this is checked on the source, and the fixed variants must compile."""
     for base in (DEPTH_PROGRAM, SHADOW_TEST_PROGRAM):
         generic = program_variant(base, {})
-        assert "ow_map_matrix" in gl_backend.program(generic)
+        assert FIXED_KIND_DEFINE not in generic.defines
+        gl_backend.program(generic)
+        for stage in (base.vertex_file, base.fragment_file):
+            body = load_source(stage)
+            code = [line.split("//")[0] for line in _lines_outside(body, FIXED_KIND_DEFINE)]
+            outside = [line for line in code if re.search(r"\bow_projective\b", line)]
+            assert not outside, (stage, outside)
+        assert any(re.search(r"\bow_projective\b", load_source(stage)) for stage in (base.vertex_file, base.fragment_file))
         for kind in (0, 1):
             fixed = program_variant(base, {"ow_layer_kind": kind})
-            assert "ow_map_matrix" not in gl_backend.program(fixed)
+            assert FIXED_KIND_DEFINE in fixed.defines
+            gl_backend.program(fixed)
 
 
 @pytest.mark.parametrize("settings", [ShadowSettings("dpsm", 128), ShadowSettings("cube", 96),

@@ -50,11 +50,9 @@ def _harness(gl_backend, body: str, inputs: np.ndarray, warp: W.Warp, slot: int)
                 tex.use(i)
                 if name in prog:  # unused samplers are optimised away
                     prog[name].value = i
-            for name, value in (("ow_slot", slot), ("ow_size", size)):
-                if name in prog:
-                    prog[name].value = value
-            if "ow_crop" in prog:
-                prog["ow_crop"].value = CROP
+            textures.append(glsl.uniform_buffer(  # released with the textures
+                ctx, "warp_harness", (Uniform("int", "ow_slot"), Uniform("int", "ow_size"), Uniform("vec4", "ow_crop")),
+                {"ow_slot": slot, "ow_size": size, "ow_crop": CROP}))
             fbo.use()
             fbo.viewport = (0, 0, n, 1)
             vao.render()

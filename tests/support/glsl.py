@@ -11,7 +11,9 @@ from collections.abc import Iterable, Sequence
 import numpy as np
 
 from addon.render.moderngl_glsl import compute_header, glsl_header
+from addon.render.moderngl_uniforms import BLOCK_BINDING
 from addon.render.shaders import SHADER_DIR, ComputeInterface, ProgramInterface, Uniform, expand_source, load_source
+from addon.render.shaders.uniform_block import BlockState, UniformBlock
 
 VERTEX = "fullscreen.vert"  # a triangle over the whole target, `ow_corner` its corners
 TEST_SOURCE = "<test shader>"  # the file name a harness interface gives its own stage
@@ -38,19 +40,32 @@ def program(name: str, fragment: str, uniforms: Iterable[Uniform] = (), samplers
     return sources(iface, fragment)
 
 
+def uniform_buffer(ctx, name: str, uniforms: Iterable[Uniform], values: dict):
+    """A harness's uniform block (the program `name` declared with `uniforms`) holding
+    `values`, bound where the program reads it; the caller releases it."""
+    iface = ProgramInterface(name=name, vertex_file=VERTEX, fragment_file=TEST_SOURCE, vertex_in=(),
+                             fragment_out=(), uniforms=tuple(uniforms))
+    state = BlockState(UniformBlock.of(iface))
+    state.update(values)
+    buffer = ctx.buffer(state.data)
+    buffer.bind_to_uniform_block(BLOCK_BINDING)
+    return buffer
+
+
 def compute_source(iface: ComputeInterface, body: str) -> str:
     """moderngl's source of a compute test program: `iface`'s header and the test's body."""
     return compute_header(iface) + _expand(body)
 
 
-def evaluate(ctx, vs: str, fs: str, inputs: np.ndarray, uniforms=()) -> np.ndarray:
+def evaluate(ctx, vs: str, fs: str, inputs: np.ndarray, uniforms=(), name: str = "harness") -> np.ndarray:
     """Run a harness once per input column: it reads `ow_input` and writes `ow_out`.
     `inputs` is (n, k <= 4), one texel per column, or (rows, n, 4), a column of `rows`
-    texels each; `uniforms` are (type, name, value). One RGBA result per column."""
+    texels each; `uniforms` are (type, name, value), as `program` declared them (in its
+    order). One RGBA result per column."""
     with ctx:  # other contexts may have been current (the CLI tests make their own)
         prog = ctx.program(vertex_shader=vs, fragment_shader=fs)
-        for _, name, value in uniforms:
-            prog[name].value = value
+        block = uniform_buffer(ctx, name, [Uniform(t, n) for t, n, _ in uniforms],
+                               {n: v for _, n, v in uniforms}) if uniforms else None
         if inputs.ndim == 3:
             data = np.ascontiguousarray(inputs, dtype="f4")
         else:
@@ -70,5 +85,5 @@ def evaluate(ctx, vs: str, fs: str, inputs: np.ndarray, uniforms=()) -> np.ndarr
             vao.render()
             return np.frombuffer(tex_out.read(), dtype="f4").reshape(n, 4).astype(np.float64)
         finally:
-            for obj in (vao, vbo, fbo, tex_out, tex_in, prog):
+            for obj in (vao, vbo, fbo, tex_out, tex_in, prog, *([block] if block else [])):
                 obj.release()

@@ -6,13 +6,16 @@ or, for any backend (Blender's `gpu` among them), at the `render.device.Device` 
 - reads: `Texture.read`, `Texture.read_into`, `Framebuffer.read`, `Buffer.read` (bytes);
 - uploads: `Texture.write`, `Buffer.write`, and data given to `Context.texture` and
   `Context.buffer` (bytes);
-- uniforms: bytes written to uniforms (`Uniform.value`, `Uniform.write`), counted apart.
+- uniforms: bytes written to uniforms (`Uniform.value`, `Uniform.write`) and to a program's
+  uniform block (a `Buffer.write` on a buffer tagged UNIFORM_BUFFER_TAG), counted apart.
 """
 from __future__ import annotations
 
 import contextlib
 from dataclasses import dataclass, field
 from typing import Iterator
+
+from addon.render.moderngl_uniforms import UNIFORM_BUFFER_TAG
 
 
 def _size(data) -> int:
@@ -74,6 +77,9 @@ class Traffic:
             def count(args, kwargs, result):
                 data = kwargs.get(key, args[position] if len(args) > position else None)
                 if data is None:
+                    return
+                if getattr(args[0], "extra", None) == UNIFORM_BUFFER_TAG:
+                    self.uniform_bytes += _size(data)  # a program's uniform block, not an upload
                     return
                 self.uploads += 1
                 self.upload_bytes += _size(data)

@@ -69,7 +69,7 @@ class UniformBlock:
 
     @classmethod
     def of(cls, iface: ProgramInterface | ComputeInterface) -> "UniformBlock":
-        return _block(iface.name, iface.uniforms)
+        return _block(iface.name, tuple(iface.uniforms))
 
     def member(self, name: str) -> Member | None:
         return self._by_name().get(name)
