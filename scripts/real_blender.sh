@@ -99,7 +99,9 @@ setup() {
     local site
     site="$(chroot "$ROOT" python3 -c 'import sys; print(f"/usr/local/lib/python3.{sys.version_info[1]}/dist-packages")')"
     say "installing ${PYPI_PACKAGES[*]} into the chroot's $site"
-    python3 -m pip install -q --disable-pip-version-check --no-deps --no-compile --upgrade \
+    local pip=(python3 -m pip)
+    python3 -m pip --version >/dev/null 2>&1 || pip=("$REPO_ROOT/.venv/bin/python" -m pip)
+    "${pip[@]}" install -q --disable-pip-version-check --no-deps --no-compile --upgrade \
         --target "$ROOT$site" "${PYPI_PACKAGES[@]}" >&2 \
         || die "pip could not install ${PYPI_PACKAGES[*]} into the chroot"
     in_namespace chroot "$ROOT" blender --version >&2 || die "blender does not start in the chroot"

@@ -26,17 +26,16 @@ class ProgramBlock:
         self.buffer = ctx.buffer(reserve=self.state.block.size) if iface.uniforms else None
         if self.buffer is not None:
             self.buffer.extra = UNIFORM_BUFFER_TAG
-        self._sent: bytes | None = None
 
     def use(self, values: Mapping[str, Any]) -> None:
-        """Write `values` over the block, send it if it changed, bind it for the next draw."""
+        """Write `values` over the block, send the bytes that changed, bind it for the next draw."""
         if self.buffer is None:
             return
         self.state.update(values)
-        data = self.state.data
-        if data != self._sent:
-            self.buffer.write(data)
-            self._sent = data
+        changed = self.state.take_changed()
+        if changed is not None:
+            offset, data = changed
+            self.buffer.write(data, offset=offset)
         self.buffer.bind_to_uniform_block(BLOCK_BINDING)
 
     def release(self) -> None:

@@ -72,6 +72,23 @@ def _console_problems(text: str) -> list[str]:
 
 
 @pytest.fixture(scope="session")
+def measured():
+    """What the tests measured, written to $OMNIWARP_SHOTS_DIR/measured.json when it is set
+    (docs/versions.md quotes that file)."""
+    found: dict = {}
+    yield found
+    shots = os.environ.get("OMNIWARP_SHOTS_DIR")
+    if shots and found:
+        import datetime
+        import platform
+
+        found["date"] = datetime.datetime.now(datetime.timezone.utc).strftime("%Y-%m-%d %H:%M UTC")
+        found["host"] = f"{platform.machine()}, {os.cpu_count()} cores"
+        Path(shots).mkdir(parents=True, exist_ok=True)
+        (Path(shots) / "measured.json").write_text(json.dumps(found, indent=1, sort_keys=True), encoding="utf-8")
+
+
+@pytest.fixture(scope="session")
 def real_blender(tmp_path_factory: pytest.TempPathFactory) -> RealBlender:
     """The chroot, built or found (scripts/real_blender.sh setup); skipped without root."""
     proc = subprocess.run(["bash", str(SCRIPT), "setup"], capture_output=True, text=True, timeout=3600)
@@ -142,7 +159,8 @@ def _assert_rows_match(panel: list[dict], cli: dict[str, dict]) -> None:
 
 @pytest.mark.parametrize("backend", BACKENDS)
 def test_compare_panel_on_a_preset_equals_the_command_line(installed: RealBlender, backend: str,
-                                                           tmp_path: Path, reference_cache: Path) -> None:
+                                                           tmp_path: Path, reference_cache: Path,
+                                                           measured: dict) -> None:
     out = f"/scratch/compare_preset_{backend}.json"
     proc = installed.background("compare_panel.py", out, "room_omni", backend=backend)
     report = json.loads((installed.scratch / Path(out).name).read_text())
@@ -152,7 +170,12 @@ def test_compare_panel_on_a_preset_equals_the_command_line(installed: RealBlende
     exported = json.loads((installed.scratch / f"compare_preset_{backend}_export.json").read_text())
     assert [row["method"] for row in exported] == list(METHODS)
     assert not _console_problems(proc.stdout + proc.stderr)
-    _assert_rows_match(report["rows"], _cli_rows(tmp_path, reference_cache, "--preset", "room_omni"))
+    cli = _cli_rows(tmp_path, reference_cache, "--preset", "room_omni")
+    measured[f"compare_room_omni_{backend}"] = {row["method"]: {"panel_error_pct": row["error_pct"],
+                                                                "cli_error_pct": cli[row["method"]]["error_pct"],
+                                                                "renderer": row["renderer"]}
+                                                for row in report["rows"]}
+    _assert_rows_match(report["rows"], cli)
 
 
 def test_compare_panel_on_a_saved_blend_equals_the_command_line(installed: RealBlender, tmp_path: Path,
@@ -204,13 +227,17 @@ def _drawn_shadow(folder: Path) -> np.ndarray:
 
 
 @pytest.mark.parametrize("backend", BACKENDS)
-def test_gui_preview_draws_the_pipelines_shadows(gui_runs, backend: str) -> None:
+def test_gui_preview_draws_the_pipelines_shadows(gui_runs, backend: str, measured: dict) -> None:
     report, console, folder = gui_runs[backend]
     assert "error" not in report, report["error"]
     assert report["backend"] == backend.upper() and not report["preview_error"]
     assert report["steps"][-1] == "s_compare_shot_take", report["steps"]
     darkened, expected = _darkened(folder), _drawn_shadow(folder)
     assert darkened.shape == expected.shape
+    measured[f"gui_{backend}"] = {"view_pixels": list(darkened.shape[::-1]), "darkened_pct": 100 * darkened.mean(),
+                                  "pipeline_shadowed_pct": 100 * expected.mean(),
+                                  "disagree_pct": 100 * np.mean(darkened != expected),
+                                  "renderer": report["renderer"]}
     assert 0.01 < expected.mean() < 0.5, expected.mean()  # the view holds shadows to compare
     assert np.mean(darkened != expected) < 0.01, (darkened.mean(), expected.mean())
 
@@ -226,9 +253,10 @@ def test_gui_panels_draw_and_the_console_is_clean(gui_runs, backend: str) -> Non
     assert not _console_problems(console), _console_problems(console)
 
 
-def test_gui_backends_agree(gui_runs) -> None:
+def test_gui_backends_agree(gui_runs, measured: dict) -> None:
     """Vulkan darkens the same pixels as OpenGL (the issue: it darkened 0.01 % against 9.4 %)."""
     gl, vk = (_darkened(gui_runs[b][2]) for b in BACKENDS)
+    measured["gui_masks_differ_pct"] = 100 * np.mean(gl != vk)
     assert gl.mean() > 0.01
     assert abs(vk.mean() - gl.mean()) <= 0.1 * gl.mean(), (gl.mean(), vk.mean())
     assert np.mean(gl != vk) < 0.01

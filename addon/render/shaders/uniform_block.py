@@ -178,6 +178,7 @@ class BlockState:
         self.block = block
         self._data = bytearray(block.size)
         self._last: dict[str, object] = {}  # the last scalar given, compared before packing
+        self._dirty: tuple[int, int] | None = (0, block.size)  # bytes changed since `take_changed`
 
     def update(self, values: Mapping[str, Any]) -> bool:
         changed = False
@@ -198,7 +199,18 @@ class BlockState:
             if self._data[member.offset:end] != raw:
                 self._data[member.offset:end] = raw
                 changed = True
+                low, high = self._dirty or (member.offset, end)
+                self._dirty = (min(low, member.offset), max(high, end))
         return changed
+
+    def take_changed(self) -> tuple[int, bytes] | None:
+        """(offset, bytes) of the span changed since the last call (the whole block at
+        first), or None: what a backend that can write part of a buffer sends."""
+        if self._dirty is None:
+            return None
+        low, high = self._dirty
+        self._dirty = None
+        return low, bytes(self._data[low:high])
 
     @property
     def data(self) -> bytes:
