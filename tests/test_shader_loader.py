@@ -12,6 +12,7 @@ import pytest
 from addon.core.errors import BackendError
 from addon.render import moderngl_glsl as G
 from addon.render import shaders as S
+from tests.support import glsl
 
 
 def _write(root: Path, files: dict[str, str]) -> Path:
@@ -92,21 +93,6 @@ def test_compute_header_declares_work_group_and_images():
     assert S.SCATTER_PROGRAM.groups(0) == 1
 
 
-def _strip_block(text: str, define: str) -> str:
-    """`text` without its `#ifdef define` blocks (nested conditionals inside them included)."""
-    out, depth = [], 0
-    for line in text.splitlines(keepends=True):
-        word = line.strip().split()[0] if line.strip() else ""
-        if depth:
-            depth += 1 if word in ("#ifdef", "#ifndef", "#if") else -1 if word == "#endif" else 0
-            continue
-        if line.strip() == f"#ifdef {define}":
-            depth = 1
-            continue
-        out.append(line)
-    return "".join(out)
-
-
 @pytest.mark.parametrize("iface", S.PROGRAMS, ids=lambda i: i.name)
 def test_every_program_loads_and_uses_only_declared_names(iface):
     vertex, fragment = G.moderngl_sources(iface)
@@ -118,7 +104,7 @@ def test_every_program_loads_and_uses_only_declared_names(iface):
     for define in (S.EXACT_DEFINE, S.ALPHA_DEFINE, S.VEIL_DEFINE, S.SOFT_DEFINE, S.EXACT_SOFT_DEFINE, S.PIECES_DEFINE,
                    S.MEDIUM_DEFINE, S.HAZE_DEFINE, S.GRIDS_DEFINE, S.EXACT_SOFT_MEDIA_DEFINE, S.MEDIA_WORDS_DEFINE):
         if define not in iface.defines:
-            body = _strip_block(body, define)
+            body = glsl.without_blocks(body, "#ifdef", define)
     declared = {u.name for u in iface.uniforms} | set(iface.samplers) | {name for _, name in iface.images}
     used = set(re.findall(r"\b(ow_[a-z_0-9]+)\b", body))
     # Every ow_ name a body reads is either declared here or defined in the GLSL itself.

@@ -31,6 +31,8 @@ from addon.render.shaders import (
     program_variant,
     scatter_variant,
 )
+
+from tests.support import glsl
 from tests.support.oracle import view_samples
 
 pytestmark = pytest.mark.gl
@@ -137,22 +139,6 @@ def test_alternating_plain_and_warped_frames_match_fresh_backends(gl_backend):
         assert np.array_equal(got, expected)
 
 
-def _lines_outside(text: str, define: str) -> list[str]:
-    """The lines of `text` that an `#ifndef define` does not enclose (nested conditionals
-    inside one counted with it)."""
-    out, depth = [], 0
-    for line in text.splitlines():
-        word = line.strip().split()[0] if line.strip() else ""
-        if depth:
-            depth += 1 if word in ("#ifdef", "#ifndef", "#if") else -1 if word == "#endif" else 0
-            continue
-        if line.strip() == f"#ifndef {define}":
-            depth = 1
-            continue
-        out.append(line)
-    return out
-
-
 def test_fixed_kind_variants_compile_the_other_paths_out(gl_backend):
     """The spot/sun path is chosen only under `#ifndef OW_FIXED_KIND`: every read of its
     switch (`ow_projective`) sits there, so a fixed kind leaves the path unreachable and the
@@ -165,7 +151,7 @@ def test_fixed_kind_variants_compile_the_other_paths_out(gl_backend):
         gl_backend.program(generic)
         for stage in (base.vertex_file, base.fragment_file):
             body = load_source(stage)
-            code = [line.split("//")[0] for line in _lines_outside(body, FIXED_KIND_DEFINE)]
+            code = [line.split("//")[0] for line in glsl.without_blocks(body, "#ifndef", FIXED_KIND_DEFINE).splitlines()]
             outside = [line for line in code if re.search(r"\bow_projective\b", line)]
             assert not outside, (stage, outside)
         assert any(re.search(r"\bow_projective\b", load_source(stage)) for stage in (base.vertex_file, base.fragment_file))

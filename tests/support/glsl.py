@@ -52,6 +52,23 @@ def uniform_buffer(ctx, name: str, uniforms: Iterable[Uniform], values: dict):
     return buffer
 
 
+def without_blocks(text: str, directive: str, define: str) -> str:
+    """`text` without its `#ifdef define` (or `#ifndef define`, as `directive` says) blocks,
+    nested conditionals inside them included: what a variant defining (or not) `define`
+    leaves of a source."""
+    out, depth = [], 0
+    for line in text.splitlines(keepends=True):
+        word = line.strip().split()[0] if line.strip() else ""
+        if depth:
+            depth += 1 if word in ("#ifdef", "#ifndef", "#if") else -1 if word == "#endif" else 0
+            continue
+        if line.strip() == f"{directive} {define}":
+            depth = 1
+            continue
+        out.append(line)
+    return "".join(out)
+
+
 def compute_source(iface: ComputeInterface, body: str) -> str:
     """moderngl's source of a compute test program: `iface`'s header and the test's body."""
     return compute_header(iface) + _expand(body)

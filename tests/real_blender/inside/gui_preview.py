@@ -1,21 +1,29 @@
-"""Inside a real Blender GUI (under Xvfb), with the extension installed from its zip:
-`blender --gpu-backend B --python THIS -- OUT_DIR [METHOD]`.
+"""Inside a real Blender GUI (under Xvfb, tests/real_blender/inside/gui.sh), with the extension
+installed from its zip: `blender --gpu-backend B FILE --python THIS -- OUT_DIR [METHOD]`.
 
 Driven by a timer, step by step, each step after Blender has redrawn:
-  1. builds the room_omni preset (the comparison panel's Build), gives its light METHOD
-     (default dpsm) at 1024, looks through its camera in the 3D view, opens the sidebar's
-     OmniWarp tab and the light's properties, and opens every panel of the extension;
-  2. screenshots the 3D view with the preview off (`view_off.png`);
-  3. turns the preview on (sample scale 1, so the preview's samples are the view's pixels),
-     waits for its result, screenshots the view (`view_on.png`) and saves the pipeline's
-     own visibility of that view (`visibility.npy`, row 0 at the bottom);
-  4. turns the overlay on and screenshots the view (`view_overlay.png`) and the whole
-     window (`window.png`), and saves the depth atlas the overlay shows (`atlas.npy`);
-  5. writes `gui.json` (backend, panels drawn and any panel error, the light, the view's
-     size, the preview's last error) and quits.
+  1. s_setup: builds the room_omni preset (the comparison panel's Build), gives its light
+     METHOD (default dpsm) at 1024, looks through its camera in the 3D view with the sidebar,
+     toolbar, header and map overlay hidden, and opens every panel of the extension (each
+     panel's and list's draws are counted, their errors kept);
+  2. s_off: screenshots the 3D view's region with the preview off (`view_off.png`), turns the
+     preview on (sample scale 1: its samples are the view's pixels, throttle 0);
+  3. s_wait_preview: once the preview has a result, screenshots the view (`view_on.png`) and
+     saves what the preview computed for it (`view.npz`: G-buffer, visibility, flags, the
+     light's position); then shows the sidebar, toolbar, header and overlay;
+  4. s_sidebar_tab: the sidebar's OmniWarp tab and the light's data properties;
+  5. s_overlay: screenshots the view with the overlay (`view_overlay.png`), the window
+     (`window.png`) and the light's properties (`light_panel.png`); saves the depth atlas
+     the overlay shows (`atlas.npy`, row 0 at the bottom);
+  6. s_compare, s_compare_shot, s_compare_shot_take: the comparison panel's Compare (dpsm,
+     dpsm+notw and exact at 1024), then the sidebar scrolled to its end
+     (`compare_panel.png`: the rows, the plot and the mismatch image);
+then writes `gui.json` (backend, renderer, panels drawn and their errors, steps done, the
+preview's last error, what the steps recorded) and quits.
 
-Any step that fails writes its traceback into gui.json and quits, so the caller never
-waits on a window that will not close.
+A step that fails, or waits more than 60 ticks, writes its traceback into gui.json and
+quits, so the caller never waits on a window that will not close. Screenshots are the X
+screen (xwd): Blender's own screenshot operators read back black under Xvfb.
 """
 from __future__ import annotations
 
