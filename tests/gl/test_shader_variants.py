@@ -31,7 +31,6 @@ from addon.render.shaders import (
     program_variant,
     scatter_variant,
 )
-
 from tests.support import glsl
 from tests.support.oracle import view_samples
 
