@@ -72,14 +72,11 @@ class UniformBlock:
         return _block(iface.name, tuple(iface.uniforms))
 
     def member(self, name: str) -> Member | None:
-        return self._by_name().get(name)
+        return self._by_name.get(name)
 
+    @functools.cached_property
     def _by_name(self) -> dict[str, Member]:
-        found = self.__dict__.get("_index")
-        if found is None:
-            found = {m.uniform.name: m for m in self.members}
-            object.__setattr__(self, "_index", found)
-        return found
+        return {m.uniform.name: m for m in self.members}
 
     def glsl_struct(self) -> str:
         """The block's members as a GLSL struct (Blender's create-info typedef), each named
@@ -112,17 +109,16 @@ class UniformBlock:
                              f"cannot take {arr.size} values")
         elements = arr.reshape((given, member.components, member.columns) if member.columns > 1
                                else (given, member.components))
-        words = np.zeros(_span(member, given) // 4, dtype=np.uint32)
-        step = member.stride // 4 if member.stride else 0
-        for index in range(given):
-            base = index * step
-            if member.columns > 1:
-                for column in range(member.columns):
-                    at = base + column * (member.column_stride // 4)
-                    words[at:at + member.components] = elements[index][:, column].astype(dtype).view(np.uint32)
-            else:
-                words[base:base + member.components] = elements[index].astype(dtype).view(np.uint32)
-        return words.tobytes()
+        # Every array element, and every matrix column, fills 16 bytes: its stride.
+        if member.columns > 1:
+            padded = np.zeros((given, member.columns, 4), dtype=dtype)
+            padded[:, :, :member.components] = np.swapaxes(elements, 1, 2)  # columns, as GLSL stores them
+        elif member.uniform.array:
+            padded = np.zeros((given, 4), dtype=dtype)
+            padded[:, :member.components] = elements
+        else:
+            padded = elements.astype(dtype)
+        return padded.tobytes()[:_span(member, given)]
 
 
 def _decl(uniform: Uniform, prefix: str) -> str:
