@@ -85,7 +85,8 @@ def measured():
         found["date"] = datetime.datetime.now(datetime.timezone.utc).strftime("%Y-%m-%d %H:%M UTC")
         found["host"] = f"{platform.machine()}, {os.cpu_count()} cores"
         Path(shots).mkdir(parents=True, exist_ok=True)
-        (Path(shots) / "measured.json").write_text(json.dumps(found, indent=1, sort_keys=True), encoding="utf-8")
+        (Path(shots) / "measured.json").write_text(json.dumps(found, indent=1, sort_keys=True, default=float),
+                                                   encoding="utf-8")
 
 
 @pytest.fixture(scope="session")
@@ -264,25 +265,41 @@ def test_gui_backends_agree(gui_runs, measured: dict) -> None:
 
 @pytest.mark.gl
 @pytest.mark.parametrize("backend", BACKENDS)
-def test_gui_overlay_depth_maps_equal_moderngl(gui_runs, backend: str, gl_backend, reference_cache) -> None:
-    """The depth maps the overlay shows (the viewport's atlas) are moderngl's for the same
-    light, scene and method (a plain map: its depth does not depend on the view samples)."""
+def test_gui_overlay_maps_equal_moderngl(gui_runs, backend: str, gl_backend, reference_cache, measured: dict) -> None:
+    """The maps the overlay shows are moderngl's for the same light, scene, method and view
+    samples (the overlay's own G-buffer): the depth maps texel for texel, the count maps
+    to the samples the two light-centrings (float32 on the GPU, float64 on the host) put
+    one texel apart."""
     from addon import compare
     from addon.reference.cache import load_or_capture
-    from addon.render.pipeline import ShadowPipeline, settings_for
+    from addon.render.frame import ViewSamples
+    from addon.render.pipeline import ShadowPipeline, count_statistics, settings_for
 
     report, _, folder = gui_runs[backend]
-    atlas = np.load(folder / "atlas.npy")
+    atlas, counts = np.load(folder / "atlas.npy"), np.load(folder / "counts.npz")
     ref = load_or_capture("room_omni", (640, 480), cache_dir=reference_cache)
     light = compare.light_from_reference(ref)
-    result = ShadowPipeline(gl_backend).render(light, compare.resident_scene(ref), compare.samples_from_reference(ref),
-                                               settings_for("dpsm", 1024, light.emission), keep_atlas=True)
+    positions, normals = counts["positions"].astype(np.float64), counts["normals"].astype(np.float64)
+    samples = ViewSamples(positions[..., :3], normals[..., :3], positions[..., 3] > 0.5,
+                          compare.camera_from_reference(ref))
+    settings = settings_for("dpsm", 1024, light.emission)
+    pipeline = ShadowPipeline(gl_backend)
+    result = pipeline.render(light, compare.resident_scene(ref), samples, settings, keep_atlas=True)
+    stats = count_statistics(pipeline, light, settings, result, samples)
     res = result.layout.resolution
     assert res == report["resolution"] == 1024
     assert len(result.tile_of_slot) == report["drawn_layers"] == len(report["tiles"])
+    found = {}
     for slot, tile in result.tile_of_slot.items():
         x, y = result.layout.origin(tile)
         ox, oy = report["tiles"][str(slot)]
-        ours, theirs = atlas[oy:oy + res, ox:ox + res], result.atlas[y:y + res, x:x + res]
-        differ = np.abs(ours - theirs) > 1e-3
-        assert differ.mean() < 0.005, (slot, differ.mean())
+        depth_differ = np.abs(atlas[oy:oy + res, ox:ox + res] - result.atlas[y:y + res, x:x + res]) > 1e-3
+        ours, theirs = counts[f"counts_{slot}"], stats.before[slot]
+        assert ours.shape == theirs.shape
+        moved = np.abs(ours - theirs).sum() / 2 / max(theirs.sum(), 1)  # a sample moved counts twice
+        found[str(slot)] = {"depth_texels_differ_pct": 100 * depth_differ.mean(), "samples_counted": int(theirs.sum()),
+                            "samples_moved_pct": 100 * moved}
+        assert depth_differ.mean() < 0.005, (slot, depth_differ.mean())
+        assert theirs.sum() > 1000 and abs(ours.sum() - theirs.sum()) <= 0.001 * theirs.sum(), (ours.sum(), theirs.sum())
+        assert moved < 0.01, (slot, moved)
+    measured[f"overlay_{backend}"] = found

@@ -14,7 +14,8 @@ Driven by a timer, step by step, each step after Blender has redrawn:
   4. s_sidebar_tab: the sidebar's OmniWarp tab and the light's data properties;
   5. s_overlay: screenshots the view with the overlay (`view_overlay.png`), the window
      (`window.png`) and the light's properties (`light_panel.png`); saves the depth atlas
-     the overlay shows (`atlas.npy`, row 0 at the bottom);
+     the overlay shows (`atlas.npy`, row 0 at the bottom) and its count maps with the
+     samples they count (`counts.npz`: the G-buffer of that view, one map a layer slot);
   6. s_compare, s_compare_shot, s_compare_shot_take: the comparison panel's Compare (dpsm,
      dpsm+notw and exact at 1024), then the sidebar scrolled to its end
      (`compare_panel.png`: the rows, the plot and the mismatch image);
@@ -178,7 +179,7 @@ def _save_view() -> None:
     raw = blender_gpu.read_texture(result.visibility[0], "RG32F")[::-1]
     _, light, _, frame, _, _ = result.lights[0]
     np.savez(OUT / "view.npz", positions=result.gbuffer.positions, normals=result.gbuffer.normals,
-             visibility=raw[..., 0], flags=raw[..., 1], light_position=np.asarray(light.matrix_world, dtype=np.float64)[:3, 3])
+             visibility=raw[..., 0], flags=raw[..., 1], light_position=np.asarray(light.position, dtype=np.float64))
     REPORT["drawn_layers"] = len(frame.plan.drawn)
     REPORT["resolution"] = int(frame.layout.resolution) if frame.layout else 0
 
@@ -198,6 +199,9 @@ def _save_atlas() -> None:
     if atlas is not None:
         np.save(OUT / "atlas.npy", _module("render.blender_gpu").read_texture(atlas, "R32F"))
     REPORT["tiles"] = {str(k): list(frame.layout.origin(v)) for k, v in frame.tile_of_slot.items()} if frame.layout else {}
+    stats = result.lights[0][4]
+    np.savez(OUT / "counts.npz", positions=result.gbuffer.positions, normals=result.gbuffer.normals,
+             **{f"counts_{slot}": np.asarray(stats.before[slot]) for slot in stats.before})
 
 
 STEPS = []
