@@ -84,9 +84,14 @@ def _load_presets() -> None:
     _PRESET_INFO.update(found)
     for number, name in enumerate(names):
         info = found[name]
-        _PRESET_ITEMS.append((name, name, f"{info.description}. Stresses: {info.stresses}", number))
+        _PRESET_ITEMS.append((name, name, preset_summary(info), number))
     if not _PRESET_ITEMS:
         _PRESET_ITEMS.append(_NO_PRESET)
+
+
+def preset_summary(info: Any) -> str:
+    """A preset's line for its tooltip and the panel: what it is, then what it stresses."""
+    return f"{info.description.rstrip('.')}. Stresses: {info.stresses}"
 
 
 def _preset_items(_self: Any, _context: Any) -> list[tuple[str, str, str, int]]:

@@ -15,6 +15,7 @@ from .compare_props import (
     OMNIWARP_PG_result_row,
     method_prop,
     preset_info,
+    preset_summary,
 )
 from .panels import SIDEBAR_CATEGORY, draw_line_gaps  # one tab for the preview and the comparison
 
@@ -89,7 +90,7 @@ class OMNIWARP_PT_compare(bpy.types.Panel):
             row.operator(OMNIWARP_OT_build_preset.bl_idname, text="Build", icon="SCENE_DATA")
             info = preset_info(settings.preset)
             if info is not None:
-                _wrapped(layout, f"{info.description}. Stresses: {info.stresses}", chars)
+                _wrapped(layout, preset_summary(info), chars)
             layout.prop(settings, "camera_size")
         else:
             scene = context.scene
