@@ -1,6 +1,6 @@
 """`python -m addon` runs the same command line as the `omniwarp` script."""
 import sys
 
-from .cli import main
+from .launch import main
 
 sys.exit(main())

@@ -19,9 +19,18 @@ registered temporaries, prints the one line and ends the process with status 130
 once; otherwise (main() called from Python, e.g. a test) `Interrupted` is raised as
 soon as the call returns. `deferred()` keeps an interrupt out of a few lines that
 must not be cut in two (moving finished outputs into place).
+
+Before a command's `handling()` is in place, `hold_until_handled()` (the command line's
+first call, addon/launch.py) records a signal, and `handling()` then ends the command with
+its one line: the seconds spent importing numpy, moderngl and the project's modules no
+longer end in a KeyboardInterrupt traceback from inside an import. `hold_imports("bpy")`
+holds a signal while bpy starts: its C start-up registers Cycles and the bundled add-ons
+(a signal raised there left Cycles unregistered, "enum CYCLES not found", or crashed the
+process), and the interrupt is raised once the import is done.
 """
 from __future__ import annotations
 
+import importlib.abc
 import logging
 import os
 import shutil
@@ -49,6 +58,7 @@ class _State:
     exit_at_once: bool = False  # the process is the command's own: the watcher may end it
     signals: int = 0  # signals the Python handler saw
     requested: bool = False  # a signal arrived (set by the handler or the watcher)
+    name: str = ""  # the first signal's name, for the one line
     raised: bool = False  # Interrupted was raised once already
     deferred: int = 0  # depth of deferred() / blocking() sections
     blocking: str | None = None  # the blocking C call the main thread is in, if any
@@ -57,11 +67,24 @@ class _State:
 
 
 _STATE = _State()
+_EARLY: list[int] = []  # signals recorded by hold_until_handled() before handling()
+
+
+def _record_early(signum: int, _frame) -> None:
+    _EARLY.append(signum)
+
+
+def hold_until_handled() -> None:
+    """Record SIGINT and SIGTERM until a command's `handling()` takes over (main thread only)."""
+    if threading.current_thread() is threading.main_thread():
+        for sig in SIGNALS:
+            signal.signal(sig, _record_early)
 
 
 def _handler(signum: int, _frame) -> None:
     """Python-level handler (main thread, between bytecodes)."""
     _STATE.signals += 1
+    _STATE.name = _STATE.name or signal.Signals(signum).name
     if _STATE.signals > 1 and _STATE.raised:
         if _STATE.exit_at_once:
             # A second Ctrl-C while the first one is being cleaned up: the user insists.
@@ -131,6 +154,11 @@ def handling(program: str = "omniwarp", exit_at_once: bool = False) -> Iterator[
         for sig in SIGNALS:
             signal.signal(sig, _handler)
         watcher.start()
+        if _EARLY:  # a signal came while the command line was starting
+            name = signal.Signals(_EARLY[0]).name
+            _EARLY.clear()
+            _STATE.requested = _STATE.raised = True
+            raise Interrupted(f"interrupted ({name}) while starting")
         yield
     finally:
         for sig, old in previous.items():
@@ -147,11 +175,11 @@ def requested() -> bool:
     return _STATE.requested
 
 
-def check(where: str = "interrupted") -> None:
+def check(where: str = "") -> None:
     """Raise `Interrupted` if a signal arrived and was not raised yet."""
     if _STATE.requested and not _STATE.raised:
         _STATE.raised = True
-        raise Interrupted(where)
+        raise Interrupted(where or f"interrupted ({_STATE.name or 'signal'})")
 
 
 @contextmanager
@@ -180,6 +208,60 @@ def blocking(what: str) -> Iterator[None]:
             _STATE.deferred -= 1
     if not _STATE.deferred:
         check(f"interrupted during the {what}; stopped when it returned")
+
+
+class _HeldLoader(importlib.abc.Loader):
+    """A module's own loader, run with signals held (`deferred`): the interrupt is raised
+    when the module's start-up is done, not inside it."""
+
+    def __init__(self, loader) -> None:
+        self.loader = loader
+
+    def create_module(self, spec):
+        with _held():
+            return self.loader.create_module(spec)
+
+    def exec_module(self, module) -> None:
+        with deferred():
+            self.loader.exec_module(module)
+
+
+@contextmanager
+def _held() -> Iterator[None]:
+    """`deferred` without the check at its end (the check comes in exec_module)."""
+    _STATE.deferred += 1
+    try:
+        yield
+    finally:
+        _STATE.deferred -= 1
+
+
+class _HeldImports(importlib.abc.MetaPathFinder):
+    """Finds the named modules through the other finders and hands them a _HeldLoader."""
+
+    def __init__(self, names: frozenset[str]) -> None:
+        self.names = names
+
+    def find_spec(self, fullname, path, target=None):
+        if fullname not in self.names:
+            return None
+        for finder in sys.meta_path:
+            find = getattr(finder, "find_spec", None)
+            if finder is self or find is None:
+                continue
+            spec = find(fullname, path, target)
+            if spec is not None:
+                if spec.loader is not None:
+                    spec.loader = _HeldLoader(spec.loader)
+                return spec
+        return None
+
+
+def hold_imports(*names: str) -> None:
+    """Hold signals while any of `names` is first imported (idempotent)."""
+    wanted = frozenset(names)
+    if not any(isinstance(f, _HeldImports) and f.names == wanted for f in sys.meta_path):
+        sys.meta_path.insert(0, _HeldImports(wanted))
 
 
 @contextmanager
