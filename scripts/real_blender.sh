@@ -7,8 +7,9 @@
 #   bash scripts/real_blender.sh root             # print its root if it is built (status 3 if not)
 #
 # Why a chroot: the machines here reach Debian's package registry but not blender.org, and
-# Debian's unstable suite packages Blender 5.2 (with its own Python 3.14, numpy and
-# OpenImageIO), the binary artists install from their distribution. The chroot also brings
+# Debian's unstable suite packages Blender 5.2 (on the system's Python 3.14, with numpy but
+# no OpenEXR, OpenImageIO or matplotlib module), the binary artists install from their
+# distribution. The chroot also brings
 # Xvfb for the GUI, Mesa's llvmpipe (OpenGL) and lavapipe (Vulkan), and ImageMagick for
 # screenshots.
 #
@@ -44,7 +45,7 @@ STAMP_KEY="4 ${PACKAGES[*]} ${PYPI_PACKAGES[*]}"
 APT_OPTS=(-o Acquire::Check-Valid-Until=false -o APT::Install-Recommends=false -o Dpkg::Use-Pty=0 -q -y)
 
 say() { printf 'real_blender: %s\n' "$*" >&2; }
-die() { printf 'real_blender: error: %s\n' "$*" >&2; exit "${2:-1}"; }
+die() { printf 'real_blender: error: %s\n' "$1" >&2; exit "${2:-1}"; }  # MESSAGE [STATUS]
 
 need_root() {
     if [[ "$(id -u)" != 0 ]]; then
@@ -84,6 +85,10 @@ setup() {
                 || die "could not install debootstrap with apt-get"
         fi
         say "debootstrap --variant=minbase sid into $ROOT (a few minutes)"
+        case "$(realpath -m -- "$ROOT")" in
+            / | /root | /home | "$HOME" | "$REPO_ROOT" | "$REPO_ROOT"/*)
+                die "OMNIWARP_REAL_BLENDER_ROOT=$ROOT is not a folder this script may build into (and remove)" 2 ;;
+        esac
         rm -rf -- "$ROOT"
         mkdir -p -- "$(dirname "$ROOT")"
         debootstrap --variant=minbase sid "$ROOT" "$MIRROR" >&2 \
