@@ -545,7 +545,7 @@ def main(argv: Sequence[str] | None = None) -> int:
                     print(f"--- the end of Blender's log ---\n{blender_log.rstrip()}\n---", file=sys.stderr)
                 raise
     except KeyboardInterrupt as exc:  # Interrupted, or Python's own before the handler was in place
-        return report_interrupt(PROGRAM, exc)
+        return report_interrupt(PROGRAM, exc, interrupt.kept_note())
     except OmniWarpError as exc:
         return report_error(PROGRAM, exc)
     except Exception:  # noqa: BLE001 - the contract: anything unnamed is a bug, shown in full

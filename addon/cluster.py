@@ -33,7 +33,7 @@ import dask
 from distributed import Client, Future, LocalCluster, Worker, get_worker
 from distributed.diagnostics.plugin import WorkerPlugin
 
-from .compare import CompareOptions, Progress, check_some_fit
+from .compare import CompareOptions, Progress, check_some_fit, row_finished
 from .core import interrupt
 from .core.errors import OmniWarpError
 from .render.pipeline import ShadowPipeline
@@ -219,6 +219,8 @@ def _gather(jobs: Sequence[Job], futures: list[Future], image_dir: Path | None,
             future = pending.pop(i)
             results[i] = _result(jobs[i], future)
             _keep(results[i], image_dir, cache_dir)
+            for row in results[i].rows:  # kept as they come (results.partial.json), in finishing order
+                row_finished(row)
             done += 1
             elapsed = time.perf_counter() - start
             left = elapsed / done * (len(futures) - done)

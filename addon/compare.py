@@ -5,6 +5,7 @@ DIR/error_vs_time.png and one mismatch image per row under DIR/images/.
 """
 from __future__ import annotations
 
+import contextlib
 import datetime as _dt
 import json
 import logging
@@ -12,7 +13,7 @@ import math
 import statistics
 import sys
 import time
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Iterator, Sequence
 from dataclasses import dataclass, replace
 from pathlib import Path
 
@@ -22,7 +23,7 @@ from .core import blockers, metrics
 from .core import methods as method_registry
 from .core.errors import InputError
 from .core.methods import DEFAULT_METHODS
-from .core.outputs import StagedOutput
+from .core.outputs import FinishedRows, StagedOutput
 from .core.png import colormap, write_png
 from .core.scene import POINT_EMISSIONS, PROJECTIVE_EMISSIONS, CameraSpec, LightSpec
 from .reference.data import ReferenceData
@@ -362,6 +363,27 @@ def check_methods_fit(methods: Sequence[str], emissions: dict[str, str]) -> None
                      f"{method_registry.fits_text('omni')}; {method_registry.fits_text('sun')}")
 
 
+# Where a run's rows go as each finishes (run_compare's FinishedRows), in this process: a
+# Dask worker's list is empty, and its rows reach the run when its job returns.
+_FINISHED: list[Callable[[Row], None]] = []
+
+
+@contextlib.contextmanager
+def _collecting(sink: Callable[[Row], None]) -> Iterator[None]:
+    _FINISHED.append(sink)
+    try:
+        yield
+    finally:
+        _FINISHED.remove(sink)
+
+
+def row_finished(row: Row) -> Row:
+    """Hand a finished row to the run's FinishedRows (none outside run_compare); return it."""
+    for sink in _FINISHED:
+        sink(row)
+    return row
+
+
 def run_compare(measure: Callable[[Path | None], list[Row]], options: CompareOptions) -> list[dict]:
     """Measure the rows with `measure(image_dir)` and write the outputs.
 
@@ -370,9 +392,13 @@ def run_compare(measure: Callable[[Path | None], list[Row]], options: CompareOpt
     --no-images). Everything is written into a staging folder beside `options.out_dir` and
     moved into place at the end (`core/outputs.py`): a failed or interrupted run leaves the
     earlier results as they were, and a finished one leaves no image of an earlier run.
+    Meanwhile each finished row is kept in `results.partial.json` (core/outputs.FinishedRows),
+    which an interrupted or failed run leaves behind and a finished one removes.
     """
+    finished = FinishedRows(options.out_dir)
     # A run of one frame draws no frame plot: an earlier run's must not stay beside it.
-    with StagedOutput(options.out_dir, replaces=("images", "error_vs_time.png", "error_vs_frame.png")) as stage:
+    with StagedOutput(options.out_dir, replaces=("images", "error_vs_time.png", "error_vs_frame.png")) as stage, \
+            _collecting(finished.add):
         rows = measure(stage.path / "images" if options.write_images else None)
         check_rows(rows)
         stamp = _dt.datetime.now(_dt.timezone.utc).strftime("%Y-%m-%d %H:%M UTC")
@@ -383,6 +409,7 @@ def run_compare(measure: Callable[[Path | None], list[Row]], options: CompareOpt
         plotted = [name for name, write in (("error_vs_time.png", write_plot), ("error_vs_frame.png", write_frame_plot))
                    if write(rows, stage.path / name)]
         stage.commit()
+    finished.discard()
     out = stage.target
     written = [out / "results.json", out / "report.md"] + [out / name for name in plotted]
     print(f"wrote {len(rows)} rows to {', '.join(str(p) for p in written)}", file=sys.stderr)
@@ -422,13 +449,14 @@ def measure_reference(pipeline: ShadowPipeline, ref: ReferenceData, preset: str,
                 continue
             if entry.external:
                 progress.step(f"{preset} {method} (EEVEE renders in a child process)")
-                rows += _eevee_rows(source, ref, preset, image_dir, options, tag)
+                rows += [row_finished(row) for row in _eevee_rows(source, ref, preset, image_dir, options, tag)]
                 progress.advance()
                 continue
             for resolution in options.resolutions:
                 for variant in variants:
                     progress.step(f"{preset} {method} @ {resolution}{'' if variant.cull else ' (no cull)'}")
-                    rows.append(run_row(pipeline, ref, preset, method, resolution, variant, image_dir, scene, tag))
+                    rows.append(row_finished(run_row(pipeline, ref, preset, method, resolution, variant, image_dir,
+                                                     scene, tag)))
                     progress.advance()
     finally:
         pipeline.backend.release_scene(scene)

@@ -69,10 +69,13 @@ def report_error(program: str, exc: OmniWarpError) -> int:
     return EXIT_BAD_INPUT
 
 
-def report_interrupt(program: str, exc: BaseException) -> int:
-    """Print the one line of an interrupted command and return its exit code (130)."""
+def report_interrupt(program: str, exc: BaseException, kept: str = "") -> int:
+    """Print the one line of an interrupted command and return its exit code (130).
+    `kept` says what the run keeps (its finished rows), if anything."""
     where = one_line(str(exc)) if isinstance(exc, Interrupted) and str(exc) else "interrupted"
-    print(f"{program}: {where}; temporary files removed, earlier results untouched", file=sys.stderr, flush=True)
+    kept_text = f"; {kept}" if kept else ""
+    print(f"{program}: {where}{kept_text}; temporary files removed, earlier results untouched", file=sys.stderr,
+          flush=True)
     return EXIT_INTERRUPTED
 
 

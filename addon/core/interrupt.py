@@ -39,6 +39,7 @@ import subprocess
 import sys
 import tempfile
 import threading
+import time
 from collections.abc import Iterator
 from contextlib import contextmanager
 from dataclasses import dataclass, field
@@ -49,6 +50,7 @@ from .errors import Interrupted, report_interrupt
 log = logging.getLogger(__name__)
 
 SIGNALS = (signal.SIGINT, signal.SIGTERM)
+GRACE_S = 1.0  # how long the command's own process has to end on a signal before the watchdog ends it
 
 
 @dataclass
@@ -60,7 +62,9 @@ class _State:
     requested: bool = False  # a signal arrived (set by the handler or the watcher)
     name: str = ""  # the first signal's name, for the one line
     raised: bool = False  # Interrupted was raised once already
-    deferred: int = 0  # depth of deferred() / blocking() sections
+    deferred: int = 0  # depth of deferred() / blocking() / held-import sections
+    critical: int = 0  # depth of deferred() sections alone: what the watchdog must not cut
+    done: bool = False  # the command's handling() has ended
     blocking: str | None = None  # the blocking C call the main thread is in, if any
     temporaries: list[Path] = field(default_factory=list)
     lock: threading.Lock = field(default_factory=threading.Lock)
@@ -68,6 +72,17 @@ class _State:
 
 _STATE = _State()
 _EARLY: list[int] = []  # signals recorded by hold_until_handled() before handling()
+# What an interrupted run keeps (outputs.FinishedRows), for its one line; outlives handling().
+_KEPT = {"note": ""}
+
+
+def set_kept(note: str) -> None:
+    """Say what an interruption now would keep ("" for nothing)."""
+    _KEPT["note"] = note
+
+
+def kept_note() -> str:
+    return _KEPT["note"]
 
 
 def _record_early(signum: int, _frame) -> None:
@@ -113,6 +128,22 @@ def _watch(fd: int) -> None:
         with _STATE.lock:
             if _STATE.blocking is not None and _STATE.exit_at_once:
                 _exit_now(f"interrupted during the {_STATE.blocking}; stopped at once")
+        if _STATE.exit_at_once:
+            _watchdog(signal.Signals(next(b for b in data if b in SIGNALS)).name)
+
+
+def _watchdog(name: str) -> None:
+    """The command's own process, GRACE_S after a signal the main thread has not ended on
+    (an interrupt lost inside a `bpy.ops` call, a long C call that released the GIL): end
+    it now, unless it is inside a section that must not be cut (moving outputs)."""
+    deadline = time.monotonic() + GRACE_S
+    while time.monotonic() < deadline or _STATE.critical:
+        if _STATE.done:
+            return
+        time.sleep(0.02)
+    with _STATE.lock:
+        if not _STATE.done and not _STATE.critical:
+            _exit_now(f"interrupted ({name}); stopped after {GRACE_S:g} s")
 
 
 def _exit_now(message: str) -> None:
@@ -123,7 +154,7 @@ def _exit_now(message: str) -> None:
         sys.stdout.flush()
     except (OSError, ValueError):
         pass  # a closed or broken stdout must not keep the process alive
-    code = report_interrupt(_STATE.program, Interrupted(message))
+    code = report_interrupt(_STATE.program, Interrupted(message), kept_note())
     os._exit(code)
 
 
@@ -149,6 +180,7 @@ def handling(program: str = "omniwarp", exit_at_once: bool = False) -> Iterator[
     os.set_blocking(write_fd, False)
     old_wakeup = signal.set_wakeup_fd(write_fd, warn_on_full_buffer=False)
     _STATE.__init__(installed=True, program=program, exit_at_once=exit_at_once)
+    set_kept("")
     watcher = threading.Thread(target=_watch, args=(read_fd,), name="omniwarp-interrupt", daemon=True)
     try:
         for sig in SIGNALS:
@@ -161,6 +193,8 @@ def handling(program: str = "omniwarp", exit_at_once: bool = False) -> Iterator[
             raise Interrupted(f"interrupted ({name}) while starting")
         yield
     finally:
+        with _STATE.lock:
+            _STATE.done = True  # the watchdog stands down: main() reports the interrupt itself
         for sig, old in previous.items():
             signal.signal(sig, old if old is not None else signal.SIG_DFL)
         signal.set_wakeup_fd(old_wakeup)
@@ -186,10 +220,12 @@ def check(where: str = "") -> None:
 def deferred() -> Iterator[None]:
     """A section a signal must not cut in two: it is raised when the section ends."""
     _STATE.deferred += 1
+    _STATE.critical += 1
     try:
         yield
     finally:
         _STATE.deferred -= 1
+        _STATE.critical -= 1
     if not _STATE.deferred:
         check()
 

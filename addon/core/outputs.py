@@ -129,3 +129,41 @@ class StagedOutput:
             shutil.rmtree(aside, ignore_errors=True)
         else:
             aside.unlink(missing_ok=True)
+
+
+PARTIAL_NAME = "results.partial.json"
+
+
+class FinishedRows:
+    """The rows a run has finished so far, kept beside its results as they finish.
+
+    Each finished row rewrites `OUT/results.partial.json` whole (a temporary file renamed
+    over it, so a reader sees the rows before or after, never half a file). A run that is
+    interrupted or fails keeps them there; its earlier `results.json` stays as it was.
+    `discard()`, once the run's outputs are in place, removes the file.
+    """
+
+    def __init__(self, out_dir: Path) -> None:
+        self.path = Path(out_dir) / PARTIAL_NAME
+        self.rows: list[dict] = []
+
+    def add(self, row: dict) -> None:
+        import json
+
+        self.rows.append(row)
+        self.path.parent.mkdir(parents=True, exist_ok=True)
+        temporary = self.path.with_name(f".{PARTIAL_NAME}.{os.getpid()}.tmp")
+        interrupt.register_temporary(temporary)
+        with interrupt.deferred():  # the rename must not be cut from the write
+            temporary.write_text(json.dumps(self.rows, indent=1), encoding="utf-8")
+            os.replace(temporary, self.path)
+        count = len(self.rows)
+        interrupt.set_kept(f"{count} finished row{'s' if count != 1 else ''} kept in {self.path}")
+
+    def discard(self) -> None:
+        interrupt.set_kept("")
+        if self.rows:
+            try:
+                self.path.unlink(missing_ok=True)
+            except OSError as exc:
+                log.warning("could not remove %s: %s", self.path, exc)
