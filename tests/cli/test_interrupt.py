@@ -164,7 +164,8 @@ def test_ctrl_c_at_any_moment_of_the_start_ends_with_one_line(tmp_path, earlier)
     """SIGINT every 0.25 s from 0.25 to 4 s into `compare --preset all` with an empty cache:
     the imports, bpy's start-up (Cycles and the add-ons registering), the first Cycles
     renders. Each run ends with status 130 and its one line, no traceback and no crash,
-    the earlier results as they were and nothing else written (issue 52). How soon it
+    the earlier results as they were and nothing else written but the rows it finished,
+    if any (results.partial.json, named in the line; issue 52). How soon it
     ends is measured by scripts/signal_sweep.py (docs/stability.md), not asserted here:
     the bound below only tells an end from a hang (an interrupt lost inside bpy's
     operators once left a run going for minutes)."""
@@ -189,8 +190,15 @@ def test_ctrl_c_at_any_moment_of_the_start_ends_with_one_line(tmp_path, earlier)
                 proc.kill()
                 proc.wait()
         assert took < 15.0, (delay, took)
-        _assert_interrupted(proc, stdout, stderr)
+        last = _assert_interrupted(proc, stdout, stderr)
         assert list(tmpdir.iterdir()) == [], (delay, list(tmpdir.iterdir()))
+        kept = earlier / "results.partial.json"
+        if kept.exists():  # rows finished before the signal: kept, and said so
+            count = len(json.loads(kept.read_text()))
+            assert f"{count} finished row{'s' if count != 1 else ''} kept in {kept}" in last, (delay, last)
+            kept.unlink()
+        else:
+            assert "kept in" not in last, (delay, last)
         assert not cache.exists() or not [p for p in cache.iterdir() if p.name.endswith(".tmp")], delay
     assert tree_digest(earlier) == before and staging_left(tmp_path) == []
 
