@@ -317,9 +317,10 @@ def temporary_dir(prefix: str, parent: Path | None = None) -> Iterator[Path]:
 
 def register_temporary(path: Path) -> None:
     """Also remove `path` on an immediate exit (its owner removes it otherwise, e.g.
-    Blender its session folder when the process ends normally)."""
+    Blender its session folder when the process ends normally). Nothing to do outside a
+    command's handling (inside Blender's UI no immediate exit happens)."""
     path = Path(path)
-    if path not in _STATE.temporaries:
+    if _STATE.installed and path not in _STATE.temporaries:
         _STATE.temporaries.append(path)
 
 

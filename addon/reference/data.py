@@ -54,6 +54,7 @@ from typing import Any
 
 import numpy as np
 
+from ..core import interrupt
 from ..core.alpha import AlphaMap, Surface
 from ..core.blockers import Spheres, Strands
 from ..core.camera import CameraSpec, Window
@@ -258,6 +259,15 @@ class ReferenceData:
         meta = dict(self.meta)
         meta["format_version"] = FORMAT_VERSION
         tmp = path.with_name(f".{path.name}.{os.getpid()}.tmp")
+        interrupt.register_temporary(tmp)
+        # Not cut by a signal: an interrupt raised inside numpy's zip writer left a half-closed
+        # ZipFile whose finaliser printed a traceback at exit (seen on Python 3.11).
+        with interrupt.deferred():
+            self._write(tmp, path, meta)
+        log.debug("saved reference %s", path)
+        return path
+
+    def _write(self, tmp: Path, path: Path, meta: dict) -> None:
         try:
             # A file object keeps numpy from appending ".npz" to the temp name.
             with open(tmp, "wb") as fh:
@@ -286,8 +296,6 @@ class ReferenceData:
         finally:
             if tmp.exists():
                 tmp.unlink()
-        log.debug("saved reference %s", path)
-        return path
 
     @classmethod
     def load(cls, path: str | os.PathLike) -> "ReferenceData":

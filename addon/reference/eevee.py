@@ -50,7 +50,7 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from ..core import child, metrics
+from ..core import child, interrupt, metrics
 from ..core.alpha import AlphaMap
 from ..core.errors import (
     InputError,
@@ -130,7 +130,8 @@ def save_scene_spec(spec: SceneSpec, path: str | os.PathLike) -> Path:
                    "ortho": bool(spec.camera.ortho)},
     }
     path.parent.mkdir(parents=True, exist_ok=True)
-    with open(path, "wb") as fh:  # a file object keeps numpy from appending ".npz"
+    # Not cut by a signal: numpy's zip writer, cut, leaves a ZipFile that complains at exit.
+    with interrupt.deferred(), open(path, "wb") as fh:  # a file object keeps numpy from appending ".npz"
         np.savez_compressed(fh, header=np.array(json.dumps(header)), **arrays)
     return path
 
