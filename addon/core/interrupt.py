@@ -137,13 +137,12 @@ def _watchdog(name: str) -> None:
     (an interrupt lost inside a `bpy.ops` call, a long C call that released the GIL): end
     it now, unless it is inside a section that must not be cut (moving outputs)."""
     deadline = time.monotonic() + GRACE_S
-    while time.monotonic() < deadline or _STATE.critical:
-        if _STATE.done:
-            return
+    while not _STATE.done:
+        if time.monotonic() >= deadline:
+            with _STATE.lock:  # deferred() enters and leaves under the same lock
+                if not _STATE.done and not _STATE.critical:
+                    _exit_now(f"interrupted ({name}); stopped after {GRACE_S:g} s")
         time.sleep(0.02)
-    with _STATE.lock:
-        if not _STATE.done and not _STATE.critical:
-            _exit_now(f"interrupted ({name}); stopped after {GRACE_S:g} s")
 
 
 def _exit_now(message: str) -> None:
@@ -219,13 +218,15 @@ def check(where: str = "") -> None:
 @contextmanager
 def deferred() -> Iterator[None]:
     """A section a signal must not cut in two: it is raised when the section ends."""
-    _STATE.deferred += 1
-    _STATE.critical += 1
+    with _STATE.lock:
+        _STATE.deferred += 1
+        _STATE.critical += 1
     try:
         yield
     finally:
-        _STATE.deferred -= 1
-        _STATE.critical -= 1
+        with _STATE.lock:  # `deferred` last: a signal handled in between sees it still held
+            _STATE.critical -= 1
+            _STATE.deferred -= 1
     if not _STATE.deferred:
         check()
 
