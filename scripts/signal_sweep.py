@@ -63,7 +63,7 @@ def main(argv: list[str] | None = None) -> int:
     args = parser.parse_args(argv)
     compare_args = extra or ["--preset", "all", "--methods", "dpsm", "--resolutions", "256"]
     sig = signal.Signals[args.signal]
-    print(f"| t (s) | status | s to the end | traceback | --out holds | last line |")
+    print("| t (s) | status | s to the end | traceback | --out holds | last line |")
     print("|---|---|---|---|---|---|")
     worst = 0.0
     for _ in range(args.rounds):

@@ -11,6 +11,7 @@ them all. The full rows of the last run per scene are kept for export.
 from __future__ import annotations
 
 import logging
+import os
 import re
 import tempfile
 import time
@@ -231,8 +232,6 @@ def reference_cache_dir() -> Path | None:
     folder for it (`extension_path_user`): the extension's own folder is replaced by every
     update and may be read-only. None otherwise, or where $OMNIWARP_CACHE names one: the
     command line's choice (reference/cache.py)."""
-    import os
-
     from ..reference.cache import CACHE_ENV
 
     package = __package__.split(".addon.", 1)[0]

@@ -93,7 +93,7 @@ def _header(cursor: _Cursor) -> _Part | None:
         name = cursor.cstring()
         if not name:
             break
-        _kind = cursor.cstring()
+        cursor.cstring()  # the attribute's type name: each attribute read here has one type
         (size,) = cursor.unpack("i")
         attributes[name] = cursor.take(size)
     if not attributes:

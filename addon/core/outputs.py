@@ -9,6 +9,7 @@ rename on one file system.
 """
 from __future__ import annotations
 
+import json
 import logging
 import os
 import shutil
@@ -148,8 +149,6 @@ class FinishedRows:
         self.rows: list[dict] = []
 
     def add(self, row: dict) -> None:
-        import json
-
         self.rows.append(row)
         self.path.parent.mkdir(parents=True, exist_ok=True)
         temporary = self.path.with_name(f".{PARTIAL_NAME}.{os.getpid()}.tmp")

@@ -60,12 +60,11 @@ class BlenderDevice(Device):
             raise BackendError("the Blender gpu backend needs Blender (bpy) to run") from exc
         self.shaders: dict[str, Any] = {}
         self._active: dict[str, frozenset[str]] = {}  # program name -> samplers it kept
-        self._blocks: dict[str, BlockState] = {}  # program name -> its uniforms' current bytes
-        # program name -> [GPUUniformBuf, the bytes it was last given]: one buffer a program,
-        # written only when a draw's block differs from the last one sent. Blender orders a
+        # program name -> (its uniforms' current values, the GPUUniformBuf holding them): one
+        # buffer a program, updated only when a draw changes the block. Blender orders a
         # buffer's update after the draws queued before it (OpenGL by its rules, Vulkan by its
         # render graph), as it does a texture's.
-        self.uniform_buffers: dict[str, list] = {}
+        self.uniform_buffers: dict[str, tuple[BlockState, Any]] = {}
         self.batches: dict[str, Any] = {}
         self._corner_triangles = 0  # triangles the corner batches' buffer holds
         # Point sprites need the shader's point size, which the gpu module takes on OpenGL;
@@ -118,18 +117,18 @@ class BlenderDevice(Device):
 
     def _uniform_buffer(self, iface: Program, uniforms: UniformValues):
         """The program's uniform block with `uniforms` written over its current values."""
-        state = self._blocks.get(iface.name)
-        if state is None:
-            state = self._blocks[iface.name] = BlockState(UniformBlock.of(iface))
-        state.update(uniforms)
-        data = state.data
         kept = self.uniform_buffers.get(iface.name)
         if kept is None:
-            kept = self.uniform_buffers[iface.name] = [uniform_buffer(data), data]
-        elif kept[1] != data:
-            kept[0].update(data)
-            kept[1] = data
-        return kept[0]
+            state = BlockState(UniformBlock.of(iface))
+            state.update(uniforms)
+            state.take_changed()
+            kept = self.uniform_buffers[iface.name] = (state, uniform_buffer(state.data))
+        else:
+            state, buffer = kept
+            state.update(uniforms)
+            if state.take_changed() is not None:  # GPUUniformBuf.update takes the whole block
+                buffer.update(state.data)
+        return kept[1]
 
     def _active_names(self, iface: Program, shader) -> frozenset[str]:
         """Samplers the compiled shader still has (cached per program): a variant that
@@ -287,7 +286,6 @@ class BlenderDevice(Device):
         self.batches.clear()
         self.shaders.clear()
         self._active.clear()
-        self._blocks.clear()
         self.uniform_buffers.clear()
         self._corner_triangles = 0
 

@@ -162,7 +162,7 @@ def _apply(group, explicit: dict[str, Any]) -> tuple[dict[str, Any], list[str], 
 # ---------------------------------------------------------------------------
 # install: the built zip, through Blender's own "Install from Disk" operator
 # ---------------------------------------------------------------------------
-def _ext_handlers() -> list[str]:
+def ext_handlers() -> list[str]:
     """`bpy.app.handlers` callbacks that belong to the installed extension."""
     import bpy
 
@@ -186,7 +186,7 @@ def _state() -> dict[str, Any]:
         "light_pointer": hasattr(bpy.types.Light, "omniwarp"),
         "scene_pointer": hasattr(bpy.types.Scene, "omniwarp"),
         "light_panel": hasattr(bpy.types, "OMNIWARP_PT_light"),
-        "handlers": _ext_handlers(),
+        "handlers": ext_handlers(),
     }
 
 

@@ -14,7 +14,8 @@ from pathlib import Path
 import bpy
 import numpy as np
 
-PACKAGE = "bl_ext.user_default.omniwarp_shadows"
+sys.path.insert(0, "/omniwarp")  # the repository, bound read-only in the chroot (scripts/real_blender.sh)
+from tests.support.extension_worker import ADDON_MODULE as PACKAGE  # noqa: E402
 METHODS = ("dpsm", "dpsm+notw", "exact")
 
 

@@ -19,19 +19,10 @@ import bpy
 import gpu
 import numpy as np
 
-PACKAGE = "bl_ext.user_default.omniwarp_shadows"
+sys.path.insert(0, "/omniwarp")  # the repository, bound read-only in the chroot (scripts/real_blender.sh)
+from tests.support.extension_worker import ADDON_MODULE as PACKAGE, ext_handlers  # noqa: E402
+
 OUT = sys.argv[sys.argv.index("--") + 1]
-
-
-def _handler_functions() -> list[str]:
-    """Our functions among every bpy.app.handlers list."""
-    found = []
-    for name in dir(bpy.app.handlers):
-        handlers = getattr(bpy.app.handlers, name)
-        if isinstance(handlers, list):
-            found += [f"{name}:{getattr(f, '__qualname__', f)}" for f in handlers
-                      if getattr(f, "__module__", "").startswith(PACKAGE)]
-    return sorted(found)
 
 
 def _state(class_names: list[str], modules: dict) -> dict:
@@ -45,7 +36,7 @@ def _state(class_names: list[str], modules: dict) -> dict:
                                                                         (bpy.types.Scene, "omniwarp_compare"),
                                                                         (bpy.types.Light, "omniwarp"))
                            if hasattr(owner, attr)),
-        "handlers": _handler_functions(),
+        "handlers": sorted(ext_handlers()),
         "timers": timers,
         "draw_handler": viewport is not None and viewport._STATE.handler is not None,
         "gpu_objects": viewport.live_resources() if viewport is not None else None,

@@ -37,7 +37,8 @@ from pathlib import Path
 import bpy
 import numpy as np
 
-PACKAGE = "bl_ext.user_default.omniwarp_shadows"
+sys.path.insert(0, "/omniwarp")  # the repository, bound read-only in the chroot (scripts/real_blender.sh)
+from tests.support.extension_worker import ADDON_MODULE as PACKAGE  # noqa: E402
 OUT = Path(sys.argv[sys.argv.index("--") + 1])
 METHOD = sys.argv[sys.argv.index("--") + 2] if len(sys.argv) > sys.argv.index("--") + 2 else "dpsm"
 REPORT: dict = {"drawn": {}, "panel_errors": [], "steps": []}
