@@ -153,6 +153,10 @@ def _exit_now(message: str) -> None:
         sys.stdout.flush()
     except (OSError, ValueError):
         pass  # a closed or broken stdout must not keep the process alive
+    try:  # the main thread may be half-way through a progress line: start the one line anew
+        sys.stderr.write("\n")
+    except (OSError, ValueError):
+        pass
     code = report_interrupt(_STATE.program, Interrupted(message), kept_note())
     os._exit(code)
 
