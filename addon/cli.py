@@ -12,7 +12,7 @@ The method names and what each fits come from `core/methods.py`.
 
 The exit contract (`core/errors.py`), the same for every command: 0 done; 2 bad
 input or environment, with one line on stderr naming the problem and what to do;
-130 interrupted (Ctrl-C), one line, temporaries removed; 1 a bug only, with its
+130 interrupted (Ctrl-C; 143 for SIGTERM), one line, temporaries removed; 1 a bug only, with its
 traceback. Input is checked before any long work starts. Result lines go to stdout;
 progress, Blender's own log and errors go to stderr.
 """

@@ -42,19 +42,25 @@ class Interrupted(KeyboardInterrupt):
     """Ctrl-C (SIGINT) or SIGTERM reached a command (`core/interrupt.py`).
 
     A KeyboardInterrupt, so that no `except Exception` on the way swallows it; the
-    message says where the run stopped.
+    message says where the run stopped, `signum` which signal stopped it.
     """
+
+    def __init__(self, message: str = "", signum: int = 2) -> None:
+        super().__init__(message)
+        self.signum = signum
 
 
 EXIT_OK = 0
 EXIT_BAD_INPUT = 2
 EXIT_INTERRUPTED = 130  # 128 + SIGINT, what a shell reports for Ctrl-C
+EXIT_TERMINATED = 143  # 128 + SIGTERM, what a shell reports for `kill`
 EXIT_BUG = 1
 EXIT_FAILURE = EXIT_BUG  # the old name: since the exit contract, status 1 means a bug only
 
 # The contract as the commands' --help and the README state it.
 EXIT_CONTRACT = ("exit status: 0 done; 2 bad input or environment (one line on stderr names the problem "
-                 "and what to do); 130 interrupted (Ctrl-C; temporaries removed, earlier results untouched); "
+                 "and what to do); 130 interrupted (Ctrl-C; 143 for SIGTERM; temporaries removed, earlier results "
+                 "untouched); "
                  "1 a bug (with its traceback, please report it)")
 
 
@@ -70,13 +76,14 @@ def report_error(program: str, exc: OmniWarpError) -> int:
 
 
 def report_interrupt(program: str, exc: BaseException, kept: str = "") -> int:
-    """Print the one line of an interrupted command and return its exit code (130).
+    """Print the one line of an interrupted command and return its exit code: 128 plus the
+    signal's number, as a shell reports a process the signal ended (130 SIGINT, 143 SIGTERM).
     `kept` says what the run keeps (its finished rows), if anything."""
     where = one_line(str(exc)) if isinstance(exc, Interrupted) and str(exc) else "interrupted"
     kept_text = f"; {kept}" if kept else ""
     print(f"{program}: {where}{kept_text}; temporary files removed, earlier results untouched", file=sys.stderr,
           flush=True)
-    return EXIT_INTERRUPTED
+    return 128 + exc.signum if isinstance(exc, Interrupted) else EXIT_INTERRUPTED
 
 
 def child_stderr_tail(text: str, limit: int = 2000) -> str:

@@ -1,4 +1,4 @@
-"""Ctrl-C (SIGINT) and SIGTERM for the commands: stop, remove temporaries, exit 130.
+"""Ctrl-C (SIGINT) and SIGTERM for the commands: stop, remove temporaries, exit 130 (143).
 
 What bpy 5.2.3 does (probed by sending SIGINT to a process inside
 `bpy.ops.render.render`): Blender leaves the C-level SIGINT handler alone, but
@@ -61,6 +61,7 @@ class _State:
     signals: int = 0  # signals the Python handler saw
     requested: bool = False  # a signal arrived (set by the handler or the watcher)
     name: str = ""  # the first signal's name, for the one line
+    signum: int = 0  # the first signal's number, for the exit status (128 + it)
     raised: bool = False  # Interrupted was raised once already
     deferred: int = 0  # depth of deferred() / blocking() / held-import sections
     critical: int = 0  # depth of deferred() sections alone: what the watchdog must not cut
@@ -72,6 +73,9 @@ class _State:
 
 _STATE = _State()
 _EARLY: list[int] = []  # signals recorded by hold_until_handled() before handling()
+# Session folders of held imports (bpy's /tmp/blender_*): an immediate exit removes them
+# too, whenever the import happened (its owner removes them on a normal exit).
+_SESSION_DIRS: list[Path] = []
 # What an interrupted run keeps (outputs.FinishedRows), for its one line; outlives handling().
 _KEPT = {"note": ""}
 
@@ -100,16 +104,17 @@ def _handler(signum: int, _frame) -> None:
     """Python-level handler (main thread, between bytecodes)."""
     _STATE.signals += 1
     _STATE.name = _STATE.name or signal.Signals(signum).name
+    _STATE.signum = _STATE.signum or signum
     if _STATE.signals > 1 and _STATE.raised:
         if _STATE.exit_at_once:
             # A second Ctrl-C while the first one is being cleaned up: the user insists.
             _exit_now(f"interrupted again ({signal.Signals(signum).name})")
-        raise Interrupted(f"interrupted again ({signal.Signals(signum).name})")
+        raise Interrupted(f"interrupted again ({signal.Signals(signum).name})", _STATE.signum)
     _STATE.requested = True
     if _STATE.deferred or _STATE.raised:
         return
     _STATE.raised = True
-    raise Interrupted(f"interrupted ({signal.Signals(signum).name})")
+    raise Interrupted(f"interrupted ({signal.Signals(signum).name})", signum)
 
 
 def _watch(fd: int) -> None:
@@ -124,12 +129,14 @@ def _watch(fd: int) -> None:
             return  # handling() closed the pipe
         if not any(byte in SIGNALS for byte in data):
             continue
+        first = next(byte for byte in data if byte in SIGNALS)
+        _STATE.signum = _STATE.signum or first
         _STATE.requested = True
         with _STATE.lock:
             if _STATE.blocking is not None and _STATE.exit_at_once:
                 _exit_now(f"interrupted during the {_STATE.blocking}; stopped at once")
         if _STATE.exit_at_once:
-            _watchdog(signal.Signals(next(b for b in data if b in SIGNALS)).name)
+            _watchdog(signal.Signals(first).name)
 
 
 def _watchdog(name: str) -> None:
@@ -147,7 +154,7 @@ def _watchdog(name: str) -> None:
 
 def _exit_now(message: str) -> None:
     """Remove the registered temporaries, print the one line and end the process (130)."""
-    for path in list(_STATE.temporaries):
+    for path in [*_STATE.temporaries, *_SESSION_DIRS]:
         _remove(path)
     try:
         sys.stdout.flush()
@@ -157,7 +164,7 @@ def _exit_now(message: str) -> None:
         sys.stderr.write("\n")
     except (OSError, ValueError):
         pass
-    code = report_interrupt(_STATE.program, Interrupted(message), kept_note())
+    code = report_interrupt(_STATE.program, Interrupted(message, _STATE.signum or signal.SIGINT), kept_note())
     os._exit(code)
 
 
@@ -191,9 +198,10 @@ def handling(program: str = "omniwarp", exit_at_once: bool = False) -> Iterator[
         watcher.start()
         if _EARLY:  # a signal came while the command line was starting
             name = signal.Signals(_EARLY[0]).name
-            _EARLY.clear()
             _STATE.requested = _STATE.raised = True
-            raise Interrupted(f"interrupted ({name}) while starting")
+            _STATE.signum = _EARLY[0]
+            _EARLY.clear()
+            raise Interrupted(f"interrupted ({name}) while starting", _STATE.signum)
         yield
     finally:
         with _STATE.lock:
@@ -207,6 +215,11 @@ def handling(program: str = "omniwarp", exit_at_once: bool = False) -> Iterator[
         _STATE.__init__()
 
 
+def watching() -> bool:
+    """True while a command's handling() is in place (so a signal may come and be acted on)."""
+    return _STATE.installed
+
+
 def requested() -> bool:
     """True once a signal arrived during this command."""
     return _STATE.requested
@@ -216,7 +229,7 @@ def check(where: str = "") -> None:
     """Raise `Interrupted` if a signal arrived and was not raised yet."""
     if _STATE.requested and not _STATE.raised:
         _STATE.raised = True
-        raise Interrupted(where or f"interrupted ({_STATE.name or 'signal'})")
+        raise Interrupted(where or f"interrupted ({_STATE.name or 'signal'})", _STATE.signum or signal.SIGINT)
 
 
 @contextmanager
@@ -265,6 +278,9 @@ class _HeldLoader(importlib.abc.Loader):
     def exec_module(self, module) -> None:
         with deferred():
             self.loader.exec_module(module)
+            tempdir = getattr(getattr(module, "app", None), "tempdir", "")  # bpy's session folder
+            if tempdir:
+                _SESSION_DIRS.append(Path(tempdir))
 
 
 @contextmanager

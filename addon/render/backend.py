@@ -23,6 +23,7 @@ from .passes.exact import ExactLists
 from .passes.media import NO_MEDIA, GridStore, Haze, MediaFrame, SampleMedia
 from .passes.footprints import FootprintDraw, corner_capacity, corner_indices
 from .passes.samples import SampleTargets, pack_warp_table
+from .pacing import Pacer
 from .passes.warp import WarpBuild
 
 # What the pipeline, the parameterizations, the viewport and the tests import from here.
@@ -68,6 +69,7 @@ class ShadowBackend:
         self.no_warp = None  # the one zero texel bound as both warp tables without a warp
         self.warp_tables: dict[str, Any] = {}  # each table's own texture, kept between warped frames
         self.warp_build = WarpBuild()  # the GPU's warp construction (passes/warp.py)
+        self.pacer = Pacer()  # long passes in slices a signal can end between (pacing.py)
         self._released = False
         self._unread: list[weakref.ref] = []  # frame results whose visibility is still on the GPU
         with device.bound():

@@ -30,6 +30,29 @@ _ATTRIBUTE_FORMATS = {"float": "1f", "vec2": "2f", "vec3": "3f", "vec4": "4f"}
 
 
 _ALREADY_BOUND = contextlib.nullcontext()
+_UNRESOLVED = object()
+_GL_FINISH: Any = _UNRESOLVED
+
+
+def _gil_free_finish() -> Any:
+    """glFinish through ctypes, which lets go of the GIL while the GPU works (moderngl
+    holds it): a signal's watchdog thread (core/interrupt.py) can then end the command
+    while the main thread waits on minutes of queued work. None where EGL cannot give it."""
+    global _GL_FINISH
+    if _GL_FINISH is _UNRESOLVED:
+        _GL_FINISH = None
+        try:
+            import ctypes
+
+            egl = ctypes.CDLL("libEGL.so.1")
+            egl.eglGetProcAddress.restype = ctypes.c_void_p
+            egl.eglGetProcAddress.argtypes = [ctypes.c_char_p]
+            address = egl.eglGetProcAddress(b"glFinish")
+            if address:
+                _GL_FINISH = ctypes.CFUNCTYPE(None)(address)
+        except (OSError, AttributeError) as exc:
+            log.debug("no GIL-free glFinish (%s): waits hold the GIL", exc)
+    return _GL_FINISH
 
 
 class _Timer(GPUTimer):
@@ -68,6 +91,7 @@ class ModernGLDevice(Device):
         except ImportError as exc:  # the package is a hard dependency of the CLI
             raise BackendError("moderngl is not installed; run scripts/setup_env.sh") from exc
         self._mgl = moderngl
+        self.backend_name = backend
         try:
             self.ctx = moderngl.create_standalone_context(backend=backend)
         except Exception as exc:  # moderngl raises plain Exception when EGL is missing
@@ -219,6 +243,7 @@ class ModernGLDevice(Device):
     def read(self, texture, fmt: str, rect: Rect | None = None) -> np.ndarray:
         dtype = "u4" if fmt == "R32UI" else "f4"
         with self.bound():
+            self._wait()  # a read waits for the GPU anyway: wait without the GIL
             if rect is None:
                 raw = np.frombuffer(texture.read(), dtype=dtype)
             else:  # textures read whole only: a rect is read through a framebuffer
@@ -312,6 +337,14 @@ class ModernGLDevice(Device):
 
     def finish(self, target: Target | None = None) -> None:
         with self.bound():
+            self._wait()
+
+    def _wait(self) -> None:
+        """Block until the GPU is done, without the GIL where EGL gives glFinish."""
+        finish = _gil_free_finish() if self.backend_name == "egl" else None
+        if finish is not None:
+            finish()
+        else:
             self.ctx.finish()
 
     def timer(self, key: str = "frame") -> GPUTimer:

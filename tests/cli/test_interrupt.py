@@ -1,5 +1,6 @@
 """Ctrl-C through the command line: inside a Cycles render, in the preview's child
-process and in the EEVEE child, the run stops with status 130 and one line, no
+process and in the EEVEE child, inside a long `exact` frame (with SIGTERM too: 143),
+the run stops with status 130 and one line, no
 traceback, no temporary left (TMPDIR stays empty), no cache file and no output
 written, and no child process left running."""
 from __future__ import annotations
@@ -15,7 +16,7 @@ from pathlib import Path
 import pytest
 
 from addon.core import interrupt
-from addon.core.errors import EXIT_INTERRUPTED, Interrupted
+from addon.core.errors import EXIT_INTERRUPTED, EXIT_TERMINATED, Interrupted
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "support"))
 from cli_run import env_with, omniwarp, staging_left, start_python, stderr_lines, tree_digest  # noqa: E402
@@ -92,8 +93,8 @@ def _gone(pid: int) -> bool:
     return state in ("Z", "X")
 
 
-def _assert_interrupted(proc: subprocess.Popen, stdout: str, stderr: str) -> str:
-    assert proc.returncode == EXIT_INTERRUPTED, (proc.returncode, stderr[-3000:])
+def _assert_interrupted(proc: subprocess.Popen, stdout: str, stderr: str, code: int = EXIT_INTERRUPTED) -> str:
+    assert proc.returncode == code, (proc.returncode, stderr[-3000:])
     assert "Traceback" not in stderr and "KeyboardInterrupt" not in stderr, stderr[-3000:]
     last = stderr_lines(stderr)[-1]
     assert last.startswith("omniwarp: interrupted") and "temporary files removed" in last, last
@@ -227,3 +228,54 @@ def test_ctrl_c_between_rows_keeps_the_finished_rows(tmp_path, earlier, referenc
     assert after.pop("results.partial.json") and after == before  # nothing else touched
     assert omniwarp(*args, env=env_with(OMNIWARP_CACHE=reference_cache)).returncode == 0
     assert not kept.exists() and json.loads((earlier / "results.json").read_text())[0]["method"] == "dpsm"
+
+
+@pytest.fixture(scope="module")
+def groom_sun(tmp_path_factory) -> Path:
+    """6,000 hair strands under a sun 11.4 degrees across, 326x183 (issue 52's file): an
+    `exact` frame at 1024 takes many minutes on llvmpipe."""
+    path = tmp_path_factory.mktemp("groom") / "groom_sun.blend"
+    subprocess.run([sys.executable, str(Path(__file__).resolve().parents[1] / "support" / "make_groom_blend.py"),
+                    str(path), "--sun-angle", "11.4", "--size", "326", "183"], check=True, capture_output=True)
+    return path
+
+
+@pytest.mark.slow
+@pytest.mark.blender
+@pytest.mark.gl
+@pytest.mark.parametrize("sig,code", [(signal.SIGINT, EXIT_INTERRUPTED), (signal.SIGTERM, EXIT_TERMINATED)],
+                         ids=["SIGINT", "SIGTERM"])
+def test_a_signal_inside_a_long_exact_frame_ends_the_run(tmp_path, earlier, groom_sun, reference_cache, sig, code):
+    """SIGINT or SIGTERM 10 s into an `exact` frame of minutes: the main thread waits on the
+    GPU without the GIL (moderngl_backend._gil_free_finish, in slices: render/pacing.py),
+    so the watchdog ends the run GRACE_S after the signal, with 130 or 143 and its one
+    line; nothing written, no temporary left. Before, the signal waited for the frame (a
+    SIGINT 2 minutes in: still running 10 minutes later)."""
+    pytest.importorskip("bpy", reason="the reference capture needs bpy (scripts/setup_env.sh installs it)")
+    tmpdir = tmp_path / "tmp"
+    tmpdir.mkdir()
+    before = tree_digest(earlier)
+    proc = _start(["compare", "--blend", str(groom_sun), "--methods", "exact", "--resolutions", "1024",
+                   "--repeats", "1", "--soft-samples", "16", "--no-images", "--out", str(earlier)],
+                  env_with(OMNIWARP_CACHE=reference_cache, TMPDIR=tmpdir))
+    seen = []
+    try:
+        for line in proc.stderr:
+            seen.append(line)
+            if "exact @ 1024" in line:
+                break
+        time.sleep(10.0)
+        assert proc.poll() is None, "".join(seen)  # still inside the frame
+        sent = time.perf_counter()
+        proc.send_signal(sig)
+        stdout, rest = proc.communicate(timeout=120)  # a guard against a hang
+        took = time.perf_counter() - sent
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+            proc.wait()
+    last = _assert_interrupted(proc, stdout, "".join(seen) + rest, code)
+    assert f"interrupted ({signal.Signals(sig).name})" in last
+    # The watchdog's grace, and scheduling slack on a loaded 2-core machine.
+    assert took < interrupt.GRACE_S + 1.5, took
+    assert list(tmpdir.iterdir()) == [] and tree_digest(earlier) == before and staging_left(tmp_path) == []

@@ -96,6 +96,6 @@ def test_the_watchdog_waits_for_a_move_of_outputs(tmp_path):
 
 def test_a_signal_before_the_handling_ends_the_command_when_it_starts():
     done, _ = _run(EARLY, signal_after_ready=False)
-    assert done.returncode == 130 and "the command ran" not in done.stdout
+    assert done.returncode == 143 and "the command ran" not in done.stdout
     assert done.stderr.strip().splitlines() == [
         "probe: interrupted (SIGTERM) while starting; temporary files removed, earlier results untouched"]

@@ -12,7 +12,8 @@
   2-4 cm (Mesh to Points);
 - `Seeds`: 300 points that geometry nodes scatter over the ground as a point cloud
   (Distribute Points on Faces, its points kept as points);
-- a point light (hard unless --light-radius), a camera at the head, 200 x 150 pixels.
+- a point light (hard unless --light-radius), or with --sun-angle a sun that many degrees
+  across; a camera at the head, 200 x 150 pixels (--size W H).
 """
 from __future__ import annotations
 
@@ -105,13 +106,14 @@ def _seeds(tree, geometry):
     return radius.outputs["Points"]
 
 
-def build(out: Path, shape: str, light_radius: float) -> None:
+def build(out: Path, shape: str, light_radius: float, sun_angle: float | None = None,
+          size: tuple[int, int] = (200, 150)) -> None:
     import bpy
     import bmesh  # after bpy, which makes it importable
 
     bpy.ops.wm.read_factory_settings(use_empty=True)
     scene = bpy.context.scene
-    scene.render.resolution_x, scene.render.resolution_y = 200, 150
+    scene.render.resolution_x, scene.render.resolution_y = size
     scene.render.resolution_percentage = 100
     scene.cycles_curves.shape = shape
     ground = bpy.data.objects.new("Ground", bpy.data.meshes.new("Ground"))
@@ -134,9 +136,17 @@ def build(out: Path, shape: str, light_radius: float) -> None:
     seeds = _mesh("Seeds", 0.1, (-0.6, -0.9, 0.02))
     _with_nodes(seeds, _geometry_nodes("seed scatter", _seeds))
 
-    light = bpy.data.objects.new("Lamp", bpy.data.lights.new("Lamp", "POINT"))
-    light.data.energy = 1000.0
-    light.data.shadow_soft_size = light_radius
+    if sun_angle is None:
+        light = bpy.data.objects.new("Lamp", bpy.data.lights.new("Lamp", "POINT"))
+        light.data.energy = 1000.0
+        light.data.shadow_soft_size = light_radius
+    else:
+        import math
+
+        light = bpy.data.objects.new("Sun", bpy.data.lights.new("Sun", "SUN"))
+        light.data.energy = 4.0
+        light.data.angle = math.radians(sun_angle)
+        light.rotation_euler = (0.5, 0.2, 0.3)
     light.location = (0.35, -0.55, 2.6)
     scene.collection.objects.link(light)
     camera = bpy.data.objects.new("Camera", bpy.data.cameras.new("Camera"))
@@ -152,8 +162,10 @@ def main() -> int:
     parser.add_argument("out", type=Path)
     parser.add_argument("--shape", choices=("RIBBONS", "THICK"), default="RIBBONS")
     parser.add_argument("--light-radius", type=float, default=0.0)
+    parser.add_argument("--sun-angle", type=float, default=None, help="a sun this many degrees across")
+    parser.add_argument("--size", type=int, nargs=2, default=(200, 150), metavar=("W", "H"))
     args = parser.parse_args()
-    build(args.out, args.shape, args.light_radius)
+    build(args.out, args.shape, args.light_radius, args.sun_angle, tuple(args.size))
     return 0
 
 

@@ -110,11 +110,30 @@ def draw_footprints(backend, tile: int, draws: list[FootprintDraw], uniforms: Un
         backend.haze.ready(device, layout.size)
     # Always scissored: point sprites may reach past the tile's edge.
     rect = viewport if scissor is None else layout.scissor_rect(tile, scissor)
-    with device.drawing(backend.atlas.target, viewport, rect, depth_test=True):
-        for draw in draws:
-            if draw.count <= 0:
-                continue  # a count of 0 would mean "all" to some APIs
-            points = draw.points and device.point_sprites
-            iface, textures, images = footprint_program(backend, draw, uniforms, exact, points)
-            device.draw(iface, {**uniforms, **draw.uniforms}, {**backend.textures, **textures},
-                        Geometry.corners(draw.first, draw.count, points), images)
+    live = [draw for draw in draws if draw.count > 0]  # a count of 0 would mean "all" to some APIs
+    programs = [footprint_program(backend, draw, uniforms, exact, draw.points and device.point_sprites)
+                for draw in live]
+    queued: list[tuple[int, int, int]] = []  # (draw, first, count) not drawn yet
+
+    def flush() -> None:
+        if queued:
+            with device.drawing(backend.atlas.target, viewport, rect, depth_test=True):
+                for index, first, count in queued:
+                    draw, (iface, textures, images) = live[index], programs[index]
+                    device.draw(iface, {**uniforms, **draw.uniforms}, {**backend.textures, **textures},
+                                Geometry.corners(first, count, draw.points and device.point_sprites), images)
+            queued.clear()
+
+    def wait() -> None:
+        flush()
+        backend.finish()
+
+    # A long draw (the exact pass over hair under a soft sun) in slices a signal can end
+    # between; each object's rate is its own (a hair piece's walk may cost a thousand
+    # triangles of the ground's).
+    kind = "exact" if exact else "maps"
+    for index, draw in enumerate(live):
+        backend.pacer.run(f"{kind}:{draw.key}", draw.count,
+                          lambda first, count, index=index, base=draw.first: queued.append((index, base + first, count)),
+                          wait)
+    flush()

@@ -1,0 +1,124 @@
+"""Long draws in slices a signal can end between (render/pacing.py, issue 52): the slices
+cover every item once and in order, grow by at most GROWTH, are drawn whole where no
+signal is watched or the draw fits one slice; a sliced frame writes the very bits of an
+unsliced one; a signal that comes during a slice ends the draw after that slice."""
+from __future__ import annotations
+
+import contextlib
+import os
+import signal
+
+import numpy as np
+import pytest
+
+from addon.core import interrupt
+from addon.core.errors import Interrupted
+from addon.render import pacing
+from addon.render.frame import ShadowSettings, settings_for
+from addon.render.pacing import Pacer
+from addon.render.pipeline import ShadowPipeline
+from tests.gl.test_soft_filter import _scene
+from tests.support.oracle import view_samples
+
+
+class _Clock:
+    """A clock that moves `per_item` seconds a drawn item."""
+
+    def __init__(self, per_item: float) -> None:
+        self.now = 0.0
+        self.per_item = per_item
+
+    def __call__(self) -> float:
+        return self.now
+
+
+def _run(pacer: Pacer, total: int, clock: _Clock | None = None, key: str = "exact") -> list[tuple[int, int]]:
+    drawn: list[tuple[int, int]] = []
+
+    def draw(first: int, count: int) -> None:
+        drawn.append((first, count))
+        if clock is not None:
+            clock.now += count * clock.per_item
+
+    pacer.run(key, total, draw, lambda: None)
+    return drawn
+
+
+def test_whole_when_no_signal_is_watched():
+    assert _run(Pacer(), 10 ** 6) == [(0, 10 ** 6)]
+
+
+def test_slices_cover_the_pass_in_order_and_take_about_the_slice():
+    clock = _Clock(per_item=1e-5)  # 100k items a second: 20k a 0.2 s slice
+    pacer = Pacer(clock=clock)
+    with interrupt.handling():
+        drawn = _run(pacer, 200_000, clock)
+    starts = [first for first, _ in drawn]
+    assert starts == sorted(starts) and starts[0] == 0
+    assert all(a + n == b for (a, n), (b, _) in zip(drawn, drawn[1:]))
+    assert sum(n for _, n in drawn) == 200_000
+    assert drawn[0][1] == pacing.FIRST_SLICE
+    assert all(n <= GROWTH_LIMIT * m for (_, m), (_, n) in zip(drawn, drawn[1:-1]))
+    assert max(n for _, n in drawn) * clock.per_item <= pacing.SLICE_S * 1.001
+    assert pacer.slices == len(drawn)
+    # The rate is known now: a pass that fits one slice is drawn whole, without a wait.
+    with interrupt.handling():
+        assert _run(pacer, 15_000, clock) == [(0, 15_000)]
+        first = _run(pacer, 40_000, clock)[0]  # a longer one starts at the slice
+        assert first[0] == 0 and abs(first[1] - 20_000) <= 1
+
+
+GROWTH_LIMIT = pacing.GROWTH
+
+
+def test_a_signal_during_a_slice_ends_the_pass_after_it():
+    drawn: list[tuple[int, int]] = []
+
+    def draw(first: int, count: int) -> None:
+        drawn.append((first, count))
+        if len(drawn) == 2:
+            os.kill(os.getpid(), signal.SIGINT)
+
+    with interrupt.handling():
+        with pytest.raises(Interrupted):
+            Pacer().run("exact", 10 ** 6, draw, lambda: None)
+    assert len(drawn) == 2
+    assert sum(n for _, n in drawn) < 10 ** 6
+
+
+def _frames(backend, method_settings):
+    """Visibility and exact work of each frame, drawn whole and then in slices of 2 items."""
+    scene = _scene("area")
+    samples, _, _ = view_samples(scene)
+    out = []
+    for sliced in (False, True):
+        backend.pacer = Pacer()
+        first, grow = pacing.FIRST_SLICE, pacing.SLICE_S
+        try:
+            if sliced:  # 2 items a slice (the rate gives none more): every draw cut in many
+                pacing.FIRST_SLICE, pacing.SLICE_S = 2, 1e-9
+            # Whole: no signal watched (as in Blender's UI); sliced: as in a command.
+            with interrupt.handling() if sliced else contextlib.nullcontext():
+                frames = []
+                for settings in method_settings:
+                    result = ShadowPipeline(backend).render(scene.light, scene.world_triangles(), samples, settings)
+                    frames.append((result.visibility.tobytes(), result.exact_work))
+        finally:
+            pacing.FIRST_SLICE, pacing.SLICE_S = first, grow
+        out.append((frames, backend.pacer.slices))
+    return out
+
+
+@pytest.mark.gl
+def test_a_sliced_frame_writes_the_same_bits(gl_backend):
+    """The exact pass of a sized light (its lists, its walks, its counters) and a map pass,
+    whole and cut into slices of 2 triangles: the same visibility, the same work."""
+    chosen = [ShadowSettings("dpsm", 256, warp="notw", exact=True, exact_samples=16),
+              settings_for("dpsm+notw", 256)]
+    (whole, whole_slices), (sliced, sliced_slices) = _frames(gl_backend, chosen)
+    assert whole_slices == 0
+    assert sliced_slices > 4
+    for (bits_a, work_a), (bits_b, work_b) in zip(whole, sliced):
+        assert bits_a == bits_b
+        assert work_a == work_b
+    assert np.frombuffer(whole[0][0], np.float32).min() < 0.5  # the frame has shadows to keep
