@@ -23,6 +23,7 @@ from typing import Any
 import bpy
 
 from .. import compare, report
+from . import compare_background
 from ..core import methods as method_registry
 from ..core.errors import InputError, OmniWarpError
 from ..rows import Row, make_row
@@ -73,6 +74,9 @@ class _Job:
     started: float = field(default_factory=time.perf_counter)
     row_seconds: list[float] = field(default_factory=list)
     timer: Any = None  # the window-manager timer of the modal run
+    note: str = ""  # what the reference step said (methods skipped for the light)
+    child: Any = None  # the background run measuring for it (compare_background.ChildRun), if any
+    status_shown: str = ""  # the status bar's text as last set
 
     @property
     def total_steps(self) -> int:
@@ -125,8 +129,11 @@ def free_state() -> None:
     if _ACTIVE is not None:
         log.warning("OmniWarp comparison still running while unregistering; releasing it")
         remove_timer(_ACTIVE, bpy.context.window_manager)
+        if _ACTIVE.child is not None:
+            _ACTIVE.child.kill_now()
         _ACTIVE.release()
         _ACTIVE = None
+    compare_background.free_children()
     _ROWS.clear()
     clear_presets()
 
@@ -300,31 +307,58 @@ def _drop_unfit_tasks(job: _Job) -> str:
     return f"; skipped {', '.join(unfit)}: they do not fit a {emission} light"
 
 
-def step_job(job: _Job) -> str:
-    """Do the next step (the reference, or one row); returns what it did."""
-    scene = _job_scene(job)
-    settings = scene.omniwarp_compare
+def measure_step(job: _Job) -> dict | None:
+    """Do the next step, touching no Blender property: the reference (None), or one row
+    (returned, its image paths absolute). What the background job's child runs
+    (compare_child.py), and `step_job` in Blender's own process."""
     if job.reference is None:
-        start = time.perf_counter()
         _load_reference(job)
-        done = f"reference of {job.preset} ready in {time.perf_counter() - start:.1f} s"
-        done += _drop_unfit_tasks(job)
-    else:
-        method, resolution = job.tasks[job.next_task]
-        start = time.perf_counter()
-        if job.scene is None:
-            job.scene = compare.resident_scene(job.reference)
-        row = compare.run_row(job.pipeline, job.reference, job.preset, method, resolution, job.options,
-                              job.image_dir, job.scene)
-        job.row_seconds.append(time.perf_counter() - start)
-        job.rows.append(_absolute_paths(row, job.out_dir))
-        _ROWS.setdefault(scene.session_uid, []).append(row)
-        _store_row(settings, row)
-        job.next_task += 1
-        done = f"{method} @ {resolution}: {row['error_pct']:.3f} % error, {row['time_ms']['total']:.1f} ms"
-    settings.progress = job.steps_done / job.total_steps
-    settings.status = status_line(job)
-    return done
+        job.note = _drop_unfit_tasks(job)
+        return None
+    method, resolution = job.tasks[job.next_task]
+    start = time.perf_counter()
+    if job.scene is None:
+        job.scene = compare.resident_scene(job.reference)
+    row = compare.run_row(job.pipeline, job.reference, job.preset, method, resolution, job.options,
+                          job.image_dir, job.scene)
+    job.row_seconds.append(time.perf_counter() - start)
+    job.rows.append(_absolute_paths(row, job.out_dir))
+    job.next_task += 1
+    return row
+
+
+def step_text(job: _Job, row: dict | None, seconds: float) -> str:
+    """What a step did, for the log."""
+    if row is None:
+        return f"reference of {job.preset} ready in {seconds:.1f} s{job.note}"
+    return f"{row['method']} @ {row['resolution']}: {row['error_pct']:.3f} % error, {row['time_ms']['total']:.1f} ms"
+
+
+def store_row(job: _Job, row: dict) -> None:
+    """Show a measured row in the job's scene (the results list) and keep it for export."""
+    scene = _find_scene(job)
+    _ROWS.setdefault(job.scene_uid, []).append(row)
+    if scene is not None:
+        _store_row(scene.omniwarp_compare, row)
+
+
+def show_progress(job: _Job) -> None:
+    """The job's progress and status line in its scene's settings (the panel draws them)."""
+    scene = _find_scene(job)
+    if scene is not None:
+        scene.omniwarp_compare.progress = job.steps_done / job.total_steps
+        scene.omniwarp_compare.status = status_line(job)
+
+
+def step_job(job: _Job) -> str:
+    """Do the next step (the reference, or one row) in this process; returns what it did."""
+    _job_scene(job)  # removed during the run: stop here, with its name
+    start = time.perf_counter()
+    row = measure_step(job)
+    if row is not None:
+        store_row(job, row)
+    show_progress(job)
+    return step_text(job, row, time.perf_counter() - start)
 
 
 def status_line(job: _Job) -> str:
@@ -342,8 +376,10 @@ def status_line(job: _Job) -> str:
             f"({elapsed:.0f} s elapsed, {eta})")
 
 
-def finish_job(job: _Job, report_fn: Report, outcome: str = "done", message: str = "") -> None:
-    """Release the GPU, write and load the plot, set the status. `outcome`: done, cancelled, failed."""
+def finish_job(job: _Job, report_fn: Report, outcome: str = "done", message: str = "",
+               plot_written: bool = False) -> None:
+    """Release the GPU, write (unless `plot_written`: the background run wrote it) and load
+    the plot, set the status. `outcome`: done, cancelled, failed."""
     job.release()
     scene = _find_scene(job)
     settings = scene.omniwarp_compare if scene is not None else None
@@ -363,7 +399,8 @@ def finish_job(job: _Job, report_fn: Report, outcome: str = "done", message: str
     if rows and settings is not None and job.image_dir is not None:
         path = job.out_dir / PLOT_FILE
         try:
-            report.write_plot(rows, path)
+            if not plot_written:
+                report.write_plot(rows, path)
             settings.plot_image = load_image(PLOT_IMAGE_NAME, path)
         except (OSError, ValueError, RuntimeError) as exc:
             log.exception("writing or loading the plot %s failed", path)

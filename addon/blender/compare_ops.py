@@ -1,11 +1,14 @@
 """The comparison tool's operators.
 
 * `omniwarp.build_preset` builds the chosen preset into a new scene.
-* `omniwarp.compare` measures. Invoked from the UI it runs modally: a window-manager
-  timer fires every `TIMER_STEP_S` seconds and each tick does ONE step (first the
-  Cycles reference, then one row per tick), so the UI stays responsive between rows;
-  Esc or right-click cancels and keeps the rows measured so far. Executed directly
-  (`EXEC_DEFAULT`, background mode, tests) it runs every step synchronously.
+* `omniwarp.compare` measures. Invoked from the UI it runs modally, as a background job
+  (compare_background.py): a second Blender, `blender -b`, measures, and a window-manager
+  timer reads its rows every `TIMER_STEP_S` seconds into the results list, so the window
+  stays live through a Cycles reference or an `exact` frame of minutes; Esc or
+  right-click ends the job at once and keeps the rows measured so far. Where no Blender
+  binary can be started (the PyPI `bpy` module) each tick does one step in this process.
+  Executed directly (`EXEC_DEFAULT`, background mode, tests) it runs every step
+  synchronously.
 * `omniwarp.export_results` writes the last rows as JSON or CSV.
 """
 from __future__ import annotations
@@ -18,6 +21,7 @@ import bpy
 from ..core.errors import InputError, OmniWarpError
 from ..core.presets import build_preset
 from ..rows import write_rows
+from . import compare_background
 from .compare_job import (
     _Job,
     _failure,
@@ -28,9 +32,11 @@ from .compare_job import (
     remove_timer,
     rows_for_export,
     set_active,
+    show_progress,
     start_job,
     status_line,
     step_job,
+    store_row,
 )
 from .compare_props import TIMER_STEP_S, OMNIWARP_PG_comparison, preset_info
 from .events import redraw_3d_views
@@ -131,6 +137,14 @@ class OMNIWARP_OT_compare(bpy.types.Operator):
         job = start_job(context, self.report)
         if job is None:
             return {"CANCELLED"}
+        binary = compare_background.available()
+        if binary is not None:
+            try:
+                job.child = compare_background.start(job, binary)
+            except (OSError, RuntimeError) as exc:
+                log.exception("cannot start the background comparison")
+                finish_job(job, self.report, "failed", f"cannot start a background Blender: {exc}")
+                return {"CANCELLED"}
         set_active(job)
         wm = context.window_manager
         job.timer = wm.event_timer_add(TIMER_STEP_S, window=context.window)
@@ -146,11 +160,14 @@ class OMNIWARP_OT_compare(bpy.types.Operator):
             _stop_modal(None, context)
             return {"CANCELLED"}
         if event.type in {"ESC", "RIGHTMOUSE"} and event.value == "PRESS":
+            _read_child(job)  # the rows it finished until now are kept
             _stop_modal(job, context)
             finish_job(job, self.report, "cancelled")
             return {"CANCELLED"}
         if event.type != "TIMER":
             return {"PASS_THROUGH"}
+        if job.child is not None:
+            return self._follow_child(context, job)
         try:
             log.info(step_job(job))
         except Exception as exc:  # noqa: BLE001 - any failure must end the run cleanly (logged, reported)
@@ -167,19 +184,81 @@ class OMNIWARP_OT_compare(bpy.types.Operator):
         redraw_3d_views()
         return {"PASS_THROUGH"}
 
+    def _follow_child(self, context: bpy.types.Context, job: _Job) -> set[str]:
+        """One tick of a background job: show the rows it finished; end with it."""
+        try:
+            end = _read_child(job)
+        except (OSError, ValueError) as exc:  # an unreadable events file: end the job
+            end = {"event": "failed", "message": f"cannot read the background job's events: {exc}"}
+        if end is None and job.child.exited():
+            end = {"event": "failed", "message": _child_ended(job.child)}
+        if end is None:
+            text = status_line(job) + " | Esc: cancel"
+            if text != job.status_shown:  # a redraw of the status bar once a second, not every tick
+                job.status_shown = text
+                context.window_manager.progress_update(job.steps_done)
+                _set_status_text(context, text)
+            return {"PASS_THROUGH"}
+        _stop_modal(job, context)
+        if end["event"] == "failed":
+            finish_job(job, self.report, "failed", end["message"])
+            return {"CANCELLED"}
+        for warning in end.get("warnings", []):
+            self.report({"WARNING"}, warning)
+        finish_job(job, self.report, plot_written=bool(end.get("plot")))
+        return {"FINISHED"}
+
     def cancel(self, context: bpy.types.Context) -> None:
         """Blender ends the modal (window closed, file loaded): clean up, keep the rows."""
         job = active_job()
+        if job is not None:
+            _read_child(job)
         _stop_modal(job, context)
         if job is not None:
             finish_job(job, self.report, "cancelled")
 
 
+def _read_child(job: _Job) -> dict | None:
+    """Take in the background job's new events: its tasks once the reference is ready,
+    each row as it is measured (into the results list). Returns its end event, if read."""
+    if job.child is None:
+        return None
+    end = None
+    events = job.child.events()
+    for event in events:
+        kind = event["event"]
+        if kind == "reference":
+            job.reference = "background"  # measured by the child: only its being ready matters here
+            job.tasks = [tuple(task) for task in event["tasks"]]
+            job.note = event.get("note", "")
+        elif kind == "row":
+            job.rows.append(event["row"])
+            job.row_seconds.append(float(event["seconds"]))
+            job.next_task += 1
+            store_row(job, event["row"])
+        elif kind in ("done", "failed"):
+            end = event
+    if events:  # a scene property set is an update of the scene: only when something changed
+        show_progress(job)
+    return end
+
+
+def _child_ended(child: compare_background.ChildRun) -> str:
+    """The failure message of a background Blender that ended without a result."""
+    tail = child.log_tail().splitlines()
+    last = tail[-1] if tail else "no output"
+    return (f"the background Blender ended without a result (exit {child.proc.returncode}): {last}; "
+            f"its console: {child.out_dir / compare_background.LOG_FILE}")
+
+
 def _stop_modal(job: _Job | None, context: bpy.types.Context) -> None:
-    """Timer, progress and status text off; no job is active any more."""
+    """Timer, progress and status text off, the background Blender ended; no job is active
+    any more."""
     set_active(None)
     wm = context.window_manager
     if job is not None:
+        if job.child is not None:
+            job.child.stop()
         remove_timer(job, wm)
     wm.progress_end()
     _set_status_text(context, None)
