@@ -4,6 +4,9 @@
                                   [--methods M1,M2] [--resolution 256] [--size 128x96]
     python scripts/backend_rows.py --diff BEFORE.json AFTER.json
 
+`--paced` draws as a command does, with signals handled: long draws in slices, each
+waited for (render/pacing.py); its rows must equal an unpaced run's.
+
 For each preset (its cached Cycles reference at `--size`, rendered once when missing) and
 each pipeline method that fits its light, one frame at `--resolution`; a row holds the
 error %, the evaluated pixels and a SHA-256 of the visibility's bytes, so two runs of two
@@ -14,6 +17,7 @@ process); the references must be cached first (a moderngl run caches them).
 from __future__ import annotations
 
 import argparse
+import contextlib
 import hashlib
 import json
 import sys
@@ -95,13 +99,25 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--resolution", type=int, default=256)
     parser.add_argument("--size", default="128x96")
     parser.add_argument("--cache-dir", default=None)
+    parser.add_argument("--paced", action="store_true",
+                        help="draw as a command does, signals handled: long draws in slices (render/pacing.py)")
     args = parser.parse_args(argv)
     if args.diff:
         return _diff(*args.diff)
+    from addon.core import interrupt
+
+    with interrupt.handling("backend_rows") if args.paced else contextlib.nullcontext():
+        rows = _measure(args)
+    args.out.write_text(json.dumps(rows, indent=1))
+    print(f"{len(rows)} rows -> {args.out}", file=sys.stderr)
+    return 0
+
+
+def _measure(args: argparse.Namespace) -> list[dict]:
     if args.backend == "moderngl":
         from addon.render.moderngl_backend import ModernGLBackend
 
-        rows = _rows(args, ModernGLBackend())
+        return _rows(args, ModernGLBackend())
     else:
         import bpy  # noqa: F401  (Blender owns GL in this process)
 
@@ -109,10 +125,7 @@ def main(argv: list[str] | None = None) -> int:
         from addon.render.blender_gpu import ensure_gpu
 
         ensure_gpu()
-        rows = _rows(args, BlenderGPUBackend())
-    args.out.write_text(json.dumps(rows, indent=1))
-    print(f"{len(rows)} rows -> {args.out}", file=sys.stderr)
-    return 0
+        return _rows(args, BlenderGPUBackend())
 
 
 if __name__ == "__main__":

@@ -33,8 +33,8 @@ NICENESS = 10  # below the window it serves: its redraws come first on a busy ma
 def job_from_spec(spec: dict) -> _Job:
     """The child's job, from `job_spec`'s dictionary."""
     out_dir = Path(spec["out_dir"])
-    options = compare.CompareOptions(methods=spec["methods"], resolutions=spec["resolutions"], cull=spec["cull"],
-                                     frames=spec["frames"], out_dir=out_dir, write_images=True)
+    options = compare.CompareOptions(methods=tuple(spec["methods"]), resolutions=tuple(spec["resolutions"]),
+                                     cull=spec["cull"], frames=spec["frames"], out_dir=out_dir, write_images=True)
     scene_uid = 0
     for scene in bpy.data.scenes:  # the copy's scene of that name (a preset needs none)
         if scene.name == spec["scene_name"]:

@@ -66,6 +66,7 @@ def run_module(module: str, args: Sequence[str], *, what: str, tmpdir: Path,
             with interrupt.deferred():  # a Ctrl-C during the start must not orphan the child
                 proc = subprocess.Popen(command, cwd=REPO_ROOT, env=child_env(tmpdir), stdout=subprocess.PIPE,
                                         stderr=err, text=True, errors="replace")
+                interrupt.track_child(proc)
                 reader = threading.Thread(target=_read_lines, args=(proc.stdout, on_stdout), daemon=True)
                 reader.start()
             proc.wait(timeout=timeout_s)
@@ -75,6 +76,8 @@ def run_module(module: str, args: Sequence[str], *, what: str, tmpdir: Path,
                 interrupt.stop_child(proc)
             raise
         finally:
+            if proc is not None:
+                interrupt.forget_child(proc)
             if reader is not None:
                 reader.join(timeout=READER_JOIN_S)
         err.seek(0)

@@ -76,6 +76,9 @@ _EARLY: list[int] = []  # signals recorded by hold_until_handled() before handli
 # Session folders of held imports (bpy's /tmp/blender_*): an immediate exit removes them
 # too, whenever the import happened (its owner removes them on a normal exit).
 _SESSION_DIRS: list[Path] = []
+# Child processes running now (child.run_module): an immediate exit kills them first, so
+# that none outlives the command.
+_CHILDREN: set[subprocess.Popen] = set()
 # What an interrupted run keeps (outputs.FinishedRows), for its one line; outlives handling().
 _KEPT = {"note": ""}
 
@@ -154,6 +157,11 @@ def _watchdog(name: str) -> None:
 
 def _exit_now(message: str) -> None:
     """Remove the registered temporaries, print the one line and end the process (130)."""
+    for proc in list(_CHILDREN):
+        try:
+            proc.kill()
+        except OSError:
+            pass  # it has ended already
     for path in [*_STATE.temporaries, *_SESSION_DIRS]:
         _remove(path)
     try:
@@ -345,9 +353,19 @@ def register_temporary(path: Path) -> None:
         _STATE.temporaries.append(path)
 
 
-def stop_child(proc: subprocess.Popen, grace_s: float = 3.0) -> None:
+def track_child(proc: subprocess.Popen) -> None:
+    """Kill `proc` on an immediate exit, until `forget_child`."""
+    _CHILDREN.add(proc)
+
+
+def forget_child(proc: subprocess.Popen) -> None:
+    _CHILDREN.discard(proc)
+
+
+def stop_child(proc: subprocess.Popen, grace_s: float = 0.5) -> None:
     """End a child process on an interrupt (or any failure of the parent): SIGTERM,
-    then SIGKILL after `grace_s`; waits so that no zombie is left."""
+    then SIGKILL after `grace_s` (well inside the watchdog's GRACE_S: the command ends
+    within about a second); waits so that no zombie is left."""
     if proc.poll() is not None:
         return
     proc.terminate()

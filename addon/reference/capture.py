@@ -444,6 +444,18 @@ def _check_finite_transforms(light_obj, cam_obj, depsgraph) -> None:
                                     "they must be finite with 0 < start < end")
 
 
+def _render_matrix(found, obj, what: str) -> np.ndarray:
+    """`obj`'s world matrix in the render depsgraph (render_geometry.collect), checked finite."""
+    matrix = found.matrices.get(obj.name_full)
+    if matrix is None:
+        raise ReferenceCaptureError(f"the render does not evaluate the {what} {obj.name!r}")
+    try:
+        validate.finite_matrix(f"{what} {obj.name!r}: its transform", matrix)
+    except InputError as exc:
+        raise ReferenceCaptureError(str(exc)) from None
+    return matrix
+
+
 def _remove_dir(path: Path) -> None:
     try:
         shutil.rmtree(path)
@@ -520,10 +532,7 @@ def capture(scene: "bpy.types.Scene", samples: int = DEFAULT_SAMPLES, *, light: 
         raise ReferenceCaptureError(f"light {light_obj.name!r} emits nothing (energy or colour is zero)")
     _check_finite_transforms(light_obj, cam_obj, depsgraph)
     emission = _emission_of(light_obj.data)
-    authored = light_size.light_shape(light_obj, light_obj.evaluated_get(depsgraph).matrix_world)
-    sized = authored.sized and not hard
     media = reference_materials.media(scene, layer)
-    noisy = sized or bool(media)  # two halves and their noise (module docstring)
     if media:
         log.info("media (volume shaders) the reference renders with: %s", ", ".join(media))
     if check is not None:
@@ -552,15 +561,22 @@ def capture(scene: "bpy.types.Scene", samples: int = DEFAULT_SAMPLES, *, light: 
             # The render depsgraph: render-level modifiers, hide_render, instancer flags;
             # read before the reference materials replace the file's (their alpha).
             scene_triangles = render_triangles(scene, layer)
+            # The light's and camera's matrices as Cycles evaluates them (the render
+            # depsgraph): one disabled in the viewport is not evaluated there, and a file
+            # saved so keeps whatever matrix it was saved with (issue 53: an old file's sun
+            # read as the identity, straight down).
+            light_world = _render_matrix(scene_triangles, light_obj, "light")
+            camera_world = _render_matrix(scene_triangles, cam_obj, "camera")
+            authored = light_size.light_shape(light_obj, light_world)
+            sized = authored.sized and not hard
+            noisy = sized or bool(media)  # two halves and their noise (module docstring)
             material_notes = _apply_render_settings(scene, layer, light_obj, visible,
                                                     soft_samples // 2 if noisy else samples,
                                                     str(tmpdir / "pass"), overrides, hard)
 
-            depsgraph = _evaluated_depsgraph(scene, layer)
-            camera_matrix = _rigid(cam_obj.evaluated_get(depsgraph).matrix_world)
-            light_eval = light_obj.evaluated_get(depsgraph)
-            light_matrix = _rigid(light_eval.matrix_world)
-            scale = np.array(light_eval.matrix_world.to_scale())
+            camera_matrix = _rigid(camera_world)
+            light_matrix = _rigid(light_world)
+            scale = np.linalg.norm(light_world[:3, :3], axis=0)
             if light_obj.data.type == "SPOT" and np.ptp(np.abs(scale)) > 1e-4:
                 log.warning("spot light %r has non-uniform scale %s: its cone is not circular", light_obj.name, scale)
             triangles = scene_triangles.select(rule.blocks)

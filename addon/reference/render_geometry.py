@@ -75,6 +75,9 @@ class SceneTriangles:
     grids: list[tuple[Owner, GridMedium]] = field(default_factory=list)
     # Meshes whose medium's density is a shader texture: where to read it (collect, `densities`).
     densities: list[shader_density.DensitySource] = field(default_factory=list)
+    # World matrices of the lights and cameras as the render evaluates them, by name_full: an
+    # object disabled in the viewport is not evaluated there (its matrix stays as saved).
+    matrices: dict[str, np.ndarray] = field(default_factory=dict)
 
     def select_grids(self, keep: Callable[[str, str | None], bool]) -> tuple[GridMedium, ...]:
         """The grid media of the owners `keep(name, parent)` accepts."""
@@ -270,8 +273,10 @@ def collect(depsgraph: Any, densities: bool = False) -> SceneTriangles:
         surfaces.append(surface)
     for source in density_sources:  # read: no longer left out (re-added with why if the read fails)
         left.forget("volume_material", source.name, source.parent, shader_density.left_out_why(source.material))
+    matrices = {obj.original.name_full: np.array(obj.matrix_world, dtype=np.float64)
+                for obj in depsgraph.objects if obj.type in ("LIGHT", "CAMERA")}
     return SceneTriangles(owners, triangles, surfaces, notes, left, spheres, strands, volumes, grids,
-                          densities=density_sources)
+                          densities=density_sources, matrices=matrices)
 
 
 def _smoke(inst: Any, depsgraph: Any, materials: dict[str, GridSigma], grids: list[tuple[Owner, GridMedium]],

@@ -18,6 +18,7 @@ from ..core.errors import BackendError
 from .backend import ShadowBackend
 from .device import (COMPONENTS, FULLSCREEN, FULLSCREEN_CORNERS, Device, Geometry, GPUTimer, Program, Rect, Target,
                      UniformValues)
+from .gl_calls import gl_calls
 from .moderngl_glsl import moderngl_compute_source, moderngl_sources
 from .moderngl_uniforms import ProgramBlock
 from .passes.footprints import FOOTPRINT_VERTICES, corner_capacity, corner_indices
@@ -30,54 +31,39 @@ _ATTRIBUTE_FORMATS = {"float": "1f", "vec2": "2f", "vec3": "3f", "vec4": "4f"}
 
 
 _ALREADY_BOUND = contextlib.nullcontext()
-_UNRESOLVED = object()
-_GL_FINISH: Any = _UNRESOLVED
-
-
-def _gil_free_finish() -> Any:
-    """glFinish through ctypes, which lets go of the GIL while the GPU works (moderngl
-    holds it): a signal's watchdog thread (core/interrupt.py) can then end the command
-    while the main thread waits on minutes of queued work. None where EGL cannot give it."""
-    global _GL_FINISH
-    if _GL_FINISH is _UNRESOLVED:
-        _GL_FINISH = None
-        try:
-            import ctypes
-
-            egl = ctypes.CDLL("libEGL.so.1")
-            egl.eglGetProcAddress.restype = ctypes.c_void_p
-            egl.eglGetProcAddress.argtypes = [ctypes.c_char_p]
-            address = egl.eglGetProcAddress(b"glFinish")
-            if address:
-                _GL_FINISH = ctypes.CFUNCTYPE(None)(address)
-        except (OSError, AttributeError) as exc:
-            log.debug("no GIL-free glFinish (%s): waits hold the GIL", exc)
-    return _GL_FINISH
-
 
 class _Timer(GPUTimer):
-    """A time-elapsed query over the work submitted inside `with`, its context bound there."""
+    """A time-elapsed query over the work submitted inside `with`, its context bound there:
+    our own query read as 64 bits (gl_calls), else moderngl's (32 bits: wraps at 4,295 ms)."""
 
     def __init__(self, device: "ModernGLDevice", query) -> None:
         self._device = device
-        self._query = query
+        self._query = query  # a GL query name (int) with gl_calls, else a moderngl Query
         self._binding = contextlib.ExitStack()
 
     def __enter__(self) -> "_Timer":
         self._binding.enter_context(self._device.bound())
-        self._query.__enter__()
+        if isinstance(self._query, int):
+            gl_calls().begin_timer(self._query)
+        else:
+            self._query.__enter__()
         return self
 
     def __exit__(self, *exc) -> None:
         try:
-            self._query.__exit__(*exc)
+            if isinstance(self._query, int):
+                gl_calls().end_timer()
+            else:
+                self._query.__exit__(*exc)
         finally:
             self._binding.close()
 
     @property
     def elapsed_ms(self) -> float:
-        with self._device.bound():
-            return self._query.elapsed * 1e-6  # nanoseconds; reading it waits for the GPU
+        with self._device.bound():  # nanoseconds; reading it waits for the GPU
+            if isinstance(self._query, int):
+                return gl_calls().elapsed_ns(self._query) * 1e-6
+            return self._query.elapsed * 1e-6
 
 
 class ModernGLDevice(Device):
@@ -340,19 +326,24 @@ class ModernGLDevice(Device):
             self._wait()
 
     def _wait(self) -> None:
-        """Block until the GPU is done, without the GIL where EGL gives glFinish."""
-        finish = _gil_free_finish() if self.backend_name == "egl" else None
-        if finish is not None:
-            finish()
+        """Block until the GPU is done, without the GIL where EGL gives glFinish (gl_calls)."""
+        calls = self._calls()
+        if calls is not None:
+            calls.finish()
         else:
             self.ctx.finish()
 
+    def _calls(self):
+        """The ctypes GL calls, for an EGL context (they are found through EGL)."""
+        return gl_calls() if self.backend_name == "egl" else None
+
     def timer(self, key: str = "frame") -> GPUTimer:
-        # One query a key, made once and reused: moderngl cannot free a query before the context.
+        # One query a key, made once and reused (moderngl cannot free a query before the context).
         query = self._queries.get(key)
         if query is None:
             with self.bound():
-                query = self._queries[key] = self.ctx.query(time=True)
+                calls = self._calls()
+                query = self._queries[key] = calls.new_timer() if calls is not None else self.ctx.query(time=True)
         return _Timer(self, query)
 
     def release(self) -> None:
@@ -369,6 +360,10 @@ class ModernGLDevice(Device):
             if self._corners is not None:
                 self._corners.release()
                 self._corners = None
+            for query in self._queries.values():
+                if isinstance(query, int):  # ours (gl_calls); moderngl's go with the context
+                    gl_calls().delete(query)
+            self._queries.clear()
         self.ctx.release()  # not bound: leaving `with ctx` would touch the released context
 
 

@@ -443,3 +443,92 @@ def test_unfit_methods_are_dropped_after_the_reference(registered) -> None:
     job = SimpleNamespace(reference=SimpleNamespace(emission="omni"), preset="room_omni", tasks=[("psm", 512)])
     with pytest.raises(InputError, match="none of the ticked methods fits the omni light"):
         compare_job._drop_unfit_tasks(job)
+
+
+# ----------------------------------------------------------------------------
+# the background job's protocol (compare_background.py), with a stand-in child
+# ----------------------------------------------------------------------------
+def _row(method: str, resolution: int, error: float) -> dict:
+    return {"preset": "room_omni", "method": method, "resolution": resolution, "error_pct": error,
+            "false_shadow_pct": error / 2, "false_lit_pct": error / 2, "passes": 2, "cull": True,
+            "time_ms": {"total": 3.0, "analysis": 1.0, "shadow_maps": 1.0, "shadow_test": 1.0}}
+
+
+def _background_job(registered, tmp_path: Path, script: str):
+    """A job whose child is `python -c script` (it writes the events a real child would)."""
+    import subprocess
+    import sys
+
+    from addon.blender import compare_background
+
+    registered.source = "PRESET"
+    registered.preset = "room_omni"
+    _untick_all(registered)
+    registered.use_dpsm = registered.use_cube = True
+    registered.resolutions = "256"
+    job = compare_job.start_job(bpy.context, Reports())
+    job.out_dir = tmp_path
+    (tmp_path / "tmp").mkdir()
+    job.child = compare_background.ChildRun(proc=subprocess.Popen([sys.executable, "-c", script]), out_dir=tmp_path)
+    return job
+
+
+def test_the_job_reads_whole_lines_and_shows_rows_as_they_come(registered, tmp_path: Path) -> None:
+    """Events are taken line by line as the child appends them (a half-written line waits);
+    each row goes into the results list at once; the end event ends the job."""
+    from addon.blender import compare_background
+
+    job = _background_job(registered, tmp_path, "import time; time.sleep(30)")
+    events = tmp_path / compare_background.EVENTS_FILE
+    try:
+        reference = json.dumps({"event": "reference", "tasks": [["dpsm", 256], ["cube", 256]], "note": ""})
+        first = json.dumps({"event": "row", "row": _row("dpsm", 256, 0.5), "seconds": 1.5})
+        events.write_text(reference + "\n" + first[:20])
+        assert compare_ops._read_child(job) is None
+        assert job.reference is not None and job.next_task == 0 and len(registered.results) == 0
+        with events.open("a") as stream:
+            stream.write(first[20:] + "\n")
+        assert compare_ops._read_child(job) is None
+        assert [(item.method, item.resolution, item.error_pct) for item in registered.results] == [("dpsm", 256, 0.5)]
+        assert registered.progress == pytest.approx(2 / 3) and "row 2/2 cube @ 256" in registered.status
+        second = json.dumps({"event": "row", "row": _row("cube", 256, 0.25), "seconds": 1.0})
+        with events.open("a") as stream:
+            stream.write(second + "\n" + json.dumps({"event": "done", "plot": False, "warnings": []}) + "\n")
+        end = compare_ops._read_child(job)
+        assert end == {"event": "done", "plot": False, "warnings": []} and job.finished
+        assert [item.method for item in registered.results] == ["dpsm", "cube"]
+        assert compare_job.rows_for_export(bpy.context.scene)[1]["error_pct"] == 0.25
+    finally:
+        job.child.kill_now()
+    assert not (tmp_path / "tmp").exists()  # the child's temporary folder goes with it
+
+
+def test_a_child_that_ends_without_a_result_says_why(registered, tmp_path: Path) -> None:
+    """A child that dies (a crash, a missing extension) fails the job with its last line."""
+    job = _background_job(registered, tmp_path, "import sys; print('boom: no module omniwarp'); sys.exit(3)")
+    from addon.blender import compare_background
+
+    (tmp_path / compare_background.LOG_FILE).write_text("Blender 5.2\nboom: no module omniwarp\n")
+    job.child.proc.wait()
+    assert compare_ops._read_child(job) is None and job.child.exited()
+    message = compare_ops._child_ended(job.child)
+    assert "exit 3" in message and "boom: no module omniwarp" in message and "child.log" in message
+    job.child.kill_now()
+
+
+def test_the_spec_rebuilds_the_job(registered, tmp_path: Path) -> None:
+    """What the child rebuilds from job.json is the job the panel set up."""
+    from addon.blender import compare_background, compare_child
+
+    registered.source = "PRESET"
+    registered.preset = "room_omni"
+    _untick_all(registered)
+    registered.use_dpsm = registered.use_exact = True
+    registered.resolutions = "256,1024"
+    job = compare_job.start_job(bpy.context, Reports())
+    spec = json.loads(json.dumps(compare_background.job_spec(job)))
+    rebuilt = compare_child.job_from_spec(spec)
+    for name in ("source", "preset", "camera_size", "light_name", "hard", "tasks", "out_dir"):
+        assert getattr(rebuilt, name) == getattr(job, name), name
+    assert (rebuilt.options.methods, rebuilt.options.resolutions, rebuilt.options.cull, rebuilt.options.frames) == \
+        (job.options.methods, job.options.resolutions, job.options.cull, job.options.frames)

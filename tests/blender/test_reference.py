@@ -447,6 +447,34 @@ def test_named_sun_is_picked_among_several_lights():
         bpy.data.lights.remove(light_data)
 
 
+def test_a_light_disabled_in_the_viewport_gets_the_matrix_cycles_renders_with():
+    """A sun disabled in the viewport but rendered (issue 53's old file): the viewport
+    depsgraph never evaluates it, so its matrix_world stays as made (the identity, a sun
+    straight down); the reference takes the render's matrix, its rotation."""
+    from mathutils import Euler
+
+    scene = build_blender_scene(sun_scene("hidden_sun"))
+    old = next(o for o in scene.objects if o.type == "LIGHT")
+    old.hide_render = True
+    hidden = bpy.data.objects.new("hidden_sun", bpy.data.lights.new("hidden_sun", "SUN"))
+    hidden.data.energy = 3.0
+    hidden.data.angle = 0.0
+    hidden.rotation_euler = (0.5, 0.2, 0.3)
+    hidden.hide_viewport = True
+    scene.collection.objects.link(hidden)
+    try:
+        assert np.allclose(np.array(hidden.matrix_world), np.eye(4))  # what the viewport has
+        ref = capture(scene, light=hidden.name)
+        rotation = np.array(Euler((0.5, 0.2, 0.3)).to_matrix())
+        np.testing.assert_allclose(ref.light_matrix[:3, :3], rotation, atol=1e-5)
+        np.testing.assert_allclose(light_spec_of(ref).axis, rotation @ np.array([0.0, 0.0, -1.0]), atol=1e-5)
+    finally:
+        remove_blender_scene(scene)
+        light_data = hidden.data
+        bpy.data.objects.remove(hidden)
+        bpy.data.lights.remove(light_data)
+
+
 @pytest.mark.parametrize(("kind", "size_deg", "blend", "expected"), [
     ("POINT", None, 0.0, "omni"),
     ("SUN", None, 0.0, "sun"),

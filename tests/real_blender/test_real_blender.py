@@ -360,3 +360,13 @@ def test_gui_esc_ends_the_job_at_once_and_keeps_its_rows(job_run, measured: dict
     assert cancel["rows"][:1] == [{"method": "dpsm", "resolution": 256, "error_pct": cancel["rows"][0]["error_pct"]}]
     assert len(cancel["rows"]) < 4 and cancel["status"].startswith("Cancelled after"), cancel
     assert cancel["child_gone_s"] < 3.0 and cancel["temp_left"] is False, cancel
+
+
+def test_gui_compare_of_the_current_scene_runs_on_a_copy(job_run) -> None:
+    """The Current scene source as a job: the child opens a copy of the file (the artist's
+    file keeps its name) and measures the scene of the same name."""
+    report, _ = job_run
+    current = report["current"]
+    assert current["result"] == ["RUNNING_MODAL"], current
+    assert [(row["method"], row["resolution"]) for row in current["rows"]] == [("dpsm", 256), ("exact", 256)], current
+    assert "measured" in current["status"], current

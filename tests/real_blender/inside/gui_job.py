@@ -9,7 +9,9 @@ a background job while a timer at 50 ms records the gaps between its ticks (issu
      the rows (error figures, for the caller to hold against `omniwarp compare`), the status;
   2. the same with exact at 2048 added; once the first row is in, Esc (a simulated key
      press): how long until the job has ended in the panel, how long until the child
-     process is gone, the rows kept, the status, and whether its temporary folder is left.
+     process is gone, the rows kept, the status, and whether its temporary folder is left;
+  3. the Current scene source: room_omni built into a new scene, then Compare (dpsm and
+     exact at 256): the child measures a copy of the file.
 
 Writes `job.json` into OUT_DIR and quits; a failure writes its traceback there.
 """
@@ -192,8 +194,30 @@ def s_temp_removed():
     REPORT["cancel"]["temp_left"] = bool(temp and os.path.exists(temp))
 
 
+def s_current_start():
+    """The current scene's source: room_omni built into a new scene (the panel's Build), then
+    Compare; the child opens a copy of the file and finds the scene by its name."""
+    settings = _settings()
+    settings.source = "PRESET"
+    settings.preset = "room_omni"
+    settings.camera_size = (160, 120)
+    with bpy.context.temp_override(**_window_context()):
+        bpy.ops.omniwarp.build_preset()
+    _configure("256")
+    settings = _settings()  # the new scene's, with the settings copied
+    settings.source = "CURRENT"
+    REPORT["current"] = _invoke()
+    REPORT["current"]["scene"] = bpy.context.window_manager.windows[0].scene.name
+
+
+def s_current_wait():
+    if _running():
+        return "again"
+    REPORT["current"].update(rows=_rows(), status=_settings().status)
+
+
 STEPS = [s_idle, s_dummy, s_full_start, s_full_wait, s_cancel_start, s_cancel_first_row, s_cancel_ended, s_child_gone,
-         s_temp_removed]
+         s_temp_removed, s_current_start, s_current_wait]
 _AT = {"index": 0, "since": time.perf_counter()}
 STEP_LIMIT_S = 600.0
 
