@@ -6,7 +6,11 @@ Each redraw of a 3D view with the preview on:
   2. if stale and the last recompute is older than the scene's throttle, renders
      the G-buffer at the region's size times the resolution scale, runs the
      pipeline per enabled light on Blender's `gpu` backend, and keeps the result;
-     if it is too soon, a one-shot timer asks for a redraw once the throttle passed;
+     if it is too soon, a one-shot timer asks for a redraw once the throttle passed.
+     A recompute whose last one took over SPREAD_OVER_S (a million triangles on
+     llvmpipe: seconds) is spread over redraws: each goes on with it for about
+     STEP_BUDGET_S (render/pacing.py cuts its long draws into slices) and asks for the
+     next redraw, while the last result stays drawn, reprojected (issue 52);
   3. draws the shadow composite (shadowed surfaces darkened): the result's own if it
      belongs to the current view; otherwise (the view moved within the throttle) the
      result reprojected into this view, through a G-buffer of this view (a pixel the
@@ -30,6 +34,7 @@ import numpy as np
 from ..core import validate
 from ..core.errors import InputError
 from ..core.scene import camera_from_matrices
+from ..render.pacing import Steps, drive
 from ..render.pipeline import ShadowPipeline, count_statistics
 from ..render.resident import ResidentScene
 from . import events, properties
@@ -53,6 +58,7 @@ class _ViewResult:
     seen: Any = None  # the resident scene its G-buffer drew: a moved view's G-buffer draws it too
     reprojection: Any = None  # blender_draw.Reprojection of its view
     moved: Any = None  # the G-buffer of the latest moved view (reused while its size holds)
+    moved_key: tuple | None = None  # the view `moved` was drawn for: redrawn only when the view moves
     overlay: bool = True  # whether the overlay's maps and statistics were read for it
 
 
@@ -65,10 +71,33 @@ class _State:
     version: int = 0  # bumped by every change that makes all views stale
     timer_pending: bool = False
     grid_layer: tuple[str, str] | None = None  # (scene, view layer) whose grids `_read_grids` reads
+    pending: "_Pending | None" = None  # a recompute spread over redraws (one at a time: one backend)
+    compute_s: float = 0.0  # how long the last recompute took in draw callbacks (all of its steps)
     last_drawn: str = ""  # what the last redraw drew: "computed", "cached", "reprojected" or "none"
     last_error: str = ""
     reported: set[str] = field(default_factory=set)  # errors already logged once
 
+
+@dataclass
+class _Pending:
+    """A recompute spread over redraws (issue 52): its stepped pass and what it is for."""
+
+    steps: Any  # compute_view_steps(...)
+    region: Any
+    key: tuple
+    version: int
+    seen: Any
+    view_proj: np.ndarray
+    projection: np.ndarray
+    spent: float = 0.0  # seconds of draw callbacks it took so far
+
+
+# How long one redraw may go on with a spread recompute before it draws what it has: with
+# the pacer's slices (pacing.STEP_S) a callback stays near 0.1 s on llvmpipe.
+STEP_BUDGET_S = 0.05
+# A recompute is spread over redraws when the last one took longer than this; a shorter
+# one is done in the redraw that needs it, as it always was.
+SPREAD_OVER_S = 0.2
 
 _STATE = _State()
 
@@ -93,7 +122,7 @@ def unregister() -> None:
     for handlers, callback in reversed(_APP_HANDLERS):
         while callback in handlers:
             handlers.remove(callback)
-    for timer in (_throttle_elapsed, _read_grids):
+    for timer in (_throttle_elapsed, _read_grids, _go_on):
         if bpy.app.timers.is_registered(timer):
             bpy.app.timers.unregister(timer)
     _STATE.timer_pending = False
@@ -104,7 +133,8 @@ def unregister() -> None:
 
 
 def free_resources() -> None:
-    """Drop cached results and the backend (with all its GPU objects)."""
+    """Drop cached results, a spread recompute and the backend (with all its GPU objects)."""
+    _drop_pending()
     _STATE.results.clear()
     _STATE.pipeline = None
     if _STATE.backend is not None:
@@ -160,6 +190,46 @@ def _throttle_elapsed() -> None:
     return None  # one-shot timer
 
 
+def _go_on() -> None:
+    """One-shot timer: a redraw, for a spread recompute to go on."""
+    events.redraw_3d_views()
+    return None
+
+
+def _drop_pending() -> None:
+    pending, _STATE.pending = _STATE.pending, None
+    if pending is not None:
+        pending.steps.close()
+        if _STATE.backend is not None:
+            _STATE.backend.pacer.stepping = False
+
+
+def _advance(pending: _Pending, settings) -> _ViewResult | None:
+    """Go on with a spread recompute for STEP_BUDGET_S; its result once it has ended (else
+    a redraw is asked for, to go on)."""
+    backend = _STATE.backend
+    start = time.perf_counter()
+    backend.pacer.stepping = True
+    try:
+        while time.perf_counter() - start < STEP_BUDGET_S:
+            next(pending.steps)
+    except StopIteration as done:
+        _STATE.pending = None
+        _STATE.compute_s = pending.spent + time.perf_counter() - start
+        gbuffer, results = done.value
+        return _build_result(pending.key, gbuffer, results, settings, pending.seen, pending.view_proj,
+                             pending.projection, version=pending.version)
+    except BaseException:
+        _drop_pending()
+        raise
+    finally:
+        backend.pacer.stepping = False
+    pending.spent += time.perf_counter() - start
+    if bpy.app.timers is not None and not bpy.app.timers.is_registered(_go_on):
+        bpy.app.timers.register(_go_on, first_interval=0.0)
+    return None
+
+
 def _read_grids() -> float | None:
     """Read the density grids that need geometry nodes (scene_grids.py): they add objects
     to bpy.data, which a draw may not, so the draw leaves them to this one-shot timer, for
@@ -202,17 +272,29 @@ def compute_view(backend, pipeline: ShadowPipeline, seen: ResidentScene, view_ma
     drawn into a texture of its own, never read back. Only for the `overlay` are the maps
     read back and the count statistics scattered (stats None otherwise).
     """
-    from ..render.blender_draw import render_gbuffer
+    return drive(compute_view_steps(backend, pipeline, seen, view_matrix, projection, size, lights, occluders,
+                                    overlay))
+
+
+def compute_view_steps(backend, pipeline: ShadowPipeline, seen: ResidentScene, view_matrix: np.ndarray,
+                       projection: np.ndarray, size: tuple[int, int], lights: list,
+                       occluders: dict[str, ResidentScene] | None = None,
+                       overlay: bool = True) -> Steps[tuple[Any, list]]:
+    """`compute_view` as a stepped pass (render/pacing.py): it yields between slices of its
+    long draws while the backend's pacer is stepping (`_advance`)."""
+    from ..render.blender_draw import render_gbuffer_steps
 
     view_proj = projection @ view_matrix
     # Perspective, lens-shifted or orthographic: the view's real frustum, so culling works.
     camera = camera_from_matrices(view_matrix, projection, size)
     eye = np.linalg.inv(view_matrix)[:3, 3] if camera is None else camera.eye_homogeneous()
-    gbuffer = render_gbuffer(backend, seen, view_proj, eye, size)
+    gbuffer = yield from render_gbuffer_steps(backend, seen, view_proj, eye, size)
     samples = gbuffer.samples(camera)  # stays on the GPU
     results = []
     for name, light, settings in lights:
-        result = pipeline.render(light, (occluders or {}).get(name, seen), samples, settings, keep_atlas=overlay)
+        yield from backend.pacer.pause()
+        result = yield from pipeline.render_steps(light, (occluders or {}).get(name, seen), samples, settings,
+                                                  keep_atlas=overlay)
         stats = count_statistics(pipeline, light, settings, result, samples) if overlay else None
         texture = backend.device.texture(size, "RG32F")
         target = backend.device.target((texture,))
@@ -239,11 +321,12 @@ def _view_key(view_matrix: np.ndarray, projection: np.ndarray, size: tuple[int, 
 
 
 def _build_result(key: tuple, gbuffer, lights: list, settings, seen=None, view_proj=None,
-                  projection=None) -> _ViewResult:
+                  projection=None, version: int | None = None) -> _ViewResult:
     from ..render.blender_draw import Reprojection
     from .preview import overlay_panels, stats_line
 
-    entry = _ViewResult(key, _STATE.version, gbuffer, lights, computed_at=time.perf_counter(), seen=seen,
+    version = _STATE.version if version is None else version  # a spread recompute's: when it began
+    entry = _ViewResult(key, version, gbuffer, lights, computed_at=time.perf_counter(), seen=seen,
                         overlay=bool(settings.overlay_enabled))
     if view_proj is not None and gbuffer is not None:
         entry.reprojection = Reprojection.of(view_proj, projection, gbuffer)
@@ -280,7 +363,21 @@ def draw_view(scene: bpy.types.Scene, depsgraph, view_matrix: np.ndarray, projec
     recomputed = False
     # A result made with the overlay off lacks its maps: turning the overlay on recomputes.
     lacks_overlay = cached is not None and settings.overlay_enabled and not cached.overlay
-    if cached is None or cached.key != key or cached.version != _STATE.version or lacks_overlay:
+    pending = _STATE.pending
+    stale = cached is None or cached.key != key or cached.version != _STATE.version or lacks_overlay
+    if pending is not None:
+        # A recompute spread over redraws: this region's goes on; another region waits for it.
+        if pending.region == region_key:
+            viewport = gpu.state.viewport_get()
+            try:
+                done = _advance(pending, settings)
+            finally:
+                gpu.state.viewport_set(*viewport)
+            if done is not None:
+                cached = _STATE.results[region_key] = done
+                _STATE.last_error = ""
+                recomputed = True
+    elif stale:
         last = max((r.computed_at for r in _STATE.results.values()), default=-1e9)
         if now - last >= settings.throttle_ms / 1000.0 or cached is None:
             viewport = gpu.state.viewport_get()
@@ -292,12 +389,21 @@ def draw_view(scene: bpy.types.Scene, depsgraph, view_matrix: np.ndarray, projec
                 # Only objects that changed since the last view are uploaded; removed ones are freed.
                 _STATE.backend.sync_scene(CACHE.resident())
                 seen, occluders = resident_inputs(CACHE, scene, [name for name, _, _ in lights])
-                gbuffer, results = compute_view(_STATE.backend, _STATE.pipeline, seen, view_matrix,
-                                                projection, size, lights, occluders, settings.overlay_enabled)
-                cached = _build_result(key, gbuffer, results, settings, seen, projection @ view_matrix, projection)
-                _STATE.results[region_key] = cached
-                _STATE.last_error = ""
-                recomputed = True
+                steps = compute_view_steps(_STATE.backend, _STATE.pipeline, seen, view_matrix, projection, size,
+                                           lights, occluders, settings.overlay_enabled)
+                if cached is None or _STATE.compute_s <= SPREAD_OVER_S:  # at once (nothing to draw meanwhile)
+                    start = time.perf_counter()
+                    gbuffer, results = drive(steps)
+                    done = _build_result(key, gbuffer, results, settings, seen, projection @ view_matrix, projection)
+                    _STATE.compute_s = time.perf_counter() - start
+                else:  # the last result stays drawn (reprojected) while this one is spread over redraws
+                    _STATE.pending = _Pending(steps, region_key, key, _STATE.version, seen, projection @ view_matrix,
+                                              projection)
+                    done = _advance(_STATE.pending, settings)
+                if done is not None:
+                    cached = _STATE.results[region_key] = done
+                    _STATE.last_error = ""
+                    recomputed = True
             finally:
                 gpu.state.viewport_set(*viewport)
         elif not _STATE.timer_pending and bpy.app.timers is not None:
@@ -312,8 +418,11 @@ def draw_view(scene: bpy.types.Scene, depsgraph, view_matrix: np.ndarray, projec
         for (_, light, _, _, _, _), texture in zip(cached.lights, cached.visibility):
             draw_shadow_composite(_STATE.backend, cached.gbuffer, texture, light, settings.shadow_strength,
                                   target_size, draw_base=False)
-    elif cached.reprojection is not None and cached.seen is not None and cached.lights:
-        _draw_reprojected(cached, view_matrix, projection, size, target_size, settings.shadow_strength)
+    elif (cached.reprojection is not None and cached.seen is not None and cached.lights
+          and (_STATE.pending is None or _STATE.pending.seen is cached.seen)):
+        # (While a spread recompute runs on another scene, drawing the old one's G-buffer
+        # would sync the backend back to it under the recompute's feet.)
+        _draw_reprojected(cached, view_matrix, projection, size, target_size, settings.shadow_strength, key)
         _STATE.last_drawn = "reprojected"
     else:
         _STATE.last_drawn = "none"
@@ -325,22 +434,25 @@ def draw_view(scene: bpy.types.Scene, depsgraph, view_matrix: np.ndarray, projec
 
 
 def _draw_reprojected(cached: _ViewResult, view_matrix: np.ndarray, projection: np.ndarray,
-                      size: tuple[int, int], target_size: tuple[int, int], strength: float) -> None:
+                      size: tuple[int, int], target_size: tuple[int, int], strength: float, key: tuple) -> None:
     """The cached result drawn over a view it was not computed for: a G-buffer of this view
-    (drawn into the last one of its size), each light's visibility looked up where this
+    (drawn into the last one of its size, and only when the view moved since: a spread
+    recompute redraws one view many times), each light's visibility looked up where this
     view's points land in the result's view."""
     import gpu
 
     from ..render.blender_draw import draw_shadow_composite, render_gbuffer
 
-    camera = camera_from_matrices(view_matrix, projection, size)
-    eye = np.linalg.inv(view_matrix)[:3, 3] if camera is None else camera.eye_homogeneous()
-    viewport = gpu.state.viewport_get()
-    try:
-        cached.moved = render_gbuffer(_STATE.backend, cached.seen, projection @ view_matrix, eye, size,
-                                      reuse=cached.moved)
-    finally:
-        gpu.state.viewport_set(*viewport)
+    if cached.moved is None or cached.moved_key != key:
+        camera = camera_from_matrices(view_matrix, projection, size)
+        eye = np.linalg.inv(view_matrix)[:3, 3] if camera is None else camera.eye_homogeneous()
+        viewport = gpu.state.viewport_get()
+        try:
+            cached.moved = render_gbuffer(_STATE.backend, cached.seen, projection @ view_matrix, eye, size,
+                                          reuse=cached.moved)
+            cached.moved_key = key
+        finally:
+            gpu.state.viewport_set(*viewport)
     for (_, light, _, _, _, _), texture in zip(cached.lights, cached.visibility):
         draw_shadow_composite(_STATE.backend, cached.moved, texture, light, strength, target_size, draw_base=False,
                               reprojection=cached.reprojection)

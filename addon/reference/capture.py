@@ -24,17 +24,15 @@ reference, and half their difference, `visibility_noise`, its own noise per pixe
 same seed in the shadowed and unshadowed renders draws the same light points, so their
 ratio is the share of those points the pixel sees. A scene with a medium (a volume
 shader; `reference_materials.media`) renders so too, whatever its light: a density that
-varies makes the shadows' transmittance noisy. The stored triangles
-are the ones that block the light: the render depsgraph's geometry
-(`render_geometry.py`) sorted by `shadow_rule.ShadowRule`, which follows ray
-visibility, shadow linking and the light's own `use_shadow` as Cycles does. `bpy`
-is imported lazily.
+varies makes the shadows' transmittance noisy. The stored triangles are the ones that
+block the light: the render depsgraph's geometry (`render_geometry.py`; the light's and
+camera's matrices too) sorted by `shadow_rule.ShadowRule`, which follows ray visibility,
+shadow linking and the light's own `use_shadow` as Cycles does. `bpy` is imported lazily.
 """
 from __future__ import annotations
 
 import logging
 import math
-import shutil
 import time
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, Callable
@@ -61,8 +59,9 @@ log = logging.getLogger(__name__)
 
 # Part of the cache key: bump whenever the capture settings or outputs change.
 # 2: see-through materials keep their alpha (reference_materials), and the file's
-# triangles carry their surface (UVs, alpha maps).
-CAPTURE_VERSION = 2
+# triangles carry their surface (UVs, alpha maps); 3: the light's and camera's matrices
+# are the render depsgraph's (a light disabled in the viewport, issue 53).
+CAPTURE_VERSION = 3
 # Transparent bounces a camera or shadow ray may take through see-through surfaces.
 TRANSPARENT_BOUNCES = 256
 
@@ -429,15 +428,11 @@ def output_size(scene: "bpy.types.Scene") -> tuple[int, int]:
             int(render.resolution_y * render.resolution_percentage / 100))
 
 
-def _check_finite_transforms(light_obj, cam_obj, depsgraph) -> None:
-    """A light or camera with a NaN or infinite transform renders nothing useful (and
-    the shadow maps evaluate no pixel): refuse it before any render, by name."""
+def _check_transforms(light_obj, cam_obj, depsgraph) -> None:
+    """Refuse by name, before the reference starts, a NaN or infinite transform (as the
+    viewport has it; the render's again in `_render_matrix`) or camera clip range."""
     for obj, what in ((light_obj, "light"), (cam_obj, "camera")):
-        matrix = np.array(obj.evaluated_get(depsgraph).matrix_world, dtype=np.float64)
-        try:
-            validate.finite_matrix(f"{what} {obj.name!r}: its transform", matrix)
-        except InputError as exc:
-            raise ReferenceCaptureError(str(exc)) from None
+        _finite(np.array(obj.evaluated_get(depsgraph).matrix_world, dtype=np.float64), obj, what)
     clip = (float(cam_obj.data.clip_start), float(cam_obj.data.clip_end))
     if not all(math.isfinite(v) for v in clip) or not 0.0 < clip[0] < clip[1]:
         raise ReferenceCaptureError(f"camera {cam_obj.name!r} has clip start/end {clip[0]:g}/{clip[1]:g}; "
@@ -445,22 +440,20 @@ def _check_finite_transforms(light_obj, cam_obj, depsgraph) -> None:
 
 
 def _render_matrix(found, obj, what: str) -> np.ndarray:
-    """`obj`'s world matrix in the render depsgraph (render_geometry.collect), checked finite."""
+    """`obj`'s world matrix in the render depsgraph (render_geometry.collect), finite."""
     matrix = found.matrices.get(obj.name_full)
     if matrix is None:
         raise ReferenceCaptureError(f"the render does not evaluate the {what} {obj.name!r}")
+    return _finite(matrix, obj, what)
+
+
+def _finite(matrix: np.ndarray, obj, what: str) -> np.ndarray:
+    """A NaN or infinite transform renders nothing useful (and the maps evaluate no pixel)."""
     try:
         validate.finite_matrix(f"{what} {obj.name!r}: its transform", matrix)
     except InputError as exc:
         raise ReferenceCaptureError(str(exc)) from None
     return matrix
-
-
-def _remove_dir(path: Path) -> None:
-    try:
-        shutil.rmtree(path)
-    except OSError as exc:
-        log.warning("could not remove temporary folder %s: %s", path, exc)
 
 
 def read_exr_channels(path: Path) -> dict[str, np.ndarray]:
@@ -530,7 +523,7 @@ def capture(scene: "bpy.types.Scene", samples: int = DEFAULT_SAMPLES, *, light: 
     if energy <= 0.0 or max(colour) <= 0.0:
         # For a sun the energy is its strength (W/m^2); zero is equally useless.
         raise ReferenceCaptureError(f"light {light_obj.name!r} emits nothing (energy or colour is zero)")
-    _check_finite_transforms(light_obj, cam_obj, depsgraph)
+    _check_transforms(light_obj, cam_obj, depsgraph)
     emission = _emission_of(light_obj.data)
     media = reference_materials.media(scene, layer)
     if media:
@@ -561,10 +554,8 @@ def capture(scene: "bpy.types.Scene", samples: int = DEFAULT_SAMPLES, *, light: 
             # The render depsgraph: render-level modifiers, hide_render, instancer flags;
             # read before the reference materials replace the file's (their alpha).
             scene_triangles = render_triangles(scene, layer)
-            # The light's and camera's matrices as Cycles evaluates them (the render
-            # depsgraph): one disabled in the viewport is not evaluated there, and a file
-            # saved so keeps whatever matrix it was saved with (issue 53: an old file's sun
-            # read as the identity, straight down).
+            # As Cycles evaluates them: the viewport does not evaluate an object disabled there
+            # (issue 53: an old file's hidden sun read as the identity, straight down).
             light_world = _render_matrix(scene_triangles, light_obj, "light")
             camera_world = _render_matrix(scene_triangles, cam_obj, "camera")
             authored = light_size.light_shape(light_obj, light_world)
@@ -606,7 +597,7 @@ def capture(scene: "bpy.types.Scene", samples: int = DEFAULT_SAMPLES, *, light: 
                 t_unshadowed += _render(scene, layer, exr_path, f"Cycles render {step}/{count}")
                 frees.append(read_exr_channels(exr_path))
                 exr_path.unlink()
-            lit, free = lits[0], frees[0]
+            lit = lits[0]
         finally:
             overrides.restore()
 

@@ -39,6 +39,7 @@ import json
 import logging
 import math
 import os
+import shutil
 import subprocess
 import sys
 import tempfile
@@ -278,6 +279,13 @@ def light_reach(depsgraph, light_obj, visible: set[str]) -> float:
     return reach
 
 
+def _remove_dir(path: Path) -> None:
+    try:
+        shutil.rmtree(path)
+    except OSError as exc:
+        log.warning("could not remove temporary folder %s: %s", path, exc)
+
+
 def _area_as_hemi_spot(light_obj, s) -> None:
     """A hard area light, for EEVEE: a 180-degree spot of no radius at its centre, facing
     the same way (the same point and the same half space, so the same shadows). EEVEE 5.2
@@ -396,7 +404,7 @@ def render_eevee(scene: "bpy.types.Scene", out_dir: Path, settings: Sequence[str
     """
     import bpy
 
-    from .capture import (_channel, _emission_of, _Overrides, _pick_light, _remove_dir, _render_visible_objects,
+    from .capture import (_channel, _emission_of, _Overrides, _pick_light, _render_visible_objects,
                           evaluated_depsgraph, output_size, pick_view_layer, read_exr_channels)
 
     if frames < 1:

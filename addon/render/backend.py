@@ -153,6 +153,8 @@ class ShadowBackend:
     read_atlas = _on_device(passes.atlas.read_atlas)
     build_ray_table = _on_device(passes.footprints.build_ray_table)
     draw_footprints = _on_device(passes.footprints.draw_footprints)
+    # Stepped (render/pacing.py): the frame that drives it has the device bound.
+    draw_footprints_steps = passes.footprints.draw_footprints_steps
     upload_samples = _on_device(passes.samples.upload_samples)
     set_warp_tables = _on_device(passes.samples.set_warp_tables)
     scatter_counts = _on_device(passes.samples.scatter_counts)

@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import contextlib
 import logging
+from collections.abc import Callable
 from typing import Any, Iterator
 
 import numpy as np
@@ -32,6 +33,7 @@ from .blender_gpu import (
     uniform_buffer,
 )
 from .device import FULLSCREEN, FULLSCREEN_CORNERS, Device, Geometry, Program, Rect, Target, UniformValues
+from .pacing import Steps
 from .passes.footprints import FOOTPRINT_VERTICES, corner_capacity, corner_indices
 from .passes.samples import set_size
 from .shaders.uniform_block import INSTANCE, BlockState, UniformBlock
@@ -318,10 +320,25 @@ class BlenderGPUBackend(ShadowBackend):
         Textures not given are taken from the backend's own (samples, atlas, warps)."""
         return self.device.bind(iface, uniforms, {**self.textures, **(textures or {})})
 
-    def draw_gbuffer(self, scene, uniforms: UniformValues) -> None:
-        """Draw a resident scene (`resident.ResidentScene`) into the bound G-buffer with
-        GBUFFER_PROGRAM: only objects new or changed since the last sync upload."""
+    def draw_gbuffer_steps(self, scene, uniforms: UniformValues, bound: Callable) -> Steps[None]:
+        """Draw a resident scene (`resident.ResidentScene`) into a G-buffer with
+        GBUFFER_PROGRAM, each batch of draws inside `bound()` (its target bound, its state
+        set): only objects new or changed since the last sync upload. Stepped
+        (render/pacing.py): the viewport spreads a million triangles over redraws."""
         self.sync_scene(scene)
+        queued: list[tuple[Any, dict, dict, int, int]] = []
+
+        def flush() -> None:
+            if queued:
+                with bound():
+                    for program, values, textures, first, count in queued:
+                        self.device.draw(program, values, textures, Geometry.corners(first, count))
+                queued.clear()
+
+        def wait() -> None:
+            flush()
+            self.finish()  # stepping too: a slice's time holds its GPU work
+
         for key, obj in scene.objects.items():
             if obj.triangles == 0 or obj.pieces or obj.medium is not None:
                 # Pieces (hair, points) cast shadows but are not in the G-buffer here; a
@@ -332,8 +349,12 @@ class BlenderGPUBackend(ShadowBackend):
             textures = {**self.textures, "ow_vertices": self.vertices[key][1], **self.alpha_textures(key)}
             if obj.alpha is not None:  # a see-through part: the camera sees it where alpha >= 1/2
                 values["ow_alpha_mode"] = obj.alpha.mode
-            self.device.draw(GBUFFER_ALPHA_PROGRAM if obj.alpha is not None else GBUFFER_PROGRAM, values, textures,
-                             Geometry.corners(0, obj.triangles))
+            program = GBUFFER_ALPHA_PROGRAM if obj.alpha is not None else GBUFFER_PROGRAM
+            kind = "step:gbuffer" if self.pacer.stepping else "wait:gbuffer"
+            yield from self.pacer.steps(f"{kind}:{key}", obj.triangles,
+                                        lambda first, count, p=program, v=values, t=textures: queued.append(
+                                            (p, v, t, first, count)), wait)
+        flush()
 
     def samples_from_gbuffer(self, textures: dict[str, Any], light_position: np.ndarray) -> None:
         """Make a G-buffer (blender_draw.render_gbuffer) the view samples without a read-back.

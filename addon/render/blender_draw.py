@@ -8,8 +8,10 @@ lazily so that this module imports without Blender.
 """
 from __future__ import annotations
 
+import contextlib
 import functools
 import logging
+from collections.abc import Iterator
 from dataclasses import dataclass
 from typing import Any
 
@@ -20,6 +22,7 @@ from ..core.scene import CameraSpec, LightSpec
 from .backend import FULLSCREEN_CORNERS
 from .blender_backend import BlenderGPUBackend
 from .blender_gpu import empty_texture, float_texture, framebuffer, read_texture
+from .pacing import Steps, drive
 from .frame import GBufferSamples, ViewSamples
 from .resident import ResidentScene
 from .shaders import OVERLAY_MODES, OVERLAY_PROGRAM, PREVIEW_PROGRAM
@@ -72,12 +75,20 @@ def render_gbuffer(backend: BlenderGPUBackend, scene: ResidentScene, view_proj: 
                    camera_position: np.ndarray, size: tuple[int, int], reuse: GBuffer | None = None) -> GBuffer:
     """Rasterise a resident scene's objects into a G-buffer of `size` (W, H).
 
-    The objects' vertex textures are the depth pass's (`BlenderGPUBackend.draw_gbuffer`):
+    The objects' vertex textures are the depth pass's (`BlenderGPUBackend.draw_gbuffer_steps`):
     an unchanged scene sends no geometry. `camera_position` turns the normals towards
     the camera: the eye (3,), or homogeneous (4,), w = 0 giving the direction towards
     an orthographic camera (`CameraSpec.eye_homogeneous`). `reuse`, a G-buffer of the
     same size no longer needed, is drawn into instead of allocating.
     """
+    return drive(render_gbuffer_steps(backend, scene, view_proj, camera_position, size, reuse))
+
+
+def render_gbuffer_steps(backend: BlenderGPUBackend, scene: ResidentScene, view_proj: np.ndarray,
+                         camera_position: np.ndarray, size: tuple[int, int],
+                         reuse: GBuffer | None = None) -> Steps[GBuffer]:
+    """`render_gbuffer` as a stepped pass (render/pacing.py): each batch of draws binds the
+    target and sets the state itself, so the viewport may draw other things in between."""
     import gpu
 
     width, height = size
@@ -90,18 +101,24 @@ def render_gbuffer(backend: BlenderGPUBackend, scene: ResidentScene, view_proj: 
         nrm_tex = float_texture((width, height), "RGBA32F")
         depth = empty_texture((width, height), "DEPTH_COMPONENT32F")
         target = framebuffer(color_slots=(pos_tex, nrm_tex), depth_slot=depth)
+
+    @contextlib.contextmanager
+    def bound() -> Iterator[None]:
+        with target.bind():
+            gpu.state.viewport_set(0, 0, width, height)
+            gpu.state.depth_test_set("LESS")
+            gpu.state.depth_mask_set(True)
+            gpu.state.face_culling_set("NONE")
+            try:
+                yield
+            finally:
+                gpu.state.depth_test_set("NONE")
+                gpu.state.depth_mask_set(False)
+
     with target.bind():
         target.clear(color=(0.0, 0.0, 0.0, 0.0), depth=1.0)
-        gpu.state.viewport_set(0, 0, width, height)
-        gpu.state.depth_test_set("LESS")
-        gpu.state.depth_mask_set(True)
-        gpu.state.face_culling_set("NONE")
-        try:
-            backend.draw_gbuffer(scene, {"ow_view_proj": np.asarray(view_proj, dtype=np.float64),
-                                         "ow_camera_pos": _homogeneous_eye(camera_position)})
-        finally:
-            gpu.state.depth_test_set("NONE")
-            gpu.state.depth_mask_set(False)
+    yield from backend.draw_gbuffer_steps(scene, {"ow_view_proj": np.asarray(view_proj, dtype=np.float64),
+                                                  "ow_camera_pos": _homogeneous_eye(camera_position)}, bound)
     return GBuffer({"ow_gb_position": pos_tex, "ow_gb_normal": nrm_tex}, (width, height), target)
 
 

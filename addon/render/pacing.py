@@ -13,18 +13,40 @@ slices; a pass with no rate yet starts with FIRST_SLICE items and grows by at mo
 a slice. A pass expected to fit one slice is drawn whole, without a wait, so the
 measured repeats of a row (after its warm-up) keep the GPU's queue as it was. Slicing a
 draw keeps its primitives in order, so what it writes is the same.
+
+The viewport spreads a long recompute over several redraws (issue 52): with `stepping`
+on, a draw is cut into slices of about STEP_S, each waited for (llvmpipe does a draw's
+vertex work in the call itself and its fragments in its threads; the window's swap would
+wait for them anyway), and the pass yields after each, so the preview's draw callback can
+stop and go on at the next redraw. The passes are generators for that
+(`*_steps`); `drive` runs one to its end where nothing steps.
 """
 from __future__ import annotations
 
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Generator
 from dataclasses import dataclass, field
+from typing import TypeVar
 
 from ..core import interrupt
 
 SLICE_S = 0.2  # seconds of GPU work between two looks at the interrupt
+STEP_S = 0.02  # seconds a slice may take while stepping (the viewport)
 FIRST_SLICE = 16  # items of a draw's first slice when its rate is not known yet
-GROWTH = 8  # the most a slice grows over the one before it
+GROWTH = 8  # the most a slice grows over the one before it (waiting)
+STEP_GROWTH = 2  # the same while stepping: an overshoot is a frozen redraw
+
+T = TypeVar("T")
+Steps = Generator[None, None, T]  # a pass that yields between its slices and returns its value
+
+
+def drive(steps: "Steps[T]") -> T:
+    """Run a stepped pass to its end (nothing stepping); its value."""
+    while True:
+        try:
+            next(steps)
+        except StopIteration as done:
+            return done.value
 
 
 @dataclass
@@ -32,21 +54,43 @@ class Pacer:
     """Rates of the paced passes (items a second, by pass key) and the slices drawn."""
 
     rates: dict[str, float] = field(default_factory=dict)
-    slices: int = 0  # slices drawn with a wait after them, since the pacer was made
+    slices: int = 0  # slices drawn with a wait (or, stepping, a yield) after them
     clock: Callable[[], float] = time.perf_counter
+    stepping: bool = False  # the viewport spreads this frame over redraws: yield between slices
+    owed: float = 0.0  # stepping: seconds of the draws queued whole since the last yield (estimated)
+
+    def pause(self) -> Steps[None]:
+        """Between two stages of a frame: a yield while stepping (the stage after may be long)."""
+        if self.stepping:
+            self.owed = 0.0
+            yield
 
     def run(self, key: str, total: int, draw: Callable[[int, int], None], wait: Callable[[], None]) -> None:
         """Queue items [0, total) of draw `key` by `draw(first, count)`, in slices when a
         signal may come and the draw is long; `wait()` draws what is queued and blocks until
         the GPU is done."""
-        rate = self.rates.get(key)
+        drive(self.steps(key, total, draw, wait))
+
+    def steps(self, key: str, total: int, draw: Callable[[int, int], None], wait: Callable[[], None]) -> Steps[None]:
+        """`run` as a generator: while `stepping`, the pass yields after each slice of about
+        STEP_S (and once the draws queued whole add up to one)."""
         if total <= 0:
             return
-        if not interrupt.watching() or (rate is None and total <= FIRST_SLICE) or (
-                rate is not None and total <= rate * SLICE_S):
+        budget = STEP_S if self.stepping else SLICE_S
+        rate = self.rates.get(key)
+        if (not self.stepping and not interrupt.watching()) or (rate is None and total <= FIRST_SLICE) or (
+                rate is not None and total <= rate * budget):
             draw(0, total)
+            if self.stepping and rate is not None:
+                # Many short draws (an object's runs, many objects) add up: yield once they
+                # would take a slice.
+                self.owed += total / rate
+                if self.owed >= budget:
+                    self.owed = 0.0
+                    wait()
+                    yield
             return
-        size = FIRST_SLICE if rate is None else max(int(rate * SLICE_S), 1)
+        size = FIRST_SLICE if rate is None else max(int(rate * budget), 1)
         done = 0
         while done < total:
             count = min(size, total - done)
@@ -56,8 +100,11 @@ class Pacer:
             spent = max(self.clock() - start, 1e-4)
             self.slices += 1
             done += count
-            interrupt.check()
             rate = count / spent
             self.rates[key] = rate
-            size = max(1, min(int(rate * SLICE_S), count * GROWTH))
-
+            size = max(1, min(int(rate * budget), count * (STEP_GROWTH if self.stepping else GROWTH)))
+            if self.stepping:
+                self.owed = 0.0
+                yield
+            else:
+                interrupt.check()

@@ -33,6 +33,7 @@ from .backend import AtlasLayout, FootprintDraw, ShadowBackend
 from .footprint_runs import (  # noqa: F401  (map_stretch: the tests')
     FOOTPRINT_DILATE_TEXELS, RunMemo, _chunk_spheres, _measurer, footprint_ranges, map_stretch, sprites_pay)
 from .frame import PreparedGeometry, ShadowSettings
+from .pacing import Steps, drive
 from .passes import exact as exact_rounds
 from .passes.exact import EXACT_LIFT
 from .resident import ResidentScene
@@ -92,6 +93,9 @@ class Parameterization:
         return scissor_boxes(plan, light, settings, mappings)
 
     def draw(self, backend: ShadowBackend, inputs: DrawInputs) -> int:
+        return drive(self.draw_steps(backend, inputs))
+
+    def draw_steps(self, backend: ShadowBackend, inputs: DrawInputs) -> Steps[int]:
         """One footprint draw per layer and object run; a warped layer first gets its ray table."""
         if not inputs.draws:
             return 0  # nothing to draw (no blockers): the cleared atlas is the map
@@ -126,7 +130,7 @@ class Parameterization:
             draws = [run for draw in inputs.draws
                      for run in ranges(draw, spheres[draw.key], layer, stretch, res, region, reach)]
             scissor = inputs.boxes.get(layer.slot)
-            backend.draw_footprints(tile, draws, uniforms, scissor=scissor, exact=exact)
+            yield from backend.draw_footprints_steps(tile, draws, uniforms, scissor=scissor, exact=exact)
             passes.append((tile, draws, uniforms, scissor))
         if exact:
             exact_rounds.hold_rounds(backend, inputs.layout, passes)
@@ -174,6 +178,10 @@ class Unfold(Parameterization):
                 mappings: dict[int, LayerMapping]) -> dict[int, tuple[int, int, int, int]]:
         return {}  # the draw spans both halves
 
+    def draw_steps(self, backend: ShadowBackend, inputs: DrawInputs) -> Steps[int]:
+        yield from ()  # one draw of the unfolded stream: nothing to step between
+        return self.draw(backend, inputs)
+
     def draw(self, backend: ShadowBackend, inputs: DrawInputs) -> int:
         plan, geometry, res = inputs.plan, inputs.geometry, inputs.settings.resolution
         if not plan.drawn:
@@ -209,6 +217,9 @@ class Projective(Parameterization):
         return {}  # the matrix already fits the map to the view
 
     def draw(self, backend: ShadowBackend, inputs: DrawInputs) -> int:
+        return drive(self.draw_steps(backend, inputs))
+
+    def draw_steps(self, backend: ShadowBackend, inputs: DrawInputs) -> Steps[int]:
         plan = inputs.plan
         # A sun's parallel rays: pieces' fragments run their texel's ray from the map's near
         # plane, not from the light (lib/footprint_ray.glsl's ow_piece_depth).
@@ -219,7 +230,7 @@ class Projective(Parameterization):
         if inputs.settings.exact:
             self._draw_exact(backend, inputs, uniforms)
             return 0
-        backend.draw_footprints(0, inputs.draws, uniforms)
+        yield from backend.draw_footprints_steps(0, inputs.draws, uniforms)
         return 0
 
     @staticmethod

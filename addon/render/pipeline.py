@@ -36,19 +36,19 @@ import time
 import weakref
 from collections.abc import Callable
 from collections import OrderedDict
-from dataclasses import dataclass
 
 import numpy as np
 
-from ..core import perspective, projection
+from ..core import projection
 from ..core.alpha import hits_visibility
-from ..core.errors import BackendError, InputError
-from ..core.plan import Plan, hit_points
+from ..core.errors import BackendError
+from ..core.plan import Plan
 from ..core.samples import Reduction, depth_axis
 from ..core.scene import LightSpec
 from ..core.warping import LayerMapping
 from . import analysis
 from .backend import AtlasLayout, ShadowBackend
+from .count_stats import CountStatistics, count_statistics, projective_counts
 from .frame import (
     MAX_IMPORTANCE,
     MAX_IMPORTANCE_TOTAL,
@@ -67,6 +67,7 @@ from .frame import (
     settings_for,
 )
 from .footprint_runs import RunMemo, footprint_draws, region_uniforms
+from .pacing import Steps, drive
 from .passes.media import NO_MEDIA, MediaFrame, MediaMemo, media_points, read_haze
 from .parameterizations import DrawInputs, parameterization, slot_rotations_and_crops
 from .plan_memo import PlanMemo
@@ -81,7 +82,7 @@ log = logging.getLogger(__name__)
 # The frame's data types and helpers, importable from here as before.
 __all__ = ["MAX_IMPORTANCE", "MAX_IMPORTANCE_TOTAL", "MAX_RESOLUTION", "MIN_RESOLUTION", "BiasSettings",
            "CountStatistics", "FrameResult", "PreparedGeometry", "ShadowPipeline", "ShadowSettings", "ViewSamples",
-           "count_statistics", "edge_aa_parameters", "settings_for"]
+           "count_statistics", "edge_aa_parameters", "projective_counts", "settings_for"]
 
 
 # Read-only triangle arrays a pipeline keeps resident at once (ShadowPipeline._scene_of):
@@ -165,6 +166,14 @@ class ShadowPipeline:
         per-light selections), any other is uploaded for this frame only. `samples` are
         arrays, uploaded, or a Blender G-buffer's textures, used where they are.
         """
+        return drive(self.render_steps(light, scene, samples, settings, keep_atlas, count_work, sync_stages))
+
+    def render_steps(self, light: LightSpec, scene: ResidentScene | np.ndarray,
+                     samples: ViewSamples | GBufferSamples, settings: ShadowSettings, keep_atlas: bool = False,
+                     count_work: bool = False, sync_stages: bool = False) -> Steps[FrameResult]:
+        """`render` as a stepped pass (render/pacing.py): while the backend's pacer is
+        stepping it yields between slices of its long draws (the viewport spreads a frame
+        over redraws); nothing else may use the backend until it has returned."""
         self.backend.settle()  # this frame overwrites what an unread earlier one reads
         one_frame = False
         start = time.perf_counter()
@@ -176,8 +185,8 @@ class ShadowPipeline:
         # The context is made current once for the frame: every pass inside finds it bound.
         with self.backend.device.bound():
             try:
-                result = self._render(light, scene, samples, settings, keep_atlas, scene_ms, count_work,
-                                      sync_stages)
+                result = yield from self._render_steps(light, scene, samples, settings, keep_atlas, scene_ms,
+                                                       count_work, sync_stages)
                 if one_frame:
                     result.complete()  # its later exact rounds draw this scene, freed below
             finally:
@@ -198,9 +207,9 @@ class ShadowPipeline:
         result.complete()  # the exact pass's later rounds, where its lists need them
         self.backend.resolve_visibility(target, result.exact_marks)
 
-    def _render(self, light: LightSpec, scene: ResidentScene, samples: ViewSamples | GBufferSamples,
-                settings: ShadowSettings, keep_atlas: bool, scene_ms: float = 0.0,
-                count_work: bool = False, sync_stages: bool = False) -> FrameResult:
+    def _render_steps(self, light: LightSpec, scene: ResidentScene, samples: ViewSamples | GBufferSamples,
+                      settings: ShadowSettings, keep_atlas: bool, scene_ms: float = 0.0,
+                      count_work: bool = False, sync_stages: bool = False) -> Steps[FrameResult]:
         backend = self.backend
         # A sized light's exact pass lists its samples coarser (soft.list_resolution).
         settings = dataclasses.replace(settings, resolution=list_resolution(light, settings))
@@ -216,6 +225,7 @@ class ShadowPipeline:
             bounds = scene.bounds()  # per object, from its box and matrix
             near_far = (projection.depth_range(None, light.position, bounds=bounds) if bounds is not None
                         else (0.0, 1.0))
+        yield from backend.pacer.pause()
         with clock.part("stats", "analysis"):
             raw_stats = self._reduce_samples(light, samples)  # a GPU reduction: a few numbers read back
         with clock.part("plan", "prepare", gpu=False):
@@ -233,6 +243,7 @@ class ShadowPipeline:
 
         mappings: dict[int, LayerMapping] = {}
         counts: dict[int, np.ndarray] = {}
+        yield from backend.pacer.pause()
         with clock.part("analysis", "analysis"):
             if settings.warp != "none" and plan.drawn:
                 mappings, counts = analysis.analyse(backend, light, settings, plan)
@@ -261,6 +272,7 @@ class ShadowPipeline:
                                 footprint_draws(scene, light, media), region_uniforms(plan, light, settings.cull),
                                 scene, light, count_work, self._runs)
 
+        yield from backend.pacer.pause()
         with clock.part("shadow_maps", "shadow_maps"):
             # Texels outside a layer's box are neither cleared nor drawn (map-space culling).
             backend.begin_atlas(layout, {tile_of_slot[slot]: box for slot, box in boxes.items()})
@@ -268,12 +280,13 @@ class ShadowPipeline:
                 # The irregular z-buffer's lists.
                 self.link_lists(light, plan, mappings, res, hit_words(light, settings),
                                 media=media if media.on else None)
-            edge_radius = scheme.draw(backend, inputs)
+            edge_radius = yield from scheme.draw_steps(backend, inputs)
             if settings.exact and (sync_stages or count_work):
                 # A measuring frame draws the exact pass's later rounds in its own time; any
                 # other leaves the check of their need (a read) to its first read.
                 backend.finish_lists()
 
+        yield from backend.pacer.pause()
         with clock.part("test", "shadow_test"):
             test = self._shadow_test(light, scene, settings, plan, geometry, layout, tile_of_slot, mappings, size,
                                      edge_radius, boxes)
@@ -442,58 +455,3 @@ def _mask_unread_texels(atlas: np.ndarray, layout: AtlasLayout, tile_of_slot: di
         tile = atlas[y:y + res, x:x + res]
         tile[~keep] = 1.0
     return atlas
-
-@dataclass
-class CountStatistics:
-    """View samples per shadow texel, before and after the layer mappings (docs/design.md section 4)."""
-
-    before: dict[int, np.ndarray]  # slot -> count map of the plain projection, map resolution
-    after: dict[int, np.ndarray]  # slot -> importance map: counts through crop and warp
-
-    @property
-    def max_count_before(self) -> float:
-        return float(max((m.max() for m in self.before.values()), default=0.0))
-
-    @property
-    def max_count_after(self) -> float:
-        return float(max((m.max() for m in self.after.values()), default=0.0))
-
-    @property
-    def texel_utilization(self) -> float:
-        """Share of the drawn texels that resolve at least one view sample."""
-        total = sum(m.size for m in self.after.values())
-        used = sum(int(np.count_nonzero(m)) for m in self.after.values())
-        return used / total if total else 0.0
-
-def projective_counts(projective: perspective.ProjectiveMap, light: LightSpec, samples: ViewSamples,
-                      resolution: int) -> np.ndarray:
-    """Count map (row 0 = v = 0) of the view samples through a spot or sun map, in numpy."""
-    pts = hit_points(samples.positions, samples.hit) - light.position
-    uv, _, w = perspective.project(projective, pts)
-    inside = (w > 0.0) & np.all((uv >= 0.0) & (uv < 1.0), axis=1)
-    texel = np.floor(uv[inside] * resolution).astype(np.int64)
-    flat = np.bincount(texel[:, 1] * resolution + texel[:, 0], minlength=resolution * resolution)
-    return flat.reshape(resolution, resolution).astype(np.float32)
-
-def count_statistics(pipeline: ShadowPipeline, light: LightSpec, settings: ShadowSettings,
-                     result: FrameResult, samples: ViewSamples | GBufferSamples | None = None) -> CountStatistics:
-    """Scatter the samples (still uploaded from the last frame) at the map resolution.
-
-    Not part of the timed frame: this is measurement. The warp tables of the frame
-    must still be bound, which holds right after `render`. Spot and sun maps count
-    in numpy and need `samples` (G-buffer samples are read back for it).
-    """
-    # The frame's own resolution: a sized light's exact pass lists coarser (soft.list_resolution).
-    res = result.layout.resolution if result.layout is not None else settings.resolution
-    if result.plan.projective is not None:
-        if samples is None:
-            raise InputError("count statistics of a spot or sun map need the view samples")
-        if isinstance(samples, GBufferSamples):
-            samples = samples.read_back()
-        counts = projective_counts(result.plan.projective, light, samples, res)
-        return CountStatistics({0: counts}, {0: counts})
-    before = pipeline.count_maps(light, result.plan, {}, res, 0)
-    # A frame maps all its drawn layers or none (a warp, an ipsm zoom or a cut), and
-    # count_maps counts an unmapped layer plainly anyway.
-    after = pipeline.count_maps(light, result.plan, result.mappings, res, 2) if result.mappings else before
-    return CountStatistics(before, after)

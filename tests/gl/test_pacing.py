@@ -122,3 +122,38 @@ def test_a_sliced_frame_writes_the_same_bits(gl_backend):
         assert bits_a == bits_b
         assert work_a == work_b
     assert np.frombuffer(whole[0][0], np.float32).min() < 0.5  # the frame has shadows to keep
+
+
+def test_stepping_yields_between_slices_and_after_short_draws_that_add_up():
+    """The viewport's mode: no signal watched, yet a long draw is cut (into STEP_S slices)
+    with a yield after each; short draws drawn whole yield once their estimated time adds
+    up to a slice; `pause` yields only while stepping; `drive` runs a stepped pass whole."""
+    from addon.render.pacing import drive
+
+    clock = _Clock(per_item=1e-5)
+    pacer = Pacer(clock=clock, stepping=True)
+    drawn: list[tuple[int, int]] = []
+
+    def draw(first: int, count: int) -> None:
+        drawn.append((first, count))
+        clock.now += count * clock.per_item
+
+    steps = pacer.steps("step:maps:a", 100_000, draw, lambda: None)
+    yields = sum(1 for _ in steps)
+    assert yields == len(drawn) > 5 and sum(n for _, n in drawn) == 100_000
+    assert max(n for _, n in drawn[1:]) <= 2 * max(n for _, n in drawn[:-1])  # STEP_GROWTH
+    assert max(n for _, n in drawn) * clock.per_item <= pacing.STEP_S * 1.001
+    # The rate is known: draws of a tenth of a slice each go whole, one yield every ten or so.
+    small = int(pacing.STEP_S / clock.per_item / 10)
+    yields = sum(sum(1 for _ in pacer.steps("step:maps:a", small, draw, lambda: None)) for _ in range(30))
+    assert 2 <= yields <= 4, yields
+    assert list(pacer.pause()) == [None]
+    pacer.stepping = False
+    assert list(pacer.pause()) == []
+    assert drive(iter_value(7)) == 7
+
+
+def iter_value(value: int):
+    yield None
+    yield None
+    return value

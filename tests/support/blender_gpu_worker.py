@@ -460,21 +460,21 @@ def viewport(out: str) -> None:
     light_obj.data.omniwarp.exact = False
     vp.request_update("exact off")
     # A failure inside the draw path is caught, logged once and shown; drawing goes on.
-    original = vp.compute_view
+    original = vp.compute_view_steps
     logged = []
     vp.log.error = lambda *a, **k: logged.append(a[0])
 
     def broken(*_a, **_k):
         raise RuntimeError("synthetic failure")
 
-    vp.compute_view = broken
+    vp.compute_view_steps = broken
     vp.request_update("test")
     failures = [draw(view) for _ in range(5)]
     report["error_caught"] = failures == [False] * 5 and "synthetic failure" in vp.last_error()
     report["error_caught_values"] = {"draws": failures, "last_error": vp.last_error()}
     report["error_logged_once"] = len(logged) == 1
     report["error_logged_once_values"] = {"logged": [str(message) for message in logged]}
-    vp.compute_view = original
+    vp.compute_view_steps = original
     vp.request_update("test fixed")
     drew = draw(view)
     report["recovered"] = drew and vp.last_error() == ""
@@ -579,5 +579,79 @@ def viewport(out: str) -> None:
     Path(out).write_text(json.dumps(report))
 
 
+def spread(out: str) -> None:
+    """The preview on stress_million (a million triangles, 640x480): the first draw computes
+    at once and makes the scene resident; a moved view's recompute is then spread over
+    redraws (issue 52): each draw call's time, what each drew, and the spread result's
+    visibility against one computed at once for the same view."""
+    import time
+
+    import bpy
+
+    bpy_gpu = __import__("gpu")
+    if hasattr(bpy_gpu, "init"):
+        bpy_gpu.init()
+    from addon.blender import registration
+    from addon.blender import viewport as vp
+    from addon.core.presets import build_preset
+    from addon.reference.blender_scene import build_blender_scene
+    from addon.reference.capture import evaluated_depsgraph
+    from addon.render.blender_gpu import ensure_gpu, float_texture, framebuffer, read_texture
+
+    ensure_gpu()
+    registration.register()
+    spec = build_preset("stress_million", (640, 480))
+    scene = build_blender_scene(spec)
+    settings = scene.omniwarp
+    settings.preview_enabled = True
+    settings.camera_resolution_scale = 1.0
+    settings.throttle_ms = 0
+    settings.overlay_enabled = False
+    light_obj = next(o for o in scene.objects if o.type == "LIGHT")
+    light_obj.data.omniwarp.enabled = True
+    light_obj.data.omniwarp.parameterization = "DPSM"
+    light_obj.data.omniwarp.warp = "NOTW"
+    light_obj.data.omniwarp.resolution = 1024
+    depsgraph = evaluated_depsgraph(scene)
+    view = np.linalg.inv(spec.camera.matrix_world)
+    proj = spec.camera.projection()
+    size = spec.camera.resolution
+    target = float_texture(size, "RGBA32F")
+    target_fb = framebuffer(color_slots=(target,))
+
+    def draw(view_matrix) -> float:
+        with target_fb.bind():
+            start = time.perf_counter()
+            vp.safe_draw_view(scene, depsgraph, view_matrix, proj, size, "spread-region")
+            target_fb.read_color(0, 0, 1, 1, 4, 0, "FLOAT")  # the callback's GPU work done too
+            return time.perf_counter() - start
+
+    report: dict = {"first_s": draw(view), "first_drawn": vp._STATE.last_drawn, "error": vp.last_error()}
+    for step in range(1, 3):  # two moved views, the second with every rate known
+        moved = view.copy()
+        moved[0, 3] += 0.05 * step
+        times, drawn = [], []
+        for _ in range(400):
+            times.append(draw(moved))
+            drawn.append(vp._STATE.last_drawn)
+            if drawn[-1] == "computed":
+                break
+        report[f"moved{step}"] = {"callbacks": len(times), "max_s": max(times), "total_s": sum(times),
+                                  "times_ms": [round(t * 1000) for t in times],
+                                  "drawn": sorted(set(drawn)), "last": drawn[-1], "error": vp.last_error()}
+    cached = vp._STATE.results["spread-region"]
+    spread_vis = read_texture(cached.visibility[0], "RG32F")
+    vp.free_resources()  # a fresh backend: the same view computed at once
+    report["fresh_s"] = draw(moved)
+    fresh = vp._STATE.results["spread-region"]
+    fresh_vis = read_texture(fresh.visibility[0], "RG32F")
+    report["same_visibility"] = bool(np.array_equal(spread_vis, fresh_vis))
+    report["differ"] = int(np.count_nonzero(spread_vis != fresh_vis))
+    report["shadowed"] = float((fresh_vis[..., 0] < 0.5).mean())
+    vp.free_resources()
+    registration.unregister()
+    Path(out).write_text(json.dumps(report, indent=1))
+
+
 if __name__ == "__main__":
-    {"backends": backends, "viewport": viewport}[sys.argv[1]](*sys.argv[2:])
+    {"backends": backends, "viewport": viewport, "spread": spread}[sys.argv[1]](*sys.argv[2:])

@@ -10,6 +10,7 @@ from ...core.errors import BackendError
 from ..device import Geometry, UniformValues
 from ..shaders import FOOTPRINT_PROGRAM, FOOTPRINT_VERTICES, RAY_TABLE_PROGRAM, ProgramInterface, program_variant
 from ..shaders import alpha_of, exact_variant, medium_of, pieces_of
+from ..pacing import Steps, drive
 from .atlas import layer_viewport
 
 
@@ -100,6 +101,13 @@ def draw_footprints(backend, tile: int, draws: list[FootprintDraw], uniforms: Un
     irregular z-buffer's variant (shaders.exact_variant) marks the linked samples instead
     (uniforms ow_exact_tile, ow_exact_eps; after `link_samples`).
     """
+    drive(draw_footprints_steps(backend, tile, draws, uniforms, scissor, exact))
+
+
+def draw_footprints_steps(backend, tile: int, draws: list[FootprintDraw], uniforms: UniformValues,
+                          scissor: tuple[int, int, int, int] | None = None, exact: bool = False) -> Steps[None]:
+    """`draw_footprints` as a stepped pass (render/pacing.py): it yields between slices
+    while the backend's pacer is stepping."""
     viewport = layer_viewport(backend, tile, caller="draw_footprints")
     device = backend.device
     layout = backend.atlas.layout
@@ -114,6 +122,7 @@ def draw_footprints(backend, tile: int, draws: list[FootprintDraw], uniforms: Un
     programs = [footprint_program(backend, draw, uniforms, exact, draw.points and device.point_sprites)
                 for draw in live]
     queued: list[tuple[int, int, int]] = []  # (draw, first, count) not drawn yet
+    pacer = backend.pacer
 
     def flush() -> None:
         if queued:
@@ -126,14 +135,14 @@ def draw_footprints(backend, tile: int, draws: list[FootprintDraw], uniforms: Un
 
     def wait() -> None:
         flush()
-        backend.finish()
+        backend.finish()  # stepping too: a slice's time holds its GPU work (llvmpipe's threads)
 
-    # A long draw (the exact pass over hair under a soft sun) in slices a signal can end
-    # between; each object's rate is its own (a hair piece's walk may cost a thousand
-    # triangles of the ground's).
-    kind = "exact" if exact else "maps"
+    # A long draw (the exact pass over hair under a soft sun, a million triangles in the
+    # viewport) in slices; each object's rate is its own (a hair piece's walk may cost a
+    # thousand triangles of the ground's), and waiting and stepping rates are kept apart.
+    kind = ("step:" if pacer.stepping else "wait:") + ("exact" if exact else "maps")
     for index, draw in enumerate(live):
-        backend.pacer.run(f"{kind}:{draw.key}", draw.count,
-                          lambda first, count, index=index, base=draw.first: queued.append((index, base + first, count)),
-                          wait)
+        yield from pacer.steps(f"{kind}:{draw.key}", draw.count,
+                               lambda first, count, index=index, base=draw.first: queued.append(
+                                   (index, base + first, count)), wait)
     flush()

@@ -255,7 +255,7 @@ WARP_BUILD_PROGRAM = ComputeInterface(
 )
 
 # The viewport ------------------------------------------------------------------------------
-# The G-buffer, drawn from resident objects (blender_backend.draw_gbuffer).
+# The G-buffer, drawn from resident objects (blender_backend.draw_gbuffer_steps).
 GBUFFER_PROGRAM = ProgramInterface(
     name="omniwarp_gbuffer",
     vertex_file="gbuffer.vert",
