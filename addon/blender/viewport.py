@@ -90,6 +90,7 @@ class _Pending:
     view_proj: np.ndarray
     projection: np.ndarray
     spent: float = 0.0  # seconds of draw callbacks it took so far
+    touched: float = field(default_factory=time.perf_counter)  # when a redraw last went on with it
 
 
 # How long one redraw may go on with a spread recompute before it draws what it has: with
@@ -98,6 +99,7 @@ STEP_BUDGET_S = 0.05
 # A recompute is spread over redraws when the last one took longer than this; a shorter
 # one is done in the redraw that needs it, as it always was.
 SPREAD_OVER_S = 0.2
+ORPHAN_S = 2.0  # a spread recompute its region has not gone on with for this long is dropped
 
 _STATE = _State()
 
@@ -225,6 +227,7 @@ def _advance(pending: _Pending, settings) -> _ViewResult | None:
     finally:
         backend.pacer.stepping = False
     pending.spent += time.perf_counter() - start
+    pending.touched = time.perf_counter()
     if bpy.app.timers is not None and not bpy.app.timers.is_registered(_go_on):
         bpy.app.timers.register(_go_on, first_interval=0.0)
     return None
@@ -364,6 +367,9 @@ def draw_view(scene: bpy.types.Scene, depsgraph, view_matrix: np.ndarray, projec
     # A result made with the overlay off lacks its maps: turning the overlay on recomputes.
     lacks_overlay = cached is not None and settings.overlay_enabled and not cached.overlay
     pending = _STATE.pending
+    if pending is not None and pending.region != region_key and now - pending.touched > ORPHAN_S:
+        _drop_pending()  # its region no longer redraws (closed, hidden): the others may go on
+        pending = None
     stale = cached is None or cached.key != key or cached.version != _STATE.version or lacks_overlay
     if pending is not None:
         # A recompute spread over redraws: this region's goes on; another region waits for it.

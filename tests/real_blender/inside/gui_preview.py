@@ -167,7 +167,8 @@ def _preview_on() -> None:
 def _preview_ready() -> bool:
     viewport = _module("blender.viewport")
     state = viewport._STATE
-    return bool(state.results) and state.last_drawn in ("computed", "cached")
+    # No recompute spread over redraws under way (the backend's maps are then mid-frame).
+    return bool(state.results) and state.last_drawn in ("computed", "cached") and state.pending is None
 
 
 def _save_view() -> None:
