@@ -472,7 +472,9 @@ def render_pass(scene: "bpy.types.Scene", view_layer: "bpy.types.ViewLayer", fn:
             try:
                 found["result"] = fn(depsgraph)
                 found["mode"] = depsgraph.mode
-            except (RuntimeError, ReferenceError, ValueError, KeyError) as exc:  # raised again outside the engine
+            # Raised again outside the engine; an interrupt too (a signal's, raised inside
+            # this callback, would otherwise end in Blender's C with a traceback).
+            except (RuntimeError, ReferenceError, ValueError, KeyError, KeyboardInterrupt) as exc:
                 found["error"] = exc
 
     bpy.utils.register_class(_Engine)
@@ -483,6 +485,8 @@ def render_pass(scene: "bpy.types.Scene", view_layer: "bpy.types.ViewLayer", fn:
     finally:
         scene.render.engine = engine
         bpy.utils.unregister_class(_Engine)
+    if isinstance(found.get("error"), KeyboardInterrupt):
+        raise found["error"]
     if "error" in found:
         raise ReferenceCaptureError(f"reading the render geometry of {scene.name!r} failed: {found['error']}")
     if found.get("mode") != "RENDER":

@@ -31,6 +31,7 @@ _ATTRIBUTE_FORMATS = {"float": "1f", "vec2": "2f", "vec3": "3f", "vec4": "4f"}
 
 
 _ALREADY_BOUND = contextlib.nullcontext()
+SOFTWARE_RENDERERS = ("llvmpipe", "softpipe", "swrast")  # whose barriers wait for all queued work
 
 class _Timer(GPUTimer):
     """A time-elapsed query over the work submitted inside `with`, its context bound there:
@@ -93,6 +94,7 @@ class ModernGLDevice(Device):
         self._corners = None  # the footprint pass's corner buffer
         self._corner_triangles = 0
         self._queries: dict[str, Any] = {}  # timer queries by key (timer)
+        self._software: bool | None = None  # a software rasteriser (llvmpipe): known at the first barrier
         with self.bound():
             self._fullscreen = self.ctx.buffer(_FULLSCREEN.tobytes())
 
@@ -315,10 +317,16 @@ class ModernGLDevice(Device):
                  images: dict[str, Any], groups: int) -> None:
         with self.bound():
             self._use(iface, uniforms, textures, images).run(group_x=groups)
-            self.ctx.memory_barrier()  # image stores, before later loads and read-backs
+            self.barrier()  # image stores, before later loads and read-backs
 
     def barrier(self) -> None:
         with self.bound():
+            if self._software is None:
+                self._software = any(name in self.ctx.info["GL_RENDERER"].lower() for name in SOFTWARE_RENDERERS)
+            if self._software:
+                # A software rasteriser's barrier is a full wait, which moderngl makes holding
+                # the GIL: wait without it first (a GPU's barrier does not wait; left alone).
+                self._wait()
             self.ctx.memory_barrier()
 
     def finish(self, target: Target | None = None) -> None:

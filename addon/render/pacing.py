@@ -41,12 +41,17 @@ Steps = Generator[None, None, T]  # a pass that yields between its slices and re
 
 
 def drive(steps: "Steps[T]") -> T:
-    """Run a stepped pass to its end (nothing stepping); its value."""
-    while True:
-        try:
-            next(steps)
-        except StopIteration as done:
-            return done.value
+    """Run a stepped pass to its end (nothing stepping); its value. An exception between two
+    steps (a signal's, raised at any bytecode) closes it, so that its `with` blocks (a bound
+    context) end now and not when the collector finds it, after the context is gone."""
+    try:
+        while True:
+            try:
+                next(steps)
+            except StopIteration as done:
+                return done.value
+    finally:
+        steps.close()
 
 
 @dataclass

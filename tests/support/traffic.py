@@ -2,7 +2,7 @@
 or, for any backend (Blender's `gpu` among them), at the `render.device.Device` calls.
 
 `Traffic.counting()` wraps, for the calls inside it, moderngl's:
-- waits: `Context.finish`, and every read (a read waits for the GPU);
+- waits: the device's `finish`, and every read (a read waits for the GPU);
 - reads: `Texture.read`, `Texture.read_into`, `Framebuffer.read`, `Buffer.read` (bytes);
 - uploads: `Texture.write`, `Buffer.write`, and data given to `Context.texture` and
   `Context.buffer` (bytes);
@@ -90,7 +90,11 @@ class Traffic:
             self.finishes += 1
             self.calls.append("finish")
 
-        wrap(moderngl.Context, "finish", finish)
+        # The device's finish (a glFinish through ctypes, without the GIL: moderngl's own
+        # Context.finish only where EGL cannot give it, inside this call).
+        from addon.render.moderngl_backend import ModernGLDevice
+
+        wrap(ModernGLDevice, "finish", finish)
         wrap(moderngl.Texture, "read", read("Texture.read"))
         wrap(moderngl.Texture, "read_into", read("Texture.read_into"))
         wrap(moderngl.Framebuffer, "read", read("Framebuffer.read"))
