@@ -78,6 +78,7 @@ class ChildRun:
     partial: bytes = b""
     ended: bool = False  # a done or failed event was read
     stopped_at: float | None = None  # when stop() asked it to end
+    reaper: Any = None  # the timer that reaps it once stopped
 
     @property
     def temp_dir(self) -> Path:
@@ -91,16 +92,24 @@ class ChildRun:
                 stream.seek(self.offset)
                 data = stream.read()
         except FileNotFoundError:
+            return []  # not written yet
+        except OSError as exc:
+            log.warning("background comparison: cannot read %s: %s", path, exc)
             return []
         self.offset += len(data)
         lines = (self.partial + data).split(b"\n")
         self.partial = lines.pop()
         out = []
         for line in lines:
-            if line.strip():
+            if not line.strip():
+                continue
+            try:
                 event = json.loads(line)
-                self.ended = self.ended or event.get("event") in ("done", "failed")
-                out.append(event)
+            except ValueError:  # the child writes whole lines: a torn one is a bug, not a reason to stop
+                log.warning("background comparison: unreadable event line %r", line[:200])
+                continue
+            self.ended = self.ended or event.get("event") in ("done", "failed")
+            out.append(event)
         return out
 
     def exited(self) -> bool:
@@ -122,7 +131,8 @@ class ChildRun:
         if not self.exited():
             self.proc.terminate()
         _LIVE.add(self)
-        bpy.app.timers.register(self._reap, first_interval=REAP_STEP_S)
+        self.reaper = self._reap  # the one bound method, to unregister it by
+        bpy.app.timers.register(self.reaper, first_interval=REAP_STEP_S)
 
     def _reap(self) -> float | None:
         if self in _LIVE and not self.exited():
@@ -142,6 +152,8 @@ class ChildRun:
         if not self.exited():
             self.proc.kill()
         self.proc.wait()
+        if self.reaper is not None and bpy.app.timers.is_registered(self.reaper):
+            bpy.app.timers.unregister(self.reaper)
         self.cleanup()
 
 

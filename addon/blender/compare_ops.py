@@ -186,12 +186,9 @@ class OMNIWARP_OT_compare(bpy.types.Operator):
 
     def _follow_child(self, context: bpy.types.Context, job: _Job) -> set[str]:
         """One tick of a background job: show the rows it finished; end with it."""
-        try:
-            end = _read_child(job)
-        except (OSError, ValueError) as exc:  # an unreadable events file: end the job
-            end = {"event": "failed", "message": f"cannot read the background job's events: {exc}"}
-        if end is None and job.child.exited():
-            end = {"event": "failed", "message": _child_ended(job.child)}
+        end = _read_child(job)
+        if end is None and job.child.exited():  # its last lines may have come after the read
+            end = _read_child(job) or {"event": "failed", "message": _child_ended(job.child)}
         if end is None:
             text = status_line(job) + " | Esc: cancel"
             if text != job.status_shown:  # a redraw of the status bar once a second, not every tick
