@@ -28,6 +28,7 @@ from typing import TYPE_CHECKING, Any, Callable
 
 import numpy as np
 
+from ..core import interrupt
 from ..core.alpha import Surface
 from ..core.blockers import Spheres, Strands
 from ..core.errors import ReferenceCaptureError
@@ -481,7 +482,11 @@ def render_pass(scene: "bpy.types.Scene", view_layer: "bpy.types.ViewLayer", fn:
     engine = scene.render.engine
     try:
         scene.render.engine = _ENGINE_ID
-        bpy.ops.render.render(write_still=False, scene=scene.name, layer=view_layer.name)
+        # A signal is only recorded in there (an interrupt raised at the engine callback's
+        # first bytecode, before its `try`, ended in Blender's C as "not evaluated for
+        # render"); the command's own process still ends at once (core/interrupt.py).
+        with interrupt.blocking("render-geometry pass"):
+            bpy.ops.render.render(write_still=False, scene=scene.name, layer=view_layer.name)
     finally:
         scene.render.engine = engine
         bpy.utils.unregister_class(_Engine)
