@@ -332,6 +332,9 @@ def viewport(out: str) -> None:
         len(getattr(bpy.app.handlers, name)) == count for name, count in handlers_before.items())
 
     registration.register()
+    # Each check here reads what the draw after a change drew: no recompute spread over
+    # redraws (a loaded machine may take 0.2 s for one; `spread` tests that mode).
+    vp.SPREAD_OVER_S = float("inf")
     spec = build_preset("room_hemi", (96, 72))
     scene = build_blender_scene(spec)
     scene.omniwarp.preview_enabled = True
