@@ -5,7 +5,7 @@ of `job.json` step by step and append each event to `events.jsonl` as it happens
 
 It runs compare_job.measure_step, so its rows are the panel's in-process rows and the
 command line's. It ends with its parent (PR_SET_PDEATHSIG on Linux, and a check that the
-parent is still the one that started it), at a lower priority than the window it serves.
+parent is still the one that started it); the parent lowers its priority as it starts it.
 """
 from __future__ import annotations
 
@@ -26,9 +26,6 @@ from .compare_job import _failure, _Job, measure_step
 from .compare_props import PLOT_FILE
 
 log = logging.getLogger(__name__)
-
-NICENESS = 10  # below the window it serves: its redraws come first on a busy machine
-
 
 def job_from_spec(spec: dict) -> _Job:
     """The child's job, from `job_spec`'s dictionary."""
@@ -112,6 +109,4 @@ def main(spec_path: str) -> None:
     """The child's entry (compare_background.start)."""
     spec = json.loads(Path(spec_path).read_text())
     _die_with_parent(int(spec["parent_pid"]))
-    if hasattr(os, "nice"):
-        os.nice(NICENESS)
-    run(spec)
+    run(spec)  # at the parent's NICENESS (compare_background.start)

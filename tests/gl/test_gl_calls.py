@@ -38,7 +38,7 @@ def test_a_wait_lets_the_gil_go(gl_backend):
     try:
         with device.bound():
             target.use()
-            for k in range(40):  # about a second of fill on llvmpipe
+            for k in range(160):  # a good part of a second of fill on llvmpipe
                 device.ctx.clear(k / 40, 0.0, 0.0, 1.0)
             start = time.perf_counter()
             device.finish()
@@ -50,8 +50,8 @@ def test_a_wait_lets_the_gil_go(gl_backend):
             target.release()
             texture.release()
     inside = [t for t in ticks if start < t < end]
-    assert end - start > 0.05, end - start  # the wait was a real one
-    assert len(inside) > 10, (len(inside), end - start)
+    assert end - start > 0.03, end - start  # the wait was a real one
+    assert len(inside) >= 5, (len(inside), end - start)  # a held GIL lets one tick in at most
 
 
 def test_our_timer_measures_within_the_wall_time(gl_backend):
