@@ -311,9 +311,9 @@ JOB_GAP_S = 0.25  # the largest gap between 50 ms ticks the window may show whil
 @pytest.fixture(scope="session")
 def job_run(installed: RealBlender) -> tuple[dict, str]:
     """The panel's Compare as a background job in the GUI (inside/gui_job.py), on OpenGL."""
-    # A 1024x768 screen: on llvmpipe every redraw of a 1600x1200 window takes about 0.2 s
+    # An 800x600 screen: on llvmpipe every redraw of a 1600x1200 window takes about 0.2 s
     # itself (the window alone, measured by the script's baseline), job or not.
-    proc = installed.exec("env", "GUI_SCRIPT=gui_job.py", "GUI_SCREEN=1024x768", "GUI_FLAGS=--enable-event-simulate",
+    proc = installed.exec("env", "GUI_SCRIPT=gui_job.py", "GUI_SCREEN=800x600", "GUI_FLAGS=--enable-event-simulate",
                           "sh",
                           f"{INSIDE}/gui.sh", "opengl", "/scratch/gui_job", timeout=1200)
     path = installed.scratch / "gui_job" / "job.json"
