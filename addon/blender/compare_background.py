@@ -79,7 +79,6 @@ class ChildRun:
     out_dir: Path
     offset: int = 0
     partial: bytes = b""
-    ended: bool = False  # a done or failed event was read
     stopped_at: float | None = None  # when stop() asked it to end
     reaper: Any = None  # the timer that reaps it once stopped
 
@@ -111,7 +110,6 @@ class ChildRun:
             except ValueError:  # the child writes whole lines: a torn one is a bug, not a reason to stop
                 log.warning("background comparison: unreadable event line %r", line[:200])
                 continue
-            self.ended = self.ended or event.get("event") in ("done", "failed")
             out.append(event)
         return out
 

@@ -291,6 +291,30 @@ def _grid_cloud(scene, centre) -> object:
     return cloud
 
 
+def _preview_case(preset: str, size: tuple[int, int], parameterization: str, resolution: int):
+    """A preset built in Blender with its light previewed (NoTW, throttle 0, sample scale 1),
+    and an offscreen target to draw the viewport into: (spec, scene, light object, depsgraph,
+    view, projection, size, target texture, its framebuffer)."""
+    from addon.core.presets import build_preset
+    from addon.reference.blender_scene import build_blender_scene
+    from addon.reference.capture import evaluated_depsgraph
+    from addon.render.blender_gpu import float_texture, framebuffer
+
+    spec = build_preset(preset, size)
+    scene = build_blender_scene(spec)
+    scene.omniwarp.preview_enabled = True
+    scene.omniwarp.camera_resolution_scale = 1.0
+    scene.omniwarp.throttle_ms = 0
+    light_obj = next(o for o in scene.objects if o.type == "LIGHT")
+    light_obj.data.omniwarp.enabled = True
+    light_obj.data.omniwarp.parameterization = parameterization
+    light_obj.data.omniwarp.warp = "NOTW"
+    light_obj.data.omniwarp.resolution = resolution
+    target = float_texture(spec.camera.resolution, "RGBA32F")
+    return (spec, scene, light_obj, evaluated_depsgraph(scene), np.linalg.inv(spec.camera.matrix_world),
+            spec.camera.projection(), spec.camera.resolution, target, framebuffer(color_slots=(target,)))
+
+
 def viewport(out: str) -> None:
     """Register the extension, preview a preset light through the viewport's own draw
     path with explicit matrices into an offscreen target, then check robustness."""
@@ -298,10 +322,8 @@ def viewport(out: str) -> None:
 
     from addon.blender import registration, viewport as vp
     from addon.blender.scene_cache import CACHE
-    from addon.core.presets import build_preset
-    from addon.reference.blender_scene import build_blender_scene
     from addon.reference.capture import evaluated_depsgraph
-    from addon.render.blender_gpu import ensure_gpu, float_texture, framebuffer
+    from addon.render.blender_gpu import ensure_gpu
 
     ensure_gpu()
 
@@ -335,22 +357,8 @@ def viewport(out: str) -> None:
     # Each check here reads what the draw after a change drew: no recompute spread over
     # redraws (a loaded machine may take 0.2 s for one; `spread` tests that mode).
     vp.SPREAD_OVER_S = float("inf")
-    spec = build_preset("room_hemi", (96, 72))
-    scene = build_blender_scene(spec)
-    scene.omniwarp.preview_enabled = True
-    scene.omniwarp.camera_resolution_scale = 1.0
-    scene.omniwarp.throttle_ms = 0
-    light_obj = next(o for o in scene.objects if o.type == "LIGHT")
-    light_obj.data.omniwarp.enabled = True
-    light_obj.data.omniwarp.parameterization = "CUBE"
-    light_obj.data.omniwarp.warp = "NOTW"
-    light_obj.data.omniwarp.resolution = 256
-    depsgraph = evaluated_depsgraph(scene)
-    view = np.linalg.inv(spec.camera.matrix_world)
-    proj = spec.camera.projection()
-    size = spec.camera.resolution
-    target = float_texture(size, "RGBA32F")
-    target_fb = framebuffer(color_slots=(target,))
+    spec, scene, light_obj, depsgraph, view, proj, size, target, target_fb = _preview_case(
+        "room_hemi", (96, 72), "CUBE", 256)
 
     def draw(view_matrix) -> bool:
         with target_fb.bind():
@@ -589,38 +597,15 @@ def spread(out: str) -> None:
     visibility against one computed at once for the same view."""
     import time
 
-    import bpy
-
-    bpy_gpu = __import__("gpu")
-    if hasattr(bpy_gpu, "init"):
-        bpy_gpu.init()
     from addon.blender import registration
     from addon.blender import viewport as vp
-    from addon.core.presets import build_preset
-    from addon.reference.blender_scene import build_blender_scene
-    from addon.reference.capture import evaluated_depsgraph
-    from addon.render.blender_gpu import ensure_gpu, float_texture, framebuffer, read_texture
+    from addon.render.blender_gpu import ensure_gpu, read_texture
 
     ensure_gpu()
     registration.register()
-    spec = build_preset("stress_million", (640, 480))
-    scene = build_blender_scene(spec)
-    settings = scene.omniwarp
-    settings.preview_enabled = True
-    settings.camera_resolution_scale = 1.0
-    settings.throttle_ms = 0
-    settings.overlay_enabled = False
-    light_obj = next(o for o in scene.objects if o.type == "LIGHT")
-    light_obj.data.omniwarp.enabled = True
-    light_obj.data.omniwarp.parameterization = "DPSM"
-    light_obj.data.omniwarp.warp = "NOTW"
-    light_obj.data.omniwarp.resolution = 1024
-    depsgraph = evaluated_depsgraph(scene)
-    view = np.linalg.inv(spec.camera.matrix_world)
-    proj = spec.camera.projection()
-    size = spec.camera.resolution
-    target = float_texture(size, "RGBA32F")
-    target_fb = framebuffer(color_slots=(target,))
+    _, scene, _, depsgraph, view, proj, size, _, target_fb = _preview_case("stress_million", (640, 480), "DPSM",
+                                                                          1024)
+    scene.omniwarp.overlay_enabled = False
 
     def draw(view_matrix) -> float:
         with target_fb.bind():
