@@ -285,6 +285,15 @@ class BlenderDevice(Device):
             gpu.state.viewport_get()
 
     def release(self) -> None:
+        import gpu
+
+        # Blender skips a bind when the context's current shader has the same address, and
+        # freeing a shader does not clear that pointer: a new shader allocated where the
+        # freed, last-bound one was would then draw with the old program (a fresh backend's
+        # G-buffer came out empty about one time in seven). A built-in, never freed, takes
+        # its place first.
+        if self.shaders:
+            gpu.shader.from_builtin("UNIFORM_COLOR").bind()
         self.batches.clear()
         self.shaders.clear()
         self._active.clear()

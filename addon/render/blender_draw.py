@@ -40,6 +40,9 @@ class GBuffer:
     textures: dict[str, Any]  # "ow_gb_position", "ow_gb_normal"
     size: tuple[int, int]  # (W, H)
     target: Any = None  # its framebuffer (with a depth texture): a later view of this size draws into it
+    # The framebuffer holds no reference to its textures: the depth is kept here, or a later
+    # view drawn into `target` would be drawn without a depth test.
+    depth: Any = None
 
     @functools.cached_property
     def positions(self) -> np.ndarray:
@@ -94,6 +97,7 @@ def render_gbuffer_steps(backend: BlenderGPUBackend, scene: ResidentScene, view_
     width, height = size
     if reuse is not None and reuse.size == (width, height) and reuse.target is not None:
         pos_tex, nrm_tex, target = reuse.textures["ow_gb_position"], reuse.textures["ow_gb_normal"], reuse.target
+        depth = reuse.depth
         vars(reuse).pop("positions", None)  # its read-backs are of the earlier view
         vars(reuse).pop("normals", None)
     else:
@@ -119,7 +123,7 @@ def render_gbuffer_steps(backend: BlenderGPUBackend, scene: ResidentScene, view_
         target.clear(color=(0.0, 0.0, 0.0, 0.0), depth=1.0)
     yield from backend.draw_gbuffer_steps(scene, {"ow_view_proj": np.asarray(view_proj, dtype=np.float64),
                                                   "ow_camera_pos": _homogeneous_eye(camera_position)}, bound)
-    return GBuffer({"ow_gb_position": pos_tex, "ow_gb_normal": nrm_tex}, (width, height), target)
+    return GBuffer({"ow_gb_position": pos_tex, "ow_gb_normal": nrm_tex}, (width, height), target, depth)
 
 
 def _static_batch(backend: BlenderGPUBackend, key: str, shader, corners: list[tuple[float, float]]):

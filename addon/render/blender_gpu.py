@@ -184,7 +184,8 @@ def read_uint(texture) -> np.ndarray:
 
 
 def framebuffer(**slots):
-    """A `GPUFrameBuffer` (counted in CREATED)."""
+    """A `GPUFrameBuffer` (counted in CREATED). It holds no reference to its textures: the
+    caller keeps them, or a texture freed under it leaves the slot empty."""
     import gpu
 
     CREATED["framebuffer"] += 1

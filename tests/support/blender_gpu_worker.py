@@ -291,6 +291,24 @@ def _grid_cloud(scene, centre) -> object:
     return cloud
 
 
+def _current_gl_program() -> int | None:
+    """GL_CURRENT_PROGRAM of the context Blender made current (through EGL), or None."""
+    import ctypes
+
+    try:
+        egl = ctypes.CDLL("libEGL.so.1")
+    except OSError:
+        return None
+    egl.eglGetProcAddress.restype = ctypes.c_void_p
+    egl.eglGetProcAddress.argtypes = [ctypes.c_char_p]
+    address = egl.eglGetProcAddress(b"glGetIntegerv")
+    if not address:
+        return None
+    value = ctypes.c_int(0)
+    ctypes.CFUNCTYPE(None, ctypes.c_uint, ctypes.POINTER(ctypes.c_int))(address)(0x8B8D, ctypes.byref(value))
+    return value.value
+
+
 def _preview_case(preset: str, size: tuple[int, int], parameterization: str, resolution: int):
     """A preset built in Blender with its light previewed (NoTW, throttle 0, sample scale 1),
     and an offscreen target to draw the viewport into: (spec, scene, light object, depsgraph,
@@ -430,10 +448,15 @@ def viewport(out: str) -> None:
         drawn.append(vp._STATE.last_drawn)
         shadowed.append(float(darkened().mean()))
     reprojected = darkened()
+    moved_positions = vp._STATE.results["test-region"].moved.positions  # redrawn in one G-buffer 30 times
     scene.omniwarp.throttle_ms = 0
     clear_target()
     draw(orbit(30))
     fresh = darkened()
+    # The G-buffer redrawn for each moved view kept its depth test: it sees what a fresh one sees.
+    fresh_positions = vp._STATE.results["test-region"].gbuffer.positions
+    report["moved_gbuffer_same"] = bool(np.array_equal(moved_positions, fresh_positions))
+    report["moved_gbuffer_same_values"] = {"differ": int(np.count_nonzero(moved_positions != fresh_positions))}
     report["orbit_reprojected"] = drawn == ["reprojected"] * 30 and min(shadowed) > 0.01
     report["orbit_reprojected_values"] = {"drawn": drawn, "shadowed_share": shadowed}
     either = reprojected | fresh
@@ -560,8 +583,16 @@ def viewport(out: str) -> None:
     else:
         report["grid_read_by_timer"] = True
         report["grid_read_by_timer_values"] = {"skipped": "no grid nodes on this line"}
+    # A released backend leaves none of its programs current: Blender skips a bind when a
+    # new shader is allocated where the freed, last-bound one was, and a fresh backend then
+    # drew its G-buffer with the old program (an empty view, about one time in seven).
+    draw(view)
+    drawn_with = _current_gl_program()
     # File load and undo between draws: results are dropped or marked stale, never reused.
     vp._on_load_post()
+    released_current = _current_gl_program()
+    report["released_program_not_current"] = drawn_with is not None and released_current != drawn_with
+    report["released_program_not_current_values"] = {"drawn_with": drawn_with, "after_release": released_current}
     report["after_load_live"] = vp.live_resources()
     report["after_load_draw"] = draw(view)
     report["after_load_draw_values"] = outcome(report["after_load_draw"])
@@ -603,8 +634,10 @@ def spread(out: str) -> None:
 
     ensure_gpu()
     registration.register()
-    _, scene, _, depsgraph, view, proj, size, _, target_fb = _preview_case("stress_million", (640, 480), "DPSM",
-                                                                          1024)
+    # The target is kept by name: Blender's framebuffer holds no reference to its texture, and
+    # a texture freed under it leaves the draws writing nowhere (or into a recycled name).
+    _, scene, _, depsgraph, view, proj, size, target, target_fb = _preview_case("stress_million", (640, 480),
+                                                                               "DPSM", 1024)
     scene.omniwarp.overlay_enabled = False
 
     def draw(view_matrix) -> float:
@@ -631,11 +664,13 @@ def spread(out: str) -> None:
     spread_vis = read_texture(cached.visibility[0], "RG32F")
     vp.free_resources()  # a fresh backend: the same view computed at once
     report["fresh_s"] = draw(moved)
+    report["fresh_error"] = vp.last_error()
     fresh = vp._STATE.results["spread-region"]
     fresh_vis = read_texture(fresh.visibility[0], "RG32F")
     report["same_visibility"] = bool(np.array_equal(spread_vis, fresh_vis))
     report["differ"] = int(np.count_nonzero(spread_vis != fresh_vis))
     report["shadowed"] = float((fresh_vis[..., 0] < 0.5).mean())
+    report["spread_shadowed"] = float((spread_vis[..., 0] < 0.5).mean())
     vp.free_resources()
     registration.unregister()
     Path(out).write_text(json.dumps(report, indent=1))
