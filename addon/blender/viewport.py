@@ -15,6 +15,9 @@ Each redraw of a 3D view with the preview on:
      belongs to the current view; otherwise (the view moved within the throttle) the
      result reprojected into this view, through a G-buffer of this view (a pixel the
      result's view did not see is drawn lit); then the map overlay in the chosen corner.
+     While recomputes are spread, no redraw draws a G-buffer of its own: the spread
+     recompute's, once drawn, or the newest one at hand serves (its pixels trail the
+     view for a few redraws).
 
 `draw_view` does all of that from explicit matrices and sizes, so tests drive it
 without a window. GPU objects are created lazily (a GL context is current in a
@@ -26,7 +29,7 @@ from __future__ import annotations
 import logging
 import time
 from dataclasses import dataclass, field
-from typing import Any
+from typing import Any, Callable
 
 import bpy
 import numpy as np
@@ -91,6 +94,7 @@ class _Pending:
     projection: np.ndarray
     spent: float = 0.0  # seconds of draw callbacks it took so far
     touched: float = field(default_factory=time.perf_counter)  # when a redraw last went on with it
+    gbuffer: Any = None  # its view's G-buffer, once its first stage has drawn it
 
 
 # How long one redraw may go on with a spread recompute before it draws what it has: with
@@ -198,6 +202,11 @@ def _go_on() -> None:
     return None
 
 
+def _slow() -> bool:
+    """Whether the last recompute took long enough to be spread over redraws."""
+    return _STATE.compute_s > SPREAD_OVER_S
+
+
 def _drop_pending() -> None:
     pending, _STATE.pending = _STATE.pending, None
     if pending is not None:
@@ -212,6 +221,7 @@ def _advance(pending: _Pending, settings) -> _ViewResult | None:
     backend = _STATE.backend
     start = time.perf_counter()
     backend.pacer.stepping = True
+    backend.pacer.deadline = start + STEP_BUDGET_S
     try:
         while time.perf_counter() - start < STEP_BUDGET_S:
             next(pending.steps)
@@ -226,6 +236,7 @@ def _advance(pending: _Pending, settings) -> _ViewResult | None:
         raise
     finally:
         backend.pacer.stepping = False
+        backend.pacer.deadline = None
     pending.spent += time.perf_counter() - start
     pending.touched = time.perf_counter()
     if bpy.app.timers is not None and not bpy.app.timers.is_registered(_go_on):
@@ -282,9 +293,10 @@ def compute_view(backend, pipeline: ShadowPipeline, seen: ResidentScene, view_ma
 def compute_view_steps(backend, pipeline: ShadowPipeline, seen: ResidentScene, view_matrix: np.ndarray,
                        projection: np.ndarray, size: tuple[int, int], lights: list,
                        occluders: dict[str, ResidentScene] | None = None,
-                       overlay: bool = True) -> Steps[tuple[Any, list]]:
+                       overlay: bool = True, drawn: Callable[[Any], None] | None = None) -> Steps[tuple[Any, list]]:
     """`compute_view` as a stepped pass (render/pacing.py): it yields between slices of its
-    long draws while the backend's pacer is stepping (`_advance`)."""
+    long draws while the backend's pacer is stepping (`_advance`). `drawn` is given the
+    G-buffer as soon as it is drawn (a spread recompute's reprojection draws with it)."""
     from ..render.blender_draw import render_gbuffer_steps
 
     view_proj = projection @ view_matrix
@@ -292,6 +304,8 @@ def compute_view_steps(backend, pipeline: ShadowPipeline, seen: ResidentScene, v
     camera = camera_from_matrices(view_matrix, projection, size)
     eye = np.linalg.inv(view_matrix)[:3, 3] if camera is None else camera.eye_homogeneous()
     gbuffer = yield from render_gbuffer_steps(backend, seen, view_proj, eye, size)
+    if drawn is not None:
+        drawn(gbuffer)
     samples = gbuffer.samples(camera)  # stays on the GPU
     results = []
     for name, light, settings in lights:
@@ -395,17 +409,20 @@ def draw_view(scene: bpy.types.Scene, depsgraph, view_matrix: np.ndarray, projec
                 # Only objects that changed since the last view are uploaded; removed ones are freed.
                 _STATE.backend.sync_scene(CACHE.resident())
                 seen, occluders = resident_inputs(CACHE, scene, [name for name, _, _ in lights])
-                steps = compute_view_steps(_STATE.backend, _STATE.pipeline, seen, view_matrix, projection, size,
-                                           lights, occluders, settings.overlay_enabled)
-                if cached is None or _STATE.compute_s <= SPREAD_OVER_S:  # at once (nothing to draw meanwhile)
+                if cached is None or not _slow():  # at once (nothing to draw meanwhile)
+                    steps = compute_view_steps(_STATE.backend, _STATE.pipeline, seen, view_matrix, projection, size,
+                                               lights, occluders, settings.overlay_enabled)
                     start = time.perf_counter()
                     gbuffer, results = drive(steps)
                     done = _build_result(key, gbuffer, results, settings, seen, projection @ view_matrix, projection)
                     _STATE.compute_s = time.perf_counter() - start
                 else:  # the last result stays drawn (reprojected) while this one is spread over redraws
-                    _STATE.pending = _Pending(steps, region_key, key, _STATE.version, seen, projection @ view_matrix,
-                                              projection)
-                    done = _advance(_STATE.pending, settings)
+                    pending = _STATE.pending = _Pending(None, region_key, key, _STATE.version, seen,
+                                                        projection @ view_matrix, projection)
+                    pending.steps = compute_view_steps(_STATE.backend, _STATE.pipeline, seen, view_matrix, projection,
+                                                       size, lights, occluders, settings.overlay_enabled,
+                                                       drawn=lambda gbuffer: setattr(pending, "gbuffer", gbuffer))
+                    done = _advance(pending, settings)
                 if done is not None:
                     cached = _STATE.results[region_key] = done
                     _STATE.last_error = ""
@@ -428,7 +445,10 @@ def draw_view(scene: bpy.types.Scene, depsgraph, view_matrix: np.ndarray, projec
           and (_STATE.pending is None or _STATE.pending.seen is cached.seen)):
         # (While a spread recompute runs on another scene, drawing the old one's G-buffer
         # would sync the backend back to it under the recompute's feet.)
-        _draw_reprojected(cached, view_matrix, projection, size, target_size, settings.shadow_strength, key)
+        pending = _STATE.pending
+        # This region's spread recompute's G-buffer, once drawn: the newest of this view.
+        stand_in = pending.gbuffer if pending is not None and pending.region == region_key else None
+        _draw_reprojected(cached, view_matrix, projection, size, target_size, settings.shadow_strength, key, stand_in)
         _STATE.last_drawn = "reprojected"
     else:
         _STATE.last_drawn = "none"
@@ -440,27 +460,37 @@ def draw_view(scene: bpy.types.Scene, depsgraph, view_matrix: np.ndarray, projec
 
 
 def _draw_reprojected(cached: _ViewResult, view_matrix: np.ndarray, projection: np.ndarray,
-                      size: tuple[int, int], target_size: tuple[int, int], strength: float, key: tuple) -> None:
+                      size: tuple[int, int], target_size: tuple[int, int], strength: float, key: tuple,
+                      stand_in: Any = None) -> None:
     """The cached result drawn over a view it was not computed for: a G-buffer of this view
     (drawn into the last one of its size, and only when the view moved since: a spread
     recompute redraws one view many times), each light's visibility looked up where this
-    view's points land in the result's view."""
+    view's points land in the result's view. On a scene whose recomputes are spread the
+    newest G-buffer at hand stands in for this view's: `stand_in` (the spread recompute's),
+    else the last one drawn."""
     import gpu
 
     from ..render.blender_draw import draw_shadow_composite, render_gbuffer
 
-    if cached.moved is None or cached.moved_key != key:
+    gbuffer = cached.moved if cached.moved is not None and cached.moved_key == key else None
+    if gbuffer is None and _slow():
+        # A G-buffer of this view would hold the redraw as long as a slice of the recompute
+        # (a million triangles: 0.25 s on llvmpipe): the newest one at hand is drawn instead,
+        # the spread recompute's own once its first stage has drawn it. Its pixels trail
+        # the view by the redraws since; the shadows it looks up are where they belong.
+        gbuffer = next(g for g in (stand_in, cached.moved, cached.gbuffer) if g is not None)
+    if gbuffer is None:
         camera = camera_from_matrices(view_matrix, projection, size)
         eye = np.linalg.inv(view_matrix)[:3, 3] if camera is None else camera.eye_homogeneous()
         viewport = gpu.state.viewport_get()
         try:
-            cached.moved = render_gbuffer(_STATE.backend, cached.seen, projection @ view_matrix, eye, size,
-                                          reuse=cached.moved)
+            gbuffer = cached.moved = render_gbuffer(_STATE.backend, cached.seen, projection @ view_matrix, eye,
+                                                    size, reuse=cached.moved)
             cached.moved_key = key
         finally:
             gpu.state.viewport_set(*viewport)
     for (_, light, _, _, _, _), texture in zip(cached.lights, cached.visibility):
-        draw_shadow_composite(_STATE.backend, cached.moved, texture, light, strength, target_size, draw_base=False,
+        draw_shadow_composite(_STATE.backend, gbuffer, texture, light, strength, target_size, draw_base=False,
                               reprojection=cached.reprojection)
 
 

@@ -18,7 +18,8 @@ The viewport spreads a long recompute over several redraws (issue 52): with `ste
 on, a draw is cut into slices of about STEP_S, each waited for (llvmpipe does a draw's
 vertex work in the call itself and its fragments in its threads; the window's swap would
 wait for them anyway), and the pass yields after each, so the preview's draw callback can
-stop and go on at the next redraw. The passes are generators for that
+stop and go on at the next redraw; the redraw's `deadline` cuts a slice shorter when less
+than STEP_S is left of it. The passes are generators for that
 (`*_steps`); `drive` runs one to its end where nothing steps.
 """
 from __future__ import annotations
@@ -35,6 +36,7 @@ STEP_S = 0.02  # seconds a slice may take while stepping (the viewport)
 FIRST_SLICE = 16  # items of a draw's first slice when its rate is not known yet
 GROWTH = 8  # the most a slice grows over the one before it (waiting)
 STEP_GROWTH = 2  # the same while stepping: an overshoot is a frozen redraw
+MIN_STEP_S = 0.002  # the least a slice is sized for when a redraw's deadline is near
 
 T = TypeVar("T")
 Steps = Generator[None, None, T]  # a pass that yields between its slices and returns its value
@@ -63,6 +65,17 @@ class Pacer:
     clock: Callable[[], float] = time.perf_counter
     stepping: bool = False  # the viewport spreads this frame over redraws: yield between slices
     owed: float = 0.0  # stepping: seconds of the draws queued whole since the last yield (estimated)
+    # Stepping: when the redraw going on with the frame wants it back (a `clock` time). A slice
+    # is sized to end by then: the last slice of a redraw was what held it past its budget.
+    deadline: float | None = None
+
+    def _budget(self) -> float:
+        """Seconds a slice may take now: SLICE_S, or while stepping STEP_S cut to the deadline."""
+        if not self.stepping:
+            return SLICE_S
+        if self.deadline is None:
+            return STEP_S
+        return min(STEP_S, max(self.deadline - self.clock(), MIN_STEP_S))
 
     def pause(self) -> Steps[None]:
         """Between two stages of a frame: a yield while stepping (the stage after may be long)."""
@@ -81,7 +94,7 @@ class Pacer:
         STEP_S (and once the draws queued whole add up to one)."""
         if total <= 0:
             return
-        budget = STEP_S if self.stepping else SLICE_S
+        budget = self._budget()
         rate = self.rates.get(key)
         if (not self.stepping and not interrupt.watching()) or (rate is None and total <= FIRST_SLICE) or (
                 rate is not None and total <= rate * budget):
@@ -107,9 +120,10 @@ class Pacer:
             done += count
             rate = count / spent
             self.rates[key] = rate
-            size = max(1, min(int(rate * budget), count * (STEP_GROWTH if self.stepping else GROWTH)))
             if self.stepping:
                 self.owed = 0.0
                 yield
+                budget = self._budget()  # what is left of the redraw that goes on with it
             else:
                 interrupt.check()
+            size = max(1, min(int(rate * budget), count * (STEP_GROWTH if self.stepping else GROWTH)))

@@ -157,3 +157,32 @@ def iter_value(value: int):
     yield None
     yield None
     return value
+
+
+def test_a_stepped_slice_ends_by_the_redraws_deadline():
+    """A redraw going on with a spread frame gives it a deadline: each slice is sized to end
+    by it (the last slice of a redraw held it past its budget before), never below
+    MIN_STEP_S of work; without a deadline slices take STEP_S."""
+    clock = _Clock(per_item=1e-5)  # 100k items a second: STEP_S is 2,000 items
+    pacer = Pacer(clock=clock, stepping=True)
+    drawn: list[tuple[int, int]] = []
+
+    def draw(first: int, count: int) -> None:
+        drawn.append((first, count))
+        clock.now += count * clock.per_item
+
+    steps = pacer.steps("step:maps:a", 100_000, draw, lambda: None)
+    for _ in range(8):  # the rate learnt, slices of STEP_S
+        next(steps)
+    assert drawn[-1][1] * clock.per_item == pytest.approx(pacing.STEP_S, rel=0.01)
+    pacer.deadline = clock.now + 0.005  # 5 ms left of this redraw
+    next(steps)
+    assert drawn[-1][1] * clock.per_item == pytest.approx(0.005, rel=0.01)
+    next(steps)  # the deadline passed: the least slice
+    assert drawn[-1][1] * clock.per_item == pytest.approx(pacing.MIN_STEP_S, rel=0.01)
+    pacer.deadline = None
+    for _ in range(5):  # growth is capped (STEP_GROWTH) after a small slice, then STEP_S again
+        next(steps)
+    sizes = [n for _, n in drawn[-6:]]
+    assert all(b <= pacing.STEP_GROWTH * a for a, b in zip(sizes, sizes[1:])), sizes
+    assert drawn[-1][1] * clock.per_item == pytest.approx(pacing.STEP_S, rel=0.01)

@@ -635,7 +635,7 @@ def spread(out: str) -> None:
     ensure_gpu()
     registration.register()
     # The target is kept by name: Blender's framebuffer holds no reference to its texture, and
-    # a texture freed under it leaves the draws writing nowhere (or into a recycled name).
+    # a texture freed under it leaves the slot empty.
     _, scene, _, depsgraph, view, proj, size, target, target_fb = _preview_case("stress_million", (640, 480),
                                                                                "DPSM", 1024)
     scene.omniwarp.overlay_enabled = False

@@ -123,6 +123,7 @@ def _region(area, kind: str = "WINDOW"):
 
 def _setup() -> None:
     _count_draws()
+    bpy.types.SpaceView3D.draw_handler_add(_count_view_draw, (), "WINDOW", "POST_PIXEL")
     scene = bpy.context.scene
     scene.omniwarp_compare.source = "PRESET"
     scene.omniwarp_compare.preset = "room_omni"
@@ -169,6 +170,28 @@ def _preview_ready() -> bool:
     state = viewport._STATE
     # No recompute spread over redraws under way (the backend's maps are then mid-frame).
     return bool(state.results) and state.last_drawn in ("computed", "cached") and state.pending is None
+
+
+VIEW_DRAWS = {"count": 0, "mark": None}  # the 3D view's redraws; the count when the preview was first ready
+
+
+def _count_view_draw() -> None:
+    VIEW_DRAWS["count"] += 1
+
+
+def _preview_shown() -> bool:
+    """The preview ready, and the view redrawn twice since: a Vulkan swapchain shows a frame
+    a redraw or two after it was drawn (loaded, the screenshot caught the view unshadowed)."""
+    if not _preview_ready():
+        VIEW_DRAWS["mark"] = None
+        return False
+    if VIEW_DRAWS["mark"] is None:
+        VIEW_DRAWS["mark"] = VIEW_DRAWS["count"]
+    if VIEW_DRAWS["count"] < VIEW_DRAWS["mark"] + 2:
+        _view3d()[0].tag_redraw()
+        return False
+    VIEW_DRAWS["mark"] = None
+    return True
 
 
 def _save_view() -> None:
@@ -228,7 +251,7 @@ def s_off():
 
 @step
 def s_wait_preview():
-    if not _preview_ready():
+    if not _preview_shown():
         return "again"
     area, region = _view3d()
     _screenshot(OUT / "view_on.png", region)
@@ -253,7 +276,7 @@ def s_sidebar_tab():
 
 @step
 def s_overlay():
-    if not _preview_ready():
+    if not _preview_shown():
         return "again"
     area, region = _view3d()
     _screenshot(OUT / "view_overlay.png", region)
