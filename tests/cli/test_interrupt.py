@@ -276,6 +276,10 @@ def test_a_signal_inside_a_long_exact_frame_ends_the_run(tmp_path, earlier, groo
             proc.wait()
     last = _assert_interrupted(proc, stdout, "".join(seen) + rest, code)
     assert f"interrupted ({signal.Signals(sig).name})" in last
-    # The watchdog's grace, and scheduling slack on a loaded 2-core machine.
-    assert took < interrupt.GRACE_S + 1.5, took
+    # The watchdog's grace, and scheduling slack on a loaded 2-core machine. Where two test
+    # runs share the 2 cores (the LTS lines, scripts/test.sh) the watchdog waits for the GIL
+    # behind llvmpipe's vertex work in the main thread: 2.6-2.9 s there in CI, 4.7-5.0 s
+    # beside four busy loops; that bound shows the run still ends in seconds, not minutes.
+    slack = 8.5 if os.environ.get("OMNIWARP_SIDE_BY_SIDE") else 1.5
+    assert took < interrupt.GRACE_S + slack, took
     assert list(tmpdir.iterdir()) == [] and tree_digest(earlier) == before and staging_left(tmp_path) == []
