@@ -32,7 +32,8 @@ class _Clock:
         return self.now
 
 
-def _run(pacer: Pacer, total: int, clock: _Clock | None = None, key: str = "exact") -> list[tuple[int, int]]:
+def _recorder(clock: _Clock | None = None):
+    """A draw that records each (first, count) it is given and moves `clock` by its items."""
     drawn: list[tuple[int, int]] = []
 
     def draw(first: int, count: int) -> None:
@@ -40,6 +41,11 @@ def _run(pacer: Pacer, total: int, clock: _Clock | None = None, key: str = "exac
         if clock is not None:
             clock.now += count * clock.per_item
 
+    return drawn, draw
+
+
+def _run(pacer: Pacer, total: int, clock: _Clock | None = None, key: str = "exact") -> list[tuple[int, int]]:
+    drawn, draw = _recorder(clock)
     pacer.run(key, total, draw, lambda: None)
     return drawn
 
@@ -132,12 +138,7 @@ def test_stepping_yields_between_slices_and_after_short_draws_that_add_up():
 
     clock = _Clock(per_item=1e-5)
     pacer = Pacer(clock=clock, stepping=True)
-    drawn: list[tuple[int, int]] = []
-
-    def draw(first: int, count: int) -> None:
-        drawn.append((first, count))
-        clock.now += count * clock.per_item
-
+    drawn, draw = _recorder(clock)
     steps = pacer.steps("step:maps:a", 100_000, draw, lambda: None)
     yields = sum(1 for _ in steps)
     assert yields == len(drawn) > 5 and sum(n for _, n in drawn) == 100_000
@@ -165,12 +166,7 @@ def test_a_stepped_slice_ends_by_the_redraws_deadline():
     MIN_STEP_S of work; without a deadline slices take STEP_S."""
     clock = _Clock(per_item=1e-5)  # 100k items a second: STEP_S is 2,000 items
     pacer = Pacer(clock=clock, stepping=True)
-    drawn: list[tuple[int, int]] = []
-
-    def draw(first: int, count: int) -> None:
-        drawn.append((first, count))
-        clock.now += count * clock.per_item
-
+    drawn, draw = _recorder(clock)
     steps = pacer.steps("step:maps:a", 100_000, draw, lambda: None)
     for _ in range(8):  # the rate learnt, slices of STEP_S
         next(steps)
