@@ -333,15 +333,22 @@ def hold_imports(*names: str) -> None:
 def temporary_dir(prefix: str, parent: Path | None = None) -> Iterator[Path]:
     """A new folder (in `parent`, else the system's temp folder), removed on exit, and
     on an immediate exit by the watcher."""
-    path = Path(tempfile.mkdtemp(prefix=prefix, dir=None if parent is None else str(parent)))
-    _STATE.temporaries.append(path)
+    path: Path | None = None
     try:
+        # Made and registered in one step: neither the handler (held) nor the watcher's
+        # immediate exit (the lock) can come between the folder and its registration.
+        with _STATE.lock, _held():
+            path = Path(tempfile.mkdtemp(prefix=prefix, dir=None if parent is None else str(parent)))
+            _STATE.temporaries.append(path)
+        if not _STATE.deferred:
+            check()
         yield path
     finally:
-        with deferred():  # a second Ctrl-C must not leave it half removed
-            _remove(path)
-            if path in _STATE.temporaries:
-                _STATE.temporaries.remove(path)
+        if path is not None:
+            with deferred():  # a second Ctrl-C must not leave it half removed
+                _remove(path)
+                if path in _STATE.temporaries:
+                    _STATE.temporaries.remove(path)
 
 
 def register_temporary(path: Path) -> None:

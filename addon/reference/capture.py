@@ -51,6 +51,7 @@ from .data import ReferenceData
 from .reference_materials import AOV_NORMAL
 from .render_geometry import GEOMETRY_TYPES, render_triangles
 from .shadow_rule import ShadowRule
+from .still import save_render_result
 
 if TYPE_CHECKING:  # pragma: no cover - typing only
     import bpy
@@ -413,10 +414,11 @@ def _render(scene, view_layer, path: Path, what: str = "Cycles render") -> float
         interrupt.register_temporary(Path(bpy.app.tempdir))
     start = time.perf_counter()
     with interrupt.blocking(what):
-        result = bpy.ops.render.render(write_still=True, scene=scene.name, layer=view_layer.name)
+        result = bpy.ops.render.render(write_still=False, scene=scene.name, layer=view_layer.name)
     seconds = time.perf_counter() - start
-    if "FINISHED" not in result or not path.exists():
-        raise ReferenceCaptureError(f"Cycles render of scene {scene.name!r} failed (no {path.name} written)")
+    if "FINISHED" not in result:
+        raise ReferenceCaptureError(f"Cycles render of scene {scene.name!r} failed: {result}")
+    save_render_result(scene, path, "Cycles render")  # under Python's lock (still.py)
     return seconds
 
 

@@ -66,6 +66,7 @@ from ..render import blender_compat
 from ..rows import make_row
 from .blend_file import open_scene
 from .data import ReferenceData
+from .still import save_render_result
 
 if TYPE_CHECKING:  # pragma: no cover - typing only
     import bpy
@@ -223,15 +224,6 @@ def resolve_settings(names: Sequence[str], light: "bpy.types.Light") -> list[Eev
     return [EeveeSetting(name, values[name]) for name in names]
 
 
-def _render_result_image():
-    import bpy
-
-    for image in bpy.data.images:
-        if image.type == "RENDER_RESULT":
-            return image
-    raise ReferenceCaptureError("EEVEE render left no Render Result image")
-
-
 def _render_to(scene, view_layer, path: Path) -> float:
     """Render one still with EEVEE, then save it to `path`; return the render's wall ms (save excluded)."""
     import bpy
@@ -241,9 +233,7 @@ def _render_to(scene, view_layer, path: Path) -> float:
     ms = 1000.0 * (time.perf_counter() - start)
     if "FINISHED" not in result:
         raise ReferenceCaptureError(f"EEVEE render of scene {scene.name!r} failed: {result}")
-    _render_result_image().save_render(str(path), scene=scene)
-    if not path.exists():
-        raise ReferenceCaptureError(f"EEVEE render of scene {scene.name!r} wrote no {path.name}")
+    save_render_result(scene, path, "EEVEE render")
     return ms
 
 

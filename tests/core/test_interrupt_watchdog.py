@@ -99,3 +99,30 @@ def test_a_signal_before_the_handling_ends_the_command_when_it_starts():
     assert done.returncode == 143 and "the command ran" not in done.stdout
     assert done.stderr.strip().splitlines() == [
         "probe: interrupted (SIGTERM) while starting; temporary files removed, earlier results untouched"]
+
+
+def test_a_signal_while_a_temporary_folder_is_made_removes_it(tmp_path, monkeypatch):
+    """SIGINT arriving inside `mkdtemp` (the folder exists, not yet registered) is raised
+    once the folder is registered, so the folder is removed as the interrupt leaves."""
+    import os
+    import tempfile
+
+    import pytest
+
+    from addon.core import interrupt
+    from addon.core.errors import Interrupted
+
+    real = tempfile.mkdtemp
+
+    def mkdtemp_then_signal(*args, **kwargs):
+        made = real(*args, **kwargs)
+        os.kill(os.getpid(), signal.SIGINT)
+        time.sleep(0.05)  # the Python handler runs here, on this thread, before the return
+        return made
+
+    monkeypatch.setattr(tempfile, "mkdtemp", mkdtemp_then_signal)
+    with interrupt.handling("probe"):
+        with pytest.raises(Interrupted):
+            with interrupt.temporary_dir("probe_", parent=tmp_path):
+                pytest.fail("the interrupt should come before the body")
+    assert list(tmp_path.iterdir()) == []
