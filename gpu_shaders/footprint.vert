@@ -1,4 +1,4 @@
-// Footprint depth pass, vertex stage (vertex pulling; issue 17).
+// Footprint depth pass, vertex stage (vertex pulling).
 //
 // Six vertices per triangle, two triangles of one quad: vertex i belongs to triangle
 // i / 6, and the corner buffer holds i % 6 (a plain draw: software rasterisers run

@@ -1,4 +1,4 @@
-// Footprint pass of a medium's part in the maps (shaders.medium_of, issue 43): where the
+// Footprint pass of a medium's part in the maps (shaders.medium_of): where the
 // texel's ray from the light meets the triangle, the crossing goes to the texel's haze
 // (lib/media.glsl). No depth is stored: a medium is no surface.
 // - A point light's layer: the texel's ray (lib/footprint_ray.glsl), inside the triangle's

@@ -119,3 +119,21 @@ def test_pages_exist() -> None:
 def test_relative_links_point_to_existing_files(page: Path) -> None:
     broken = broken_links(page)
     assert not broken, "links to missing files:\n  " + "\n  ".join(broken)
+
+
+def _github_anchor(heading: str) -> str:
+    """The anchor GitHub gives a heading: lower case, punctuation but `-` and `_` dropped,
+    spaces as hyphens."""
+    return re.sub(r"[^\w\- ]", "", heading.strip().lower()).replace(" ", "-")
+
+
+def test_the_notebook_index_links_every_entry() -> None:
+    """Each entry (a `## ` heading) of every notebook file is a row of the index, and every
+    row's anchor is a heading of its file: an entry nobody can find from the index is lost."""
+    notebook = REPO_ROOT / "docs" / "notebook"
+    index = (notebook / "README.md").read_text(encoding="utf-8")
+    linked = set(re.findall(r"\]\(([^)#/]+\.md)#([^)]+)\)", index))
+    entries = {(page.name, _github_anchor(heading)) for page in notebook.glob("20*.md")
+               for heading in re.findall(r"^## (.+)$", page.read_text(encoding="utf-8"), re.M)}
+    assert sorted(entries - linked) == [], "entries the index does not link"
+    assert sorted(linked - entries) == [], "index rows whose anchor is no entry"

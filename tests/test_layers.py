@@ -18,6 +18,7 @@ from __future__ import annotations
 
 import ast
 import json
+import re
 import subprocess
 import sys
 from dataclasses import dataclass
@@ -304,3 +305,13 @@ def test_modules_are_small_enough_to_read_in_one_sitting() -> None:
     long = [f"{p.relative_to(REPO_ROOT)}: {n} lines" for p in sorted(ADDON.rglob("*.py"))
             if (n := len(p.read_text(encoding="utf-8").splitlines())) > MAX_MODULE_LINES]
     assert not long, f"modules over {MAX_MODULE_LINES} lines:\n" + "\n".join(long)
+
+
+def test_the_code_names_no_issue_numbers() -> None:
+    """Comments and docstrings say why in words: an issue's number means nothing to a
+    reader of the code (the history is in the notebook and the log)."""
+    pattern = re.compile(r"\bissues? \d+\b", re.IGNORECASE)
+    files = [*ADDON.rglob("*.py"), *(REPO_ROOT / "gpu_shaders").rglob("*.*")]
+    named = [f"{p.relative_to(REPO_ROOT)}:{i}" for p in sorted(files)
+             for i, line in enumerate(p.read_text(encoding="utf-8").splitlines(), 1) if pattern.search(line)]
+    assert not named, "issue numbers in the code:\n" + "\n".join(named)

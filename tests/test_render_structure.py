@@ -28,7 +28,7 @@ def _pass_methods() -> set[str]:
 def test_no_pass_is_written_in_a_backend_class():
     passes = _pass_methods()
     assert {"begin_atlas", "draw_layer", "draw_footprints", "link_samples", "advance_lists", "edge_distance",
-            "scatter_counts", "reduce_samples", "shadow_test", "sync_scene"} <= passes
+            "scatter_counts", "reduce_samples", "run_shadow_test", "sync_scene"} <= passes
     for cls in (ModernGLBackend, BlenderGPUBackend):
         # samples_from_gbuffer is the one pass only Blender's GL can run (its G-buffer).
         own = (set(vars(cls)) & passes) - {"samples_from_gbuffer", "release"}

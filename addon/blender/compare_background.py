@@ -1,4 +1,4 @@
-"""The panel's comparison as a background job (issue 52): a second Blender, `blender -b`,
+"""The panel's comparison as a background job: a second Blender, `blender -b`,
 measures while the window stays live.
 
 A Cycles reference of a sized light and an `exact` frame each hold a thread for seconds to

@@ -37,7 +37,7 @@ from . import events
 
 log = logging.getLogger(__name__)
 
-# An AREA light is one-sided: the hemispherical emission, with a size (issue 27).
+# An AREA light is one-sided: the hemispherical emission, with a size.
 SUPPORTED_LIGHT_TYPES: tuple[str, ...] = ("POINT", "SPOT", "SUN", "AREA")
 
 # The parameterizations the exact pass (ShadowSettings.exact) takes (the light panel greys

@@ -148,7 +148,7 @@ class SceneGeometryCache:
         self._resident_held: dict[str, tuple[np.ndarray, np.ndarray, tuple[str, str | None]]] = {}
         self._resident_version = -1
         self._resident_selections: dict[Hashable, tuple[int, ResidentScene]] = {}
-        # See-through materials (issue 25): each material's alpha as read, and the surface
+        # See-through materials: each material's alpha as read, and the surface
         # of each read source (by the id of its triangle array, which it keeps alive).
         self._materials: dict[str, MaterialAlpha] = {}
         self._media: dict[str, MediumFound] = {}  # homogeneous media by material (material_media.py)
@@ -221,7 +221,7 @@ class SceneGeometryCache:
         return changed | self._medium_changed(original)
 
     def _medium_changed(self, original: Any) -> bool:
-        """Whether an edited material changes a homogeneous medium (issue 43): its users
+        """Whether an edited material changes a homogeneous medium: its users
         are then flagged for a re-read, as for an alpha."""
         name = getattr(original, "name_full", None)
         material = bpy.data.materials.get(name) if name else None

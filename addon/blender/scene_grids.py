@@ -1,4 +1,4 @@
-"""Density grids for the viewport's scene cache (scene_cache.py; issue 43).
+"""Density grids for the viewport's scene cache (scene_cache.py).
 
 The viewport draws the grid media the reference reads (reference/render_geometry.py):
 

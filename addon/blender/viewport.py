@@ -10,7 +10,7 @@ Each redraw of a 3D view with the preview on:
      A recompute whose last one took over SPREAD_OVER_S (a million triangles on
      llvmpipe: seconds) is spread over redraws: each goes on with it for about
      STEP_BUDGET_S (render/pacing.py cuts its long draws into slices) and asks for the
-     next redraw, while the last result stays drawn, reprojected (issue 52);
+     next redraw, while the last result stays drawn, reprojected;
   3. draws the shadow composite (shadowed surfaces darkened): the result's own if it
      belongs to the current view; otherwise (the view moved within the throttle) the
      result reprojected into this view, through a G-buffer of this view (a pixel the
@@ -83,7 +83,7 @@ class _State:
 
 @dataclass
 class _Pending:
-    """A recompute spread over redraws (issue 52): its stepped pass and what it is for."""
+    """A recompute spread over redraws: its stepped pass and what it is for."""
 
     steps: Any  # compute_view_steps(...)
     region: Any

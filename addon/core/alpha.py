@@ -1,4 +1,4 @@
-"""See-through surfaces: a material's alpha at a point of its surface (issue 25).
+"""See-through surfaces: a material's alpha at a point of its surface.
 
 Cycles lets a shadow ray through a surface of alpha a with weight 1 - a (a Transparent
 BSDF mixed in front of the opaque part), so the light a receiver gets through surfaces

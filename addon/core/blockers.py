@@ -2,7 +2,7 @@
 
 Each kind is one object holding its world-space data and the one question a shadow
 asks of it: which segments (from a view sample towards the light) it crosses. These are
-the numpy oracle the GPU passes are held to (issue 42), what the reference stores of a
+the numpy oracle the GPU passes are held to, what the reference stores of a
 scene's point clouds and hair, and, as **Pieces**, what the GPU draws of both.
 
 - **Spheres** (point clouds): a centre and a radius each; Cycles intersects each point

@@ -55,7 +55,6 @@ EXIT_BAD_INPUT = 2
 EXIT_INTERRUPTED = 130  # 128 + SIGINT, what a shell reports for Ctrl-C
 EXIT_TERMINATED = 143  # 128 + SIGTERM, what a shell reports for `kill`
 EXIT_BUG = 1
-EXIT_FAILURE = EXIT_BUG  # the old name: since the exit contract, status 1 means a bug only
 
 # The contract as the commands' --help and the README state it.
 EXIT_CONTRACT = ("exit status: 0 done; 2 bad input or environment (one line on stderr names the problem "

@@ -1,6 +1,6 @@
 """Exact coverage of a triangle in a curved, cropped and warped layer, without tessellation.
 
-The numpy statement of the scheme the GPU-resident depth pass is built on (issue 17):
+The numpy statement of the scheme the GPU-resident depth pass is built on:
 each triangle is drawn as one conservative box (its footprint), and each texel in it
 keeps the triangle only if the texel's own ray, through the inverse map, passes
 inside the triangle. Coverage and depth are then exact at every texel centre, however

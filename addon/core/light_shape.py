@@ -1,4 +1,4 @@
-"""The light's own size: what makes its shadows soft (issue 27).
+"""The light's own size: what makes its shadows soft.
 
 One object per shape, each in the light's local frame (the light looks along local -Z):
 

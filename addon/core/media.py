@@ -1,4 +1,4 @@
-"""Homogeneous media: smoke, fog and tinted glass-like volumes on closed meshes (issue 43).
+"""Homogeneous media: smoke, fog and tinted glass-like volumes on closed meshes.
 
 A shadow ray through a medium of extinction sigma (per metre, one value per RGB channel)
 keeps exp(-sigma L) of its light, L the length of the ray inside the medium; Cycles

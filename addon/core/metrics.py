@@ -9,7 +9,7 @@ from .scene import LightSpec
 
 UNSHADOWED_EPS = 1e-6
 # A reference visibility strictly inside this band is fractional: light through see-through
-# surfaces (a curtain, a filtered cut-out edge; issue 25). The binary error leaves such
+# surfaces (a curtain, a filtered cut-out edge). The binary error leaves such
 # pixels out, as neither lit nor shadowed; the soft error measures them.
 FRACTIONAL_BAND = (0.02, 0.98)
 # A receiver lit within this cosine of edge-on has no shadow to measure: its shadow ray runs
@@ -128,7 +128,7 @@ def judge(visibility: np.ndarray, shadowed: np.ndarray, unshadowed: np.ndarray,
 
     A hard light's binary figure leaves its fractional pixels out (see-through light,
     filtered rims). A sized light's penumbra is what is measured, so its figure counts
-    every evaluated pixel on the side of 0.5 it falls (issue 27); `noise` (H, W), the
+    every evaluated pixel on the side of 0.5 it falls; `noise` (H, W), the
     reference's own per pixel, gives reference_noise_pct = 100 x its mean there."""
     ratio = reference_ratio(shadowed, unshadowed)
     ev = np.asarray(evaluable, dtype=bool)

@@ -48,7 +48,7 @@ class MeshSpec:
     vertices: np.ndarray  # (n, 3) float64, object space
     triangles: np.ndarray  # (m, 3) int64
     matrix_world: np.ndarray = field(default_factory=lambda: np.eye(4))
-    # A see-through material (issue 25): its alpha over the per-vertex UVs; None: opaque.
+    # A see-through material: its alpha over the per-vertex UVs; None: opaque.
     alpha: AlphaMap | None = None
     uvs: np.ndarray | None = None  # (n, 2) float64 per vertex, with `alpha`
 

@@ -61,7 +61,7 @@ log = logging.getLogger(__name__)
 # Part of the cache key: bump whenever the capture settings or outputs change.
 # 2: see-through materials keep their alpha (reference_materials), and the file's
 # triangles carry their surface (UVs, alpha maps); 3: the light's and camera's matrices
-# are the render depsgraph's (a light disabled in the viewport, issue 53).
+# are the render depsgraph's (a light disabled in the viewport).
 CAPTURE_VERSION = 3
 # Transparent bounces a camera or shadow ray may take through see-through surfaces.
 TRANSPARENT_BOUNCES = 256
@@ -557,7 +557,7 @@ def capture(scene: "bpy.types.Scene", samples: int = DEFAULT_SAMPLES, *, light: 
             # read before the reference materials replace the file's (their alpha).
             scene_triangles = render_triangles(scene, layer)
             # As Cycles evaluates them: the viewport does not evaluate an object disabled there
-            # (issue 53: an old file's hidden sun read as the identity, straight down).
+            # (an old file's hidden sun read as the identity, straight down).
             light_world = _render_matrix(scene_triangles, light_obj, "light")
             camera_world = _render_matrix(scene_triangles, cam_obj, "camera")
             authored = light_size.light_shape(light_obj, light_world)

@@ -26,7 +26,7 @@ Conventions (verified in tests/blender/test_reference.py):
   `alpha{i}_image` / `alpha{i}_transfer` pair a map (their names, interpolations and
   extensions in meta["alpha_maps"]); a file without them is all opaque. The homogeneous
   media (core/media.py) the triangles bound are `medium` (T,) int32 (-1: none) and
-  `media_sigma` (M, 3) float64, their names in meta["media"] (issue 43); a file without
+  `media_sigma` (M, 3) float64, their names in meta["media"]; a file without
   them has no media (its `uvs` and `material` are then written for media alone too).
 - The light's size as rendered (`light_shape()`, core/light_shape.py) is meta["light_shape"],
   as the file has it meta["light_shape_file"]; files without them are hard. A sized light's
@@ -34,11 +34,11 @@ Conventions (verified in tests/blender/test_reference.py):
   visibility (capture.py), the reference's own noise per pixel; a hard one has none.
 - `spheres` and `strands` (core/blockers.py): the point clouds and hair curves that block
   the light, world space, as `sphere_centres`/`sphere_radii` and `strand_points`/
-  `strand_radii`/`strand_offsets`/`strand_linear`; a file without them has none (issue 42).
+  `strand_radii`/`strand_offsets`/`strand_linear`; a file without them has none.
 - `grids` (core/media.GridMedium): the heterogeneous media of the Volume geometry that
   blocks the light (reference/volume_grids.py), as `grid{i}_density` (nz, ny, nx) float32,
   `grid{i}_to_index` (4, 4) and `grid{i}_sigma` (3,), their names in meta["grids"]; a
-  file without them has none (issue 43).
+  file without them has none.
 """
 from __future__ import annotations
 

@@ -11,13 +11,13 @@ rows, the report, the comparison panel and the log must say so:
   medium `material_media.material_medium` cannot follow (a density that varies in space,
   a light-path trick, an unknown node): Cycles and the reference (reference_materials)
   render the medium, the maps an opaque surface; the note says why for each material. A
-  homogeneous medium is drawn (issue 43: its triangles carry it, `Surface.medium`), so
+  homogeneous medium is drawn (its triangles carry it, `Surface.medium`), so
   it is not named;
 - **true displacement**: a material that displaces its surface at render time (the
   maps draw the undisplaced triangles, and so does the reference, whose white
   materials displace nothing).
 
-Hair curves, particle hair and point clouds are drawn (issue 42): `render_geometry`
+Hair curves, particle hair and point clouds are drawn: `render_geometry`
 keeps them as strands and spheres, every method but unfold draws them, and unfold's rows
 say so (compare._row_note). The type of an instance is what geometry nodes made it, not
 the type of the object that carries it: a volume made by a mesh object's modifier is

@@ -1,4 +1,4 @@
-"""A Blender light's own size, read as a `core.light_shape` and set for a render (issue 27).
+"""A Blender light's own size, read as a `core.light_shape` and set for a render.
 
 One place for what Cycles and EEVEE take as the light's size: a point or spot light's
 `shadow_soft_size` (a radius, not scaled by the object), a sun's `angle`, and an area

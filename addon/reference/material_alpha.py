@@ -1,4 +1,4 @@
-"""A material's alpha for shadow rays, read from its node tree as Cycles reads it (issue 25).
+"""A material's alpha for shadow rays, read from its node tree as Cycles reads it.
 
 From the Cycles material output the reader follows the shader on Surface: a Principled
 BSDF's Alpha, a Transparent BSDF (its colour's luminance is what passes), and Mix / Add

@@ -1,4 +1,4 @@
-"""A material's homogeneous medium, read from its volume graph as Cycles evaluates it (issue 43).
+"""A material's homogeneous medium, read from its volume graph as Cycles evaluates it.
 
 A medium is a material whose Volume output is linked and whose Surface output is not
 (`reference_materials.is_medium`): Cycles renders its mesh's faces as the medium's

@@ -1,4 +1,4 @@
-"""The materials the reference renders with: white diffuse, keeping the file's alpha (issue 25).
+"""The materials the reference renders with: white diffuse, keeping the file's alpha.
 
 The reference measures visibility, so every surface renders as a white Lambert that
 also writes its geometric normal to an AOV. A scene without see-through materials gets
@@ -17,7 +17,7 @@ samples take it. The alpha is read from the shader that reaches the Material Out
 a Principled BSDF's Alpha, Transparent BSDFs (alpha 0), and Mix Shaders of them,
 (1 - f) alpha_A + f alpha_B; any other shader is opaque.
 
-Volumes keep their shaders (issue 43): a material with a Volume output gets a copy that
+Volumes keep their shaders: a material with a Volume output gets a copy that
 keeps the volume graph (density, absorption and scattering as the file has them) and the
 white for its surface if it has one. The reference measures the light that reaches
 surfaces, and a camera ray that crosses a medium may end in it (measured in the
@@ -30,7 +30,7 @@ in fog) has the medium in its volume stack and its shadow ray is attenuated from
 receiver on; a homogeneous medium stays exact at one sample (exp(-sigma L) to 1e-6).
 Hiding the medium from camera rays instead (`visible_camera` off, the first version)
 left such receivers unshadowed (errors up to 0.8). Volume objects (OpenVDB grids) are
-guarded the same way and stay seen by camera rays (issue 43, grid media), so a receiver
+guarded the same way and stay seen by camera rays (grid media), so a receiver
 inside a cloud is shadowed by it from itself on; one without a material gets a guarded
 copy of Cycles' default volume shader (a Principled Volume of default inputs), and a
 material that geometry nodes set on a volume (Set Material), in no object's slots, is

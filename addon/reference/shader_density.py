@@ -1,4 +1,4 @@
-"""A mesh medium whose density comes from shader textures, read as a density grid (issue 43).
+"""A mesh medium whose density comes from shader textures, read as a density grid.
 
 An artist's cloud is often a cube of Principled Volume whose Density is a Noise Texture
 (through Math, Map Range, a Color Ramp, maybe a Mapping and a Texture Coordinate). Cycles

@@ -1,4 +1,4 @@
-"""A fluid simulation's smoke domain, read as the Volume geometry Cycles renders (issue 43).
+"""A fluid simulation's smoke domain, read as the Volume geometry Cycles renders.
 
 Cycles does not render a gas domain's mesh (`Fluid` modifier, domain type Gas): it makes
 the object Volume geometry whose grids are the simulation's (its Blender sync,

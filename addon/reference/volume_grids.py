@@ -1,4 +1,4 @@
-"""The density grids of the Volume geometry Cycles renders, read into `core.media.GridMedium` (issue 43).
+"""The density grids of the Volume geometry Cycles renders, read into `core.media.GridMedium`.
 
 Cycles shadows with Volume geometry (OpenVDB grids loaded from files, made by geometry
 nodes or by a Mesh to Volume modifier) as a heterogeneous medium: the extinction is its

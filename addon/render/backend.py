@@ -170,7 +170,6 @@ class ShadowBackend:
     finish_lists = _on_device(passes.exact.finish_lists)
     advance_lists = _on_device(passes.exact.advance_lists)
     edge_distance = _on_device(passes.edges.edge_distance)
-    shadow_test = _on_device(passes.shadow_test.shadow_test)
     run_shadow_test = _on_device(passes.shadow_test.run_shadow_test)
     read_shadow_test = _on_device(passes.shadow_test.read_shadow_test)
     resolve_visibility = _on_device(passes.shadow_test.resolve_visibility)

@@ -308,13 +308,8 @@ class BlenderGPUBackend(ShadowBackend):
 
     def __init__(self) -> None:
         super().__init__(BlenderDevice())
-        self.point_sprites = self.device.point_sprites
         self._gbuffer_target = None  # (size, texture, target) of samples_from_gbuffer
         self._overlay_dummy = None  # blender_draw's 1x1 texture for a sampler a mode skips
-
-    def shader(self, iface: Program):
-        """Build (once) the shader (or compute shader) for an interface."""
-        return self.device.shader(iface)
 
     def cached_batch(self, key: str):
         """A batch kept by this backend (released with it), or None."""
@@ -351,7 +346,7 @@ class BlenderGPUBackend(ShadowBackend):
         for key, obj in scene.objects.items():
             if obj.triangles == 0 or obj.pieces or obj.medium is not None:
                 # Pieces (hair, points) cast shadows but are not in the G-buffer here; a
-                # medium has no surface for the camera to see (issue 43).
+                # medium has no surface for the camera to see.
                 continue
             origin = obj.matrix[:3, :3] @ obj.origin + obj.matrix[:3, 3]
             values = {**uniforms, "ow_object_linear": obj.matrix[:3, :3], "ow_object_origin": origin}

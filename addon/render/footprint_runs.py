@@ -1,5 +1,5 @@
 """Which chunks of each resident object a layer's footprint pass draws, and how: point
-sprites, quads or not at all (issue 19's chunk culling), and the occluder region's
+sprites, quads or not at all (chunk culling), and the occluder region's
 uniforms; plus the host's counts of what the pass keeps, for measurement."""
 from __future__ import annotations
 

@@ -3,10 +3,10 @@ the context moderngl made current (EGL's eglGetProcAddress finds them).
 
 * `finish`: glFinish without the GIL. moderngl holds the GIL in every call, so a wait on
   minutes of queued GPU work kept the signal watchdog (core/interrupt.py) from running;
-  a ctypes call lets the GIL go while it blocks (issue 52).
+  a ctypes call lets the GIL go while it blocks.
 * time-elapsed queries read as 64 bits. moderngl 5.13 reads them into a 32-bit unsigned
   (`glGetQueryObjectuiv`): a stage of more than 2^32 ns, 4,295 ms, wrapped around, so frames
-  of 40 to 254 s all reported about 4,300 GPU ms (issue 53).
+  of 40 to 254 s all reported about 4,300 GPU ms.
 
 Everything is resolved once, on first use; where EGL or a call is missing, `GL_CALLS` is
 None and the moderngl device falls back to moderngl's own calls.

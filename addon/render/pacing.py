@@ -1,4 +1,4 @@
-"""Long GPU passes cut into slices that a signal can end between (issue 52).
+"""Long GPU passes cut into slices that a signal can end between.
 
 A draw call returns at once; the main thread blocks later, in the first call that waits
 for the GPU (a barrier, a read), for as long as everything queued takes. Python runs no
@@ -14,7 +14,7 @@ a slice. A pass expected to fit one slice is drawn whole, without a wait, so the
 measured repeats of a row (after its warm-up) keep the GPU's queue as it was. Slicing a
 draw keeps its primitives in order, so what it writes is the same.
 
-The viewport spreads a long recompute over several redraws (issue 52): with `stepping`
+The viewport spreads a long recompute over several redraws: with `stepping`
 on, a draw is cut into slices of about STEP_S, each waited for (llvmpipe does a draw's
 vertex work in the call itself and its fragments in its threads; the window's swap would
 wait for them anyway), and the pass yields after each, so the preview's draw callback can

@@ -1,5 +1,5 @@
 """One object per parameterization: how each plans a frame, maps and draws its layers,
-and what its shadow test needs (issue 17).
+and what its shadow test needs.
 
 A `Parameterization` has the same few methods for every method family:
 
@@ -235,7 +235,7 @@ class Projective(Parameterization):
 
     @staticmethod
     def _draw_exact(backend: ShadowBackend, inputs: DrawInputs, uniforms: dict) -> None:
-        """The irregular z-buffer over the map (issue 27): every triangle over a conservative
+        """The irregular z-buffer over the map: every triangle over a conservative
         cover of its image (footprint.vert's ow_projective_quad), walking the lists of the
         map's texels (tile 0, linked through the map's matrix). A spot's triangle is clipped
         to the map's front, w >= CLIP_NEAR_RELATIVE * far (the map's w is the depth along the

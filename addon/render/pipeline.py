@@ -408,7 +408,7 @@ def _completer(backend: ShadowBackend, test: dict | None) -> Callable[[], None]:
     return complete
 
 def media_drawn(light: LightSpec, settings: ShadowSettings) -> bool:
-    """Whether a frame draws its media (issue 43): the exact pass and the maps (their haze,
+    """Whether a frame draws its media: the exact pass and the maps (their haze,
     lib/media.glsl) do, for every light (a sized light's exact pass along a share of its
     points' segments, its maps along the ray to its centre), the light the media keep times
     the share that surfaces let through. Unfold does not: its media cast no shadow

@@ -1,4 +1,4 @@
-"""The scene as the GPU keeps it: triangles per object, uploaded once per change (issue 17).
+"""The scene as the GPU keeps it: triangles per object, uploaded once per change.
 
 An object is its vertices in its own frame (relative to its bounding box's centre) and a
 float64 affine matrix. A frame uploads nothing for an object whose geometry is unchanged;
@@ -14,13 +14,13 @@ the light in a 110 m scene keeps its shape), as the host's float64 light-centrin
 What the frame needs from the scene on the host is per object, not per triangle:
 the bounding box (the depth range) and the triangle count.
 
-Hair and point clouds (issue 42) are parts of **pieces** (core/blockers.Pieces): a piece
+Hair and point clouds are parts of **pieces** (core/blockers.Pieces): a piece
 is a sphere swept from a to b, its radius from ra to rb (a sphere: a == b), stored as a
 triangle (a, b, a) whose texels' w carry ra, rb and the run of pieces of its curve
 (`_piece_uvs`: the exact pass leaves a sample on a curve unshadowed by it). A strand's
 pieces are sampled from its curve once, when it is set, not per frame.
 
-See-through materials (issue 25): an object's triangles of one alpha material are a part
+See-through materials: an object's triangles of one alpha material are a part
 of their own, which carries that `AlphaMap` and each vertex's UV (in the w of its two
 texels); the depth pass draws such a part with the alpha variant. The opaque triangles
 stay a part as before, drawn by the same programs, so a scene without alpha is

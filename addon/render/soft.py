@@ -1,4 +1,4 @@
-"""What the shadow test and the exact pass read for a sized light (issue 27): one place that
+"""What the shadow test and the exact pass read for a sized light: one place that
 turns a light's shape and the frame's settings into the frame's sized-light mode
 (`sized_mode`), and that into the soft filter's uniforms (lib/soft.glsl) or the exact soft
 pass's (lib/exact_soft.glsl)."""

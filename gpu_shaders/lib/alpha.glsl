@@ -1,4 +1,4 @@
-// A see-through material's alpha at a surface point (issue 25): the GLSL of
+// A see-through material's alpha at a surface point: the GLSL of
 // addon/core/alpha.py's AlphaMap.sample, its numpy oracle (tests/gl/test_alpha_glsl.py).
 // The image is one R32F channel, row 0 at v = 0; ow_alpha_mode is the interpolation
 // (OW_INTERPOLATION_*) plus OW_ALPHA_INTERPOLATIONS times the extension (OW_EXTENSION_*). The

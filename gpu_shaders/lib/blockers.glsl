@@ -1,4 +1,4 @@
-// The blockers that are not triangles (issue 42): spheres (point clouds) and a strand's
+// The blockers that are not triangles: spheres (point clouds) and a strand's
 // pieces (capsules: a sphere swept from a to b, its radius from ra to rb), as the
 // footprint pass draws them (footprint.vert and .frag with OW_CAPSULES) and the exact
 // pass tests them per view sample. A sphere is a piece with a == b. core/blockers.py is

@@ -1,4 +1,4 @@
-// Exact soft shadows of a sized light (shaders.exact_soft_of, issue 27): the irregular
+// Exact soft shadows of a sized light (shaders.exact_soft_of): the irregular
 // z-buffer samples the light per view sample. Each sample p (light-centred) sees N fixed
 // points of the light; a triangle over p's texel marks, in N bits of the sample's words,
 // the points whose segment from p it crosses (lib/exact_soft_mark.glsl), and the shadow test weighs

@@ -1,4 +1,4 @@
-// The exact pass's test of a sized light (shaders.exact_soft_of, issue 27), for
+// The exact pass's test of a sized light (shaders.exact_soft_of), for
 // footprint_exact.frag: per view sample, which of the light's points (lib/exact_soft.glsl)
 // this triangle blocks, a cluster of points decided whole where the light as a whole allows.
 #include "lib/exact_soft.glsl"

@@ -1,5 +1,5 @@
-// A medium's crossings under a sized light (shaders.medium_of of the exact soft pass,
-// issue 43): each sample keeps the optical depths of ow_media_points of the light's points
+// A medium's crossings under a sized light (shaders.medium_of of the exact soft pass):
+// each sample keeps the optical depths of ow_media_points of the light's points
 // (a stratified share, lib/media.glsl's ow_media_point), three words a point (lib/media.glsl's
 // ow_media_mark), and the frame's reader and resolve weigh in the mean of the light they
 // keep. The segment from sample p to point k crosses the triangle where lib/exact_soft_mark.glsl's

@@ -3,7 +3,7 @@
 // triangle crosses. A sized light's test is lib/exact_soft_mark.glsl's (OW_EXACT_SOFT).
 
 #ifndef OW_FIXED_KIND
-// The exact pass over a spot's or sun's map (issue 27). Whether this triangle blocks the
+// The exact pass over a spot's or sun's map. Whether this triangle blocks the
 // light of sample p (light-centred); `sides` are p's sides of the three edge planes,
 // positive inside (footprint.vert: planes through a spot, or containing a sun's direction).
 // A spot is a point light: the plane must cut the segment from the light to p, more than

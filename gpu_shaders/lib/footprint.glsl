@@ -39,7 +39,7 @@ float ow_edge_planes(vec3 v0, vec3 v1, vec3 v2, float distance, out vec3 n0, out
 // ow_edge_planes gives it) and a point `at` on the plane, so that a sample p's side is
 // dot(p - at, normal). For p near the edge, a sample just beside an occluder, that keeps
 // the precision the plain dot(p, a x b) loses in float32 when the edge subtends a small
-// angle (8e-6 of 10 units on stress_million, against a true margin of 1.3e-6, issue 26).
+// angle (8e-6 of 10 units on stress_million, against a true margin of 1.3e-6).
 // The vertices are taken in one order whichever triangle asks, so a neighbour sharing the
 // edge gets the same numbers negated, and the two tests still split the samples without
 // a gap.

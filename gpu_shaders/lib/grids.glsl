@@ -1,4 +1,4 @@
-// Heterogeneous media (issue 43, core/media.py's GridMedium): density grids times an
+// Heterogeneous media (core/media.py's GridMedium): density grids times an
 // extinction per unit density, marched along the segment from each view sample to the
 // light by the shadow test's grids variant (shaders.grids_of). A grid is a 2D texture of
 // its z slices side by side (passes/media.py's grid_texels: slice k at column k % cols,

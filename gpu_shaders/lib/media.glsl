@@ -1,4 +1,4 @@
-// Homogeneous media (issue 43, core/media.py): a medium's closed triangles are no surface;
+// Homogeneous media (core/media.py): a medium's closed triangles are no surface;
 // the light a receiver gets through them is exp(-sigma L) per channel, L the length of its
 // segment to the light inside the medium. Each crossing of the segment adds its signed
 // distance: entering the medium (against the triangle's outward normal, walking from the

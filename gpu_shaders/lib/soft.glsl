@@ -1,4 +1,4 @@
-// Soft shadows of a sized light from its maps (shaders.soft_of, issue 27):
+// Soft shadows of a sized light from its maps (shaders.soft_of):
 // percentage-closer soft shadows whose kernel is the light itself. Needs the shadow test's
 // ow_point_tap (shadow_test.frag), which looks one light-centred direction up in whichever
 // layer holds it, through the layer's projection, crop and warp, so a kernel crosses the

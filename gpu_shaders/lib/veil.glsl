@@ -1,4 +1,4 @@
-// The veil of a shadow map (issue 25): the see-through surfaces (0 < alpha < 1) a texel's
+// The veil of a shadow map: the see-through surfaces (0 < alpha < 1) a texel's
 // ray crosses, which the map's one depth a texel cannot hold. Three R32UI words per atlas
 // texel, each filled in any order by atomics:
 // - ow_veil_optical: the crossings' optical depths -ln(1 - alpha), in units of

@@ -275,7 +275,7 @@ def test_float32_radial_depth_is_far_below_the_bias_at_every_ratio():
     """The storage rule of docs/stability.md: float32 keeps the stored radial distance
     within a tenth of the smallest bias even at near/far = 1e-6, while 24-bit fixed
     point fails from 1e-4 on; that is why depth is stored as R32F."""
-    from addon.core import precision
+    from scripts import depth_precision as precision
 
     bias = precision.constant_bias(4096)
     for ratio in precision.RATIOS:

@@ -244,7 +244,7 @@ def backends(out: str, reference: str | None = None) -> None:
         arrays[f"boxed_{param}_atlas"] = result.atlas
     # Point sprites (the footprint pass's small-triangle chunks) on Blender's backend.
     cloud, cloud_samples = point_cloud()
-    arrays["point_sprites"] = np.array(backend.point_sprites)
+    arrays["point_sprites"] = np.array(backend.device.point_sprites)
     for param in POINT_CASES:
         result = pipeline.render(LightSpec("omni", np.eye(4)), cloud, cloud_samples,
                                  ShadowSettings(param, 256, cull=False), keep_atlas=True)

@@ -203,7 +203,7 @@ def hold_rounds(backend, layout: AtlasLayout, passes: list) -> None:
 
 def finish_lists(backend) -> int:
     """Later rounds of the exact pass until every list entry met every triangle over its
-    texel (issue 26); returns the rounds drawn after the first (0 when `hold_rounds` kept
+    texel; returns the rounds drawn after the first (0 when `hold_rounds` kept
     nothing). A round whose walks stopped at their bound moves each list's head past the
     entries walked (backend.advance_lists) and draws the layers again, scissored to the
     texels whose lists go on, with twice the bound; so a texel of n samples takes about

@@ -1,4 +1,4 @@
-"""Volumes on the GPU (issue 43, core/media.py): for homogeneous media (lib/media.glsl)
+"""Volumes on the GPU (core/media.py): for homogeneous media (lib/media.glsl)
 the frame's fixed-point units and the extinction at the light, the exact pass's optical
 depths per view sample and the maps' haze per texel; and the density grids (GridStore,
 lib/grids.glsl) that the shadow test marches.

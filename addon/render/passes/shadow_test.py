@@ -92,8 +92,3 @@ def resolve_visibility(backend, target: Target, marks: bool) -> None:
         device.draw(RESOLVE_PROGRAM, uniforms, {"ow_test": held.test[0], "ow_positions": backend.textures["ow_positions"]},
                     images={"ow_hits": hits, "ow_media": media})
 
-
-def shadow_test(backend, uniforms: UniformValues) -> np.ndarray:
-    """Run the shadow test and read it back (`run_shadow_test`, `read_shadow_test`)."""
-    run_shadow_test(backend, uniforms)
-    return read_shadow_test(backend)

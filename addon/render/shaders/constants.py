@@ -133,7 +133,7 @@ EXACT_MAX_WALK = 4096
 # of the texels whose lists go on into the next round.
 WORK_CUT, WORK_ENTRIES, WORK_FRAGMENTS, WORK_BOX = 0, 1, 2, 8
 WORK_TEXELS = WORK_BOX + 4 * SLOTS
-# Exact soft shadows of a sized light (lib/exact_soft.glsl, issue 27): the exact pass marks,
+# Exact soft shadows of a sized light (lib/exact_soft.glsl): the exact pass marks,
 # per view sample, which of the light's N points (a square) each triangle blocks, in N bits
 # of the sample's words (EXACT_SOFT_WORDS texels of the hits image, rows apart); the shadow
 # test weighs the points left. The points go in clusters of EXACT_SOFT_CLUSTER, two to a
@@ -143,7 +143,7 @@ EXACT_SOFT_MAX_POINTS = 256
 EXACT_SOFT_WORDS = EXACT_SOFT_MAX_POINTS // 32
 EXACT_SOFT_CLUSTER = 16
 
-# Density grids (lib/grids.glsl, issue 43): the most a frame marches through (one sampler
+# Density grids (lib/grids.glsl): the most a frame marches through (one sampler
 # each), and the most steps of half a voxel a sample's segment takes through one of them.
 GRID_MAX = 4
 GRID_MAX_STEPS = 1024
@@ -155,7 +155,7 @@ GRID_LIGHT_POINTS = 16
 # indices, four a vec4).
 MEDIA_POINTS = 144
 
-# Soft shadows of a sized light (lib/soft.glsl, issue 27): the light's points a shadow test
+# Soft shadows of a sized light (lib/soft.glsl): the light's points a shadow test
 # reads (core/light_shape.stratified_points, at most SOFT_MAX_POINTS), and the steps of its
 # blocker search along each segment to the light.
 SOFT_MAX_POINTS = 64

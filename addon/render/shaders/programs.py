@@ -33,7 +33,7 @@ EXACT_SOFT_PROGRAMS = tuple(exact_soft_of(iface) for iface in (*EXACT_PROGRAMS, 
                                                               *VARIANT_PROGRAMS)
                             if (EXACT_DEFINE in iface.defines and POINTS_DEFINE not in iface.defines)
                             or is_shadow_test(iface))
-# Media (issue 43): the exact pass's and the maps' medium variants, the haze's shadow tests,
+# Media: the exact pass's and the maps' medium variants, the haze's shadow tests,
 # and the exact soft shadow tests that weigh the media per light point.
 MEDIA_PROGRAMS = tuple(medium_of(exact_of(iface, count)) for iface in _FOOTPRINTS for count in (False, True)) + tuple(
     medium_of(exact_soft_of(exact_of(iface, count))) for iface in _FOOTPRINTS for count in (False, True)

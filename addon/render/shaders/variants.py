@@ -34,7 +34,7 @@ EXACT_DEFINE = "OW_EXACT"
 # The exact pass's counting variant (a measurement frame, ShadowPipeline.render(count_work=
 # True)): its fragments also count the entries they walk. A define, not a uniform: on
 # llvmpipe a branch on a uniform still runs its atomics masked, and those cost ordinary
-# frames about a tenth of the pass (issue 26).
+# frames about a tenth of the pass.
 EXACT_COUNT_DEFINE = "OW_EXACT_COUNT"
 EXACT_COUNT_KEY = "ow_exact_count"  # the uniforms' key that picks the counting variant
 EXACT_SOFT_DEFINE = "OW_EXACT_SOFT"
@@ -46,7 +46,7 @@ PIECES_DEFINE = "OW_PIECES"
 # The veil of a map (lib/veil.glsl): the see-through crossings of each atlas texel, written
 # by the see-through footprint programs and read by the shadow test's veil variant.
 VEIL_DEFINE = "OW_VEIL"
-# A part of a homogeneous medium (issue 43, lib/media.glsl): the exact pass sums its crossings
+# A part of a homogeneous medium (lib/media.glsl): the exact pass sums its crossings
 # per sample (ow_media), the maps per texel (the haze, read by the shadow test's haze variant).
 MEDIUM_DEFINE = "OW_MEDIUM"
 HAZE_DEFINE = "OW_HAZE"
@@ -177,7 +177,7 @@ def exact_of(base: ProgramInterface, count: bool = False) -> ProgramInterface:
 
 def exact_variant(uniforms: dict, points: bool = False, see_through: bool = False,
                   pieces: bool = False, medium: bool = False) -> ProgramInterface:
-    """The footprint pass of the irregular z-buffer (issue 19): each fragment walks its
+    """The footprint pass of the irregular z-buffer: each fragment walks its
     texel's list of samples (link_variant) and marks those whose segment to the light the
     triangle crosses, instead of storing a depth; `see_through` for an object with alpha,
     `pieces` for a part of hair or points, the counting variant when
@@ -194,8 +194,8 @@ def exact_variant(uniforms: dict, points: bool = False, see_through: bool = Fals
 
 
 def exact_soft_of(base: ProgramInterface) -> ProgramInterface:
-    """The exact pass's or the shadow test's variant for a sized light (lib/exact_soft.glsl,
-    issue 27): the footprints grown to the light's reach and N light points marked per
+    """The exact pass's or the shadow test's variant for a sized light (lib/exact_soft.glsl):
+    the footprints grown to the light's reach and N light points marked per
     sample, or the marks weighed into the sample's visibility. Hard lights keep the plain
     programs, unchanged."""
     footprint_pass = is_footprint(base) and EXACT_DEFINE in base.defines
@@ -230,7 +230,7 @@ def exact_soft_media_of(base: ProgramInterface) -> ProgramInterface:
 
 
 def alpha_of(base: ProgramInterface) -> ProgramInterface:
-    """The see-through variant of a footprint or G-buffer program (issue 25): the texel's
+    """The see-through variant of a footprint or G-buffer program: the texel's
     ray meets the triangle, its barycentrics give the UV and the material's alpha
     (lib/alpha.glsl) drops the fragment or, in the exact pass (exact_of of this variant),
     weighs the crossing; the G-buffer drops what the camera sees through. Objects without
@@ -246,7 +246,7 @@ def alpha_of(base: ProgramInterface) -> ProgramInterface:
 
 
 def pieces_of(base: ProgramInterface) -> ProgramInterface:
-    """The footprint pass's variant for a part of pieces (issue 42): each piece (a sphere
+    """The footprint pass's variant for a part of pieces: each piece (a sphere
     swept from a to b) over the box of its bounding box's image, its fragments finding
     their ray's entry or walking their samples' segments against it. Parts of triangles
     keep the plain programs, unchanged."""
@@ -260,8 +260,8 @@ def pieces_of(base: ProgramInterface) -> ProgramInterface:
 
 
 def medium_of(base: ProgramInterface) -> ProgramInterface:
-    """The footprint pass's variant for a part of a homogeneous medium (issue 43,
-    lib/media.glsl): in the exact pass (a base from exact_of) each listed sample's segment
+    """The footprint pass's variant for a part of a homogeneous medium
+    (lib/media.glsl): in the exact pass (a base from exact_of) each listed sample's segment
     adds its signed crossing to the sample's optical depths (ow_media); in the maps each
     texel's ray adds its crossing to the texel's haze. Its triangles store no depth."""
     if not is_footprint(base):
@@ -294,7 +294,7 @@ GRID_UNIFORMS = uniform_list("int ow_grid_count", f"mat4 ow_grid_to_index[{GRID_
 
 def grids_of(base: ProgramInterface) -> ProgramInterface:
     """The shadow test's variant that marches each sample's segment to the light through
-    the frame's density grids (lib/grids.glsl, issue 43), for any method. Frames without
+    the frame's density grids (lib/grids.glsl), for any method. Frames without
     grids keep their test, unchanged."""
     if not is_shadow_test(base):
         raise BackendError(f"program {base.name!r} has no grids variant")
@@ -349,7 +349,7 @@ def _fixed_kind(uniforms: dict) -> int | None:
 
 def link_variant(uniforms: dict) -> ComputeInterface:
     """The scatter through the full warp that links each sample into its texel's list (the
-    irregular z-buffer's lists, issue 19) instead of counting: `ow_counts` gets the heads,
+    irregular z-buffer's lists) instead of counting: `ow_counts` gets the heads,
     `ow_next` (one texel a sample) the links."""
     return link_kind_variant(_fixed_kind(uniforms))
 

@@ -1,6 +1,6 @@
 """Depth-precision study: how well normalised radial depth survives storage.
 
-    python -m addon.core.precision        prints the markdown table of docs/stability.md
+    python scripts/depth_precision.py    prints the markdown table of docs/stability.md
 
 The depth pass stores d = (L - near) / (far - near) and the test reads back
 L' = near + d (far - near). The relative error |L' - L| / L must stay well below the
