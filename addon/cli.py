@@ -48,7 +48,7 @@ from .core.scene import parse_size
 from .reference.capture import DEFAULT_SAMPLES, SOFT_SAMPLES
 from .render.frame import EXACT_SAMPLES, check_exact_samples
 from .render.shaders import EXACT_SOFT_MAX_POINTS
-from .rows import row_label
+from .core.rows import row_label
 
 log = logging.getLogger("omniwarp")
 
@@ -235,7 +235,7 @@ def _say_line_gaps() -> None:
 
     if importlib.util.find_spec("bpy") is None:
         return
-    from .render.blender_compat import line_gaps
+    from .compat.blender import line_gaps
 
     for gap in line_gaps():
         _say(f"note: {gap.text}")
@@ -430,7 +430,7 @@ def _check_stored_settings(light_name: str | None) -> None:
     the add-on is registered in the preview's child process only."""
     import bpy
 
-    from .render import blender_compat
+    from .compat import blender as blender_compat
     from .render.pipeline import BiasSettings
 
     default = BiasSettings()

@@ -37,7 +37,7 @@ from .compare import CompareOptions, Progress, check_some_fit, row_finished
 from .core import interrupt
 from .core.errors import OmniWarpError
 from .render.pipeline import ShadowPipeline
-from .rows import Row
+from .core.rows import Row
 from .shots import Job, run_job
 
 log = logging.getLogger(__name__)

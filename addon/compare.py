@@ -42,7 +42,7 @@ from .render.pipeline import (
 )
 from .render import soft
 from .render.resident import ResidentScene
-from .rows import Row, make_row, row_key
+from .core.rows import Row, make_row, row_key
 
 log = logging.getLogger(__name__)
 
@@ -238,7 +238,7 @@ def _row_note(light: LightSpec, settings: ShadowSettings, scene: ResidentScene,
               ref: ReferenceData | None = None) -> str | None:
     """What a row leaves out of the scene as the reference renders it, or None: the
     geometry no method draws that blocks the reference's light (its `left_out` notes,
-    reference/left_out.py), and this method's own limits."""
+    readers/left_out.py), and this method's own limits."""
     notes = list(ref.meta.get("left_out", ())) if ref is not None else []
     if settings.parameterization == "unfold" and scene_has_alpha(scene):
         notes.append(UNFOLD_ALPHA_NOTE)

@@ -10,7 +10,7 @@ from collections.abc import Sequence
 from pathlib import Path
 
 from .core.raster_plot import MARKERS, Chart, Line, Series, write_chart
-from .rows import SHOT_FIELDS, Row, row_label
+from .core.rows import SHOT_FIELDS, Row, row_label
 
 log = logging.getLogger(__name__)
 
@@ -106,7 +106,7 @@ def list_table(rows: Sequence[Row]) -> str:
 def _scene_notes(rows: Sequence[dict]) -> list[str]:
     """One line per scene and note: what its rows cannot follow (see shadow_rule.unfollowed),
     then the rows' notes: once for a note every OmniWarp row of the scene carries (what no
-    method draws, reference/left_out.py), else per method (a method's own limit there)."""
+    method draws, readers/left_out.py), else per method (a method's own limit there)."""
     lines = []
     for preset in sorted({r["preset"] for r in rows}):
         notes = next((r["scene_notes"] for r in rows if r["preset"] == preset and r.get("scene_notes")), [])

@@ -21,7 +21,7 @@ from .core.errors import InputError, OmniWarpError
 from .reference.capture import DEFAULT_SAMPLES, SOFT_SAMPLES
 from .reference.data import ReferenceData
 from .render.pipeline import ShadowPipeline
-from .rows import Row, with_shot
+from .core.rows import Row, with_shot
 
 log = logging.getLogger(__name__)
 
@@ -117,15 +117,15 @@ def blend_jobs(path: Path, frames: list[int] | None, lights: list[str] | None, c
     import bpy
 
     from .reference.blend_file import open_blend
-    from .reference.capture import (_LIGHT_TYPES, _emission_of, _render_visible_objects, evaluated_depsgraph,
+    from .reference.capture import (LIGHT_TYPES, emission_of, render_visible_objects, evaluated_depsgraph,
                                     pick_view_layer)
 
     open_blend(path)  # replaces bpy's in-memory data only; nothing is ever saved back
     scene = bpy.context.scene
     layer = pick_view_layer(scene)
     evaluated_depsgraph(scene, layer)  # syncs the view layer before its collections are read
-    visible = _render_visible_objects(layer)
-    usable = {o.name: o for o in scene.objects if o.type == "LIGHT" and o.data.type in _LIGHT_TYPES
+    visible = render_visible_objects(layer)
+    usable = {o.name: o for o in scene.objects if o.type == "LIGHT" and o.data.type in LIGHT_TYPES
               and o.name_full in visible}
     if lights == ["all"]:
         if not usable:
@@ -149,7 +149,7 @@ def blend_jobs(path: Path, frames: list[int] | None, lights: list[str] | None, c
     # The file's only light (None: capture names what is missing) or the named ones.
     checked = lights if lights is not None else sorted(usable)
     if checked:
-        check({f"{path.stem}/{name}": _emission_of(usable[name].data) for name in checked})
+        check({f"{path.stem}/{name}": emission_of(usable[name].data) for name in checked})
     # The image names carry what varies: the frame of a range, the light and camera of several.
     plural = (frames is not None, len(lights or []) > 1, len(cameras or []) > 1)
     jobs = []

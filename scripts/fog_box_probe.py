@@ -27,7 +27,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 def settle(scene, spp: int) -> None:
     """The reference's render settings, as far as the probe needs them."""
-    from addon.render import blender_compat
+    from addon.compat import blender as blender_compat
 
     cycles = scene.cycles
     cycles.device, cycles.samples, cycles.use_denoising, cycles.use_adaptive_sampling = "CPU", spp, False, False

@@ -18,7 +18,7 @@ from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
-from addon.rows import row_key  # noqa: E402  (what tells two rows of one run apart)
+from addon.core.rows import row_key  # noqa: E402  (what tells two rows of one run apart)
 
 
 class TableError(Exception):

@@ -315,3 +315,67 @@ def test_the_code_names_no_issue_numbers() -> None:
     named = [f"{p.relative_to(REPO_ROOT)}:{i}" for p in sorted(files)
              for i, line in enumerate(p.read_text(encoding="utf-8").splitlines(), 1) if pattern.search(line)]
     assert not named, "issue numbers in the code:\n" + "\n".join(named)
+
+
+# docs/design.md section 2: a package imports only those of a lower rank (the top-level
+# modules and the UI share the top rank and may import each other).
+RANKS = {"core": 1, "compat": 2, "render": 3, "readers": 4, "reference": 5, "blender": 6}
+TOP_RANK = 6
+
+
+def _rank(module: str) -> tuple[str, int]:
+    """The unit a dotted `addon...` name belongs to (a package of addon/, or the top
+    level) and its rank."""
+    parts = module.split(".")
+    if len(parts) > 1 and parts[1] in RANKS:
+        return parts[1], RANKS[parts[1]]
+    return "addon", TOP_RANK
+
+
+def test_packages_import_only_downward() -> None:
+    """Every import between two packages of addon/ runs to a lower rank, as design.md
+    section 2's table says; the packages there are the ones on disk."""
+    assert set(RANKS) == {p.name for p in ADDON.iterdir() if p.is_dir() and any(p.glob("*.py"))}
+    bad = []
+    for path in sorted(ADDON.rglob("*.py")):
+        if "__pycache__" in path.parts:
+            continue
+        source, rank = _rank(_module_name(path)[0])
+        for ref in _imports(path):
+            if not ref.target.startswith("addon."):
+                continue
+            target, target_rank = _rank(ref.target)
+            if target != source and target_rank >= rank and not (rank == TOP_RANK and target_rank == TOP_RANK):
+                bad.append(ref.where())
+    assert not bad, "imports that run up or sideways:\n" + "\n".join(sorted(set(bad)))
+
+
+def _private_uses(path: Path) -> list[str]:
+    """`from x import _name` and `module._name` where `module` is an import of this file."""
+    tree = ast.parse(path.read_text(encoding="utf-8"))
+    modules: set[str] = set()
+    found = []
+    for node in ast.walk(tree):
+        if isinstance(node, ast.ImportFrom) and node.module != "__future__":
+            for alias in node.names:
+                if alias.name.startswith("_") and not alias.name.startswith("__"):
+                    found.append(f"{path.relative_to(REPO_ROOT)}:{node.lineno} imports {alias.name}")
+                if node.level and not node.module or alias.name.islower():
+                    modules.add(alias.asname or alias.name)
+        elif isinstance(node, ast.Import):
+            modules.update((alias.asname or alias.name).partition(".")[0] for alias in node.names)
+    for node in ast.walk(tree):
+        if (isinstance(node, ast.Attribute) and isinstance(node.value, ast.Name) and node.value.id in modules
+                and node.attr.startswith("_") and not node.attr.startswith("__")):
+            found.append(f"{path.relative_to(REPO_ROOT)}:{node.lineno} uses {node.value.id}.{node.attr}")
+    return found
+
+
+def test_no_module_uses_another_modules_private_names() -> None:
+    """A name starting with `_` is its module's own: another module that needs it needs a
+    public name (or the code belongs with it)."""
+    own = {"os": {"_exit"}, "sys": {"_getframe"}}  # the standard library's own public-by-use names
+    bad = [use for path in sorted(ADDON.rglob("*.py")) if "__pycache__" not in path.parts
+           for use in _private_uses(path)
+           if not any(f" uses {mod}.{name}" in use for mod, names in own.items() for name in names)]
+    assert not bad, "private names used across modules:\n" + "\n".join(bad)

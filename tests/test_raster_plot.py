@@ -12,7 +12,7 @@ import pytest
 
 from addon import report
 from addon.core import bitmap_font, raster_plot
-from addon.rows import make_row
+from addon.core.rows import make_row
 from tests.test_png import read_png
 
 

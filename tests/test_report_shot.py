@@ -5,7 +5,7 @@ from __future__ import annotations
 from types import SimpleNamespace
 
 from addon.report import grouped, markdown_table, write_frame_plot
-from addon.rows import make_row, row_key
+from addon.core.rows import make_row, row_key
 
 
 def _row(method: str, frame: int | None = None, light: str | None = None, error: float = 0.1) -> dict:

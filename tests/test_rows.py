@@ -1,4 +1,4 @@
-"""The typed results row (addon/rows.py) and how the report shows it."""
+"""The typed results row (addon/core/rows.py) and how the report shows it."""
 from __future__ import annotations
 
 from types import SimpleNamespace
@@ -6,7 +6,7 @@ from types import SimpleNamespace
 import pytest
 
 from addon import report
-from addon.rows import make_row, row_key, row_label
+from addon.core.rows import make_row, row_key, row_label
 
 FIGURE = SimpleNamespace(error_pct=0.1, false_shadow_pct=0.06, false_lit_pct=0.04, evaluated_pixels=1000)
 

@@ -1,4 +1,4 @@
-"""reference/smoke_domains.py maps a smoke domain's voxels as Cycles' sync does (issue 43).
+"""readers/smoke_domains.py maps a smoke domain's voxels as Cycles' sync does (issue 43).
 
 Mantaflow does not run in the PyPI bpy, so no baked domain can be made here: these tests
 hand `smoke_medium` stand-ins for the depsgraph instance, its modifier settings and its
@@ -13,7 +13,7 @@ from types import SimpleNamespace
 import numpy as np
 import pytest
 
-from addon.reference import smoke_domains
+from addon.readers import smoke_domains
 
 
 class _Grid:

@@ -62,7 +62,7 @@ def _gpu_backend() -> str | None:
 
 
 def job_spec(job: Any) -> dict:
-    """What the child needs to rebuild the job (compare_job._Job; compare_child.job_from_spec)."""
+    """What the child needs to rebuild the job (compare_job.PanelJob; compare_child.job_from_spec)."""
     options = job.options
     return {"parent_pid": os.getpid(), "source": job.source, "preset": job.preset,
             "scene_name": job.scene_name, "camera_size": list(job.camera_size), "light_name": job.light_name,

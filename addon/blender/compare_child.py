@@ -22,12 +22,12 @@ import bpy
 from .. import compare, report
 from . import registration
 from .compare_background import EVENTS_FILE
-from .compare_job import _failure, _Job, measure_step
+from .compare_job import PanelJob, failure_text, measure_step
 from .compare_props import PLOT_FILE
 
 log = logging.getLogger(__name__)
 
-def job_from_spec(spec: dict) -> _Job:
+def job_from_spec(spec: dict) -> PanelJob:
     """The child's job, from `job_spec`'s dictionary."""
     out_dir = Path(spec["out_dir"])
     options = compare.CompareOptions(methods=tuple(spec["methods"]), resolutions=tuple(spec["resolutions"]),
@@ -36,7 +36,7 @@ def job_from_spec(spec: dict) -> _Job:
     for scene in bpy.data.scenes:  # the copy's scene of that name (a preset needs none)
         if scene.name == spec["scene_name"]:
             scene_uid = scene.session_uid
-    return _Job(scene_name=spec["scene_name"], scene_uid=scene_uid, source=spec["source"], preset=spec["preset"],
+    return PanelJob(scene_name=spec["scene_name"], scene_uid=scene_uid, source=spec["source"], preset=spec["preset"],
                 camera_size=tuple(spec["camera_size"]), light_name=spec["light_name"], hard=spec["hard"],
                 tasks=[tuple(task) for task in spec["tasks"]], options=options, out_dir=out_dir,
                 image_dir=out_dir / "images", keep_rows=spec["keep_rows"])
@@ -99,7 +99,7 @@ def run(spec: dict) -> None:
         events.write("done", plot=plot, warnings=warnings)
     except Exception as exc:  # noqa: BLE001 - any failure is reported to the panel, then logged
         log.exception("background comparison failed")
-        events.write("failed", message=_failure(exc))
+        events.write("failed", message=failure_text(exc))
     finally:
         if "job" in locals():
             job.release()

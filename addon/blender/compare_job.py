@@ -26,13 +26,13 @@ from .. import compare, report
 from . import compare_background
 from ..core import methods as method_registry
 from ..core.errors import InputError, OmniWarpError
-from ..rows import Row, make_row
+from ..core.rows import Row, make_row
 from .compare_props import (
     PLOT_FILE,
     PLOT_IMAGE_NAME,
     OMNIWARP_PG_comparison,
     Report,
-    _show_mismatch,
+    show_mismatch,
     clear_presets,
     load_image,
     preset_info,
@@ -51,7 +51,7 @@ _ROWS: dict[int, list[dict]] = {}
 
 
 @dataclass
-class _Job:
+class PanelJob:
     """One comparison run: what to measure and what has been measured."""
 
     scene_name: str
@@ -104,7 +104,7 @@ class _Job:
             self.pipeline = None
 
 
-_ACTIVE: _Job | None = None  # the job of the running modal operator, if any
+_ACTIVE: PanelJob | None = None  # the job of the running modal operator, if any
 
 
 def is_running() -> bool:
@@ -112,12 +112,12 @@ def is_running() -> bool:
     return _ACTIVE is not None
 
 
-def active_job() -> _Job | None:
+def active_job() -> PanelJob | None:
     """The job of the running modal comparison, if any."""
     return _ACTIVE
 
 
-def set_active(job: _Job | None) -> None:
+def set_active(job: PanelJob | None) -> None:
     """Make `job` the running modal comparison (None: none runs)."""
     global _ACTIVE
     _ACTIVE = job
@@ -138,7 +138,7 @@ def free_state() -> None:
     clear_presets()
 
 
-def remove_timer(job: _Job, wm: bpy.types.WindowManager | None) -> None:
+def remove_timer(job: PanelJob, wm: bpy.types.WindowManager | None) -> None:
     """Stop the modal run's window-manager timer."""
     if job.timer is not None and wm is not None:
         wm.event_timer_remove(job.timer)
@@ -153,7 +153,7 @@ def _safe_label(name: str) -> str:
     return re.sub(r"[^A-Za-z0-9_.-]+", "_", name).strip("._") or "scene"
 
 
-def _scene_light(context: bpy.types.Context, scene: bpy.types.Scene) -> str | None:
+def scene_light(context: bpy.types.Context, scene: bpy.types.Scene) -> str | None:
     """The active object when it is a light OmniWarp shadows (else capture picks the only one)."""
     obj = getattr(context, "active_object", None)
     if (obj is not None and obj.type == "LIGHT" and obj.data.type in SUPPORTED_LIGHT_TYPES
@@ -168,7 +168,7 @@ def _output_dir() -> Path:
     return Path(tempfile.mkdtemp(prefix="omniwarp_compare_", dir=base))
 
 
-def start_job(context: bpy.types.Context, report_fn: Report) -> _Job | None:
+def start_job(context: bpy.types.Context, report_fn: Report) -> PanelJob | None:
     """Validate the settings and set up a job; None (after an error report) if they are bad.
 
     Nothing is changed before the input is valid; then the results are cleared unless
@@ -197,7 +197,7 @@ def start_job(context: bpy.types.Context, report_fn: Report) -> _Job | None:
             report_fn({"ERROR"}, f"Scene {scene.name!r} has no active camera: the Cycles reference needs one")
             return None
         preset = _safe_label(scene.name)
-        light_name = _scene_light(context, scene)
+        light_name = scene_light(context, scene)
     out_dir = _output_dir()
     # The plot and the images need numpy only (core/png.py, core/raster_plot.py where
     # matplotlib is missing, as in a stock Blender), so every run writes them.
@@ -207,19 +207,19 @@ def start_job(context: bpy.types.Context, report_fn: Report) -> _Job | None:
     if not settings.keep_previous:
         settings.results.clear()
         settings.active_result = 0
-    job = _Job(scene_name=scene.name, scene_uid=scene.session_uid, source=settings.source, preset=preset,
+    job = PanelJob(scene_name=scene.name, scene_uid=scene.session_uid, source=settings.source, preset=preset,
                camera_size=(int(settings.camera_size[0]), int(settings.camera_size[1])), light_name=light_name,
                hard=bool(settings.hard),
                tasks=[(m, r) for m in methods for r in resolutions], options=options, out_dir=out_dir,
                image_dir=out_dir / "images", keep_rows=keep)
     _ROWS[scene.session_uid] = list(keep)
     settings.progress = 0.0
-    settings.status = f"Starting: {_rows_text(len(job.tasks))} of {preset}"
+    settings.status = f"Starting: {rows_text(len(job.tasks))} of {preset}"
     log.info("comparison of %s: %d rows into %s", preset, len(job.tasks), out_dir)
     return job
 
 
-def _find_scene(job: _Job) -> bpy.types.Scene | None:
+def _find_scene(job: PanelJob) -> bpy.types.Scene | None:
     """The job's scene, by session uid (a renamed scene is still found; another file's is not)."""
     for scene in bpy.data.scenes:
         if scene.session_uid == job.scene_uid:
@@ -227,7 +227,7 @@ def _find_scene(job: _Job) -> bpy.types.Scene | None:
     return None
 
 
-def _job_scene(job: _Job) -> bpy.types.Scene:
+def _job_scene(job: PanelJob) -> bpy.types.Scene:
     scene = _find_scene(job)
     if scene is None:
         raise InputError(f"scene {job.scene_name!r} was removed during the comparison")
@@ -247,7 +247,7 @@ def reference_cache_dir() -> Path | None:
     return Path(bpy.utils.extension_path_user(package, path="reference", create=True))
 
 
-def _load_reference(job: _Job) -> None:
+def _load_reference(job: PanelJob) -> None:
     """Step 0: the Cycles reference (cached for presets) and the Blender-gpu pipeline."""
     from ..reference.cache import load_or_capture
     from ..reference.capture import capture
@@ -293,7 +293,7 @@ def _store_row(settings: OMNIWARP_PG_comparison, row: dict) -> None:
     item.note = row.get("note") or ""
 
 
-def _drop_unfit_tasks(job: _Job) -> str:
+def _drop_unfit_tasks(job: PanelJob) -> str:
     """Drop the ticked methods the reference's light does not take (as `compare` skips
     them); an InputError when none is left. Returns a note for the step's message."""
     emission = job.reference.emission
@@ -307,7 +307,7 @@ def _drop_unfit_tasks(job: _Job) -> str:
     return f"; skipped {', '.join(unfit)}: they do not fit a {emission} light"
 
 
-def measure_step(job: _Job) -> dict | None:
+def measure_step(job: PanelJob) -> dict | None:
     """Do the next step, touching no Blender property: the reference (None), or one row
     (returned, its image paths absolute). What the background job's child runs
     (compare_child.py), and `step_job` in Blender's own process."""
@@ -327,14 +327,14 @@ def measure_step(job: _Job) -> dict | None:
     return row
 
 
-def step_text(job: _Job, row: dict | None, seconds: float) -> str:
+def step_text(job: PanelJob, row: dict | None, seconds: float) -> str:
     """What a step did, for the log."""
     if row is None:
         return f"reference of {job.preset} ready in {seconds:.1f} s{job.note}"
     return f"{row['method']} @ {row['resolution']}: {row['error_pct']:.3f} % error, {row['time_ms']['total']:.1f} ms"
 
 
-def store_row(job: _Job, row: dict) -> None:
+def store_row(job: PanelJob, row: dict) -> None:
     """Show a measured row in the job's scene (the results list) and keep it for export."""
     scene = _find_scene(job)
     _ROWS.setdefault(job.scene_uid, []).append(row)
@@ -342,7 +342,7 @@ def store_row(job: _Job, row: dict) -> None:
         _store_row(scene.omniwarp_compare, row)
 
 
-def show_progress(job: _Job) -> None:
+def show_progress(job: PanelJob) -> None:
     """The job's progress and status line in its scene's settings (the panel draws them)."""
     scene = _find_scene(job)
     if scene is not None:
@@ -350,7 +350,7 @@ def show_progress(job: _Job) -> None:
         scene.omniwarp_compare.status = status_line(job)
 
 
-def step_job(job: _Job) -> str:
+def step_job(job: PanelJob) -> str:
     """Do the next step (the reference, or one row) in this process; returns what it did."""
     _job_scene(job)  # removed during the run: stop here, with its name
     start = time.perf_counter()
@@ -361,14 +361,14 @@ def step_job(job: _Job) -> str:
     return step_text(job, row, time.perf_counter() - start)
 
 
-def status_line(job: _Job) -> str:
+def status_line(job: PanelJob) -> str:
     """'row i/N: method @ res, 12 s elapsed, ~30 s left' for the step about to run."""
     elapsed = time.perf_counter() - job.started
     if job.reference is None:
         what = f"Cycles reference of {job.preset}" if job.source == "PRESET" else "Cycles reference of the scene"
         return f"OmniWarp: {what} ({elapsed:.0f} s elapsed)"
     if job.finished:
-        return f"OmniWarp: {_rows_text(len(job.tasks))} measured in {elapsed:.1f} s"
+        return f"OmniWarp: {rows_text(len(job.tasks))} measured in {elapsed:.1f} s"
     method, resolution = job.tasks[job.next_task]
     left = job.seconds_left()
     eta = "estimating" if left is None else f"~{left:.0f} s left"
@@ -376,7 +376,7 @@ def status_line(job: _Job) -> str:
             f"({elapsed:.0f} s elapsed, {eta})")
 
 
-def finish_job(job: _Job, report_fn: Report, outcome: str = "done", message: str = "",
+def finish_job(job: PanelJob, report_fn: Report, outcome: str = "done", message: str = "",
                plot_written: bool = False) -> None:
     """Release the GPU, write (unless `plot_written`: the background run wrote it) and load
     the plot, set the status. `outcome`: done, cancelled, failed."""
@@ -386,7 +386,7 @@ def finish_job(job: _Job, report_fn: Report, outcome: str = "done", message: str
     rows = job.keep_rows + job.rows
     elapsed = time.perf_counter() - job.started
     if outcome == "done":
-        text = f"{_rows_text(len(job.rows))} measured in {elapsed:.1f} s"
+        text = f"{rows_text(len(job.rows))} measured in {elapsed:.1f} s"
     elif outcome == "cancelled":
         text = f"Cancelled after {len(job.rows)} of {len(job.tasks)} rows (kept)"
     else:
@@ -421,7 +421,7 @@ def finish_job(job: _Job, report_fn: Report, outcome: str = "done", message: str
     redraw_3d_views()
 
 
-def _rows_text(count: int) -> str:
+def rows_text(count: int) -> str:
     return f"{count} row" + ("" if count == 1 else "s")
 
 
@@ -429,12 +429,12 @@ def _select_first_new_row(settings: OMNIWARP_PG_comparison, first: int) -> None:
     """Select the run's first row (its mismatch image is loaded by the update callback)."""
     if 0 <= first < len(settings.results):
         if settings.active_result == first:
-            _show_mismatch(settings)
+            show_mismatch(settings)
         else:
             settings.active_result = first
 
 
-def _failure(exc: BaseException) -> str:
+def failure_text(exc: BaseException) -> str:
     return str(exc) if isinstance(exc, OmniWarpError) else f"{type(exc).__name__}: {exc}"
 
 

@@ -20,12 +20,12 @@ import bpy
 
 from ..core.errors import InputError, OmniWarpError
 from ..core.presets import build_preset
-from ..rows import write_rows
+from ..core.rows import write_rows
 from . import compare_background
 from .compare_job import (
-    _Job,
-    _failure,
-    _rows_text,
+    PanelJob,
+    failure_text,
+    rows_text,
     active_job,
     finish_job,
     is_running,
@@ -123,7 +123,7 @@ class OMNIWARP_OT_compare(bpy.types.Operator):
                 wm.progress_update(job.steps_done)
         except Exception as exc:  # noqa: BLE001 - any failure must end the run cleanly (logged, reported)
             log.exception("OmniWarp comparison failed")
-            finish_job(job, self.report, "failed", _failure(exc))
+            finish_job(job, self.report, "failed", failure_text(exc))
             return {"CANCELLED"}
         finally:
             wm.progress_end()
@@ -173,7 +173,7 @@ class OMNIWARP_OT_compare(bpy.types.Operator):
         except Exception as exc:  # noqa: BLE001 - any failure must end the run cleanly (logged, reported)
             log.exception("OmniWarp comparison failed")
             _stop_modal(job, context)
-            finish_job(job, self.report, "failed", _failure(exc))
+            finish_job(job, self.report, "failed", failure_text(exc))
             return {"CANCELLED"}
         context.window_manager.progress_update(job.steps_done)
         if job.finished:
@@ -184,7 +184,7 @@ class OMNIWARP_OT_compare(bpy.types.Operator):
         redraw_3d_views()
         return {"PASS_THROUGH"}
 
-    def _follow_child(self, context: bpy.types.Context, job: _Job) -> set[str]:
+    def _follow_child(self, context: bpy.types.Context, job: PanelJob) -> set[str]:
         """One tick of a background job: show the rows it finished; end with it."""
         end = _read_child(job)
         if end is None and job.child.exited():  # its last lines may have come after the read
@@ -215,7 +215,7 @@ class OMNIWARP_OT_compare(bpy.types.Operator):
             finish_job(job, self.report, "cancelled")
 
 
-def _read_child(job: _Job) -> dict | None:
+def _read_child(job: PanelJob) -> dict | None:
     """Take in the background job's new events: its tasks once the reference is ready,
     each row as it is measured (into the results list). Returns its end event, if read."""
     if job.child is None:
@@ -248,7 +248,7 @@ def _child_ended(child: compare_background.ChildRun) -> str:
             f"its console: {child.out_dir / compare_background.LOG_FILE}")
 
 
-def _stop_modal(job: _Job | None, context: bpy.types.Context) -> None:
+def _stop_modal(job: PanelJob | None, context: bpy.types.Context) -> None:
     """Timer, progress and status text off, the background Blender ended; no job is active
     any more."""
     set_active(None)
@@ -304,5 +304,5 @@ class OMNIWARP_OT_export_results(bpy.types.Operator):
         except OSError as exc:
             self.report({"ERROR"}, f"Cannot write {path}: {exc}")
             return {"CANCELLED"}
-        self.report({"INFO"}, f"Wrote {_rows_text(len(rows))} to {path}" + (" (replaced the old file)" if existed else ""))
+        self.report({"INFO"}, f"Wrote {rows_text(len(rows))} to {path}" + (" (replaced the old file)" if existed else ""))
         return {"FINISHED"}

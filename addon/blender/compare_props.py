@@ -132,7 +132,7 @@ def load_image(name: str, path: Path) -> bpy.types.Image:
     return image
 
 
-def _show_mismatch(settings: OMNIWARP_PG_comparison) -> None:
+def show_mismatch(settings: OMNIWARP_PG_comparison) -> None:
     """Load the selected row's mismatch image into the "OmniWarp mismatch" datablock."""
     index = settings.active_result
     if not 0 <= index < len(settings.results):
@@ -149,7 +149,7 @@ def _show_mismatch(settings: OMNIWARP_PG_comparison) -> None:
 
 def _active_result_changed(self: OMNIWARP_PG_comparison, _context: bpy.types.Context) -> None:
     """Selecting a row shows its mismatch image."""
-    _show_mismatch(self)
+    show_mismatch(self)
 
 
 # ----------------------------------------------------------------------------

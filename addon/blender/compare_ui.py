@@ -7,7 +7,7 @@ from typing import Any
 import bpy
 
 from ..core import methods as method_registry
-from .compare_job import _scene_light, is_running
+from .compare_job import scene_light, is_running
 from .compare_ops import OMNIWARP_OT_build_preset, OMNIWARP_OT_compare, OMNIWARP_OT_export_results
 from .compare_props import (
     IMAGE_ICON_SCALE,
@@ -95,7 +95,7 @@ class OMNIWARP_PT_compare(bpy.types.Panel):
         else:
             scene = context.scene
             camera = scene.camera.name if scene.camera is not None else "none (add one)"
-            light = _scene_light(context, scene) or "the scene's only point/spot light"
+            light = scene_light(context, scene) or "the scene's only point/spot light"
             _wrapped(layout, f"Camera: {camera}. Light: {light}. Two Cycles renders per run.", chars)
 
         box = layout.box()

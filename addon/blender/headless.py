@@ -80,8 +80,8 @@ def main(argv: list[str] | None = None) -> int:
     logging.basicConfig(level=logging.WARNING, format="%(levelname)s %(name)s: %(message)s")
     try:
         from ..reference.capture import evaluated_depsgraph, pick_view_layer
-        from ..reference.render_geometry import render_triangles
-        from ..reference.shadow_rule import rules_for, shadow_inputs
+        from ..readers.render_geometry import render_triangles
+        from ..readers.shadow_rule import rules_for, shadow_inputs
 
         reference = ReferenceData.load(args.reference)
         default = default_settings(args.method, reference.emission, args.resolution)

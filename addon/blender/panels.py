@@ -6,8 +6,8 @@ import logging
 
 import bpy
 
-from ..reference import light_size
-from ..render import blender_compat
+from ..readers import light_size
+from ..compat import blender as blender_compat
 from . import events
 from .properties import (
     EXACT_PARAMETERIZATIONS,

@@ -28,8 +28,8 @@ from ..core.errors import InputError
 from ..core.frames import POINT_PARAMETERIZATIONS, PROJECTIVE_PARAMETERIZATIONS
 from ..core.methods import PARAMETERIZATION_TEXT, WARP_TEXT
 from ..core.scene import PROJECTIVE_EMISSIONS, Emission, LightSpec, spot_emission
-from ..render import blender_compat
-from ..reference import light_size
+from ..compat import blender as blender_compat
+from ..readers import light_size
 from ..render.frame import EXACT_SAMPLES, LIGHT_SAMPLES
 from ..render.pipeline import BiasSettings, ShadowSettings
 from ..render.shaders import SOFT_MAX_POINTS, SOFT_MAX_SEARCH
@@ -448,7 +448,7 @@ def shadow_settings_for(light: bpy.types.Light) -> ShadowSettings:
 
 def light_spec_for(obj: bpy.types.Object) -> LightSpec:
     """A `LightSpec` for an (evaluated) light object: its world matrix, effective emission,
-    its size (reference/light_size.py) and, for a spot cone, its full cone angle."""
+    its size (readers/light_size.py) and, for a spot cone, its full cone angle."""
     light = obj.data
     if not isinstance(light, bpy.types.Light):
         raise TypeError(f"object {obj.name!r} is not a light")

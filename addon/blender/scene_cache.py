@@ -49,15 +49,15 @@ from typing import Any, Callable, Hashable, Iterable
 import bpy
 import numpy as np
 
-from ..core.errors import InputError
 from ..core.alpha import Surface
-from ..reference.material_alpha import MaterialAlpha, material_alpha
-from ..reference.material_media import MediumFound, material_medium
 from ..core.blockers import Pieces
-from ..reference.render_geometry import GEOMETRY_TYPES, DensityPart, local_geometry
-from ..reference import reference_materials, shader_density
-from ..reference.shadow_rule import rules_for
-from ..reference.shadow_rule import shadow_inputs as _shadow_inputs
+from ..core.errors import InputError
+from ..readers import material_nodes, shader_density
+from ..readers.material_alpha import MaterialAlpha, material_alpha
+from ..readers.material_media import MediumFound, material_medium
+from ..readers.render_geometry import GEOMETRY_TYPES, DensityPart, local_geometry
+from ..readers.shadow_rule import rules_for
+from ..readers.shadow_rule import shadow_inputs as _shadow_inputs
 from ..render.resident import ResidentScene
 from . import events
 from .depsgraph_ids import GEOMETRY, TRANSFORM, Dirty, Key, id_key, matrix_of
@@ -208,7 +208,7 @@ class SceneGeometryCache:
         for name in names:
             material = bpy.data.materials.get(name)
             held = self._materials.get(name)
-            if material is None or (held is None and not reference_materials.see_through(material)):
+            if material is None or (held is None and not material_nodes.see_through(material)):
                 continue
             found = material_alpha(material)
             before = None if held is None or held.alpha is None else (held.alpha.digest, held.uv_map,
@@ -225,7 +225,7 @@ class SceneGeometryCache:
         are then flagged for a re-read, as for an alpha."""
         name = getattr(original, "name_full", None)
         material = bpy.data.materials.get(name) if name else None
-        if material is None or (name not in self._media and not reference_materials.is_medium(material)):
+        if material is None or (name not in self._media and not material_nodes.is_medium(material)):
             return False
         held = self._media.get(name)
         found = material_medium(material)

@@ -1,8 +1,8 @@
 """Density grids for the viewport's scene cache (scene_cache.py).
 
-The viewport draws the grid media the reference reads (reference/render_geometry.py):
+The viewport draws the grid media the reference reads (readers/render_geometry.py):
 
-- smoke domains (reference/smoke_domains.py), read at once from the simulation;
+- smoke domains (readers/smoke_domains.py), read at once from the simulation;
 - Volume geometry (Volume objects, geometry nodes' volumes; volume_grids.py) and meshes
   whose medium's density is a shader texture (shader_density.py). Both are read through
   geometry nodes, which add reader objects to bpy.data and evaluate them: a draw
@@ -24,9 +24,9 @@ from typing import Any, Callable, Iterable
 import numpy as np
 
 from ..core.media import GridMedium
-from ..reference import shader_density, smoke_domains, volume_grids
-from ..reference.material_media import GridSigma
-from ..reference.volume_grids import VolumeSource, volume_source
+from ..readers import shader_density, smoke_domains, volume_grids
+from ..readers.material_media import GridSigma
+from ..readers.volume_grids import VolumeSource, volume_source
 from .depsgraph_ids import GEOMETRY, Dirty, id_key, matrix_of
 
 log = logging.getLogger(__name__)

@@ -1,7 +1,7 @@
 """Hair and points for the viewport's scene cache (scene_cache.py): hair curves (CURVES
 objects, and particle hair drawn as paths) and point clouds (POINTCLOUD objects and
 geometry nodes' points, instanced or not), read as the reference reads them
-(reference/render_geometry.py) and kept as pieces (core/blockers.Pieces) in their
+(readers/render_geometry.py) and kept as pieces (core/blockers.Pieces) in their
 objects' frames, so a move only changes a matrix. They are looked for again when the
 depsgraph reports a change, or when the scene's curve shape or the view layer's strands
 setting changes."""
@@ -13,8 +13,8 @@ from typing import Any, Callable
 import numpy as np
 
 from ..core.blockers import Pieces, Spheres, Strands, pieces as blocker_pieces
-from ..reference.left_out import path_hair_systems
-from ..reference.render_geometry import CurveShape, particle_strands, points_or_strands
+from ..readers.left_out import path_hair_systems
+from ..readers.render_geometry import CurveShape, particle_strands, points_or_strands
 from .depsgraph_ids import GEOMETRY, Dirty, Key, id_key, matrix_of
 
 log = logging.getLogger(__name__)

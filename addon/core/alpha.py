@@ -9,7 +9,7 @@ An `AlphaMap` is one material's alpha as a function of the surface's UV: one sca
 image channel (an image texture's alpha, or its colour's luminance), sampled with
 Cycles' interpolation and extension, then a transfer curve (the math and colour-ramp
 nodes between the texture and the material's alpha, baked into a table). A constant
-alpha is a 1 x 1 image. Nothing here knows Blender: `reference/material_alpha.py`
+alpha is a 1 x 1 image. Nothing here knows Blender: `readers/material_alpha.py`
 reads the node graph into this form, and the GPU's `lib/alpha.glsl` samples it as
 `sample` does (its numpy oracle).
 """

@@ -4,7 +4,7 @@ A shadow ray through a medium of extinction sigma (per metre, one value per RGB 
 keeps exp(-sigma L) of its light, L the length of the ray inside the medium; Cycles
 integrates this exactly for a homogeneous medium (docs/notebook/2026-12-volumes.md). A
 medium here is a material's volume whose extinction does not vary in space (a constant
-Principled Volume, Volume Absorption or Volume Scatter; `reference/material_media.py`
+Principled Volume, Volume Absorption or Volume Scatter; `readers/material_media.py`
 reads it from the node graph) on a closed mesh: Cycles enters the medium where a ray
 meets a face from its front (the side its winding makes outward) and leaves it at a back
 face.

@@ -80,7 +80,7 @@ def build_material(spec: MeshSpec, tag: str) -> "bpy.types.Material":
     image: the Blender side needs no math nodes to reproduce it."""
     import bpy
 
-    from ..render import blender_compat
+    from ..compat import blender as blender_compat
 
     amap = spec.alpha
     mat = bpy.data.materials.new(amap.name)

@@ -45,12 +45,13 @@ from ..core.errors import InputError, ReferenceCaptureError
 from ..core.light_shape import POINT
 from ..core.metrics import reference_ratio
 from ..core.scene import orthonormalize, spot_emission
-from ..render import blender_compat
-from . import light_size, reference_materials
+from ..compat import blender as blender_compat
+from ..readers import light_size
+from ..readers.render_geometry import GEOMETRY_TYPES, render_triangles
+from ..readers.shadow_rule import ShadowRule
+from . import reference_materials
 from .data import ReferenceData
 from .reference_materials import AOV_NORMAL
-from .render_geometry import GEOMETRY_TYPES, render_triangles
-from .shadow_rule import ShadowRule
 from .still import save_render_result
 
 if TYPE_CHECKING:  # pragma: no cover - typing only
@@ -59,9 +60,8 @@ if TYPE_CHECKING:  # pragma: no cover - typing only
 log = logging.getLogger(__name__)
 
 # Part of the cache key: bump whenever the capture settings or outputs change.
-# 2: see-through materials keep their alpha (reference_materials), and the file's
-# triangles carry their surface (UVs, alpha maps); 3: the light's and camera's matrices
-# are the render depsgraph's (a light disabled in the viewport).
+# 2: see-through materials keep their alpha, triangles their surface (UVs, alpha maps);
+# 3: the light's and camera's matrices are the render depsgraph's.
 CAPTURE_VERSION = 3
 # Transparent bounces a camera or shadow ray may take through see-through surfaces.
 TRANSPARENT_BOUNCES = 256
@@ -77,14 +77,14 @@ SOFT_SEEDS = (0, 1)  # one per half
 PIXEL_FILTER_WIDTH = 0.01  # px; effectively no filter (Blender's minimum)
 # Light types the reference accepts. A SUN has a direction only: nothing in the capture
 # depends on its position (Cycles' culling is off, and there is no near/far to fit).
-_LIGHT_TYPES = {"POINT", "SPOT", "SUN", "AREA"}
+LIGHT_TYPES = {"POINT", "SPOT", "SUN", "AREA"}
 # A sun angle or spot blend at or below this counts as hard.
 _SOFT_TOLERANCE = 1e-6
 
 Progress = Callable[[str], None]
 
 
-class _Overrides:
+class Overrides:
     """Set attributes temporarily and put the old values back in reverse order."""
 
     def __init__(self) -> None:
@@ -127,7 +127,7 @@ class _Overrides:
 # ----------------------------------------------------------------------------
 # scene inspection
 # ----------------------------------------------------------------------------
-def _render_visible_objects(view_layer: "bpy.types.ViewLayer") -> set[str]:
+def render_visible_objects(view_layer: "bpy.types.ViewLayer") -> set[str]:
     """Names (name_full) of objects Cycles renders in this view layer."""
     names: set[str] = set()
 
@@ -156,21 +156,21 @@ def pick_view_layer(scene: "bpy.types.Scene", name: str | None = None) -> "bpy.t
     raise ReferenceCaptureError(f"scene {scene.name!r} has no view layer enabled for rendering")
 
 
-def _pick_light(scene: "bpy.types.Scene", visible: set[str], light: "bpy.types.Object | str | None"):
+def pick_light(scene: "bpy.types.Scene", visible: set[str], light: "bpy.types.Object | str | None"):
     """The point, spot, sun or area light object to capture; the scene must hold exactly one unless named."""
     import bpy
 
     # The messages keep the phrase "spot, sun or area light" that callers and tests match.
     if light is not None:
         obj = bpy.data.objects.get(light) if isinstance(light, str) else light
-        if obj is None or obj.type != "LIGHT" or obj.data.type not in _LIGHT_TYPES:
+        if obj is None or obj.type != "LIGHT" or obj.data.type not in LIGHT_TYPES:
             raise ReferenceCaptureError(f"{light!r} is not a point, spot, sun or area light")
         if obj.name not in scene.objects:
             raise ReferenceCaptureError(f"light {obj.name!r} is not in scene {scene.name!r}")
         return obj
     candidates = [
         o for o in scene.objects
-        if o.type == "LIGHT" and o.data.type in _LIGHT_TYPES and o.name_full in visible
+        if o.type == "LIGHT" and o.data.type in LIGHT_TYPES and o.name_full in visible
     ]
     if not candidates:
         raise ReferenceCaptureError(
@@ -184,7 +184,7 @@ def _pick_light(scene: "bpy.types.Scene", visible: set[str], light: "bpy.types.O
     return candidates[0]
 
 
-def _emission_of(light: "bpy.types.Light") -> str:
+def emission_of(light: "bpy.types.Light") -> str:
     """"omni" (POINT), "hemi" (SPOT wider than 179 degrees, or AREA), "spot" or "sun".
 
     A blend does not change the emission: it fades the light inside the cone, whose
@@ -267,7 +267,7 @@ _evaluated_depsgraph = evaluated_depsgraph
 # ----------------------------------------------------------------------------
 # temporary datablocks
 # ----------------------------------------------------------------------------
-def _black_world(overrides: _Overrides):
+def black_world(overrides: Overrides):
     import bpy
 
     world = bpy.data.worlds.new("OmniWarp reference black")
@@ -281,7 +281,7 @@ def _black_world(overrides: _Overrides):
     return world
 
 
-def _add_aov(view_layer, overrides: _Overrides) -> None:
+def _add_aov(view_layer, overrides: Overrides) -> None:
     existing = view_layer.aovs.get(AOV_NORMAL) if hasattr(view_layer.aovs, "get") else None
     if existing is not None:
         view_layer.aovs.remove(existing)  # left over from a crashed capture
@@ -292,7 +292,7 @@ def _add_aov(view_layer, overrides: _Overrides) -> None:
 
 
 def _apply_render_settings(scene, view_layer, light_obj, visible: set[str], samples: int,
-                           filepath: str, overrides: _Overrides, hard: bool) -> list[str]:
+                           filepath: str, overrides: Overrides, hard: bool) -> list[str]:
     """Switch the scene to the reference set-up (docs/design.md section 5); returns the
     notes of the reference materials (reference_materials.apply)."""
     s = overrides.set
@@ -329,7 +329,7 @@ def _apply_render_settings(scene, view_layer, light_obj, visible: set[str], samp
 
     set_pass_output(render, filepath, overrides)
 
-    s(scene, "world", _black_world(overrides))
+    s(scene, "world", black_world(overrides))
     # Depth of field would start each pixel's ray off the pinhole: its position would not
     # lie on the ray through the pixel centre, which the planning frustum and a preview's
     # G-buffer assume. The shadows themselves do not depend on it.
@@ -364,7 +364,7 @@ def _apply_render_settings(scene, view_layer, light_obj, visible: set[str], samp
     return notes
 
 
-def _disable_shadows(scene, light_obj, overrides: _Overrides) -> None:
+def _disable_shadows(scene, light_obj, overrides: Overrides) -> None:
     """The same light without any occlusion, for the `unshadowed` render."""
     if hasattr(light_obj.data, "use_shadow"):
         # One switch on the light: no shadow rays at all (verified equal to cos/r^2).
@@ -378,7 +378,7 @@ def _disable_shadows(scene, light_obj, overrides: _Overrides) -> None:
 # ----------------------------------------------------------------------------
 # render and read
 # ----------------------------------------------------------------------------
-def set_pass_output(render, filepath: str, overrides: _Overrides) -> None:
+def set_pass_output(render, filepath: str, overrides: Overrides) -> None:
     """Plain film written as a 32-bit multilayer EXR, shared by the Cycles and EEVEE renders.
 
     Hit mask from alpha (transparent film); no border, compositing, sequencer, motion
@@ -470,7 +470,7 @@ def read_exr_channels(path: Path) -> dict[str, np.ndarray]:
         raise ReferenceCaptureError(f"cannot read Cycles output {path}: {exc}") from exc
 
 
-def _channel(channels: dict[str, np.ndarray], layer: str, name: str) -> np.ndarray:
+def pass_channel(channels: dict[str, np.ndarray], layer: str, name: str) -> np.ndarray:
     key = f"{layer}.{name}"
     if key not in channels:
         raise ReferenceCaptureError(
@@ -479,8 +479,8 @@ def _channel(channels: dict[str, np.ndarray], layer: str, name: str) -> np.ndarr
     return channels[key]
 
 
-def _stack(channels: dict[str, np.ndarray], layer: str, name: str, comps: str) -> np.ndarray:
-    return np.stack([_channel(channels, layer, f"{name}.{c}") for c in comps], axis=-1)
+def stack_pass(channels: dict[str, np.ndarray], layer: str, name: str, comps: str) -> np.ndarray:
+    return np.stack([pass_channel(channels, layer, f"{name}.{c}") for c in comps], axis=-1)
 
 
 def capture(scene: "bpy.types.Scene", samples: int = DEFAULT_SAMPLES, *, light: "bpy.types.Object | str | None" = None,
@@ -514,8 +514,8 @@ def capture(scene: "bpy.types.Scene", samples: int = DEFAULT_SAMPLES, *, light: 
     # A new scene's view layer is synced lazily (layer_collection stays None until
     # the scene is evaluated once), so evaluate before reading its collections.
     depsgraph = _evaluated_depsgraph(scene, layer)
-    visible = _render_visible_objects(layer)
-    light_obj = _pick_light(scene, visible, light)
+    visible = render_visible_objects(layer)
+    light_obj = pick_light(scene, visible, light)
     if light_obj.name_full not in visible:
         raise ReferenceCaptureError(f"light {light_obj.name!r} is disabled for rendering")
     energy, colour = float(light_obj.data.energy), [float(c) for c in light_obj.data.color]
@@ -526,7 +526,7 @@ def capture(scene: "bpy.types.Scene", samples: int = DEFAULT_SAMPLES, *, light: 
         # For a sun the energy is its strength (W/m^2); zero is equally useless.
         raise ReferenceCaptureError(f"light {light_obj.name!r} emits nothing (energy or colour is zero)")
     _check_transforms(light_obj, cam_obj, depsgraph)
-    emission = _emission_of(light_obj.data)
+    emission = emission_of(light_obj.data)
     media = reference_materials.media(scene, layer)
     if media:
         log.info("media (volume shaders) the reference renders with: %s", ", ".join(media))
@@ -548,7 +548,7 @@ def capture(scene: "bpy.types.Scene", samples: int = DEFAULT_SAMPLES, *, light: 
 
     # A temporary the interrupt handling knows, so Ctrl-C during a render removes it;
     # the scene's settings are restored before it goes.
-    overrides = _Overrides()
+    overrides = Overrides()
     with interrupt.temporary_dir("omniwarp_ref_") as tmpdir:
         try:
             exr_path = tmpdir / "pass.exr"
@@ -604,7 +604,7 @@ def capture(scene: "bpy.types.Scene", samples: int = DEFAULT_SAMPLES, *, light: 
             overrides.restore()
 
     name = layer.name
-    alpha = _channel(lit, name, "Combined.A")
+    alpha = pass_channel(lit, name, "Combined.A")
     hit = alpha > 0.5
     # Pixels whose samples disagree on hitting geometry (only when samples > 1).
     mixed = int(np.count_nonzero((alpha > 1e-6) & (alpha < 1.0 - 1e-6)))
@@ -612,20 +612,20 @@ def capture(scene: "bpy.types.Scene", samples: int = DEFAULT_SAMPLES, *, light: 
     # its closure empty for them) that sample's camera path may end before the surface: with
     # media, take another render's (seed), and leave a pixel none gives out of `hit` (meta
     # positions_lost). Without media a surface may well pass through the origin.
-    found = [_stack(c, name, "Position", "XYZ") for c in ((lit, *lits[1:], *frees) if media else (lit,))]
+    found = [stack_pass(c, name, "Position", "XYZ") for c in ((lit, *lits[1:], *frees) if media else (lit,))]
     position = found[0]
     for other in found[1:]:
         position = np.where(np.all(position == 0.0, axis=-1, keepdims=True), other, position)
     lost = hit & np.all(position == 0.0, axis=-1) if media else np.zeros_like(hit)
     hit &= ~lost
     position = np.where(hit[..., None], position, 0.0)
-    normal = _stack(lit, name, AOV_NORMAL, "RGB")
+    normal = stack_pass(lit, name, AOV_NORMAL, "RGB")
     length = np.linalg.norm(normal, axis=-1, keepdims=True)
     # Several samples average the AOV; re-normalize (only silhouettes can shrink it).
     normal = np.where(hit[..., None] & (length > 1e-12), normal / np.maximum(length, 1e-12), 0.0)
     diffuse = blender_compat.exr_pass_name("Diffuse Direct")
-    shadowed_halves = [np.where(hit, _stack(c, name, diffuse, "RGB").mean(axis=-1), 0.0) for c in lits]
-    unshadowed_halves = [np.where(hit, _stack(c, name, diffuse, "RGB").mean(axis=-1), 0.0) for c in frees]
+    shadowed_halves = [np.where(hit, stack_pass(c, name, diffuse, "RGB").mean(axis=-1), 0.0) for c in lits]
+    unshadowed_halves = [np.where(hit, stack_pass(c, name, diffuse, "RGB").mean(axis=-1), 0.0) for c in frees]
     shadowed = np.mean(shadowed_halves, axis=0).astype(np.float32)
     unshadowed = np.mean(unshadowed_halves, axis=0).astype(np.float32)
     noise = None

@@ -22,7 +22,7 @@ Conventions (verified in tests/blender/test_reference.py):
   exactly as before these fields existed; older files load without them (a centred
   camera, clip 0.05 to 200 as then), so they need no format bump either.
 - `surface` (core/alpha.Surface): the see-through materials of `triangles` as the
-  capture read them (reference/material_alpha.py), stored as `uvs`, `material` and one
+  capture read them (readers/material_alpha.py), stored as `uvs`, `material` and one
   `alpha{i}_image` / `alpha{i}_transfer` pair a map (their names, interpolations and
   extensions in meta["alpha_maps"]); a file without them is all opaque. The homogeneous
   media (core/media.py) the triangles bound are `medium` (T,) int32 (-1: none) and
@@ -36,7 +36,7 @@ Conventions (verified in tests/blender/test_reference.py):
   the light, world space, as `sphere_centres`/`sphere_radii` and `strand_points`/
   `strand_radii`/`strand_offsets`/`strand_linear`; a file without them has none.
 - `grids` (core/media.GridMedium): the heterogeneous media of the Volume geometry that
-  blocks the light (reference/volume_grids.py), as `grid{i}_density` (nz, ny, nx) float32,
+  blocks the light (readers/volume_grids.py), as `grid{i}_density` (nz, ny, nx) float32,
   `grid{i}_to_index` (4, 4) and `grid{i}_sigma` (3,), their names in meta["grids"]; a
   file without them has none.
 """

@@ -62,8 +62,8 @@ from ..core.errors import (
 from ..core.light_shape import shape_from_dict
 from ..core.png import write_png
 from ..core.scene import CameraSpec, LightSpec, MeshSpec, SceneSpec, parse_size
-from ..render import blender_compat
-from ..rows import make_row
+from ..compat import blender as blender_compat
+from ..core.rows import make_row
 from .blend_file import open_scene
 from .data import ReferenceData
 from .still import save_render_result
@@ -251,7 +251,7 @@ def _renderer_string() -> str:
 
 def light_reach(depsgraph, light_obj, visible: set[str]) -> float:
     """Distance from the light to the farthest bounding-box corner of the rendered geometry."""
-    from .render_geometry import GEOMETRY_TYPES
+    from ..readers.render_geometry import GEOMETRY_TYPES
 
     origin = np.array(light_obj.matrix_world.translation, dtype=np.float64)
     reach = 0.0
@@ -293,8 +293,9 @@ def _apply_eevee_settings(scene, view_layer, light_obj, visible: set[str], engin
                           filepath: str, overrides, hard: bool = False) -> dict[str, Any]:
     """The reference set-up for EEVEE (the light's size as in the Cycles reference, white
     diffuse, black world); returns what was set."""
-    from . import light_size, reference_materials
-    from .capture import _black_world, set_pass_output
+    from ..readers import light_size
+    from . import reference_materials
+    from .capture import black_world, set_pass_output
 
     s = overrides.set
     render = scene.render
@@ -321,7 +322,7 @@ def _apply_eevee_settings(scene, view_layer, light_obj, visible: set[str], engin
     if getattr(getattr(camera, "dof", None), "use_dof", False):
         s(camera.dof, "use_dof", False)
 
-    s(scene, "world", _black_world(overrides))
+    s(scene, "world", black_world(overrides))
     s(view_layer, "use_pass_combined", True)
     s(view_layer, "use_pass_diffuse_direct", True)
     s(view_layer, "samples", 0)
@@ -375,9 +376,9 @@ def _apply_eevee_settings(scene, view_layer, light_obj, visible: set[str], engin
 
 
 def _diffuse(channels: dict[str, np.ndarray], layer: str, hit: np.ndarray) -> np.ndarray:
-    from .capture import _stack
+    from .capture import stack_pass
 
-    diffuse = _stack(channels, layer, blender_compat.exr_pass_name("Diffuse Direct"), "RGB")
+    diffuse = stack_pass(channels, layer, blender_compat.exr_pass_name("Diffuse Direct"), "RGB")
     return np.where(hit, diffuse.mean(axis=-1), 0.0).astype(np.float32)
 
 
@@ -394,7 +395,7 @@ def render_eevee(scene: "bpy.types.Scene", out_dir: Path, settings: Sequence[str
     """
     import bpy
 
-    from .capture import (_channel, _emission_of, _Overrides, _pick_light, _render_visible_objects,
+    from .capture import (pass_channel, emission_of, Overrides, pick_light, render_visible_objects,
                           evaluated_depsgraph, output_size, pick_view_layer, read_exr_channels)
 
     if frames < 1:
@@ -406,9 +407,9 @@ def render_eevee(scene: "bpy.types.Scene", out_dir: Path, settings: Sequence[str
         raise ReferenceCaptureError(f"scene {scene.name!r} has no active camera; the eevee row needs one")
     layer = pick_view_layer(scene, view_layer)
     evaluated_depsgraph(scene, layer)  # syncs a new scene's layer collections
-    visible = _render_visible_objects(layer)
-    light_obj = _pick_light(scene, visible, light)
-    emission = _emission_of(light_obj.data)
+    visible = render_visible_objects(layer)
+    light_obj = pick_light(scene, visible, light)
+    emission = emission_of(light_obj.data)
     if emission not in TILEMAPS:
         raise InputError(f"light {light_obj.name!r} is a {emission} light; the eevee row needs a point, spot, "
                          "sun or area light")
@@ -418,7 +419,7 @@ def render_eevee(scene: "bpy.types.Scene", out_dir: Path, settings: Sequence[str
     out_dir.mkdir(parents=True, exist_ok=True)
 
     tmpdir = Path(tempfile.mkdtemp(prefix="omniwarp_eevee_"))
-    overrides = _Overrides()
+    overrides = Overrides()
     try:
         cap_in_file = float(light_obj.data.shadow_maximum_resolution)
         used = _apply_eevee_settings(scene, layer, light_obj, visible, engine, str(tmpdir / "pass"), overrides,
@@ -436,13 +437,13 @@ def render_eevee(scene: "bpy.types.Scene", out_dir: Path, settings: Sequence[str
                     f"frame {i + 1}/{frames}")
                 times.append(_render_to(scene, layer, exr))
             channels = read_exr_channels(exr)
-            hit = _channel(channels, layer.name, "Combined.A") > 0.5
+            hit = pass_channel(channels, layer.name, "Combined.A") > 0.5
             shadowed[setting.name] = (hit, _diffuse(channels, layer.name, hit), times)
         overrides.set(light_obj.data, "use_shadow", False)
         say("EEVEE render without shadows")
         unshadowed_ms = _render_to(scene, layer, exr)
         channels = read_exr_channels(exr)
-        free_hit = _channel(channels, layer.name, "Combined.A") > 0.5
+        free_hit = pass_channel(channels, layer.name, "Combined.A") > 0.5
         unshadowed = _diffuse(channels, layer.name, free_hit)
         renderer = _renderer_string()
     finally:

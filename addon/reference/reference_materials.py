@@ -44,7 +44,8 @@ from __future__ import annotations
 import logging
 from typing import Any
 
-from ..render import blender_compat
+from ..compat import blender as blender_compat
+from ..readers.material_nodes import is_medium, linked_from, see_through, surface_output, volume_source
 
 log = logging.getLogger(__name__)
 
@@ -82,30 +83,6 @@ def _normal_aov(tree) -> None:
     tree.links.new(geometry.outputs["True Normal"], aov.inputs["Color"])
 
 
-def surface_output(tree) -> Any:
-    """The Material Output Cycles renders (its own target first, then any active one)."""
-    if hasattr(tree, "get_output_node"):
-        node = tree.get_output_node("CYCLES")
-        if node is not None:
-            return node
-    outputs = [n for n in tree.nodes if n.type == "OUTPUT_MATERIAL"]
-    return next((n for n in outputs if getattr(n, "is_active_output", False)), outputs[0] if outputs else None)
-
-
-def _linked_from(socket) -> Any:
-    """The output socket feeding `socket` (through reroutes), or None."""
-    while socket.is_linked:
-        link = socket.links[0]
-        if not getattr(link, "is_valid", True) or getattr(link, "is_muted", False):
-            return None
-        node = link.from_node
-        if node.type == "REROUTE":
-            socket = node.inputs[0]
-            continue
-        return link.from_socket
-    return None
-
-
 class _Expression:
     """Builds the alpha as math nodes in a tree, folding constants (a float or a socket)."""
 
@@ -126,7 +103,7 @@ class _Expression:
 
     def value_of(self, socket):
         """A float input's value: its link or its default."""
-        source = _linked_from(socket)
+        source = linked_from(socket)
         return source if source is not None else float(socket.default_value)
 
     def alpha(self, shader_output, depth: int = 0):
@@ -143,7 +120,7 @@ class _Expression:
             fac = self.value_of(node.inputs[0])
             parts = []
             for socket in node.inputs[1:3]:
-                source = _linked_from(socket)
+                source = linked_from(socket)
                 parts.append(1.0 if source is None else self.alpha(source, depth + 1))
             if parts[0] is None and parts[1] is None:
                 return None
@@ -152,23 +129,6 @@ class _Expression:
             return self.math("ADD", self.math("MULTIPLY", self.math("SUBTRACT", 1.0, fac), a),
                              self.math("MULTIPLY", fac, b))
         return None
-
-
-def volume_source(material) -> Any:
-    """The socket feeding a material's Volume output, or None (read-only check)."""
-    if material is None or not blender_compat.uses_nodes(material):
-        return None
-    output = surface_output(material.node_tree)
-    socket = output.inputs.get("Volume") if output is not None else None
-    return _linked_from(socket) if socket is not None else None
-
-
-def is_medium(material) -> bool:
-    """Whether a material is a medium only: a volume and no surface shader."""
-    if volume_source(material) is None:
-        return False
-    surface = surface_output(material.node_tree).inputs.get("Surface")
-    return surface is None or _linked_from(surface) is None
 
 
 def media(scene, view_layer) -> list[str]:
@@ -193,11 +153,11 @@ def _volume_copy(material, overrides, guard: bool = True):
     tree = copy.node_tree
     output = surface_output(tree)
     surface = output.inputs["Surface"]
-    if _linked_from(surface) is not None:
+    if linked_from(surface) is not None:
         tree.links.new(_white_diffuse(tree), surface)
     volume = output.inputs["Volume"]
     if guard:
-        tree.links.new(shadow_only(tree, _linked_from(volume)), volume)
+        tree.links.new(shadow_only(tree, linked_from(volume)), volume)
     _normal_aov(tree)
     return copy
 
@@ -213,29 +173,6 @@ def shadow_only(tree, volume) -> Any:
     return mix.outputs["Shader"]
 
 
-def see_through(material) -> bool:
-    """Whether a material's shader lets shadow rays through by its alpha (read-only check)."""
-    if material is None or not blender_compat.uses_nodes(material):
-        return False
-    output = surface_output(material.node_tree)
-    source = _linked_from(output.inputs["Surface"]) if output is not None else None
-    return source is not None and _has_alpha(source, 0)
-
-
-def _has_alpha(shader_output, depth: int) -> bool:
-    node = shader_output.node
-    if depth > 16:
-        return False
-    if node.type == "BSDF_PRINCIPLED":
-        socket = node.inputs["Alpha"]
-        return _linked_from(socket) is not None or float(socket.default_value) < 1.0
-    if node.type == "BSDF_TRANSPARENT":
-        return True
-    if node.type == "MIX_SHADER":
-        return any(_has_alpha(s, depth + 1) for s in map(_linked_from, node.inputs[1:3]) if s is not None)
-    return False
-
-
 def _see_through_copy(material, overrides, guard: bool = True):
     """A copy of a see-through material: its graph, with the white in front (module docstring)."""
     import bpy
@@ -245,9 +182,9 @@ def _see_through_copy(material, overrides, guard: bool = True):
     tree = copy.node_tree
     output = surface_output(tree)
     expr = _Expression(tree)
-    alpha = expr.alpha(_linked_from(output.inputs["Surface"]))
+    alpha = expr.alpha(linked_from(output.inputs["Surface"]))
     alpha = 1.0 if alpha is None else alpha
-    volume = _linked_from(output.inputs["Volume"]) if "Volume" in output.inputs else None
+    volume = linked_from(output.inputs["Volume"]) if "Volume" in output.inputs else None
     for node in [n for n in tree.nodes if n.type in ("OUTPUT_MATERIAL", "OUTPUT_AOV")]:
         tree.nodes.remove(node)
     light_path = tree.nodes.new("ShaderNodeLightPath")

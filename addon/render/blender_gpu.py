@@ -13,7 +13,7 @@ from typing import Any
 
 import numpy as np
 
-from . import blender_compat
+from ..compat import blender as blender_compat
 from .shaders import ComputeInterface, ProgramInterface, image_type, load_source, program_defines
 from .shaders.uniform_block import INSTANCE, UniformBlock
 

@@ -54,7 +54,7 @@ def map_stretch(mapping: LayerMapping) -> float:
                        float(_slopes(warp.cols).max()), max_shear(warp.cols))
 
 
-def _chunk_spheres(obj, light: LightSpec) -> tuple[np.ndarray, np.ndarray, np.ndarray] | None:
+def chunk_spheres(obj, light: LightSpec) -> tuple[np.ndarray, np.ndarray, np.ndarray] | None:
     """Light-centred chunk centres (C, 3), radii and longest edges (C,), in world units;
     None for an object without chunks."""
     chunks = obj.chunks
@@ -202,7 +202,7 @@ def footprint_ranges(draw: FootprintDraw, spheres: tuple[np.ndarray, np.ndarray,
     """One object's draw on one layer, by chunks of CHUNK_TRIANGLES: chunks that cannot
     reach the layer are left out; chunks whose footprint bound fits MAX_POINT_SIZE draw
     one point sprite a triangle instead of a six-vertex quad. `spheres` are the object's
-    `_chunk_spheres` (None: draw it whole as quads), `stretch` the layer's `map_stretch`.
+    `chunk_spheres` (None: draw it whole as quads), `stretch` the layer's `map_stretch`.
     With a sized light's `reach` (the exact soft pass) footprints grow past a point sprite
     and past the layer's own half-space, so every chunk draws quads and only the region
     (already widened by the reach) leaves chunks out.
@@ -269,7 +269,7 @@ def region_uniforms(plan: Plan, light: LightSpec, cull: bool) -> dict:
     return {"ow_region_planes": table, "ow_region_count": len(planes), "ow_region_slack": slack}
 
 
-def _measurer(scene: ResidentScene, light: LightSpec, plan: Plan, settings: ShadowSettings, plan_far: float):
+def measurer(scene: ResidentScene, light: LightSpec, plan: Plan, settings: ShadowSettings, plan_far: float):
     """Host counts of a resident frame, for measurement only: the triangles the footprint
     pass keeps, summed over the drawn layers (not edge-on, inside the occluder region,
     in front of the layer: a paraboloid's hemisphere, a cube face's frustum), and the

@@ -31,7 +31,7 @@ from ..core.scene import CameraSpec, LightSpec
 from ..core.warping import LayerMapping
 from .backend import AtlasLayout, FootprintDraw, ShadowBackend
 from .footprint_runs import (  # noqa: F401  (map_stretch: the tests')
-    FOOTPRINT_DILATE_TEXELS, RunMemo, _chunk_spheres, _measurer, footprint_ranges, map_stretch, sprites_pay)
+    FOOTPRINT_DILATE_TEXELS, RunMemo, chunk_spheres, measurer, footprint_ranges, map_stretch, sprites_pay)
 from .frame import PreparedGeometry, ShadowSettings
 from .pacing import Steps, drive
 from .passes import exact as exact_rounds
@@ -86,7 +86,7 @@ class Parameterization:
     def prepare(self, light: LightSpec, scene: ResidentScene, plan: Plan, settings: ShadowSettings,
                 near_far: tuple[float, float]) -> PreparedGeometry:
         return PreparedGeometry({}, near_far[0], near_far[1], scene.skipped, 0,
-                                measure=_measurer(scene, light, plan, settings, near_far[1]))
+                                measure=measurer(scene, light, plan, settings, near_far[1]))
 
     def scissor(self, plan: Plan, light: LightSpec, settings: ShadowSettings,
                 mappings: dict[int, LayerMapping]) -> dict[int, tuple[int, int, int, int]]:
@@ -110,7 +110,7 @@ class Parameterization:
             # the view: each plane of the region moves out by it.
             region = {**region, "ow_region_slack": float(region.get("ow_region_slack", 0.0)) + reach}
         # Per object, the chunks' light-centred spheres, the same on every layer.
-        spheres = {draw.key: _chunk_spheres(inputs.scene.objects[draw.key], inputs.light) for draw in inputs.draws}
+        spheres = {draw.key: chunk_spheres(inputs.scene.objects[draw.key], inputs.light) for draw in inputs.draws}
         passes = []  # (tile, draws, uniforms, scissor) per drawn layer
         for layer in inputs.plan.drawn:
             tile = inputs.tile_of_slot[layer.slot]

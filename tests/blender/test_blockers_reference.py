@@ -61,7 +61,7 @@ def _on_blockers(points: np.ndarray, spheres: Spheres, strands: Strands) -> np.n
 
 
 def test_the_reference_keeps_the_points_and_strands(reference):
-    from addon.render import blender_compat
+    from addon.compat import blender as blender_compat
 
     ref, rows, _ = reference
     assert len(ref.spheres) == 35 and sorted(np.round(np.unique(ref.spheres.radii), 3)) == [0.04, 0.07, 0.1]
@@ -97,7 +97,7 @@ def _evaluated(ref: ReferenceData) -> tuple[np.ndarray, ...]:
 
 
 def test_spheres_and_strands_cast_cycles_shadows(reference):
-    from addon.render import blender_compat
+    from addon.compat import blender as blender_compat
 
     ref, _, shape = reference
     bound = OLD_RIBBONS_MAX_MISMATCH_PCT if shape == "RIBBONS" and not blender_compat.has_linear_curves() \
@@ -116,7 +116,7 @@ def test_every_pixel_with_its_normal(reference):
     lies on (and so is not shadowed by) told by its normal, a tube cut at its curve's
     ends, a ribbon facing the ray (core/blockers.py). Measured on 5.2.3: 3 of 17,963
     pixels with 3D curves, 7 of 17,964 with ribbons."""
-    from addon.render import blender_compat
+    from addon.compat import blender as blender_compat
 
     ref, _, shape = reference
     if not blender_compat.has_linear_curves():

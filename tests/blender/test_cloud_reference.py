@@ -22,7 +22,7 @@ pytest.importorskip("bpy", reason="the clouds and their reference need bpy")
 
 from addon.core.media import GridMedium  # noqa: E402
 from addon.reference.data import ReferenceData  # noqa: E402
-from addon.render.blender_compat import grid_nodes_available  # noqa: E402
+from addon.compat.blender import grid_nodes_available  # noqa: E402
 from tests.support.cli_run import SUPPORT, checked_arrays, python_ok  # noqa: E402
 from tests.support.plain_cycles import mean_visibilities  # noqa: E402
 from tests.support.make_cloud_blend import VARIANTS  # noqa: E402
@@ -90,7 +90,7 @@ def test_the_reference_is_the_grids_oracle(cloud):
     name, ref, _ = cloud
     if not grid_nodes_available():
         # No grid is read on this line: the cloud is named, and every row says so.
-        from addon.reference.volume_grids import NO_GRID_NODES
+        from addon.readers.volume_grids import NO_GRID_NODES
 
         assert ref.grids == () and any(NO_GRID_NODES in note for note in ref.meta["left_out"])
         return

@@ -408,7 +408,7 @@ def test_results_list_draws_a_row(registered) -> None:
 
 
 def test_the_selected_rows_note_is_drawn_and_kept(registered) -> None:
-    """A row's note (what no method draws, reference/left_out.py) shows under the selected
+    """A row's note (what no method draws, readers/left_out.py) shows under the selected
     row, flagged in the list, and survives the stored copy the export reads."""
     settings = registered
     settings.results.clear()

@@ -1,4 +1,4 @@
-"""addon.render.blender_compat on the running Blender line (docs/versions.md).
+"""addon.compat.blender on the running Blender line (docs/versions.md).
 
 The suite runs on every tested line (scripts/test.sh), so each gate is checked against
 what that line really does: a gate that picks the wrong branch fails here, on that line.
@@ -12,7 +12,7 @@ bpy = pytest.importorskip("bpy")
 
 from addon import cli  # noqa: E402
 from addon.blender import panels  # noqa: E402
-from addon.render import blender_compat  # noqa: E402
+from addon.compat import blender as blender_compat  # noqa: E402
 from tests.support.cli_run import REPO, run_python  # noqa: E402
 
 pytestmark = pytest.mark.blender
@@ -150,7 +150,7 @@ import sys
 import numpy as np
 sys.path.insert(0, sys.argv[1])
 import bpy
-from addon.render import blender_compat
+from addon.compat import blender as blender_compat
 from addon.render.blender_gpu import empty_texture, ensure_gpu, float_texture, read_texture, read_uint
 ensure_gpu()
 data = np.arange(4 * 3 * 4, dtype=np.float32).reshape(3, 4, 4)

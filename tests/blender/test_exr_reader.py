@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 
 from addon.core import exr
-from addon.render import blender_compat
+from addon.compat import blender as blender_compat
 
 OpenEXR = pytest.importorskip("OpenEXR", reason="OpenEXR (dev extra) is the oracle of this test")
 

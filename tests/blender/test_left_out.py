@@ -20,7 +20,7 @@ from tests.support.cli_run import SUPPORT, run_python  # noqa: E402
 pytestmark = pytest.mark.blender
 
 # Each kind's note must name exactly these objects, for every light and for the light.
-from addon.render.blender_compat import grid_nodes_available  # noqa: E402
+from addon.compat.blender import grid_nodes_available  # noqa: E402
 
 # Wisp's grid is read where this line has the grid nodes (5.0 on); elsewhere it is named too.
 NAMED = {"volumes that": {"Cloud"} if grid_nodes_available() else {"Cloud", "Wisp"},
@@ -66,7 +66,7 @@ def test_the_walk_names_each_kind_and_nothing_else(made):
         assert "(a volume inside geometry-nodes instances: not read): Cloud" in grid
         assert notes["grids"] == ["Wisp"]  # read: a grid medium, not named
     else:
-        from addon.reference.volume_grids import NO_GRID_NODES
+        from addon.readers.volume_grids import NO_GRID_NODES
 
         assert NO_GRID_NODES in grid and notes["grids"] == []
     assert not any(name in note.rsplit(": ", 1)[1].split(", ") for note in notes["all"] for name in NEVER)

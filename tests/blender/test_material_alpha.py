@@ -1,4 +1,4 @@
-"""addon.reference.material_alpha: a material's alpha for shadow rays, read from its nodes.
+"""addon.readers.material_alpha: a material's alpha for shadow rays, read from its nodes.
 
 Each test builds its materials and images in-process and removes them after. Expected
 alphas come from the pixels written here (read back once, for the 8-bit quantisation)
@@ -12,8 +12,8 @@ import pytest
 bpy = pytest.importorskip("bpy")
 
 from addon.core.alpha import TRANSFER_SIZE, luminance, srgb_to_linear  # noqa: E402
-from addon.reference.material_alpha import material_alpha, mesh_surface, triangle_uvs  # noqa: E402
-from addon.render import blender_compat  # noqa: E402
+from addon.readers.material_alpha import material_alpha, mesh_surface, triangle_uvs  # noqa: E402
+from addon.compat import blender as blender_compat  # noqa: E402
 
 pytestmark = pytest.mark.blender
 

@@ -487,14 +487,14 @@ def test_a_light_disabled_in_the_viewport_gets_the_matrix_cycles_renders_with():
     ("SPOT", 60.0, 0.3, "spot"),
 ])
 def test_emission_of_blender_lights(kind, size_deg, blend, expected):
-    from addon.reference.capture import _emission_of
+    from addon.reference.capture import emission_of
 
     light = bpy.data.lights.new("emission_probe", kind)
     try:
         if size_deg is not None:
             light.spot_size = math.radians(size_deg)
             light.spot_blend = blend
-        assert _emission_of(light) == expected
+        assert emission_of(light) == expected
     finally:
         bpy.data.lights.remove(light)
 

@@ -525,7 +525,7 @@ def test_see_through_materials_become_alpha_parts_and_follow_edits(world):
     """A card whose Principled Alpha is 0.5 is resident as a see-through part; setting the
     alpha to 1 re-reads it as plain geometry, and another edit of that material that
     leaves the alpha alone reads nothing again (issue 25)."""
-    from addon.render import blender_compat
+    from addon.compat import blender as blender_compat
 
     card = world.mesh("card", [(0, 0, 1), (1, 0, 1), (1, 1, 1), (0, 1, 1)], [(0, 1, 2, 3)])
     card.data.uv_layers.new(name="UVMap")
@@ -551,7 +551,7 @@ def test_a_fog_box_becomes_a_medium_part_and_follows_edits(world):
     """A box of Principled Volume and no surface is resident as a medium part of its
     extinction, left out of the G-buffer's surfaces; a new density re-reads it, and an edit
     that leaves the extinction alone (the anisotropy) reads nothing again (issue 43)."""
-    from addon.render import blender_compat
+    from addon.compat import blender as blender_compat
 
     corners = [(x, y, z) for x in (0, 1) for y in (0, 1) for z in (0, 1)]
     faces = [(0, 1, 3, 2), (4, 6, 7, 5), (0, 4, 5, 1), (2, 3, 7, 6), (0, 2, 6, 4), (1, 5, 7, 3)]
@@ -656,7 +656,7 @@ def test_hair_and_points_become_resident_pieces(world: World) -> None:
 def _volume_material(world: World, name: str, density=1.5, noise: bool = False):
     """A Principled Volume of `density` (colour 0.5: the extinction is the density), its
     Density driven by a Noise Texture (times `density`) when `noise`."""
-    from addon.render import blender_compat
+    from addon.compat import blender as blender_compat
 
     material = bpy.data.materials.new(name)
     tree = blender_compat.ensure_node_tree(material)
@@ -709,8 +709,8 @@ def test_a_volume_objects_grid_is_read_outside_the_draw_and_follows_edits(world)
     draw may not), is resident as a grid of its owner, is not read again by the update the
     read itself causes, moves with its object without a read, and is read again when its
     geometry nodes change (issue 43)."""
-    from addon.render.blender_compat import grid_nodes_available
-    from addon.reference.volume_grids import NO_GRID_NODES
+    from addon.compat.blender import grid_nodes_available
+    from addon.readers.volume_grids import NO_GRID_NODES
 
     cloud, cube = _cloud(world)
     world.evaluate()

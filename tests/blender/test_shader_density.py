@@ -21,7 +21,7 @@ pytest.importorskip("bpy", reason="the fog boxes and their reference need bpy")
 
 from addon.core.media import GridMedium  # noqa: E402
 from addon.reference.data import ReferenceData  # noqa: E402
-from addon.render import blender_compat  # noqa: E402
+from addon.compat import blender as blender_compat  # noqa: E402
 from tests.support.cli_run import SUPPORT, checked_arrays, python_ok  # noqa: E402
 from tests.support.make_fog_blend import BOX_CENTRE, BOX_HALF, grids_oracle  # noqa: E402
 from tests.support.make_shader_density_blend import SIGMA, VARIANTS  # noqa: E402
@@ -86,7 +86,7 @@ def test_a_node_without_a_twin_is_not_followed():
     """An Attribute node in the density: the medium stays not followed, with why."""
     import bpy
 
-    from addon.reference import shader_density
+    from addon.readers import shader_density
     from tests.support.make_fog_blend import build
 
     build(noise=True)
@@ -102,7 +102,7 @@ def test_a_node_without_a_twin_is_not_followed():
 
 
 def test_the_inside_test_is_the_boxs():
-    from addon.reference import shader_density
+    from addon.readers import shader_density
 
     corners = np.array([[x, y, z] for x in (0, 1) for y in (0, 1) for z in (0, 1)], dtype=np.float64)
     faces = [(0, 1, 3, 2), (4, 6, 7, 5), (0, 4, 5, 1), (2, 3, 7, 6), (0, 2, 6, 4), (1, 5, 7, 3)]

@@ -258,7 +258,7 @@ def test_light_under_a_scaled_empty(feature):
 # ----------------------------------------------------------------------------
 def test_link_set_admits_as_the_manual_says():
     """Only includes: those; only excludes: all but those; both: the included (an object's own state wins)."""
-    from addon.reference.shadow_rule import EXCLUDE, INCLUDE, LinkSet
+    from addon.readers.shadow_rule import EXCLUDE, INCLUDE, LinkSet
 
     assert LinkSet().admits("anything")
     assert LinkSet({}, linked=True).admits("anything")  # an empty collection links nothing away
@@ -292,7 +292,7 @@ def test_collection_states_walk_children_first_and_later_entries_win(scratch_sce
     """The depsgraph's order: nested collections (with their top entry's state), then direct objects."""
     import bpy
 
-    from addon.reference.shadow_rule import collection_states
+    from addon.readers.shadow_rule import collection_states
 
     _scene, obj, made = scratch_scene
     a, b = obj("rule_a"), obj("rule_b")
@@ -319,7 +319,7 @@ def test_instances_take_the_instancers_linking_only_when_it_has_one(scratch_scen
     """Cycles: an instance's blocker set is its instancer's when the instancer is in a blocker collection."""
     import bpy
 
-    from addon.reference.shadow_rule import ShadowRule
+    from addon.readers.shadow_rule import ShadowRule
 
     scene, obj, made = scratch_scene
     lamp = obj("rule_lamp", bpy.data.lights.new("rule_lamp", "POINT"))
@@ -347,11 +347,11 @@ def test_instances_take_the_instancers_linking_only_when_it_has_one(scratch_scen
 
 def test_notes_name_what_the_rule_cannot_follow(scratch_scene):
     """A shadow catcher and a glass material each get one note; a plain scene none. Hair is
-    not the rule's: the render geometry's walk names it (reference/left_out.py,
+    not the rule's: the render geometry's walk names it (readers/left_out.py,
     tests/blender/test_left_out.py)."""
     import bpy
 
-    from addon.reference.shadow_rule import unfollowed
+    from addon.readers.shadow_rule import unfollowed
 
     scene, obj, made = scratch_scene
     assert unfollowed(scene) == []

@@ -20,8 +20,8 @@ bpy = pytest.importorskip("bpy", reason="the reference needs bpy")
 
 from addon.core import media, metrics  # noqa: E402
 from addon.reference.data import ReferenceData  # noqa: E402
-from addon.reference.material_media import material_medium  # noqa: E402
-from addon.render import blender_compat  # noqa: E402
+from addon.readers.material_media import material_medium  # noqa: E402
+from addon.compat import blender as blender_compat  # noqa: E402
 from tests.support.cli_run import SUPPORT, compared, python_ok  # noqa: E402
 from tests.support.plain_cycles import mean_visibilities  # noqa: E402
 from tests.support.make_fog_blend import VARIANTS, behind_figure, transmittance  # noqa: E402

@@ -550,7 +550,7 @@ def viewport(out: str) -> None:
     # A cloud (a Volume object of geometry nodes) under the light: the draw leaves its grid
     # to a timer (geometry nodes add reader objects, which a draw may not); the timer's
     # read adds it and the next draw is darker. Removed, the shadow is as before.
-    from addon.render.blender_compat import grid_nodes_available
+    from addon.compat.blender import grid_nodes_available
 
     if grid_nodes_available():
         def mean_visibility() -> float:

@@ -24,8 +24,8 @@ def main(argv: list[str]) -> int:
     import numpy as np
 
     from addon.reference.capture import capture, evaluated_depsgraph
-    from addon.reference.render_geometry import collect, local_triangles, render_triangles
-    from addon.reference.shadow_rule import ShadowRule
+    from addon.readers.render_geometry import collect, local_triangles, render_triangles
+    from addon.readers.shadow_rule import ShadowRule
 
     blend, out = Path(argv[0]), Path(argv[1])
     out.mkdir(parents=True, exist_ok=True)

@@ -56,7 +56,7 @@ def vapour():
     """A white-ish Principled Volume of density 2 (its grid times 2)."""
     import bpy
 
-    from addon.render import blender_compat
+    from addon.compat import blender as blender_compat
 
     material = bpy.data.materials.new("Vapour")
     tree = blender_compat.ensure_node_tree(material)
@@ -259,8 +259,8 @@ def check(variant: str, out: Path) -> None:
     """What test_cloud_reference.py checks the grid read against (module docstring)."""
     import bpy
 
-    from addon.reference import volume_grids
-    from addon.reference.render_geometry import render_pass, render_triangles
+    from addon.readers import volume_grids
+    from addon.readers.render_geometry import render_pass, render_triangles
 
     scene, _, cloud = build(variant, out.parent)
     layer = scene.view_layers[0]

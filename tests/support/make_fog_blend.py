@@ -129,7 +129,7 @@ _SHADERS = {
 def _fog_material(shader: str, noise: bool):
     import bpy
 
-    from addon.render import blender_compat
+    from addon.compat import blender as blender_compat
 
     material = bpy.data.materials.new("Fog")
     tree = blender_compat.ensure_node_tree(material)

@@ -25,7 +25,7 @@ SIZE = (320, 240)
 def _volume_material(name: str, kind: str, density: float, color=None):
     import bpy
 
-    from addon.render import blender_compat
+    from addon.compat import blender as blender_compat
 
     material = bpy.data.materials.new(name)
     tree = blender_compat.ensure_node_tree(material)

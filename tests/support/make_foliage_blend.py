@@ -30,7 +30,7 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[2]))
 
-from addon.render import blender_compat  # noqa: E402
+from addon.compat import blender as blender_compat  # noqa: E402
 
 
 def _png(name: str, rgba: np.ndarray):

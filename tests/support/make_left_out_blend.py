@@ -136,7 +136,7 @@ def _with_nodes(obj, tree) -> None:
 def _material(name: str):
     import bpy
 
-    from addon.render import blender_compat
+    from addon.compat import blender as blender_compat
 
     material = bpy.data.materials.new(name)
     tree = blender_compat.ensure_node_tree(material)
@@ -289,8 +289,8 @@ def notes(out: Path) -> None:
     """Every left-out note of the saved file's render geometry, and the light's."""
     import bpy
 
-    from addon.reference.render_geometry import render_triangles
-    from addon.reference.shadow_rule import ShadowRule
+    from addon.readers.render_geometry import render_triangles
+    from addon.readers.shadow_rule import ShadowRule
 
     scene = bpy.context.scene
     layer = scene.view_layers[0]

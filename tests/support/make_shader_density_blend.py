@@ -1,4 +1,4 @@
-"""Fog boxes whose density is a shader texture (issue 43, `reference/shader_density.py`):
+"""Fog boxes whose density is a shader texture (issue 43, `readers/shader_density.py`):
 
     python tests/support/make_shader_density_blend.py OUT.blend [--variant NAME] [--reference OUT.npz]
         [--soft-samples N] [--check OUT.npz]
@@ -63,7 +63,7 @@ def build(variant: str):
 def check(variant: str, out: Path) -> None:
     import bpy
 
-    from addon.reference.render_geometry import render_triangles
+    from addon.readers.render_geometry import render_triangles
 
     scene, _ = build(variant)
     counts = lambda: [len(getattr(bpy.data, k)) for k in ("objects", "meshes", "node_groups", "materials")]  # noqa: E731

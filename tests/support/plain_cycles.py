@@ -37,8 +37,8 @@ def mean_visibilities(ref, blend: Path, out: Path) -> tuple[float, float, float]
 def main(blend: str, out: str) -> None:
     import bpy
 
-    from addon.reference.capture import _Overrides, _stack, read_exr_channels, set_pass_output
-    from addon.render import blender_compat
+    from addon.reference.capture import Overrides, stack_pass, read_exr_channels, set_pass_output
+    from addon.compat import blender as blender_compat
 
     bpy.ops.wm.open_mainfile(filepath=blend)
     scene = bpy.context.scene
@@ -51,7 +51,7 @@ def main(blend: str, out: str) -> None:
     layer = scene.view_layers[0]
     layer.use_pass_diffuse_direct = True
     folder = Path(tempfile.mkdtemp())
-    set_pass_output(scene.render, str(folder / "pass"), _Overrides())  # a multilayer EXR, transparent film
+    set_pass_output(scene.render, str(folder / "pass"), Overrides())  # a multilayer EXR, transparent film
     diffuse = blender_compat.exr_pass_name("Diffuse Direct")
     passes = {}
     for label, shadows in (("shadowed", True), ("unshadowed", False)):
@@ -60,7 +60,7 @@ def main(blend: str, out: str) -> None:
         path = next(folder.glob("pass*.exr"))
         channels = read_exr_channels(path)
         path.unlink()
-        passes[label] = _stack(channels, layer.name, diffuse, "RGB").mean(axis=-1)
+        passes[label] = stack_pass(channels, layer.name, diffuse, "RGB").mean(axis=-1)
         passes["alpha"] = channels[f"{layer.name}.Combined.A"]
     np.savez(out, **passes)
 

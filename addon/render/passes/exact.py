@@ -69,7 +69,7 @@ class ExactLists:
         return self.heads, self.links, self.hits, self.work
 
 
-def _lists(backend, caller: str) -> ExactLists:
+def held_lists(backend, caller: str) -> ExactLists:
     if backend.exact is None:
         raise BackendError(f"{caller} called before link_samples")
     return backend.exact
@@ -106,7 +106,7 @@ def link_samples(backend, size: int, tiles: int, uniforms: UniformValues, hit_wo
 def read_links(backend) -> tuple[np.ndarray, np.ndarray]:
     """The last `link_samples` as (heads (size, size * tiles), links (H, W)) uint32, row 0 at
     the bottom; sample index i is texel (i % W, i // W) of the sample texture."""
-    held = _lists(backend, "read_links")
+    held = held_lists(backend, "read_links")
     return backend.device.read(held.heads, "R32UI"), backend.device.read(held.links, "R32UI")
 
 
@@ -123,7 +123,7 @@ def read_hits(backend) -> tuple[np.ndarray, dict[str, int]]:
     """The exact pass's marks since the last `link_samples`: (words * H, W) uint32, non-zero
     where a triangle crossed the sample's segment to the light (row 0 at the bottom; a sized
     light's bit k of word k // 32 for its point k); and its work as `exact_work` gives it."""
-    held = _lists(backend, "read_hits")
+    held = held_lists(backend, "read_hits")
     backend.device.barrier()  # the exact pass's fragment atomics, before the read
     return backend.device.read(held.hits, "R32UI"), dict(held.work_done)
 
@@ -134,7 +134,7 @@ def exact_work(backend) -> dict[str, int]:
     at their round's bound and went on in the next; `rounds`, the rounds after the first; and
     on a measurement frame (shaders.EXACT_COUNT_KEY) `entries` and `fragments` walked, and
     `moved`, the entries the later rounds walked."""
-    return _lists(backend, "exact_work").work_done
+    return held_lists(backend, "exact_work").work_done
 
 
 def _take_work(backend) -> np.ndarray:
@@ -149,7 +149,7 @@ def _take_work(backend) -> np.ndarray:
 def exact_round(backend) -> int:
     """Fold the exact pass's counters since the last call into the frame's work, zero them,
     and return the walks of that round which stopped short of their list's end."""
-    done = _lists(backend, "exact_round").work_done
+    done = held_lists(backend, "exact_round").work_done
     words = _take_work(backend)
     cut = int(words[WORK_CUT])
     done["cut"] += cut
@@ -165,7 +165,7 @@ def advance_lists(backend, steps: int, layout: AtlasLayout) -> dict[int, tuple[i
     """Move every list's head past `steps` entries (ADVANCE_PROGRAM), after a round of the
     exact pass; returns, per tile, the box (x0, y0, x1, y1) of the texels whose lists go on,
     the next round's scissor (tiles without any left out)."""
-    held = _lists(backend, "advance_lists")
+    held = held_lists(backend, "advance_lists")
     width, height = backend.device.texture_size(held.heads)
     backend.device.dispatch(ADVANCE_PROGRAM, {"ow_advance_steps": int(steps), "ow_tile_size": layout.resolution},
                             backend.textures, held.images(ADVANCE_PROGRAM), ADVANCE_PROGRAM.groups(width * height))
@@ -198,7 +198,7 @@ def hold_rounds(backend, layout: AtlasLayout, passes: list) -> None:
     """Keep the first round's passes, [(tile, draws, uniforms, scissor)], for
     `finish_lists`: whether later rounds are needed is known only from the GPU's counters,
     so a frame that does not wait leaves the check to the first read of its result."""
-    _lists(backend, "hold_rounds").rounds = (layout, passes)
+    held_lists(backend, "hold_rounds").rounds = (layout, passes)
 
 
 def finish_lists(backend) -> int:
@@ -210,7 +210,7 @@ def finish_lists(backend) -> int:
     log2(n / EXACT_MAX_WALK) + 1 rounds, each entry is walked once per triangle, and a frame
     whose lists all fit (every ordinary one) pays one read of the work counters, which
     also folds the frame's work for `read_hits`."""
-    held = _lists(backend, "finish_lists")
+    held = held_lists(backend, "finish_lists")
     if held.rounds is None:
         return 0
     (layout, passes), held.rounds = held.rounds, None

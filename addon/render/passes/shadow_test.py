@@ -6,7 +6,7 @@ import numpy as np
 
 from ...core.errors import BackendError
 from ..device import Target, UniformValues
-from .exact import _lists
+from .exact import held_lists
 from ..shaders import (EXACT_SOFT_KEY, RESOLVE_PROGRAM, SHADOW_TEST_PROGRAM, ProgramInterface, exact_soft_of,
                        program_variant)
 from ..shaders import exact_soft_media_of, grids_of, haze_of, soft_of, veil_of
@@ -83,7 +83,7 @@ def resolve_visibility(backend, target: Target, marks: bool) -> None:
     hits = media = backend.textures["ow_no_hits"]
     if marks:
         device.barrier()  # the exact pass's atomics, before the loads
-        hits = _lists(backend, "resolve_visibility").hits
+        hits = held_lists(backend, "resolve_visibility").hits
     media_on = backend.sample_media.unweighed
     if media_on:
         media = backend.sample_media.image

@@ -58,7 +58,7 @@ def has_size(light: Any) -> bool:
 def make_hard(light_obj: Any, set_attr: Callable[..., None]) -> None:
     """Give the light no size for a render (`--hard`): radius 0, a sun's angle 0, an area
     light HARD_AREA_SIZE across; `set_attr(owner, name, value, optional=...)` remembers the
-    file's values (capture._Overrides.set)."""
+    file's values (capture.Overrides.set)."""
     light = light_obj.data
     if light.type == "AREA":
         set_attr(light, "size", HARD_AREA_SIZE)

@@ -33,7 +33,7 @@ from ..core.alpha import Surface
 from ..core.blockers import Spheres, Strands
 from ..core.errors import ReferenceCaptureError
 from ..core.media import GridMedium
-from ..render import blender_compat
+from ..compat import blender as blender_compat
 from .left_out import LeftOut, path_hair_systems, scan_instance
 from .material_alpha import MaterialAlpha, mesh_surface, triangle_slots
 from .material_media import GridSigma, MediumFound, mesh_media

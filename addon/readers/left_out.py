@@ -31,7 +31,7 @@ from dataclasses import dataclass, field
 from collections.abc import Iterator
 from typing import Any, Callable
 
-from ..render import blender_compat
+from ..compat import blender as blender_compat
 from .material_media import material_medium
 from .smoke_domains import is_gas_domain
 

@@ -13,7 +13,7 @@ import json
 from pathlib import Path
 from typing import Any, TypedDict
 
-from .core.errors import InputError
+from .errors import InputError
 
 
 class Row(TypedDict, total=False):

@@ -41,8 +41,8 @@ from typing import Any, Callable
 import numpy as np
 
 from ..core.media import GridMedium
-from . import reference_materials
-from .material_media import _Reader, _Unfollowed, material_medium
+from . import material_nodes
+from .material_media import Reader, Unfollowed, material_medium
 
 log = logging.getLogger(__name__)
 
@@ -65,7 +65,7 @@ _BASE = None
 RenderPass = Callable[[Callable[[Any], Any]], Any]
 
 
-class _FieldReader(_Reader):
+class _FieldReader(Reader):
     """`material_media`'s reader with one density that varies in space, taken as `value`."""
 
     def __init__(self, value: float) -> None:
@@ -75,12 +75,12 @@ class _FieldReader(_Reader):
     def density(self, node: Any, groups: tuple[Any, ...]) -> float:
         try:
             return super().density(node, groups)
-        except _Unfollowed:
+        except Unfollowed:
             out, _, inner = self.linked(node.inputs["Density"], groups)
             if out is None or not self.varies(out.node, inner, 0):
                 raise
             if self.field is not None and self.field[0] != out:
-                raise _Unfollowed("two densities that vary in space: not followed") from None
+                raise Unfollowed("two densities that vary in space: not followed") from None
             self.field = (out, inner)
             return self.value
 
@@ -99,12 +99,12 @@ def density_graph(material: Any) -> tuple[DensityGraph | None, str | None]:
     """(the graph, None) of a medium material whose extinction is a density that varies in
     space times constants, every node of which can be copied; else (None, why not), or
     (None, None) for a material that is no medium or a homogeneous one."""
-    if material is None or not reference_materials.is_medium(material):
+    if material is None or not material_nodes.is_medium(material):
         return None, None
     medium, why = material_medium(material)
     if medium is not None or why is None:
         return None, None
-    volume = reference_materials.surface_output(material.node_tree).inputs["Volume"]
+    volume = material_nodes.surface_output(material.node_tree).inputs["Volume"]
     sigmas = []
     try:
         for value in (1.0, 0.0):
@@ -114,13 +114,13 @@ def density_graph(material: Any) -> tuple[DensityGraph | None, str | None]:
         if reader.field is None:
             return None, why
         if np.any(np.abs(sigmas[1]) > 1e-9):
-            raise _Unfollowed("a varying density beside a constant extinction: not followed")
+            raise Unfollowed("a varying density beside a constant extinction: not followed")
         sigma = sigmas[0]
         if np.any(sigma < 0.0) or not np.all(np.isfinite(sigma)):
-            raise _Unfollowed("a negative or infinite extinction per unit density: not followed")
+            raise Unfollowed("a negative or infinite extinction per unit density: not followed")
         graph = DensityGraph(sigma, *reader.field)
         _Copier(None, graph.groups).check(graph.socket, graph.groups)
-    except _Unfollowed as exc:
+    except Unfollowed as exc:
         return None, f"a density that varies in space, {exc}"
     return graph, None
 
@@ -143,27 +143,27 @@ class _Copier:
     def __init__(self, tree: Any, groups: tuple[Any, ...], texspace: tuple[np.ndarray, np.ndarray] | None = None
                  ) -> None:
         self.tree = tree
-        self.reader = _Reader()
+        self.reader = Reader()
         self.made: dict[tuple[int, tuple[int, ...]], Any] = {}
         self.texspace = texspace
         self.coordinates: dict[str, Any] = {}
 
     # -- checking ---------------------------------------------------------------------
     def check(self, socket: Any, groups: tuple[Any, ...], depth: int = 0) -> None:
-        """Raises `_Unfollowed` for a node that cannot be copied upstream of `socket`."""
+        """Raises `Unfollowed` for a node that cannot be copied upstream of `socket`."""
         if depth > 64:
-            raise _Unfollowed("a density graph too deep")
+            raise Unfollowed("a density graph too deep")
         node = socket.node
         if node.type == "TEX_COORD":
             if socket.identifier not in ("Object", "Generated") or (
                     socket.identifier == "Object" and node.object is not None):
-                raise _Unfollowed(f"texture coordinates {socket.name} have no geometry-nodes twin")
+                raise Unfollowed(f"texture coordinates {socket.name} have no geometry-nodes twin")
             return
         if node.bl_idname == "ShaderNodeMapping":
             if node.vector_type == "NORMAL":
-                raise _Unfollowed("a Mapping of normals is not copied")
+                raise Unfollowed("a Mapping of normals is not copied")
         elif node.bl_idname not in COPIED:
-            raise _Unfollowed(f"a {_label(node)} has no geometry-nodes twin")
+            raise Unfollowed(f"a {_label(node)} has no geometry-nodes twin")
         for inp in node.inputs:
             if not inp.enabled:
                 continue
@@ -186,7 +186,7 @@ class _Copier:
             return made["Vector"]
         found = next((s for s in made.outputs if s.identifier == socket.identifier), None)
         if found is None:
-            raise _Unfollowed(f"a {_label(node)}'s {socket.name} output has no geometry-nodes twin")
+            raise Unfollowed(f"a {_label(node)}'s {socket.name} output has no geometry-nodes twin")
         return found
 
     def coordinate(self, which: str) -> Any:
@@ -245,7 +245,7 @@ class _Copier:
             target = by_id.get(inp.identifier)
             if target is None:
                 if inp.enabled and inp.is_linked:
-                    raise _Unfollowed(f"a {_label(node)}'s {inp.name} input has no geometry-nodes twin")
+                    raise Unfollowed(f"a {_label(node)}'s {inp.name} input has no geometry-nodes twin")
                 continue
             self.feed(inp, target, groups)
         return copy
@@ -400,7 +400,7 @@ def _reader_tree(material: Any, texspace: tuple[np.ndarray, np.ndarray]) -> tupl
 
     graph, why = density_graph(material)
     if graph is None:
-        raise _Unfollowed(why or "no varying density")
+        raise Unfollowed(why or "no varying density")
     tree = bpy.data.node_groups.new(_PREFIX, "GeometryNodeTree")
     tree.interface.new_socket("Geometry", in_out="INPUT", socket_type="NodeSocketGeometry")
     tree.interface.new_socket("Geometry", in_out="OUTPUT", socket_type="NodeSocketGeometry")
@@ -437,7 +437,7 @@ def read(scene: Any, sources: list[DensitySource], render_pass: RenderPass, budg
             try:
                 material = bpy.data.materials[source.material]
                 tree, graph = _reader_tree(material, source.texspace)
-            except (_Unfollowed, KeyError) as why:
+            except (Unfollowed, KeyError) as why:
                 plans[key] = f"a density that varies in space not read: {why}"
                 continue
             made.append((bpy.data.node_groups, tree))

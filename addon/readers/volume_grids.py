@@ -40,7 +40,7 @@ from typing import Any, Callable
 import numpy as np
 
 from ..core.media import GridMedium
-from ..render.blender_compat import grid_nodes_available
+from ..compat.blender import grid_nodes_available
 from .material_media import GridSigma, grid_sigma
 
 log = logging.getLogger(__name__)

@@ -174,7 +174,7 @@ class LineGap:
 
 
 # The geometry-nodes grid nodes that read a Volume object's density grid
-# (reference/volume_grids.py): in 4.x only behind an experimental flag.
+# (readers/volume_grids.py): in 4.x only behind an experimental flag.
 GRID_NODES = ("GeometryNodeObjectInfo", "GeometryNodeGetNamedGrid", "GeometryNodeSampleGrid")
 GRID_NODES_VERSION = (5, 0, 0)
 

@@ -1,7 +1,7 @@
 """A material's homogeneous medium, read from its volume graph as Cycles evaluates it.
 
 A medium is a material whose Volume output is linked and whose Surface output is not
-(`reference_materials.is_medium`): Cycles renders its mesh's faces as the medium's
+(`material_nodes.is_medium`): Cycles renders its mesh's faces as the medium's
 boundary and nothing else. Shadow rays through it keep exp(-sigma_t L) per channel
 (core/media.py), sigma_t the volume closures' summed extinction, which Cycles' SVM
 (kernel/svm/closure.h) sets per node, per RGB channel:
@@ -28,8 +28,8 @@ import numpy as np
 
 from ..core.alpha import luminance
 from ..core.media import Medium
-from . import reference_materials
-from .material_alpha import _MATH, _TERNARY, _UNARY, triangle_slots
+from . import material_nodes
+from .material_alpha import MATH, TERNARY, UNARY, triangle_slots
 
 log = logging.getLogger(__name__)
 
@@ -44,27 +44,27 @@ _DEPTH = 32  # nesting guard for graphs (and group nesting)
 MediumFound = tuple[Medium | None, str | None]
 
 
-class _Unfollowed(Exception):
+class Unfollowed(Exception):
     """Raised inside the reader only; its message becomes the material's note."""
 
 
 def material_medium(material: Any) -> MediumFound:
     """The homogeneous medium of a material that is a medium, or (None, why it was not
     followed, one short line); (None, None) for a material that is no medium at all."""
-    if material is None or not reference_materials.is_medium(material):
+    if material is None or not material_nodes.is_medium(material):
         return None, None
-    sigma, why = _extinction(material, _Reader())
+    sigma, why = _extinction(material, Reader())
     return (None, why) if sigma is None else (Medium(material.name, sigma), None)
 
 
-def _extinction(material: Any, reader: "_Reader") -> tuple[np.ndarray | None, str | None]:
+def _extinction(material: Any, reader: "Reader") -> tuple[np.ndarray | None, str | None]:
     """The summed extinction (3,) of a material's volume graph as `reader` follows it, or
     (None, why): a node it does not follow, or a negative or infinite sum."""
-    volume = reference_materials.surface_output(material.node_tree).inputs["Volume"]
+    volume = material_nodes.surface_output(material.node_tree).inputs["Volume"]
     try:
         source, _, groups = reader.linked(volume, ())
         sigma = np.zeros(3) if source is None else reader.extinction(source, groups)
-    except _Unfollowed as why:
+    except Unfollowed as why:
         log.debug("material %r: volume not followed: %s", material.name, why)
         return None, str(why)
     if np.any(sigma < 0.0) or not np.all(np.isfinite(sigma)):
@@ -80,7 +80,7 @@ def _label(node: Any) -> str:
 _Groups = tuple[Any, ...]
 
 
-class _Reader:
+class Reader:
     """Follows one volume graph with constant inputs."""
 
     def linked(self, socket: Any, groups: _Groups) -> tuple[Any | None, Any, _Groups]:
@@ -88,34 +88,34 @@ class _Reader:
         their Group Output, left at their Group Input), or None where the chain ends at an
         unlinked input; that last input socket, whose default then holds; the group stack)."""
         for _ in range(4 * _DEPTH):
-            source = reference_materials._linked_from(socket)
+            source = material_nodes.linked_from(socket)
             if source is None:
                 return None, socket, groups
             node = source.node
             if getattr(node, "mute", False):
-                raise _Unfollowed(f"a muted {_label(node)}: not followed")
+                raise Unfollowed(f"a muted {_label(node)}: not followed")
             if node.type == "GROUP":
                 tree = node.node_tree
                 out = None if tree is None else next(
                     (n for n in tree.nodes if n.type == "GROUP_OUTPUT" and n.is_active_output), None)
                 if out is None or len(groups) >= _DEPTH:
-                    raise _Unfollowed(f"an empty or too deep node group ({node.name}): not followed")
+                    raise Unfollowed(f"an empty or too deep node group ({node.name}): not followed")
                 socket = next(s for s in out.inputs if s.identifier == source.identifier)
                 groups = (*groups, node)
                 continue
             if node.type == "GROUP_INPUT":
                 if not groups:
-                    raise _Unfollowed("a group input outside a group: not followed")
+                    raise Unfollowed("a group input outside a group: not followed")
                 socket = next(s for s in groups[-1].inputs if s.identifier == source.identifier)
                 groups = groups[:-1]
                 continue
             return source, socket, groups
-        raise _Unfollowed("a cycle of links: not followed")
+        raise Unfollowed("a cycle of links: not followed")
 
     def extinction(self, shader: Any, groups: _Groups, depth: int = 0) -> np.ndarray:
         """(3,) the extinction of the shader behind an output socket."""
         if depth > _DEPTH:
-            raise _Unfollowed("a volume graph too deep: not followed")
+            raise Unfollowed("a volume graph too deep: not followed")
         node, kind = shader.node, shader.node.type
         if kind == "PRINCIPLED_VOLUME":
             density = self.density(node, groups)
@@ -141,7 +141,7 @@ class _Reader:
                 return parts[0] + parts[1]
             f = min(max(self.scalar(node.inputs[0], groups, "mix factor"), 0.0), 1.0)
             return (1.0 - f) * parts[0] + f * parts[1]
-        raise _Unfollowed(f"an unknown volume shader ({_label(node)}): not followed")
+        raise Unfollowed(f"an unknown volume shader ({_label(node)}): not followed")
 
     def density(self, node: Any, groups: _Groups) -> float:
         return max(self.scalar(node.inputs["Density"], groups, "density"), 0.0)
@@ -167,15 +167,15 @@ class _Reader:
         if node.type in ("VALUE", "RGB"):
             value = out.default_value
             return np.array(value[:3], dtype=np.float64) if hasattr(value, "__len__") else float(value)
-        if node.type == "MATH" and node.operation in _MATH:
-            arity = 1 if node.operation in _UNARY else 3 if node.operation in _TERNARY else 2
+        if node.type == "MATH" and node.operation in MATH:
+            arity = 1 if node.operation in UNARY else 3 if node.operation in TERNARY else 2
             args = [np.atleast_1d(self.scalar(s, inner, what)) for s in list(node.inputs)[:arity]]
             args += [np.zeros(1)] * (3 - arity)
-            value = float(_MATH[node.operation](*args)[0])
+            value = float(MATH[node.operation](*args)[0])
             return min(max(value, 0.0), 1.0) if node.use_clamp else value
         if self.varies(node, inner, 0):
-            raise _Unfollowed(f"{what} varies in space (heterogeneous): not followed")
-        raise _Unfollowed(f"{what} from a {_label(node)}: not followed")
+            raise Unfollowed(f"{what} varies in space (heterogeneous): not followed")
+        raise Unfollowed(f"{what} from a {_label(node)}: not followed")
 
     def varies(self, node: Any, groups: _Groups, depth: int) -> bool:
         """Whether a node or any node upstream of it reads a position (a texture, an attribute)."""
@@ -186,7 +186,7 @@ class _Reader:
         for socket in node.inputs:
             try:
                 source, _, inner = self.linked(socket, groups)
-            except _Unfollowed:
+            except Unfollowed:
                 continue
             if source is not None and self.varies(source.node, inner, depth + 1):
                 return True
@@ -232,7 +232,7 @@ def grid_sigma(material: Any) -> GridSigma:
     followed). No material: Cycles' default volume shader (`DEFAULT_GRID_SIGMA`)."""
     if material is None:
         return DEFAULT_GRID_SIGMA.copy(), DEFAULT_DENSITY_GRID
-    if reference_materials.volume_source(material) is None:
+    if material_nodes.volume_source(material) is None:
         return None, f"{material.name}: no volume shader: not followed"
     # A Volume object renders its material's volume alone (a surface shader draws nothing).
     reader = _GridReader()
@@ -244,7 +244,7 @@ def grid_sigma(material: Any) -> GridSigma:
     return sigma, reader.grid
 
 
-class _GridReader(_Reader):
+class _GridReader(Reader):
     """Follows a Volume object's volume graph: each volume node's density is constants times
     one grid, the same grid for every node (`grid`), read by name."""
 
@@ -252,17 +252,17 @@ class _GridReader(_Reader):
 
     def _use(self, name: str) -> None:
         if not name:
-            raise _Unfollowed("a density without a grid (homogeneous over the grids' bounds): not followed")
+            raise Unfollowed("a density without a grid (homogeneous over the grids' bounds): not followed")
         if self.grid is not None and self.grid != name:
-            raise _Unfollowed(f"densities of two grids ({self.grid}, {name}): not followed")
+            raise Unfollowed(f"densities of two grids ({self.grid}, {name}): not followed")
         self.grid = name
 
     def density(self, node: Any, groups: _Groups) -> float:
         if node.type == "PRINCIPLED_VOLUME":
             # Cycles multiplies the Density input by the Density Attribute's grid.
             attribute = node.inputs.get("Density Attribute")
-            if attribute is None or reference_materials._linked_from(attribute) is not None:
-                raise _Unfollowed("a linked density attribute: not followed")
+            if attribute is None or material_nodes.linked_from(attribute) is not None:
+                raise Unfollowed("a linked density attribute: not followed")
             self._use(str(attribute.default_value))
             return max(self.scalar(node.inputs["Density"], groups, "density"), 0.0)
         return max(self.grid_scalar(node.inputs["Density"], groups), 0.0)
@@ -280,7 +280,7 @@ class _GridReader(_Reader):
             for grid, constant in ((a, b), (b, a)):
                 try:
                     scale = self.scalar(constant, inner, "density")
-                except _Unfollowed:
+                except Unfollowed:
                     continue
                 return scale * self.grid_scalar(grid, inner)
-        raise _Unfollowed("a density that is not a grid times constants: not followed")
+        raise Unfollowed("a density that is not a grid times constants: not followed")

@@ -42,8 +42,8 @@ from typing import TYPE_CHECKING, Any, Callable, Hashable, Iterable
 
 import numpy as np
 
-from ..render import blender_compat
-from . import reference_materials
+from ..compat import blender as blender_compat
+from . import material_nodes
 
 if TYPE_CHECKING:  # pragma: no cover - typing only
     import bpy
@@ -166,7 +166,7 @@ def _see_through_material(material: "bpy.types.Material") -> str | None:
     if not blender_compat.uses_nodes(material):
         return None
     tree = material.node_tree
-    follows_alpha = reference_materials.see_through(material)
+    follows_alpha = material_nodes.see_through(material)
     for node in tree.nodes:
         if node.type in _SEE_THROUGH_NODES and not (node.type == "BSDF_TRANSPARENT" and follows_alpha):
             return f"a {node.type.replace('BSDF_', '').lower()} shader"

@@ -31,7 +31,7 @@ from typing import Any
 import numpy as np
 
 from ..core.alpha import LUMINANCE, TRANSFER_SIZE, AlphaMap, Surface, luminance, srgb_to_linear
-from ..render import blender_compat
+from ..compat import blender as blender_compat
 
 log = logging.getLogger(__name__)
 
@@ -47,8 +47,8 @@ _OPAQUE_SHADERS = {
     "BSDF_SHEEN", "BSDF_VELVET", "BSDF_TOON", "BSDF_HAIR", "BSDF_HAIR_PRINCIPLED", "BSDF_METALLIC",
     "SUBSURFACE_SCATTERING", "EMISSION", "BACKGROUND", "HOLDOUT", "EEVEE_SPECULAR",
 }
-_UNARY = {"ROUND", "ABSOLUTE", "FLOOR", "CEIL", "FRACT", "SIGN", "SQRT"}
-_TERNARY = {"MULTIPLY_ADD", "COMPARE"}
+UNARY = {"ROUND", "ABSOLUTE", "FLOOR", "CEIL", "FRACT", "SIGN", "SQRT"}
+TERNARY = {"MULTIPLY_ADD", "COMPARE"}
 
 
 def _power(a: np.ndarray, b: np.ndarray) -> np.ndarray:
@@ -64,7 +64,7 @@ def _divide(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     return np.divide(a, b, out=np.zeros(np.broadcast(a, b).shape), where=b != 0)  # Cycles' safe_divide
 
 
-_MATH = {
+MATH = {
     "ADD": lambda a, b, c: a + b, "SUBTRACT": lambda a, b, c: a - b, "MULTIPLY": lambda a, b, c: a * b,
     "DIVIDE": lambda a, b, c: _divide(a, b), "POWER": lambda a, b, c: _power(a, b),
     "MINIMUM": lambda a, b, c: np.minimum(a, b), "MAXIMUM": lambda a, b, c: np.maximum(a, b),
@@ -198,11 +198,11 @@ class _Reader:
             return self.texture(node, "A" if out.identifier == "Alpha" else "L")
         if kind in ("VALUE", "RGB"):
             return _constant(self.default(out))
-        if kind == "MATH" and node.operation in _MATH:
-            arity = 1 if node.operation in _UNARY else 3 if node.operation in _TERNARY else 2
+        if kind == "MATH" and node.operation in MATH:
+            arity = 1 if node.operation in UNARY else 3 if node.operation in TERNARY else 2
             args = [self.scalar(s) for s in list(node.inputs)[:arity]]
             args += [_constant(0.0)] * (3 - arity)
-            value = _MATH[node.operation](*(a.values for a in args))
+            value = MATH[node.operation](*(a.values for a in args))
             return _Value(np.clip(value, 0.0, 1.0) if node.use_clamp else value, self.join(*args))
         if kind == "INVERT":
             fac, color = self.scalar(node.inputs[0]), self.scalar(node.inputs[1])
