@@ -28,7 +28,7 @@ from .core.png import colormap, write_png
 from .core.scene import POINT_EMISSIONS, PROJECTIVE_EMISSIONS, CameraSpec, LightSpec
 from .reference.data import ReferenceData
 from .render.blender_draw import pool_image
-from .render.frame import EXACT_SAMPLES
+from .render.frame import EXACT_SAMPLES, Measure
 from .render.pipeline import (
     MAX_RESOLUTION,
     MIN_RESOLUTION,
@@ -185,7 +185,7 @@ def run_row(pipeline: ShadowPipeline, ref: ReferenceData, preset: str, method: s
     count = max(1, options.frames)
     # Measuring frames: each stage waits for its GPU work, so its wall time holds it. A
     # frame's visibility is read after it (at the latest when the next frame starts).
-    frames = [pipeline.render(light, scene, samples, settings, keep_atlas=(i == count - 1), sync_stages=True)
+    frames = [pipeline.render(light, scene, samples, settings, Measure(keep_atlas=i == count - 1, sync_stages=True))
               for i in range(count)]
     last = frames[-1]
     counts = count_statistics(pipeline, light, settings, last, samples)  # measurement, not timed
@@ -257,7 +257,7 @@ def _list_columns(pipeline: ShadowPipeline, light: LightSpec, scene: ResidentSce
     resolution (`counts.after`), and one more frame, untimed, counts the triangle pass's work."""
     lengths = np.concatenate([m.ravel() for m in counts.after.values()]) if counts.after else np.zeros(1)
     occupied = lengths[lengths > 0]
-    work = pipeline.render(light, scene, samples, settings, count_work=True).exact_work
+    work = pipeline.render(light, scene, samples, settings, Measure(count_work=True)).exact_work
     return {"list_longest": int(lengths.max()), "list_mean": float(occupied.mean()) if occupied.size else 0.0,
             "list_fragments": work["fragments"], "list_entries": work["entries"], "list_cut": work["cut"],
             "list_moved_entries": work["moved"], "list_rounds": work["rounds"]}

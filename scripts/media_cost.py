@@ -29,6 +29,7 @@ from addon.render.frame import settings_for  # noqa: E402
 from addon.render.moderngl_backend import ModernGLBackend  # noqa: E402
 from addon.render.pipeline import ShadowPipeline  # noqa: E402
 from addon.render.resident import ResidentScene  # noqa: E402
+from addon.render.frame import Measure
 
 
 def without_media(ref: ReferenceData) -> ResidentScene:
@@ -79,7 +80,7 @@ def main() -> int:
         last = {}
         for _ in range(args.frames):
             for name, scene in scenes.items():
-                last[name] = pipeline.render(light, scene, samples, settings, sync_stages=True)
+                last[name] = pipeline.render(light, scene, samples, settings, measure=Measure(sync_stages=True))
                 times[name].append(last[name].time_ms)
         base = statistics.median(t["total"] for t in times["without"])
         for name in scenes:

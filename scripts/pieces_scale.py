@@ -27,6 +27,7 @@ from addon.render.frame import ViewSamples, settings_for  # noqa: E402
 from addon.render.moderngl_backend import ModernGLBackend  # noqa: E402
 from addon.render.pipeline import ShadowPipeline  # noqa: E402
 from addon.render.resident import ResidentScene  # noqa: E402
+from addon.render.frame import Measure
 
 
 def groom(count: int, seed: int = 1) -> Strands:
@@ -72,7 +73,7 @@ def measure(pipe: ShadowPipeline, label: str, build, method: str, frames: int) -
     start = time.perf_counter()
     pipe.render(light, scene, samples, settings).visibility
     first_ms = (time.perf_counter() - start) * 1e3
-    steady = [pipe.render(light, scene, samples, settings, sync_stages=True) for _ in range(frames)]
+    steady = [pipe.render(light, scene, samples, settings, measure=Measure(sync_stages=True)) for _ in range(frames)]
     pipe.backend.release_scene(scene)
     return {"scene": label, "primitives": count, "set_ms": set_ms, "first_ms": first_ms,
             "prepare_ms": statistics.median(f.time_ms["prepare"] for f in steady),

@@ -17,7 +17,7 @@ from ..core import methods as method_registry
 from ..core.png import write_png
 from ..core.scene import LightSpec
 from ..reference.data import ReferenceData
-from ..render.pipeline import ShadowPipeline, ShadowSettings, count_statistics
+from ..render.pipeline import Measure, ShadowPipeline, ShadowSettings, count_statistics
 from ..render.resident import ResidentScene
 from ..render.shaders import OVERLAY_MODES
 
@@ -138,7 +138,7 @@ def run(reference: ReferenceData, lights: list[tuple[str, LightSpec, ShadowSetti
             # Resident once per light, as compare has it: the warm-up frame uploads it.
             blockers = _resident((occluders or {}).get(name, seen))
             pipeline.render(light, blockers, samples, settings)  # warm-up (shader compile, upload)
-            result = pipeline.render(light, blockers, samples, settings, keep_atlas=True, sync_stages=True)
+            result = pipeline.render(light, blockers, samples, settings, Measure(keep_atlas=True, sync_stages=True))
             stats = count_statistics(pipeline, light, settings, result, samples)
             raw = np.stack([result.visibility, result.flags.astype(np.float32)], axis=-1)
             per_light.append((name, light, settings, result, stats, raw))

@@ -38,7 +38,7 @@ from ..core import validate
 from ..core.errors import InputError
 from ..core.scene import camera_from_matrices
 from ..render.pacing import Steps, drive
-from ..render.pipeline import ShadowPipeline, count_statistics
+from ..render.pipeline import Measure, ShadowPipeline, count_statistics
 from ..render.resident import ResidentScene
 from . import events, properties
 
@@ -311,7 +311,7 @@ def compute_view_steps(backend, pipeline: ShadowPipeline, seen: ResidentScene, v
     for name, light, settings in lights:
         yield from backend.pacer.pause()
         result = yield from pipeline.render_steps(light, (occluders or {}).get(name, seen), samples, settings,
-                                                  keep_atlas=overlay)
+                                                  Measure(keep_atlas=overlay))
         stats = count_statistics(pipeline, light, settings, result, samples) if overlay else None
         texture = backend.device.texture(size, "RG32F")
         target = backend.device.target((texture,))

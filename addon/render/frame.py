@@ -155,6 +155,22 @@ MAX_IMPORTANCE = 65536.0
 MAX_IMPORTANCE_TOTAL = 2**32 - 1
 
 
+@dataclass(frozen=True)
+class Measure:
+    """What a frame does besides its shadows, for measurement: none of it changes the
+    visibility. `keep_atlas` reads the maps (and media haze) back into the result (the
+    overlay, the report's images); `sync_stages` waits at the end of each stage, so that
+    each stage's wall time holds its GPU work (`compare`, `preview`); `count_work` makes the
+    exact pass count the list entries it walks (its own program variant, slower)."""
+
+    keep_atlas: bool = False
+    sync_stages: bool = False
+    count_work: bool = False
+
+
+PLAIN = Measure()  # a frame as the viewport draws it: nothing read back, nothing waited for
+
+
 @dataclass
 class ViewSamples:
     """Per-pixel view samples; row 0 is the TOP image row (as the reference stores it).

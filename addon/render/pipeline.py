@@ -8,7 +8,7 @@ The scene stays on the GPU (`resident.ResidentScene`): a frame's host work is th
 plan, the warp tables and the uniforms, whatever the scene's size. The frame does not
 wait for the GPU: its visibility stays there until the result is read
 (`frame.FrameResult`). `time_ms` holds wall ms per stage (stage_clock.py), in a
-measuring frame (`sync_stages`) each with its GPU work; `FrameResult.gpu_ms` holds the
+measuring frame (`Measure.sync_stages`) each with its GPU work; `FrameResult.gpu_ms` holds the
 GPU's own ms per stage where the backend has timer queries. The stages:
 
 - `prepare`: host work of the frame: planning from the samples' statistics (a few
@@ -58,6 +58,8 @@ from .frame import (
     FrameReader,
     FrameResult,
     GBufferSamples,
+    Measure,
+    PLAIN,
     PreparedGeometry,
     ShadowSettings,
     ViewSamples,
@@ -81,7 +83,7 @@ log = logging.getLogger(__name__)
 
 # The frame's data types and helpers, importable from here as before.
 __all__ = ["MAX_IMPORTANCE", "MAX_IMPORTANCE_TOTAL", "MAX_RESOLUTION", "MIN_RESOLUTION", "BiasSettings",
-           "CountStatistics", "FrameResult", "PreparedGeometry", "ShadowPipeline", "ShadowSettings", "ViewSamples",
+           "CountStatistics", "FrameResult", "Measure", "PreparedGeometry", "ShadowPipeline", "ShadowSettings", "ViewSamples",
            "count_statistics", "edge_aa_parameters", "projective_counts", "settings_for"]
 
 
@@ -150,27 +152,24 @@ class ShadowPipeline:
                                   media_across=across)
 
     def render(self, light: LightSpec, scene: ResidentScene | np.ndarray, samples: ViewSamples | GBufferSamples,
-               settings: ShadowSettings, keep_atlas: bool = False, count_work: bool = False,
-               sync_stages: bool = False) -> FrameResult:
+               settings: ShadowSettings, measure: Measure = PLAIN) -> FrameResult:
         """One frame: plan, analysis, maps, test.
 
         The frame does not wait for the GPU: its visibility (and, where the backend has
         timer queries, each stage's GPU ms) stays there until the result is first read,
-        at the latest when the next frame starts. `sync_stages` makes a measuring frame
-        wait at the end of each stage, so that each stage's wall time holds its GPU work
-        (`compare`, `preview`). `count_work` makes the exact pass count its work (a
-        measurement frame, slower). `scene` is a `ResidentScene`, whose unchanged objects
+        at the latest when the next frame starts. `measure` (frame.Measure) reads the maps
+        back, waits at the end of each stage or counts the exact pass's work. `scene` is a `ResidentScene`, whose unchanged objects
         stay on the GPU between frames (keep it there until the result is read: the exact
         pass's later rounds draw it then), or a (T, 3, 3) world triangle array: a read-only
         one stays resident for as long as the same array comes back (the viewport's
         per-light selections), any other is uploaded for this frame only. `samples` are
         arrays, uploaded, or a Blender G-buffer's textures, used where they are.
         """
-        return drive(self.render_steps(light, scene, samples, settings, keep_atlas, count_work, sync_stages))
+        return drive(self.render_steps(light, scene, samples, settings, measure))
 
     def render_steps(self, light: LightSpec, scene: ResidentScene | np.ndarray,
-                     samples: ViewSamples | GBufferSamples, settings: ShadowSettings, keep_atlas: bool = False,
-                     count_work: bool = False, sync_stages: bool = False) -> Steps[FrameResult]:
+                     samples: ViewSamples | GBufferSamples, settings: ShadowSettings,
+                     measure: Measure = PLAIN) -> Steps[FrameResult]:
         """`render` as a stepped pass (render/pacing.py): while the backend's pacer is
         stepping it yields between slices of its long draws (the viewport spreads a frame
         over redraws); nothing else may use the backend until it has returned."""
@@ -185,8 +184,7 @@ class ShadowPipeline:
         # The context is made current once for the frame: every pass inside finds it bound.
         with self.backend.device.bound():
             try:
-                result = yield from self._render_steps(light, scene, samples, settings, keep_atlas, scene_ms,
-                                                       count_work, sync_stages)
+                result = yield from self._render_steps(light, scene, samples, settings, measure, scene_ms)
                 if one_frame:
                     result.complete()  # its later exact rounds draw this scene, freed below
             finally:
@@ -208,12 +206,11 @@ class ShadowPipeline:
         self.backend.resolve_visibility(target, result.exact_marks)
 
     def _render_steps(self, light: LightSpec, scene: ResidentScene, samples: ViewSamples | GBufferSamples,
-                      settings: ShadowSettings, keep_atlas: bool, scene_ms: float = 0.0,
-                      count_work: bool = False, sync_stages: bool = False) -> Steps[FrameResult]:
+                      settings: ShadowSettings, measure: Measure, scene_ms: float = 0.0) -> Steps[FrameResult]:
         backend = self.backend
         # A sized light's exact pass lists its samples coarser (soft.list_resolution).
         settings = dataclasses.replace(settings, resolution=list_resolution(light, settings))
-        clock = StageClock(backend.device, backend.finish if sync_stages else None)
+        clock = StageClock(backend.device, backend.finish if measure.sync_stages else None)
         clock.add("prepare", scene_ms)
         with clock.part("upload", "shadow_test"):
             self._upload_samples(light, samples)
@@ -270,7 +267,7 @@ class ShadowPipeline:
             backend.media = media
             inputs = DrawInputs(plan, settings, geometry, layout, tile_of_slot, mappings, size, boxes,
                                 footprint_draws(scene, light, media), region_uniforms(plan, light, settings.cull),
-                                scene, light, count_work, self._runs)
+                                scene, light, measure.count_work, self._runs)
 
         yield from backend.pacer.pause()
         with clock.part("shadow_maps", "shadow_maps"):
@@ -281,7 +278,7 @@ class ShadowPipeline:
                 self.link_lists(light, plan, mappings, res, hit_words(light, settings),
                                 media=media if media.on else None)
             edge_radius = yield from scheme.draw_steps(backend, inputs)
-            if settings.exact and (sync_stages or count_work):
+            if settings.exact and (measure.sync_stages or measure.count_work):
                 # A measuring frame draws the exact pass's later rounds in its own time; any
                 # other leaves the check of their need (a read) to its first read.
                 backend.finish_lists()
@@ -292,8 +289,8 @@ class ShadowPipeline:
                                      edge_radius, boxes)
         timings = clock.wall_ms()
 
-        atlas = _mask_unread_texels(backend.read_atlas(), layout, tile_of_slot, boxes) if keep_atlas else None
-        haze = read_haze(backend) if keep_atlas else None
+        atlas = _mask_unread_texels(backend.read_atlas(), layout, tile_of_slot, boxes) if measure.keep_atlas else None
+        haze = read_haze(backend) if measure.keep_atlas else None
         if haze is not None:
             haze = _mask_unread_texels(haze, layout, tile_of_slot, boxes)
         # The atlas of `exact` holds no depth (every texel empty), so the test lit every

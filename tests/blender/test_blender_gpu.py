@@ -17,6 +17,7 @@ pytest.importorskip("bpy", reason="the Blender gpu backend needs bpy (scripts/se
 from addon.cli import main  # noqa: E402
 from addon.core.scene import LightSpec  # noqa: E402
 from addon.render.pipeline import ShadowPipeline, ShadowSettings  # noqa: E402
+from addon.render.frame import Measure
 from tests.gl.test_pipeline_extremes import _seam_straddler  # noqa: E402
 from tests.gl.test_projective import _street  # noqa: E402
 from tests.gl.test_footprint_pass import point_cloud  # noqa: E402
@@ -79,14 +80,14 @@ def test_blender_backend_matches_moderngl(gl_backend, tmp_path, monkeypatch, ref
     for param, warp, aa in CASES:
         key = case_key(param, warp, aa)
         ours = pipeline.render(scene.light, scene.world_triangles(), samples,
-                               ShadowSettings(param, 256, warp=warp, edge_aa=aa), keep_atlas=True)
+                               ShadowSettings(param, 256, warp=warp, edge_aa=aa), measure=Measure(keep_atlas=True))
         assert np.array_equal(ours.visibility, theirs[f"{key}_visibility"]), key
         assert np.allclose(ours.atlas, theirs[f"{key}_atlas"], atol=1e-6), key
     # Importance weights reach the analysis scatter on both backends alike.
     plain = pipeline.render(scene.light, scene.world_triangles(), samples, ShadowSettings("dpsm", 256, warp="notw"),
-                            keep_atlas=True)
+                            measure=Measure(keep_atlas=True))
     ours = pipeline.render(scene.light, scene.world_triangles(), weighted_samples(samples),
-                           ShadowSettings("dpsm", 256, warp="notw"), keep_atlas=True)
+                           ShadowSettings("dpsm", 256, warp="notw"), measure=Measure(keep_atlas=True))
     assert not np.allclose(ours.atlas, plain.atlas, atol=1e-6)  # the weights move the warp
     assert np.array_equal(ours.visibility, theirs["weighted_visibility"])
     assert np.allclose(ours.atlas, theirs["weighted_atlas"], atol=1e-6)
@@ -133,7 +134,7 @@ def test_blender_backend_matches_moderngl(gl_backend, tmp_path, monkeypatch, ref
     court_samples, _, _ = view_samples(court)
     for param in BOXED_CASES:
         ours = pipeline.render(court.light, court.world_triangles(), court_samples, ShadowSettings(param, 256),
-                               keep_atlas=True)
+                               measure=Measure(keep_atlas=True))
         assert ours.boxes, param  # the case really clears and draws boxes only
         assert np.array_equal(ours.visibility, theirs[f"boxed_{param}_visibility"]), param
         assert np.allclose(ours.atlas, theirs[f"boxed_{param}_atlas"], atol=1e-6), param
@@ -141,7 +142,7 @@ def test_blender_backend_matches_moderngl(gl_backend, tmp_path, monkeypatch, ref
         street = _street(light)
         street_samples, _, _ = view_samples(street)
         ours = pipeline.render(street.light, street.world_triangles(), street_samples, ShadowSettings(method, 256),
-                               keep_atlas=True)
+                               measure=Measure(keep_atlas=True))
         assert np.array_equal(ours.visibility, theirs[f"{light}_{method}_visibility"]), (light, method)
         assert np.allclose(ours.atlas, theirs[f"{light}_{method}_atlas"], atol=1e-6), (light, method)
     for light in PROJECTIVE_EXACT_CASES:  # the exact pass over a spot's and a sun's own map
@@ -161,7 +162,7 @@ def test_blender_backend_matches_moderngl(gl_backend, tmp_path, monkeypatch, ref
     cloud, cloud_samples = point_cloud()
     for param in POINT_CASES:
         ours = pipeline.render(LightSpec("omni", np.eye(4)), cloud, cloud_samples,
-                               ShadowSettings(param, 256, cull=False), keep_atlas=True)
+                               ShadowSettings(param, 256, cull=False), measure=Measure(keep_atlas=True))
         assert np.allclose(ours.atlas, theirs[f"cloud_{param}_atlas"], atol=1e-6), param
 
 

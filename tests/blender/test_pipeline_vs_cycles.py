@@ -21,6 +21,7 @@ from addon.core.scene import SceneBuilder  # noqa: E402
 from addon.reference.blender_scene import build_blender_scene, remove_blender_scene  # noqa: E402
 from addon.reference.capture import capture  # noqa: E402
 from addon.render.pipeline import ShadowPipeline, ShadowSettings  # noqa: E402
+from addon.render.frame import Measure
 
 pytestmark = [pytest.mark.blender, pytest.mark.gl]
 
@@ -51,7 +52,7 @@ def test_hard_geometry_matches_cycles(gl_backend, hard_scene_reference, param):
     samples = samples_from_reference(ref)
     pipeline = ShadowPipeline(gl_backend)
     result = pipeline.render(light, ref.triangles.astype(np.float64), samples, ShadowSettings(param, 1024),
-                             keep_atlas=True)
+                             measure=Measure(keep_atlas=True))
     assert np.all(np.isfinite(result.atlas))
     ref_lit = metrics.reference_visibility(ref.shadowed, ref.unshadowed)
     evaluable = metrics.evaluable_mask(ref.position, ref.normal, ref.hit, ref.unshadowed, light)
@@ -63,7 +64,7 @@ def test_hard_geometry_matches_cycles(gl_backend, hard_scene_reference, param):
     assert overall.error_pct < 1.0, overall
 
     with_fan = pipeline.render(light, np.concatenate([ref.triangles.astype(np.float64), FAN]), samples,
-                               ShadowSettings(param, 1024), keep_atlas=True)
+                               ShadowSettings(param, 1024), measure=Measure(keep_atlas=True))
     assert np.all(np.isfinite(with_fan.atlas))
     assert with_fan.geometry.skipped_triangles == result.geometry.skipped_triangles + 1
     assert np.array_equal(with_fan.visibility, result.visibility)

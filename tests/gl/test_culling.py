@@ -8,6 +8,7 @@ from addon.core import plan as P
 from addon.core import samples as SS
 from addon.core.presets import build_preset
 from addon.render.pipeline import ShadowPipeline, ShadowSettings
+from addon.render.frame import Measure
 from tests.support.oracle import view_samples
 
 pytestmark = pytest.mark.gl
@@ -73,7 +74,7 @@ def test_texels_outside_the_readable_box_are_never_read():
     culled = ShadowSettings("dpsm", 256)
     fresh_backend = ModernGLBackend()
     try:
-        expected = ShadowPipeline(fresh_backend).render(scene.light, tris, samples, culled, keep_atlas=True)
+        expected = ShadowPipeline(fresh_backend).render(scene.light, tris, samples, culled, measure=Measure(keep_atlas=True))
     finally:
         fresh_backend.release()
     (slot, box), = expected.boxes.items()  # the one side drawn, with its box
@@ -82,10 +83,10 @@ def test_texels_outside_the_readable_box_are_never_read():
     backend = ModernGLBackend()
     try:
         pipe = ShadowPipeline(backend)
-        stale = pipe.render(scene.light, tris, samples, ShadowSettings("ipsm", 256), keep_atlas=True)
+        stale = pipe.render(scene.light, tris, samples, ShadowSettings("ipsm", 256), measure=Measure(keep_atlas=True))
         assert stale.layout == expected.layout and not stale.boxes
         assert np.count_nonzero(stale.atlas < 1.0) > 4 * np.count_nonzero(expected.atlas < 1.0)
-        again = pipe.render(scene.light, tris, samples, culled, keep_atlas=True)
+        again = pipe.render(scene.light, tris, samples, culled, measure=Measure(keep_atlas=True))
     finally:
         backend.release()
     assert np.array_equal(again.visibility, expected.visibility)

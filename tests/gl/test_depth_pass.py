@@ -7,6 +7,7 @@ import pytest
 from addon.core import projection
 from addon.core.scene import SceneBuilder
 from addon.render.pipeline import ShadowPipeline, ShadowSettings, ViewSamples
+from addon.render.frame import Measure
 
 pytestmark = pytest.mark.gl
 
@@ -38,7 +39,7 @@ def test_floor_depth_is_exact_radial_distance(gl_backend, param, slot):
     res = 32
     result = ShadowPipeline(gl_backend).render(scene.light, scene.world_triangles(),
                                                _samples(scene, (0.3, 0.2, -1.0)),
-                                               ShadowSettings(param, res, cull=False), keep_atlas=True)
+                                               ShadowSettings(param, res, cull=False), measure=Measure(keep_atlas=True))
     layer = next(layer for layer in result.plan.drawn if layer.slot == slot)
     tile = _tile(result, slot)
     centres = (np.arange(res) + 0.5) / res * 2 - 1
@@ -64,7 +65,7 @@ def test_empty_texels_hold_far_and_opposite_side_is_empty(gl_backend):
     scene = _floor_scene()
     result = ShadowPipeline(gl_backend).render(scene.light, scene.world_triangles(),
                                                _samples(scene, (0.3, 0.2, -1.0)),
-                                               ShadowSettings("dpsm", 32, cull=False), keep_atlas=True)
+                                               ShadowSettings("dpsm", 32, cull=False), measure=Measure(keep_atlas=True))
     assert np.all(_tile(result, 1) == 1.0)
     corner = _tile(result, 0)[0, 0]  # outside the unit disk
     assert corner == 1.0
@@ -95,7 +96,7 @@ def test_warped_floor_depth_follows_the_exact_inverse_warp(gl_backend, param, sl
     pos = np.concatenate([pts, np.full((24, 24, 1), -1.0)], axis=-1)
     samples = ViewSamples(pos, np.tile([0.0, 0.0, 1.0], (24, 24, 1)), np.ones((24, 24), bool), scene.camera)
     result = ShadowPipeline(gl_backend).render(scene.light, scene.world_triangles(), samples,
-                                               ShadowSettings(param, res, cull=False, warp=warp), keep_atlas=True)
+                                               ShadowSettings(param, res, cull=False, warp=warp), measure=Measure(keep_atlas=True))
     layer = next(layer for layer in result.plan.drawn if layer.slot == slot)
     mapping = result.mappings[slot]
     assert mapping.warp is not None and not np.allclose(mapping.warp.rows, 0.0)

@@ -6,6 +6,7 @@ import pytest
 
 from addon.core.metrics import soft_error_pct
 from addon.render.pipeline import ShadowPipeline, ShadowSettings, edge_aa_parameters
+from addon.render.frame import Measure
 from tests.support.oracle import view_samples
 
 pytestmark = pytest.mark.gl
@@ -50,7 +51,7 @@ def test_edge_passes_match_numpy(gl_backend):
     res = 32
     pipe = ShadowPipeline(gl_backend)
     result = pipe.render(scene.light, scene.world_triangles(), samples, ShadowSettings("unfold", res),
-                         keep_atlas=True)
+                         measure=Measure(keep_atlas=True))
     # At 32 texels the automatic eps would exceed the whole depth range; pick values
     # that make edges to find, and run the passes on the atlas just drawn.
     radius, eps = 3, 0.02

@@ -12,6 +12,7 @@ from addon.core.presets import build_preset
 from addon.core.scene import CameraSpec, LightSpec, MeshSpec, SceneSpec, look_at
 from addon.render.pipeline import ShadowPipeline, ShadowSettings
 from addon.render.shaders import EXACT_MAX_WALK
+from addon.render.frame import Measure
 from tests.gl.test_izb_lists import _walk
 from tests.support.oracle import view_samples
 
@@ -56,7 +57,7 @@ def test_a_list_past_the_walk_bound_is_finished_by_later_rounds(gl_backend):
     assert samples.hit.sum() > EXACT_MAX_WALK
     pipe = ShadowPipeline(gl_backend)
     result = pipe.render(scene.light, scene.world_triangles(), samples, ShadowSettings("dpsm", 256, exact=True),
-                         count_work=True)
+                         measure=Measure(count_work=True))
     work = result.exact_work
     assert work["cut"] > 0 and work["rounds"] >= 1 and work["moved"] > 0, work
     wrong = ((result.visibility > 0.5) != (exact > 0.5))[evaluable]
@@ -76,10 +77,10 @@ def test_rounds_walk_every_entry_once(gl_backend, monkeypatch, bound):
     pipe = ShadowPipeline(gl_backend)
     settings = ShadowSettings("dpsm", 128, warp="none", exact=True)  # plain: lists of up to ~10
     resident = ResidentScene.of_triangles(scene.world_triangles(), surface=scene.surface())
-    once = pipe.render(scene.light, resident, samples, settings, count_work=True)
+    once = pipe.render(scene.light, resident, samples, settings, measure=Measure(count_work=True))
     from addon.render.passes import exact as exact_pass
     monkeypatch.setattr(exact_pass, "EXACT_MAX_WALK", bound)  # the first round's bound (passes/exact.py)
-    rounds = pipe.render(scene.light, resident, samples, settings, count_work=True)
+    rounds = pipe.render(scene.light, resident, samples, settings, measure=Measure(count_work=True))
     assert once.exact_work["rounds"] == 0 and rounds.exact_work["rounds"] >= 2, rounds.exact_work
     assert np.array_equal(rounds.visibility, once.visibility)
     # A frame that does not wait draws its later rounds at its first read, with the same marks.
@@ -108,7 +109,7 @@ def test_work_counts_follow_the_lists(gl_backend):
     settings = ShadowSettings("dpsm", 128, warp="notw", exact=True)
     plain = pipe.render(scene.light, scene.world_triangles(), samples, settings)
     assert plain.exact_work["entries"] == plain.exact_work["fragments"] == 0  # not counted when timed
-    counted = pipe.render(scene.light, scene.world_triangles(), samples, settings, count_work=True)
+    counted = pipe.render(scene.light, scene.world_triangles(), samples, settings, measure=Measure(count_work=True))
     assert np.array_equal(counted.visibility, plain.visibility)
     work = counted.exact_work
     lengths, _ = _walk(*gl_backend.read_links())

@@ -14,6 +14,7 @@ from addon.core.presets import build_preset
 from addon.core.scene import CameraSpec, LightSpec, SceneSpec, look_at
 from addon.render.pipeline import ShadowPipeline, ShadowSettings, projective_counts
 from addon.render.resident import ResidentScene
+from addon.render.frame import Measure
 from tests.gl.test_exact_pass import random_blockers
 from tests.gl.test_izb_lists import _walk
 from tests.support.oracle import transmittance, view_samples
@@ -124,10 +125,10 @@ def test_rounds_walk_every_entry_once(gl_backend, monkeypatch):
     samples, _, _ = view_samples(scene)
     pipe = ShadowPipeline(gl_backend)
     settings = ShadowSettings("sm", 64, exact=True)  # coarse: lists of several samples
-    once = pipe.render(scene.light, scene.world_triangles(), samples, settings, count_work=True)
+    once = pipe.render(scene.light, scene.world_triangles(), samples, settings, measure=Measure(count_work=True))
     from addon.render.passes import exact as exact_pass
     monkeypatch.setattr(exact_pass, "EXACT_MAX_WALK", 1)  # the first round's bound (passes/exact.py)
-    rounds = pipe.render(scene.light, scene.world_triangles(), samples, settings, count_work=True)
+    rounds = pipe.render(scene.light, scene.world_triangles(), samples, settings, measure=Measure(count_work=True))
     assert once.exact_work["rounds"] == 0 and rounds.exact_work["rounds"] >= 2, rounds.exact_work
     assert np.array_equal(rounds.visibility, once.visibility)
     assert rounds.exact_work["entries"] == once.exact_work["entries"] > rounds.exact_work["moved"] > 0

@@ -19,6 +19,7 @@ from addon.core.scene import SceneBuilder
 from addon.render.frame import ShadowSettings, settings_for
 from addon.render.pipeline import ShadowPipeline
 from addon.render.resident import ResidentScene
+from addon.render.frame import Measure
 from tests.gl.test_alpha_pass import _card
 from tests.gl.test_soft_filter import _case
 from tests.support.oracle import view_samples
@@ -159,10 +160,10 @@ def test_rounds_finish_a_sized_lights_lists(gl_backend, monkeypatch):
     are those of one round."""
 
     _, scene, samples, _, _ = _case("area")
-    once = _exact(gl_backend, scene, samples, 16, "dpsm", "none", resolution=64, count_work=True)
+    once = _exact(gl_backend, scene, samples, 16, "dpsm", "none", resolution=64, measure=Measure(count_work=True))
     from addon.render.passes import exact as exact_pass
     monkeypatch.setattr(exact_pass, "EXACT_MAX_WALK", 1)  # the first round's bound (passes/exact.py)
-    rounds = _exact(gl_backend, scene, samples, 16, "dpsm", "none", resolution=64, count_work=True)
+    rounds = _exact(gl_backend, scene, samples, 16, "dpsm", "none", resolution=64, measure=Measure(count_work=True))
     assert once.exact_work["rounds"] == 0 and rounds.exact_work["rounds"] >= 2, rounds.exact_work
     assert np.array_equal(rounds.visibility, once.visibility)
     # A frame that does not wait leaves the rounds to its first read; the test, which weighs

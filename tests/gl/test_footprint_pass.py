@@ -18,6 +18,7 @@ from addon.core import projection
 from addon.core.scene import LightSpec
 from addon.render.pipeline import ShadowPipeline, ShadowSettings, ViewSamples
 from addon.render.resident import ResidentScene
+from addon.render.frame import Measure
 from tests.core.test_footprint import KINDS, _random_rotation, _triangle
 from tests.support.oracle import ray_hits
 
@@ -95,7 +96,7 @@ def test_footprints_cover_exactly_the_texels_whose_ray_hits(gl_backend, param, w
         kind = KINDS[index % len(KINDS)]
         tri = _triangle(rng, kind) @ _random_rotation(rng).T
         result = pipeline.render(light, tri[None], _samples(tri, rng), ShadowSettings(param, RES, cull=False, warp=warp),
-                                 keep_atlas=True)
+                                 measure=Measure(keep_atlas=True))
         for layer in result.plan.drawn:
             wrong, covered = _check_layer(result, layer, tri)
             covered_total += covered
@@ -231,12 +232,12 @@ def test_point_sprites_store_what_quads_store(gl_backend, monkeypatch, param, wa
         return runs
 
     monkeypatch.setattr(footprint_runs, "footprint_ranges", spy)  # what RunMemo calls
-    sprites = pipeline.render(light, scene, samples, settings, keep_atlas=True)
+    sprites = pipeline.render(light, scene, samples, settings, measure=Measure(keep_atlas=True))
     assert any(used) or warp != "none"
     monkeypatch.setattr(footprint_runs, "MAX_POINT_SIZE", 0)  # no chunk fits: all quads
     used.clear()
     pipeline = ShadowPipeline(gl_backend)  # its own kept runs: the constant changed
-    quads = pipeline.render(light, scene, samples, settings, keep_atlas=True)
+    quads = pipeline.render(light, scene, samples, settings, measure=Measure(keep_atlas=True))
     assert used and not any(used)
     assert np.array_equal(sprites.atlas, quads.atlas)
     assert np.count_nonzero(sprites.atlas < 1.0) > 1000
@@ -261,10 +262,10 @@ def test_a_steady_frame_draws_the_runs_it_kept(gl_backend, monkeypatch):
 
     monkeypatch.setattr(footprint_runs, "footprint_ranges", spy)
     light = _light()
-    first = pipeline.render(light, scene, samples, settings, keep_atlas=True)
+    first = pipeline.render(light, scene, samples, settings, measure=Measure(keep_atlas=True))
     assert calls
     calls.clear()
-    again = pipeline.render(light, scene, samples, settings, keep_atlas=True)
+    again = pipeline.render(light, scene, samples, settings, measure=Measure(keep_atlas=True))
     assert not calls and np.array_equal(again.atlas, first.atlas)
     matrix = np.array(light.matrix_world, dtype=np.float64)
     matrix[:3, 3] += (0.05, 0.0, 0.0)

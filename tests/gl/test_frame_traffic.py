@@ -8,6 +8,7 @@ import pytest
 
 from addon.core.presets import build_preset
 from addon.render.pipeline import ShadowPipeline, ShadowSettings, ViewSamples, settings_for
+from addon.render.frame import Measure
 from scripts.frame_traffic import steady_traffic
 from tests.support.oracle import view_samples
 from tests.support.traffic import Traffic
@@ -61,7 +62,7 @@ def test_the_result_is_read_when_first_asked_for_and_equals_a_synced_frame(gl_ba
     triangles = scene.world_triangles()
     settings = ShadowSettings("dpsm", 256, warp="notw")
     try:
-        synced = pipeline.render(scene.light, triangles, samples, settings, sync_stages=True).visibility
+        synced = pipeline.render(scene.light, triangles, samples, settings, measure=Measure(sync_stages=True)).visibility
         first = pipeline.render(scene.light, triangles, samples, settings)
         assert first.pending
         traffic = Traffic()

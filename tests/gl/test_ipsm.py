@@ -10,6 +10,7 @@ from addon.core import plan as P
 from addon.core.metrics import error_figure
 from addon.core.presets import build_preset
 from addon.render.pipeline import ShadowPipeline, ShadowSettings
+from addon.render.frame import Measure
 from tests.support.oracle import view_samples
 
 pytestmark = pytest.mark.gl
@@ -46,7 +47,7 @@ def courtyard():
 def test_ipsm_uses_one_pass_and_beats_dpsm_outside_the_view(gl_backend, courtyard):
     scene, samples, lit, evaluable = courtyard
     pipe = ShadowPipeline(gl_backend)
-    ipsm = pipe.render(scene.light, scene.world_triangles(), samples, ShadowSettings("ipsm", 512), keep_atlas=True)
+    ipsm = pipe.render(scene.light, scene.world_triangles(), samples, ShadowSettings("ipsm", 512), measure=Measure(keep_atlas=True))
     dpsm = pipe.render(scene.light, scene.world_triangles(), samples, ShadowSettings("dpsm", 512))
     assert ipsm.plan.parameterization == "ipsm" and ipsm.passes == 1
     assert 0 < ipsm.plan.ipsm_half_angle < P.IPSM_MAX_HALF_ANGLE

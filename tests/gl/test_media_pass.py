@@ -18,6 +18,7 @@ from addon.core.media import Medium, optical_depths, visibility, winding_numbers
 from addon.core.scene import SceneBuilder
 from addon.render.pipeline import ShadowPipeline, ShadowSettings
 from addon.render.resident import ResidentScene
+from addon.render.frame import Measure
 from tests.support.oracle import view_samples
 
 pytestmark = pytest.mark.gl
@@ -214,7 +215,7 @@ def test_the_transmittance_map_comes_with_the_atlas(gl_backend):
     resident = _resident(scene, fog, medium)
     pipe = ShadowPipeline(gl_backend)
     try:
-        result = pipe.render(scene.light, resident, samples, ShadowSettings("dpsm", 256, warp="notw"), keep_atlas=True)
+        result = pipe.render(scene.light, resident, samples, ShadowSettings("dpsm", 256, warp="notw"), measure=Measure(keep_atlas=True))
     finally:
         gl_backend.release_scene(resident)
     assert result.haze is not None and result.haze.shape == result.atlas.shape
@@ -224,7 +225,7 @@ def test_the_transmittance_map_comes_with_the_atlas(gl_backend):
     assert (result.haze[foggy] < np.exp(-0.9 * 0.5)).any()  # some rays cross more than 0.5 m
     plain = ResidentScene.of_triangles(scene.world_triangles())
     try:
-        assert pipe.render(scene.light, plain, samples, ShadowSettings("dpsm", 256), keep_atlas=True).haze is None
+        assert pipe.render(scene.light, plain, samples, ShadowSettings("dpsm", 256), measure=Measure(keep_atlas=True)).haze is None
     finally:
         gl_backend.release_scene(plain)
 

@@ -12,6 +12,7 @@ from addon.core.metrics import error_figure
 from addon.core.presets import build_preset
 from addon.core.scene import SceneBuilder
 from addon.render.pipeline import ShadowPipeline, ShadowSettings, count_statistics
+from addon.render.frame import Measure
 from tests.support.oracle import view_samples
 
 pytestmark = pytest.mark.gl
@@ -95,7 +96,7 @@ def test_extreme_case_matches_ray_caster(gl_backend, case, param, warp):
     scene, samples, lit, evaluable = case
     pipe = ShadowPipeline(gl_backend)
     result = pipe.render(scene.light, scene.world_triangles(), samples, ShadowSettings(param, 1024, warp=warp),
-                         keep_atlas=True)
+                         measure=Measure(keep_atlas=True))
     assert np.all(np.isfinite(result.atlas))
     assert np.all(np.isfinite(result.visibility))
     assert evaluable.sum() > 1000

@@ -8,6 +8,7 @@ from addon.core.errors import InputError
 from addon.core.metrics import error_figure
 from addon.core.scene import LightSpec, SceneBuilder
 from addon.render.pipeline import ShadowPipeline, ShadowSettings, count_statistics
+from addon.render.frame import Measure
 from tests.support.oracle import view_samples
 
 pytestmark = pytest.mark.gl
@@ -39,7 +40,7 @@ def test_projective_maps_match_ray_caster(gl_backend, method, light, behind):
     samples, lit, evaluable = view_samples(scene)
     assert evaluable.sum() > 500 and 0.02 < 1.0 - lit[evaluable].mean() < 0.9
     result = ShadowPipeline(gl_backend).render(scene.light, scene.world_triangles(), samples,
-                                               ShadowSettings(method, 1024), keep_atlas=True)
+                                               ShadowSettings(method, 1024), measure=Measure(keep_atlas=True))
     assert result.passes == 1 and np.all(np.isfinite(result.atlas))
     assert not np.any(result.flags[evaluable] == 3), "an evaluable sample fell outside the map"
     figure = error_figure(result.visibility > 0.5, lit, evaluable)

@@ -31,6 +31,7 @@ from addon.render.shaders import (
     program_variant,
     scatter_variant,
 )
+from addon.render.frame import Measure
 from tests.support import glsl
 from tests.support.oracle import view_samples
 
@@ -171,7 +172,7 @@ def test_fixed_kind_variants_match_the_generic_programs(gl_backend, settings, mo
     scene = _scene()
     samples, _, _ = view_samples(scene)
     tris = scene.world_triangles()
-    fixed = ShadowPipeline(gl_backend).render(scene.light, tris, samples, settings, keep_atlas=True)
+    fixed = ShadowPipeline(gl_backend).render(scene.light, tris, samples, settings, measure=Measure(keep_atlas=True))
     backend = ModernGLBackend()
     try:
         # Keep the warp choice, drop the kind: every frame takes the generic kind code, in
@@ -184,7 +185,7 @@ def test_fixed_kind_variants_match_the_generic_programs(gl_backend, settings, mo
         assert pickers
         for module in pickers:
             monkeypatch.setattr(module, "program_variant", generic_kind)
-        generic = ShadowPipeline(backend).render(scene.light, tris, samples, settings, keep_atlas=True)
+        generic = ShadowPipeline(backend).render(scene.light, tris, samples, settings, measure=Measure(keep_atlas=True))
     finally:
         backend.release()
     assert np.array_equal(fixed.visibility, generic.visibility)

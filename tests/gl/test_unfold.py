@@ -12,6 +12,7 @@ from addon.core.errors import InputError
 from addon.core.scene import LightSpec, SceneBuilder, look_at
 from addon.render import unfold as pl
 from addon.render.pipeline import ShadowPipeline, ShadowSettings
+from addon.render.frame import Measure
 from tests.support.oracle import view_samples
 
 pytestmark = pytest.mark.gl
@@ -102,7 +103,7 @@ def test_unfold_is_one_draw_call(gl_backend, emission, halves):
     samples, lit, evaluable = view_samples(scene)
     backend = _CountingBackend(gl_backend)
     result = ShadowPipeline(backend).render(scene.light, scene.world_triangles(), samples,
-                                            ShadowSettings("unfold", 256), keep_atlas=True)
+                                            ShadowSettings("unfold", 256), measure=Measure(keep_atlas=True))
     assert result.passes == 1
     assert len(backend.draws) == 1 and backend.draws[0][1] == halves
     assert result.layout.tiles == halves

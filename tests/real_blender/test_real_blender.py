@@ -274,6 +274,7 @@ def test_gui_overlay_maps_equal_moderngl(gui_runs, backend: str, gl_backend, ref
     from addon.reference.cache import load_or_capture
     from addon.render.frame import ViewSamples
     from addon.render.pipeline import ShadowPipeline, count_statistics, settings_for
+    from addon.render.frame import Measure
 
     report, _, folder = gui_runs[backend]
     atlas, counts = np.load(folder / "atlas.npy"), np.load(folder / "counts.npz")
@@ -284,7 +285,7 @@ def test_gui_overlay_maps_equal_moderngl(gui_runs, backend: str, gl_backend, ref
                           compare.camera_from_reference(ref))
     settings = settings_for("dpsm", 1024, light.emission)
     pipeline = ShadowPipeline(gl_backend)
-    result = pipeline.render(light, compare.resident_scene(ref), samples, settings, keep_atlas=True)
+    result = pipeline.render(light, compare.resident_scene(ref), samples, settings, measure=Measure(keep_atlas=True))
     stats = count_statistics(pipeline, light, settings, result, samples)
     res = result.layout.resolution
     assert res == report["resolution"] == 1024

@@ -173,6 +173,7 @@ def backends(out: str, reference: str | None = None) -> None:
     from addon.render.blender_gpu import ensure_gpu
     from addon.render.pipeline import ShadowPipeline, ShadowSettings, settings_for
     from addon.core.scene import LightSpec
+    from addon.render.frame import Measure
     from tests.gl.test_footprint_pass import point_cloud
     from tests.gl.test_exact_pass import random_scene
     from tests.gl.test_izb_lists import _walk
@@ -188,14 +189,14 @@ def backends(out: str, reference: str | None = None) -> None:
     arrays = {}
     for param, warp, aa in CASES:
         result = pipeline.render(scene.light, scene.world_triangles(), samples,
-                                 ShadowSettings(param, 256, warp=warp, edge_aa=aa), keep_atlas=True)
+                                 ShadowSettings(param, 256, warp=warp, edge_aa=aa), measure=Measure(keep_atlas=True))
         arrays[f"{case_key(param, warp, aa)}_visibility"] = result.visibility
         arrays[f"{case_key(param, warp, aa)}_atlas"] = result.atlas
     for light, method in PROJECTIVE_CASES:
         street = _street(light)
         street_samples, _, _ = view_samples(street)
         result = pipeline.render(street.light, street.world_triangles(), street_samples, ShadowSettings(method, 256),
-                                 keep_atlas=True)
+                                 measure=Measure(keep_atlas=True))
         arrays[f"{light}_{method}_visibility"] = result.visibility
         arrays[f"{light}_{method}_atlas"] = result.atlas
     for light in PROJECTIVE_EXACT_CASES:
@@ -205,7 +206,7 @@ def backends(out: str, reference: str | None = None) -> None:
                                  ShadowSettings("sm", 128, exact=True))
         arrays[f"exact_{light}_visibility"] = result.visibility
     result = pipeline.render(scene.light, scene.world_triangles(), weighted_samples(samples),
-                             ShadowSettings("dpsm", 256, warp="notw"), keep_atlas=True)
+                             ShadowSettings("dpsm", 256, warp="notw"), measure=Measure(keep_atlas=True))
     arrays["weighted_visibility"] = result.visibility
     arrays["weighted_atlas"] = result.atlas
     # The irregular z-buffer's lists of that frame: their lengths and members (not their
@@ -239,7 +240,7 @@ def backends(out: str, reference: str | None = None) -> None:
     for param in BOXED_CASES:
         pipeline.render(court.light, court.world_triangles(), court_samples, ShadowSettings("ipsm", 256))
         result = pipeline.render(court.light, court.world_triangles(), court_samples, ShadowSettings(param, 256),
-                                 keep_atlas=True)
+                                 measure=Measure(keep_atlas=True))
         arrays[f"boxed_{param}_visibility"] = result.visibility
         arrays[f"boxed_{param}_atlas"] = result.atlas
     # Point sprites (the footprint pass's small-triangle chunks) on Blender's backend.
@@ -247,7 +248,7 @@ def backends(out: str, reference: str | None = None) -> None:
     arrays["point_sprites"] = np.array(backend.device.point_sprites)
     for param in POINT_CASES:
         result = pipeline.render(LightSpec("omni", np.eye(4)), cloud, cloud_samples,
-                                 ShadowSettings(param, 256, cull=False), keep_atlas=True)
+                                 ShadowSettings(param, 256, cull=False), measure=Measure(keep_atlas=True))
         arrays[f"cloud_{param}_atlas"] = result.atlas
     # A steady frame's traffic at the device (scripts/frame_traffic.py --backend blender).
     from scripts.frame_traffic import steady_traffic

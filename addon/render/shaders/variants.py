@@ -31,8 +31,8 @@ NO_WARP_DEFINE = "OW_NO_WARP"
 FIXED_KIND_DEFINE = "OW_FIXED_KIND"
 POINTS_DEFINE = "OW_POINTS"  # the footprint pass as point sprites
 EXACT_DEFINE = "OW_EXACT"
-# The exact pass's counting variant (a measurement frame, ShadowPipeline.render(count_work=
-# True)): its fragments also count the entries they walk. A define, not a uniform: on
+# The exact pass's counting variant (a measurement frame, frame.Measure(count_work=True)):
+# its fragments also count the entries they walk. A define, not a uniform: on
 # llvmpipe a branch on a uniform still runs its atomics masked, and those cost ordinary
 # frames about a tenth of the pass.
 EXACT_COUNT_DEFINE = "OW_EXACT_COUNT"
