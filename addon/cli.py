@@ -346,7 +346,7 @@ def cmd_compare(args: argparse.Namespace) -> int:
             return cluster.run_jobs(jobs, options, image_dir, workers=args.workers, scheduler=args.scheduler,
                                     cache_dir=args.cache_dir)
     else:
-        from .render.moderngl_backend import ModernGLBackend
+        from .render.backends.moderngl.backend import ModernGLBackend
         from .render.pipeline import ShadowPipeline
         from .shots import run_jobs
 

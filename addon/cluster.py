@@ -67,7 +67,7 @@ class RemoteResult:
 
 def _worker_pipeline() -> ShadowPipeline:
     """This worker thread's pipeline, made on its first job and kept for the next."""
-    from .render.moderngl_backend import ModernGLBackend
+    from .render.backends.moderngl.backend import ModernGLBackend
 
     key = threading.get_ident()
     if key not in _PIPELINES:

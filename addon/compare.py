@@ -27,7 +27,7 @@ from .core.outputs import FinishedRows, StagedOutput
 from .core.png import colormap, write_png
 from .core.scene import POINT_EMISSIONS, PROJECTIVE_EMISSIONS, CameraSpec, LightSpec
 from .reference.data import ReferenceData
-from .render.blender_draw import pool_image
+from .render.backends.blender.draw import pool_image
 from .render.frame import EXACT_SAMPLES, Measure
 from .render.pipeline import (
     MAX_RESOLUTION,

@@ -35,7 +35,7 @@ from addon.core import metrics  # noqa: E402
 from addon.core.methods import method as method_entry  # noqa: E402
 from addon.reference.cache import load_or_capture  # noqa: E402
 from addon.reference.data import ReferenceData  # noqa: E402
-from addon.render.moderngl_backend import ModernGLBackend  # noqa: E402
+from addon.render.backends.moderngl.backend import ModernGLBackend  # noqa: E402
 from addon.render.pipeline import ShadowPipeline, settings_for  # noqa: E402
 
 WARPED = ("dpsm+notw", "dpsm+rtw", "cube+notw", "cube+rtw")

@@ -25,7 +25,7 @@ from addon.compare import light_from_reference, samples_from_reference  # noqa: 
 from addon.core import metrics  # noqa: E402
 from addon.core.scene import parse_size  # noqa: E402
 from addon.reference.cache import load_or_capture  # noqa: E402
-from addon.render.moderngl_backend import ModernGLBackend  # noqa: E402
+from addon.render.backends.moderngl.backend import ModernGLBackend  # noqa: E402
 from addon.render.pipeline import ShadowPipeline, ShadowSettings  # noqa: E402
 from addon.render.passes.exact import EXACT_EPS  # noqa: E402
 

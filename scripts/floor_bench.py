@@ -192,7 +192,7 @@ def main(argv: list[str] | None = None) -> int:
     args = parser.parse_args(argv)
 
     from addon.core.presets import build_preset
-    from addon.render.moderngl_backend import ModernGLBackend
+    from addon.render.backends.moderngl.backend import ModernGLBackend
     from addon.render.pipeline import ShadowPipeline, ViewSamples, settings_for
     from tests.support.oracle import view_samples
 

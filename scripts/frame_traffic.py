@@ -73,13 +73,13 @@ def main(argv: list[str] | None = None) -> int:
 
 def _backend(name: str):
     if name == "moderngl":
-        from addon.render.moderngl_backend import ModernGLBackend
+        from addon.render.backends.moderngl.backend import ModernGLBackend
 
         return ModernGLBackend()
     import bpy  # noqa: F401  (Blender owns GL in this process)
 
-    from addon.render.blender_backend import BlenderGPUBackend
-    from addon.render.blender_gpu import ensure_gpu
+    from addon.render.backends.blender.backend import BlenderGPUBackend
+    from addon.render.backends.blender.gpu_objects import ensure_gpu
 
     ensure_gpu()
     return BlenderGPUBackend()

@@ -23,7 +23,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 from addon.compare import light_from_reference, samples_from_reference  # noqa: E402
 from addon.core import frames, metrics, projection, warping  # noqa: E402
 from addon.reference.cache import load_or_capture  # noqa: E402
-from addon.render.moderngl_backend import ModernGLBackend  # noqa: E402
+from addon.render.backends.moderngl.backend import ModernGLBackend  # noqa: E402
 from addon.render.pipeline import ShadowPipeline, ShadowSettings  # noqa: E402
 
 WINDOW = 8  # half-width in texels of the density window

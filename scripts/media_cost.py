@@ -26,7 +26,7 @@ from addon.compare import light_from_reference, resident_scene, samples_from_ref
 from addon.core import metrics  # noqa: E402
 from addon.reference.data import ReferenceData  # noqa: E402
 from addon.render.frame import settings_for  # noqa: E402
-from addon.render.moderngl_backend import ModernGLBackend  # noqa: E402
+from addon.render.backends.moderngl.backend import ModernGLBackend  # noqa: E402
 from addon.render.pipeline import ShadowPipeline  # noqa: E402
 from addon.render.resident import ResidentScene  # noqa: E402
 from addon.render.frame import Measure

@@ -24,7 +24,7 @@ from addon.core.blockers import Spheres, Strands, pieces  # noqa: E402
 from addon.core.camera import CameraSpec  # noqa: E402
 from addon.core.scene import LightSpec, look_at  # noqa: E402
 from addon.render.frame import ViewSamples, settings_for  # noqa: E402
-from addon.render.moderngl_backend import ModernGLBackend  # noqa: E402
+from addon.render.backends.moderngl.backend import ModernGLBackend  # noqa: E402
 from addon.render.pipeline import ShadowPipeline  # noqa: E402
 from addon.render.resident import ResidentScene  # noqa: E402
 from addon.render.frame import Measure

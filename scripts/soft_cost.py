@@ -27,7 +27,7 @@ from addon.core import metrics  # noqa: E402
 from addon.core.light_shape import POINT  # noqa: E402
 from addon.reference.data import ReferenceData  # noqa: E402
 from addon.render.frame import settings_for  # noqa: E402
-from addon.render.moderngl_backend import ModernGLBackend  # noqa: E402
+from addon.render.backends.moderngl.backend import ModernGLBackend  # noqa: E402
 from addon.render.pipeline import ShadowPipeline  # noqa: E402
 
 

@@ -56,7 +56,7 @@ def gl_backend():
     A missing context is a failure, not a skip: the shaders are the product, and
     CI installs Mesa EGL.
     """
-    from addon.render.moderngl_backend import ModernGLBackend
+    from addon.render.backends.moderngl.backend import ModernGLBackend
 
     backend = ModernGLBackend()
     yield backend

@@ -1,8 +1,8 @@
 """count_gpu_objects counts the distinct Blender GPU objects a holder keeps (no bpy needed)."""
 from __future__ import annotations
 
-from addon.render.blender_draw import GBuffer
-from addon.render.blender_gpu import count_gpu_objects
+from addon.render.backends.blender.draw import GBuffer
+from addon.render.backends.blender.gpu_objects import count_gpu_objects
 
 
 class GPUTexture:

@@ -9,12 +9,12 @@ import numpy as np
 import pytest
 
 from addon.render import backend as backend_module
-from addon.render.blender_backend import BlenderDevice, BlenderGPUBackend
+from addon.render.backends.blender.backend import BlenderDevice, BlenderGPUBackend
 from addon.render.device import Device
-from addon.render.moderngl_backend import ModernGLBackend, ModernGLDevice
+from addon.render.backends.moderngl.backend import ModernGLBackend, ModernGLDevice
 
 RENDER = Path(backend_module.__file__).resolve().parent
-BACKEND_MODULES = ("moderngl_backend.py", "blender_backend.py")
+BACKEND_MODULES = ("backends/moderngl/backend.py", "backends/blender/backend.py")
 MAX_BACKEND_LINES = 400
 MAX_RENDER_LINES = 500
 

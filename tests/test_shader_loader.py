@@ -10,7 +10,7 @@ from pathlib import Path
 import pytest
 
 from addon.core.errors import BackendError
-from addon.render import moderngl_glsl as G
+from addon.render.backends.moderngl import glsl as G
 from addon.render import shaders as S
 from tests.support import glsl
 

@@ -251,8 +251,8 @@ def _load_reference(job: PanelJob) -> None:
     """Step 0: the Cycles reference (cached for presets) and the Blender-gpu pipeline."""
     from ..reference.cache import load_or_capture
     from ..reference.capture import capture
-    from ..render.blender_backend import BlenderGPUBackend
-    from ..render.blender_gpu import ensure_gpu
+    from ..render.backends.blender.backend import BlenderGPUBackend
+    from ..render.backends.blender.gpu_objects import ensure_gpu
     from ..render.pipeline import ShadowPipeline
 
     if job.source == "PRESET":

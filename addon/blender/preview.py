@@ -34,7 +34,7 @@ def _offscreen_draw(size: tuple[int, int], draw) -> np.ndarray:
     """Run `draw()` into a float offscreen target; return (H, W, 4) RGBA, row 0 at the bottom."""
     import gpu
 
-    from ..render.blender_gpu import float_texture, framebuffer, read_texture
+    from ..render.backends.blender.gpu_objects import float_texture, framebuffer, read_texture
 
     width, height = size
     color = float_texture((width, height), "RGBA32F")
@@ -63,7 +63,7 @@ def overlay_panels(result, stats, label: str, maps: set[str], thumb: int = 256) 
     Maps are pooled to at most twice the thumbnail size first (max for counts, min
     for depth), so single busy texels stay visible instead of aliasing away.
     """
-    from ..render.blender_draw import OverlayPanel, pool_image
+    from ..render.backends.blender.draw import OverlayPanel, pool_image
 
     panels = []
     res = result.layout.resolution if result.layout else 0
@@ -112,9 +112,9 @@ def run(reference: ReferenceData, lights: list[tuple[str, LightSpec, ShadowSetti
     may be a resident scene, which keeps its see-through materials (the G-buffer then
     sees through them where alpha < 1/2, as Cycles' camera does).
     """
-    from ..render.blender_backend import BlenderGPUBackend
-    from ..render.blender_gpu import ensure_gpu
-    from ..render.blender_draw import draw_overlay, draw_shadow_composite, render_gbuffer, visibility_texture
+    from ..render.backends.blender.backend import BlenderGPUBackend
+    from ..render.backends.blender.gpu_objects import ensure_gpu
+    from ..render.backends.blender.draw import draw_overlay, draw_shadow_composite, render_gbuffer, visibility_texture
 
     ensure_gpu()
     out_dir.mkdir(parents=True, exist_ok=True)

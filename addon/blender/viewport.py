@@ -59,7 +59,7 @@ class _ViewResult:
     top: float = 1.0
     computed_at: float = 0.0
     seen: Any = None  # the resident scene its G-buffer drew: a moved view's G-buffer draws it too
-    reprojection: Any = None  # blender_draw.Reprojection of its view
+    reprojection: Any = None  # backends/blender/draw.Reprojection of its view
     moved: Any = None  # the G-buffer of the latest moved view (reused while its size holds)
     moved_key: tuple | None = None  # the view `moved` was drawn for: redrawn only when the view moves
     overlay: bool = True  # whether the overlay's maps and statistics were read for it
@@ -150,7 +150,7 @@ def free_resources() -> None:
 
 def live_resources() -> int:
     """Distinct GPU objects the preview holds now: the backend's and the cached results'."""
-    from ..render.blender_gpu import count_gpu_objects
+    from ..render.backends.blender.gpu_objects import count_gpu_objects
 
     return count_gpu_objects(_STATE.backend, _STATE.results)
 
@@ -297,7 +297,7 @@ def compute_view_steps(backend, pipeline: ShadowPipeline, seen: ResidentScene, v
     """`compute_view` as a stepped pass (render/pacing.py): it yields between slices of its
     long draws while the backend's pacer is stepping (`_advance`). `drawn` is given the
     G-buffer as soon as it is drawn (a spread recompute's reprojection draws with it)."""
-    from ..render.blender_draw import render_gbuffer_steps
+    from ..render.backends.blender.draw import render_gbuffer_steps
 
     view_proj = projection @ view_matrix
     # Perspective, lens-shifted or orthographic: the view's real frustum, so culling works.
@@ -326,7 +326,7 @@ def compute_view_steps(backend, pipeline: ShadowPipeline, seen: ResidentScene, v
 
 def _ensure_backend() -> None:
     if _STATE.backend is None:
-        from ..render.blender_backend import BlenderGPUBackend
+        from ..render.backends.blender.backend import BlenderGPUBackend
 
         _STATE.backend = BlenderGPUBackend()
         _STATE.pipeline = ShadowPipeline(_STATE.backend)
@@ -339,7 +339,7 @@ def _view_key(view_matrix: np.ndarray, projection: np.ndarray, size: tuple[int, 
 
 def _build_result(key: tuple, gbuffer, lights: list, settings, seen=None, view_proj=None,
                   projection=None, version: int | None = None) -> _ViewResult:
-    from ..render.blender_draw import Reprojection
+    from ..render.backends.blender.draw import Reprojection
     from .preview import overlay_panels, stats_line
 
     version = _STATE.version if version is None else version  # a spread recompute's: when it began
@@ -366,7 +366,7 @@ def draw_view(scene: bpy.types.Scene, depsgraph, view_matrix: np.ndarray, projec
     """
     import gpu
 
-    from ..render.blender_draw import draw_overlay, draw_shadow_composite
+    from ..render.backends.blender.draw import draw_overlay, draw_shadow_composite
     from .scene_cache import CACHE, resident_inputs
 
     settings = scene.omniwarp
@@ -470,7 +470,7 @@ def _draw_reprojected(cached: _ViewResult, view_matrix: np.ndarray, projection: 
     else the last one drawn."""
     import gpu
 
-    from ..render.blender_draw import draw_shadow_composite, render_gbuffer
+    from ..render.backends.blender.draw import draw_shadow_composite, render_gbuffer
 
     gbuffer = cached.moved if cached.moved is not None and cached.moved_key == key else None
     if gbuffer is None and _slow():

@@ -2,7 +2,7 @@
 dispatches, barriers, reads and timer queries.
 
 Every pass (render/passes) is written once over this interface; a backend is a thin
-adapter of it to one API (moderngl_backend.py, blender_backend.py). Programs are named
+adapter of it to one API (backends/moderngl, backends/blender). Programs are named
 by their `shaders.ProgramInterface`, uniforms and textures by the names it declares, so
 every adapter runs the same GLSL.
 

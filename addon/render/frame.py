@@ -253,7 +253,7 @@ def resident_samples_key(samples: ViewSamples, light: LightSpec) -> ResidentSamp
 @dataclass
 class GBufferSamples:
     """View samples that stay on the GPU: a Blender G-buffer's position and normal
-    textures (blender_draw.GBuffer), world positions with w = 1 on geometry.
+    textures (backends/blender/draw.GBuffer), world positions with w = 1 on geometry.
 
     The pipeline makes them the shadow test's samples on the GPU
     (`BlenderGPUBackend.samples_from_gbuffer`): nothing is read back or uploaded. Every

@@ -151,7 +151,7 @@ import numpy as np
 sys.path.insert(0, sys.argv[1])
 import bpy
 from addon.compat import blender as blender_compat
-from addon.render.blender_gpu import empty_texture, ensure_gpu, float_texture, read_texture, read_uint
+from addon.render.backends.blender.gpu_objects import empty_texture, ensure_gpu, float_texture, read_texture, read_uint
 ensure_gpu()
 data = np.arange(4 * 3 * 4, dtype=np.float32).reshape(3, 4, 4)
 assert np.array_equal(read_texture(float_texture((4, 3), "RGBA32F", data), "RGBA32F"), data)

@@ -247,7 +247,7 @@ def groom_sun(tmp_path_factory) -> Path:
                          ids=["SIGINT", "SIGTERM"])
 def test_a_signal_inside_a_long_exact_frame_ends_the_run(tmp_path, earlier, groom_sun, reference_cache, sig, code):
     """SIGINT or SIGTERM 10 s into an `exact` frame of minutes: the main thread waits on the
-    GPU without the GIL (render/gl_calls.py, in slices: render/pacing.py),
+    GPU without the GIL (render/backends/moderngl/gl_calls.py, in slices: render/pacing.py),
     so the watchdog ends the run GRACE_S after the signal, with 130 or 143 and its one
     line; nothing written, no temporary left. Before, the signal waited for the frame (a
     SIGINT 2 minutes in: still running 10 minutes later)."""

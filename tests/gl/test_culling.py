@@ -66,7 +66,7 @@ def test_texels_outside_the_readable_box_are_never_read():
     """Culled plain layers clear and draw only their readable box. A frame that follows
     one filling the same atlas layout (ipsm draws its whole tile) must not see its stale
     texels: visibility equals a fresh backend's, and the read-back shows them empty."""
-    from addon.render.moderngl_backend import ModernGLBackend
+    from addon.render.backends.moderngl.backend import ModernGLBackend
 
     scene = build_preset("courtyard", (128, 96))
     samples, _, _ = view_samples(scene)
@@ -102,7 +102,7 @@ def test_a_lookup_outside_the_box_reads_empty(monkeypatch):
     empty texel), never as whatever a previous frame left there. A deliberately wrong
     1x1 box puts every lookup outside it."""
     from addon.render import parameterizations
-    from addon.render.moderngl_backend import ModernGLBackend
+    from addon.render.backends.moderngl.backend import ModernGLBackend
 
     scene = build_preset("courtyard", (128, 96))
     samples, _, _ = view_samples(scene)

@@ -83,7 +83,7 @@ def test_gpu_stage_times_come_with_the_result_and_survive_release(case):
     backend is released was read first, so it still holds its visibility and times. (A new
     context's first frame may have none: llvmpipe's first queries read 2^32 - 1 ns, which
     stage_clock refuses.)"""
-    from addon.render.moderngl_backend import ModernGLBackend
+    from addon.render.backends.moderngl.backend import ModernGLBackend
 
     scene, samples = case
     with ModernGLBackend() as backend:

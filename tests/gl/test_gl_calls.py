@@ -1,4 +1,4 @@
-"""The GL calls the moderngl device makes through ctypes (render/gl_calls.py): they resolve
+"""The GL calls the moderngl device makes through ctypes (render/backends/moderngl/gl_calls.py): they resolve
 on EGL, a wait through them lets the GIL go, and a timer query is read as 64 bits (moderngl
 reads 32 and Mesa clamps there: stages past 4,295 ms all reported about that, issue 53)."""
 from __future__ import annotations
@@ -8,8 +8,8 @@ import time
 
 import pytest
 
-from addon.render import gl_calls as gl_calls_module
-from addon.render.gl_calls import gl_calls
+from addon.render.backends.moderngl import gl_calls as gl_calls_module
+from addon.render.backends.moderngl.gl_calls import gl_calls
 
 pytestmark = pytest.mark.gl
 

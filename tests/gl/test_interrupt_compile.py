@@ -9,7 +9,7 @@ import pytest
 
 from addon.core import interrupt
 from addon.core.errors import Interrupted
-from addon.render.moderngl_backend import ModernGLBackend
+from addon.render.backends.moderngl.backend import ModernGLBackend
 from addon.render.shaders import SAMPLE_STATS_PROGRAM
 
 pytestmark = pytest.mark.gl

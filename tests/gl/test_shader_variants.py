@@ -13,9 +13,9 @@ import pytest
 
 from addon.core.errors import BackendError
 from addon.core.scene import SceneBuilder
-from addon.render.moderngl_backend import ModernGLBackend
+from addon.render.backends.moderngl.backend import ModernGLBackend
 from addon.render.pipeline import ShadowPipeline, ShadowSettings
-from addon.render.moderngl_glsl import glsl_header
+from addon.render.backends.moderngl.glsl import glsl_header
 from addon.render.shaders import (
     COMPUTE_PROGRAMS,
     DEPTH_PLAIN_PROGRAM,

@@ -169,8 +169,8 @@ def backends(out: str, reference: str | None = None) -> None:
     cached Cycles reference when one is given."""
     from addon.compare import light_from_reference, samples_from_reference
     from addon.reference.data import ReferenceData
-    from addon.render.blender_backend import BlenderGPUBackend
-    from addon.render.blender_gpu import ensure_gpu
+    from addon.render.backends.blender.backend import BlenderGPUBackend
+    from addon.render.backends.blender.gpu_objects import ensure_gpu
     from addon.render.pipeline import ShadowPipeline, ShadowSettings, settings_for
     from addon.core.scene import LightSpec
     from addon.render.frame import Measure
@@ -317,7 +317,7 @@ def _preview_case(preset: str, size: tuple[int, int], parameterization: str, res
     from addon.core.presets import build_preset
     from addon.reference.blender_scene import build_blender_scene
     from addon.reference.capture import evaluated_depsgraph
-    from addon.render.blender_gpu import float_texture, framebuffer
+    from addon.render.backends.blender.gpu_objects import float_texture, framebuffer
 
     spec = build_preset(preset, size)
     scene = build_blender_scene(spec)
@@ -342,7 +342,7 @@ def viewport(out: str) -> None:
     from addon.blender import registration, viewport as vp
     from addon.blender.scene_cache import CACHE
     from addon.reference.capture import evaluated_depsgraph
-    from addon.render.blender_gpu import ensure_gpu
+    from addon.render.backends.blender.gpu_objects import ensure_gpu
 
     ensure_gpu()
 
@@ -387,7 +387,7 @@ def viewport(out: str) -> None:
     report["first_draw_values"] = outcome(report["first_draw"])
     cached = vp._STATE.results["test-region"]
     name, light, settings, result, stats, texture = cached.lights[0]
-    from addon.render.blender_gpu import read_texture
+    from addon.render.backends.blender.gpu_objects import read_texture
 
     # The viewport's visibility stayed on the GPU, in a texture of its own (row 0 at the
     # bottom); read here to check it.
@@ -631,7 +631,7 @@ def spread(out: str) -> None:
 
     from addon.blender import registration
     from addon.blender import viewport as vp
-    from addon.render.blender_gpu import ensure_gpu, read_texture
+    from addon.render.backends.blender.gpu_objects import ensure_gpu, read_texture
 
     ensure_gpu()
     registration.register()

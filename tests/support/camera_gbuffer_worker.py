@@ -23,9 +23,9 @@ sys.path.insert(0, str(REPO))
 
 def main(out: str, references: list[str]) -> None:
     from addon.reference.data import ReferenceData
-    from addon.render.blender_backend import BlenderGPUBackend
-    from addon.render.blender_gpu import ensure_gpu
-    from addon.render.blender_draw import render_gbuffer
+    from addon.render.backends.blender.backend import BlenderGPUBackend
+    from addon.render.backends.blender.gpu_objects import ensure_gpu
+    from addon.render.backends.blender.draw import render_gbuffer
     from addon.render.resident import ResidentScene
 
     ensure_gpu()
@@ -70,7 +70,7 @@ def _viewport(backend, ref, camera) -> dict:
                                     camera.projection(), camera.resolution, [("light", light, settings)])
     culled = results[0][3]
     # The viewport keeps the visibility on the GPU in a texture of its own: read it here.
-    from addon.render.blender_gpu import read_texture
+    from addon.render.backends.blender.gpu_objects import read_texture
 
     culled_visibility = read_texture(results[0][5], "RG32F")[::-1][..., 0]
     plain = ViewSamples(gbuffer.positions[..., :3].astype(np.float64), gbuffer.normals[..., :3].astype(np.float64),

@@ -153,7 +153,7 @@ def main(out_dir: str, width: str, height: str) -> None:
     import bpy
 
     from addon.blender import registration
-    from addon.render.blender_gpu import ensure_gpu
+    from addon.render.backends.blender.gpu_objects import ensure_gpu
 
     out = Path(out_dir)
     ensure_gpu()

@@ -10,8 +10,8 @@ from collections.abc import Iterable, Sequence
 
 import numpy as np
 
-from addon.render.moderngl_glsl import compute_header, glsl_header
-from addon.render.moderngl_uniforms import BLOCK_BINDING
+from addon.render.backends.moderngl.glsl import compute_header, glsl_header
+from addon.render.backends.moderngl.uniforms import BLOCK_BINDING
 from addon.render.shaders import SHADER_DIR, ComputeInterface, ProgramInterface, Uniform, expand_source, load_source
 from addon.render.shaders.uniform_block import BlockState, UniformBlock
 

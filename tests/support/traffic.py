@@ -15,7 +15,7 @@ import contextlib
 from dataclasses import dataclass, field
 from typing import Iterator
 
-from addon.render.moderngl_uniforms import UNIFORM_BUFFER_TAG
+from addon.render.backends.moderngl.uniforms import UNIFORM_BUFFER_TAG
 
 
 def _size(data) -> int:
@@ -92,7 +92,7 @@ class Traffic:
 
         # The device's finish (a glFinish through ctypes, without the GIL: moderngl's own
         # Context.finish only where EGL cannot give it, inside this call).
-        from addon.render.moderngl_backend import ModernGLDevice
+        from addon.render.backends.moderngl.backend import ModernGLDevice
 
         wrap(ModernGLDevice, "finish", finish)
         wrap(moderngl.Texture, "read", read("Texture.read"))

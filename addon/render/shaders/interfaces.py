@@ -2,8 +2,8 @@
 
 Declarations (inputs, outputs, uniforms, samplers, varyings, images) live in a
 `ProgramInterface` or `ComputeInterface`, and each backend turns that into its own header:
-a `#version` block for moderngl (render/moderngl_glsl.py), a `GPUShaderCreateInfo` for
-Blender's `gpu` module (render/blender_gpu.py). Names are the same in both, so the bodies
+a `#version` block for moderngl (render/backends/moderngl/glsl.py), a `GPUShaderCreateInfo` for
+Blender's `gpu` module (render/backends/blender/gpu_objects.py). Names are the same in both, so the bodies
 need no backend switch. Uniforms several passes read are declared once, in groups, and
 each interface is composed from them (as EEVEE composes its create-infos).
 """
@@ -227,7 +227,7 @@ SAMPLE_STATS_PROGRAM = ComputeInterface(
 )
 
 # Nothing but the barrier that ends every compute dispatch in Blender's `gpu` module, which
-# has no call of its own for one (blender_backend._image_barrier).
+# has no call of its own for one (the Blender backend's _image_barrier).
 BARRIER_PROGRAM = ComputeInterface(name="omniwarp_barrier", compute_file="barrier.comp", local_size=1)
 
 # Between two rounds of the exact pass: each list's head moves past the entries walked.
@@ -255,7 +255,7 @@ WARP_BUILD_PROGRAM = ComputeInterface(
 )
 
 # The viewport ------------------------------------------------------------------------------
-# The G-buffer, drawn from resident objects (blender_backend.draw_gbuffer_steps).
+# The G-buffer, drawn from resident objects (the Blender backend's draw_gbuffer_steps).
 GBUFFER_PROGRAM = ProgramInterface(
     name="omniwarp_gbuffer",
     vertex_file="gbuffer.vert",
@@ -269,7 +269,7 @@ GBUFFER_PROGRAM = ProgramInterface(
     defines=dict(_VERTEX_TEXTURE_DEFINES),
 )
 
-# The shadow test's samples from a G-buffer (blender_backend.samples_from_gbuffer).
+# The shadow test's samples from a G-buffer (the Blender backend's samples_from_gbuffer).
 GBUFFER_SAMPLES_PROGRAM = ProgramInterface(
     name="omniwarp_gbuffer_samples",
     fragment_file="gbuffer_samples.frag",
@@ -285,7 +285,7 @@ PREVIEW_PROGRAM = ProgramInterface(
     fragment_out=(("vec4", "ow_color"),),
     uniforms=uniform_list("vec3 ow_light_pos", "float ow_strength", "int ow_draw_base", "vec2 ow_target_size",
                           "int ow_sun", "vec3 ow_light_dir",
-                          # An earlier view's visibility looked up from this one (blender_draw.Reprojection).
+                          # An earlier view's visibility looked up from this one (backends/blender/draw.Reprojection).
                           "int ow_reproject", "mat4 ow_old_view_proj", "float ow_old_tolerance"),
     samplers=("ow_gb_position", "ow_gb_normal", "ow_visibility", "ow_old_position"),
     **_FULLSCREEN,

@@ -198,7 +198,7 @@ def _save_view() -> None:
     """What the preview computed for the view: its G-buffer (row 0 at the top), the first
     light's visibility and flags, and the light's position (`view.npz`)."""
     viewport = _module("blender.viewport")
-    blender_gpu = _module("render.blender_gpu")
+    blender_gpu = _module("render.backends.blender.gpu_objects")
     _, region = _view3d()
     result = viewport._STATE.results[region.as_pointer()]
     raw = blender_gpu.read_texture(result.visibility[0], "RG32F")[::-1]
@@ -222,7 +222,7 @@ def _save_atlas() -> None:
     backend = viewport._STATE.backend
     atlas = backend.textures.get("ow_atlas")
     if atlas is not None:
-        np.save(OUT / "atlas.npy", _module("render.blender_gpu").read_texture(atlas, "R32F"))
+        np.save(OUT / "atlas.npy", _module("render.backends.blender.gpu_objects").read_texture(atlas, "R32F"))
     REPORT["tiles"] = {str(k): list(frame.layout.origin(v)) for k, v in frame.tile_of_slot.items()} if frame.layout else {}
     stats = result.lights[0][4]
     np.savez(OUT / "counts.npz", positions=result.gbuffer.positions, normals=result.gbuffer.normals,

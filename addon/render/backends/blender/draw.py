@@ -17,15 +17,15 @@ from typing import Any
 
 import numpy as np
 
-from ..core.scene import CameraSpec, LightSpec
+from ....core.scene import CameraSpec, LightSpec
 
-from .backend import FULLSCREEN_CORNERS
-from .blender_backend import BlenderGPUBackend
-from .blender_gpu import empty_texture, float_texture, framebuffer, read_texture
-from .pacing import Steps, drive
-from .frame import GBufferSamples, ViewSamples
-from .resident import ResidentScene
-from .shaders import OVERLAY_MODES, OVERLAY_PROGRAM, PREVIEW_PROGRAM
+from ...backend import FULLSCREEN_CORNERS
+from .backend import BlenderGPUBackend
+from .gpu_objects import empty_texture, float_texture, framebuffer, read_texture
+from ...pacing import Steps, drive
+from ...frame import GBufferSamples, ViewSamples
+from ...resident import ResidentScene
+from ...shaders import OVERLAY_MODES, OVERLAY_PROGRAM, PREVIEW_PROGRAM
 
 log = logging.getLogger(__name__)
 

@@ -5,11 +5,11 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from ..core.errors import BackendError
-from .moderngl_uniforms import BLOCK_BINDING
-from .shaders import (GLSL_VERSION, SHADER_DIR, ComputeInterface, ProgramInterface, image_type, load_source,
+from ....core.errors import BackendError
+from .uniforms import BLOCK_BINDING
+from ...shaders import (GLSL_VERSION, SHADER_DIR, ComputeInterface, ProgramInterface, image_type, load_source,
                       program_defines)
-from .shaders.uniform_block import UniformBlock
+from ...shaders.uniform_block import UniformBlock
 
 
 def _uniform_block(iface: ProgramInterface | ComputeInterface) -> list[str]:

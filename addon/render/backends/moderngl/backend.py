@@ -13,16 +13,16 @@ from typing import Any, Iterator
 
 import numpy as np
 
-from ..core import interrupt
-from ..core.errors import BackendError
-from .backend import ShadowBackend
-from .device import (COMPONENTS, FULLSCREEN, FULLSCREEN_CORNERS, Device, Geometry, GPUTimer, Program, Rect, Target,
+from ....core import interrupt
+from ....core.errors import BackendError
+from ...backend import ShadowBackend
+from ...device import (COMPONENTS, FULLSCREEN, FULLSCREEN_CORNERS, Device, Geometry, GPUTimer, Program, Rect, Target,
                      UniformValues)
 from .gl_calls import gl_calls
-from .moderngl_glsl import moderngl_compute_source, moderngl_sources
-from .moderngl_uniforms import ProgramBlock
-from .passes.footprints import FOOTPRINT_VERTICES, corner_capacity, corner_indices
-from .shaders import ComputeInterface, ProgramInterface
+from .glsl import moderngl_compute_source, moderngl_sources
+from .uniforms import ProgramBlock
+from ...passes.footprints import FOOTPRINT_VERTICES, corner_capacity, corner_indices
+from ...shaders import ComputeInterface, ProgramInterface
 
 log = logging.getLogger(__name__)
 

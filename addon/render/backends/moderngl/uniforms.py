@@ -5,8 +5,8 @@ from __future__ import annotations
 
 from typing import Any, Mapping
 
-from .device import Program
-from .shaders.uniform_block import BlockState, UniformBlock
+from ...device import Program
+from ...shaders.uniform_block import BlockState, UniformBlock
 
 # The binding point every program's block is declared at (moderngl_glsl.py) and bound to.
 BLOCK_BINDING = 0

@@ -13,9 +13,9 @@ from typing import Any
 
 import numpy as np
 
-from ..compat import blender as blender_compat
-from .shaders import ComputeInterface, ProgramInterface, image_type, load_source, program_defines
-from .shaders.uniform_block import INSTANCE, UniformBlock
+from ....compat import blender as blender_compat
+from ...shaders import ComputeInterface, ProgramInterface, image_type, load_source, program_defines
+from ...shaders.uniform_block import INSTANCE, UniformBlock
 
 log = logging.getLogger(__name__)
 

@@ -17,9 +17,9 @@ from typing import Any, Iterator
 
 import numpy as np
 
-from ..core.errors import BackendError
-from .backend import ShadowBackend
-from .blender_gpu import (
+from ....core.errors import BackendError
+from ...backend import ShadowBackend
+from .gpu_objects import (
     CREATED,
     backend_type,
     compute_create_info,
@@ -32,12 +32,12 @@ from .blender_gpu import (
     read_uint,
     uniform_buffer,
 )
-from .device import FULLSCREEN, FULLSCREEN_CORNERS, Device, Geometry, Program, Rect, Target, UniformValues
-from .pacing import Steps
-from .passes.footprints import FOOTPRINT_VERTICES, corner_capacity, corner_indices
-from .passes.samples import set_size
-from .shaders.uniform_block import INSTANCE, BlockState, UniformBlock
-from .shaders import (
+from ...device import FULLSCREEN, FULLSCREEN_CORNERS, Device, Geometry, Program, Rect, Target, UniformValues
+from ...pacing import Steps
+from ...passes.footprints import FOOTPRINT_VERTICES, corner_capacity, corner_indices
+from ...passes.samples import set_size
+from ...shaders.uniform_block import INSTANCE, BlockState, UniformBlock
+from ...shaders import (
     BARRIER_PROGRAM,
     GBUFFER_ALPHA_PROGRAM,
     GBUFFER_PROGRAM,
