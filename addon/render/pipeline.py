@@ -74,7 +74,7 @@ from .passes.media import NO_MEDIA, MediaFrame, MediaMemo, media_points, read_ha
 from .parameterizations import DrawInputs, parameterization, slot_rotations_and_crops
 from .plan_memo import PlanMemo
 from .resident import ResidentScene
-from .shaders import PARAM_CODES, SLOTS
+from .shaders import GRID_SAMPLERS_KEY, PARAM_CODES, SLOTS
 from .soft import SizedMode, hit_words, list_resolution, share_points, sized_mode, soft_uniforms
 from .stage_clock import StageClock
 from .unfold import edge_aa_parameters
@@ -386,7 +386,7 @@ class ShadowPipeline:
         uniforms.update(soft_uniforms(light, settings))
         if scene.grids:  # density grids, marched along each sample's segment (lib/grids.glsl)
             grid_uniforms, samplers = self.backend.grids.bind(self.backend.device, scene.grids.values(), light)
-            uniforms.update(grid_uniforms, ow_grid_samplers=samplers)
+            uniforms.update(grid_uniforms, **{GRID_SAMPLERS_KEY: samplers})
         self.backend.run_shadow_test(uniforms)
         return uniforms
 

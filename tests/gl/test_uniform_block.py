@@ -86,7 +86,7 @@ def test_state_keeps_values_and_reports_the_changed_span():
     words = np.frombuffer(state.data, np.float32)
     assert words[0] == 2.0 and np.array_equal(words[4:8], [1, 2, 3, 4])
     assert np.array_equal(words[8:20].reshape(3, 4)[:, :3], np.eye(3)) and not words[8:20].reshape(3, 4)[:, 3].any()
-    assert not state.update({"not_a_member": 1.0})
+    assert not state.update({"ow_edge_pass": 1})  # another program's uniform: not this block's
 
 
 def test_a_short_array_writes_its_first_elements_and_a_wrong_size_is_refused():
@@ -110,3 +110,19 @@ def test_every_program_lays_out():
         assert len(block.members) == len(iface.uniforms) and block.size % 16 == 0
         ends = sorted((m.offset, m.offset + _span(m, m.count)) for m in block.members)
         assert all(a[1] <= b[0] for a, b in zip(ends, ends[1:])), iface.name  # no two members overlap
+
+
+def test_a_name_no_program_declares_is_refused_by_name(gl_backend):
+    """A frame's shared dictionaries carry other programs' uniforms, which a program skips;
+    a name no program declares (a typo) is refused with its name, on the block and on the
+    device, instead of being dropped."""
+    from addon.core.errors import BackendError
+    from addon.render.shaders import EDGE_PROGRAM, FOOTPRINT_PROGRAM
+
+    state = BlockState(UniformBlock.of(EDGE_PROGRAM))
+    other = next(u.name for u in FOOTPRINT_PROGRAM.uniforms if UniformBlock.of(EDGE_PROGRAM).member(u.name) is None)
+    state.update({other: 0})  # another program's uniform: skipped
+    with pytest.raises(BackendError, match="ow_layer_rott"):
+        state.update({"ow_layer_rott": np.eye(3)})
+    with pytest.raises(BackendError, match="ow_no_such_uniform"):
+        gl_backend.device.draw(EDGE_PROGRAM, {"ow_no_such_uniform": 1.0}, gl_backend.textures)

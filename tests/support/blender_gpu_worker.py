@@ -250,6 +250,15 @@ def backends(out: str, reference: str | None = None) -> None:
         result = pipeline.render(LightSpec("omni", np.eye(4)), cloud, cloud_samples,
                                  ShadowSettings(param, 256, cull=False), measure=Measure(keep_atlas=True))
         arrays[f"cloud_{param}_atlas"] = result.atlas
+    # A uniform name no program declares: refused by name, not dropped.
+    from addon.core.errors import BackendError
+    from addon.render.shaders import EDGE_PROGRAM
+
+    try:
+        backend.device.bind(EDGE_PROGRAM, {"ow_no_such_uniform": 1.0}, backend.textures)
+        arrays["unknown_uniform"] = np.array("")
+    except BackendError as exc:
+        arrays["unknown_uniform"] = np.array(str(exc))
     # A steady frame's traffic at the device (scripts/frame_traffic.py --backend blender).
     from scripts.frame_traffic import steady_traffic
 

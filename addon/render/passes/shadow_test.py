@@ -9,7 +9,7 @@ from ..device import Target, UniformValues
 from .exact import held_lists
 from ..shaders import (EXACT_SOFT_KEY, RESOLVE_PROGRAM, SHADOW_TEST_PROGRAM, ProgramInterface, exact_soft_of,
                        program_variant)
-from ..shaders import exact_soft_media_of, grids_of, haze_of, soft_of, veil_of
+from ..shaders import GRID_SAMPLERS_KEY, exact_soft_media_of, grids_of, haze_of, soft_of, veil_of
 
 
 def test_program(backend, uniforms: UniformValues) -> tuple[ProgramInterface, dict[str, object]]:
@@ -54,7 +54,7 @@ def run_shadow_test(backend, uniforms: UniformValues) -> None:
         uniforms = {**uniforms, **backend.media.uniforms()}
     textures = backend.textures
     if int(uniforms.get("ow_grid_count", 0)) > 0:
-        textures = {**textures, **uniforms["ow_grid_samplers"]}
+        textures = {**textures, **uniforms[GRID_SAMPLERS_KEY]}
     if images:
         device.barrier()  # the depth pass's image atomics, before the test's loads
     target = held.test[1]

@@ -36,12 +36,12 @@ from .variants import (ALPHA_DEFINE, ALPHA_SAMPLERS, EXACT_COUNT_DEFINE, EXACT_C
                        SOFT_UNIFORMS, VEIL_DEFINE, VEIL_IMAGES, alpha_of, derive, exact_of, exact_soft_of,
                        exact_variant, link_variant, pieces_of, program_variant, scatter_variant, soft_of, veil_of,
                        warp_step_variant)
-from .variants import (EXACT_SOFT_MEDIA_DEFINE, GRID_SAMPLERS, GRIDS_DEFINE, HAZE_DEFINE, HAZE_IMAGES, MEDIA_IMAGE,
+from .variants import (EXACT_SOFT_MEDIA_DEFINE, GRID_SAMPLERS, GRID_SAMPLERS_KEY, GRIDS_DEFINE, HAZE_DEFINE, HAZE_IMAGES, MEDIA_IMAGE,
                        MEDIA_WORDS_DEFINE, MEDIUM_DEFINE, grids_of, exact_soft_media_of, haze_of, medium_of)
 from .constants import GRID_LIGHT_POINTS, GRID_MAX, GRID_MAX_STEPS, MEDIA_POINTS
 
 __all__ = [
-    "GRID_LIGHT_POINTS", "MEDIA_POINTS", "GRID_MAX", "GRID_MAX_STEPS", "GRID_SAMPLERS", "GRIDS_DEFINE", "grids_of", "EXACT_SOFT_MEDIA_DEFINE", "exact_soft_media_of", "MEDIA_WORDS_DEFINE", "HAZE_DEFINE", "HAZE_IMAGES", "haze_of", "MEDIA_IMAGE", "MEDIA_PROGRAMS", "MEDIUM_DEFINE", "medium_of",
+    "GRID_LIGHT_POINTS", "MEDIA_POINTS", "GRID_MAX", "GRID_MAX_STEPS", "GRID_SAMPLERS", "GRID_SAMPLERS_KEY", "GRIDS_DEFINE", "grids_of", "EXACT_SOFT_MEDIA_DEFINE", "exact_soft_media_of", "MEDIA_WORDS_DEFINE", "HAZE_DEFINE", "HAZE_IMAGES", "haze_of", "MEDIA_IMAGE", "MEDIA_PROGRAMS", "MEDIUM_DEFINE", "medium_of",
     "ADVANCE_PROGRAM", "ALPHA_DEFINE", "ALPHA_INTERPOLATIONS", "alpha_of", "ALPHA_PROGRAMS", "ALPHA_SAMPLERS",
     "BARRIER_PROGRAM", "CODES", "Codes", "COMPUTE_PROGRAMS", "ComputeInterface", "DEPTH_PLAIN_PROGRAM",
     "DEPTH_PROGRAM", "derive", "EDGE_PASSES", "EDGE_PROGRAM", "EXACT_COUNT_DEFINE", "EXACT_COUNT_KEY", "EXACT_DEFINE",

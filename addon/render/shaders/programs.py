@@ -7,7 +7,7 @@ from .interfaces import (ADVANCE_PROGRAM, BARRIER_PROGRAM, DEPTH_PROGRAM, EDGE_P
                          GBUFFER_PROGRAM, GBUFFER_SAMPLES_PROGRAM, OVERLAY_PROGRAM, PREVIEW_PROGRAM,
                          RAY_TABLE_PROGRAM, RESOLVE_PROGRAM, SAMPLE_STATS_PROGRAM, SCATTER_PROGRAM,
                          SHADOW_TEST_PROGRAM)
-from .variants import (VARIANT_BASES, EXACT_DEFINE, FIXED_KIND_NAMES, POINTS_DEFINE, is_footprint,
+from .variants import (VARIANT_BASES, EXACT_DEFINE, SELECTOR_KEYS, FIXED_KIND_NAMES, POINTS_DEFINE, is_footprint,
                        is_shadow_test, link_kind_variant, scatter_mode_variant, base_variant, alpha_of, exact_of,
                        exact_soft_of, exact_soft_media_of, grids_of, haze_of, medium_of, pieces_of, soft_of, veil_of,
                        warp_step_variant)
@@ -52,3 +52,11 @@ COMPUTE_PROGRAMS = (SCATTER_PROGRAM, SAMPLE_STATS_PROGRAM, BARRIER_PROGRAM, ADVA
                     *(warp_step_variant(step) for step in WARP_STEPS),
                     *(scatter_mode_variant(mode, kind) for mode in SCATTER_MODES for kind in (None, *FIXED_KIND_NAMES)),
                     *(link_kind_variant(kind) for kind in (None, *FIXED_KIND_NAMES)))
+
+# Every uniform name some program declares, and the selector keys: a name outside them is a
+# mistake (a typo, a renamed uniform), which a device refuses (uniform_block.BlockState)
+# instead of dropping.
+UNIFORM_NAMES = frozenset(uniform.name for iface in (*PROGRAMS, *COMPUTE_PROGRAMS, DEPTH_PROGRAM, FOOTPRINT_PROGRAM,
+                                                     SHADOW_TEST_PROGRAM, SCATTER_PROGRAM)
+                          for uniform in iface.uniforms)
+KNOWN_KEYS = UNIFORM_NAMES | SELECTOR_KEYS

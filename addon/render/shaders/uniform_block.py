@@ -24,6 +24,7 @@ from typing import Any, Mapping
 
 import numpy as np
 
+from ...core.errors import BackendError
 from .interfaces import ComputeInterface, ProgramInterface, Uniform
 
 # (components per column, columns, integer) of each GLSL type a program declares.
@@ -181,7 +182,11 @@ class BlockState:
         for name, value in values.items():
             member = self.block.member(name)
             if member is None:
-                continue  # not a uniform of this program
+                # A frame's shared dictionaries carry other programs' uniforms too; a name
+                # no program declares is refused, so that a typo is not silently dropped.
+                if name not in _known_names():
+                    raise BackendError(f"{self.block.type_name.removeprefix('OwBlock_')}: no program declares a uniform named {name!r}")
+                continue
             scalar = isinstance(value, (int, float, np.generic))
             if scalar:
                 last = self._last.get(name)
@@ -211,3 +216,9 @@ class BlockState:
     @property
     def data(self) -> bytes:
         return bytes(self._data)
+
+
+def _known_names() -> frozenset[str]:
+    from .programs import KNOWN_KEYS  # every program: built after this module
+
+    return KNOWN_KEYS

@@ -37,6 +37,11 @@ EXACT_DEFINE = "OW_EXACT"
 # frames about a tenth of the pass.
 EXACT_COUNT_DEFINE = "OW_EXACT_COUNT"
 EXACT_COUNT_KEY = "ow_exact_count"  # the uniforms' key that picks the counting variant
+# The density grids' textures, carried in the shadow test's uniforms to its draw.
+GRID_SAMPLERS_KEY = "ow_grid_samplers"
+# Keys a frame's uniform dictionaries carry that are no uniform: they pick a variant or
+# its textures, and a device skips them.
+SELECTOR_KEYS = frozenset({EXACT_COUNT_KEY, GRID_SAMPLERS_KEY})
 EXACT_SOFT_DEFINE = "OW_EXACT_SOFT"
 EXACT_SOFT_KEY = "ow_exact_points"  # the uniforms' key: a sized light's point count (0: hard)
 ALPHA_DEFINE = "OW_ALPHA"
