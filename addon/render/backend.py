@@ -152,6 +152,7 @@ class ShadowBackend:
     draw_layer = _on_device(passes.atlas.draw_layer)
     read_atlas = _on_device(passes.atlas.read_atlas)
     build_ray_table = _on_device(passes.footprints.build_ray_table)
+    build_ray_table_steps = passes.footprints.build_ray_table_steps  # stepped, like draw_footprints_steps
     draw_footprints = _on_device(passes.footprints.draw_footprints)
     # Stepped (render/pacing.py): the frame that drives it has the device bound.
     draw_footprints_steps = passes.footprints.draw_footprints_steps

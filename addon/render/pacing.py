@@ -32,11 +32,12 @@ from typing import TypeVar
 from ..core import interrupt
 
 SLICE_S = 0.2  # seconds of GPU work between two looks at the interrupt
-STEP_S = 0.02  # seconds a slice may take while stepping (the viewport)
+STEP_S = 0.015  # seconds a slice may take while stepping (the viewport)
 FIRST_SLICE = 16  # items of a draw's first slice when its rate is not known yet
 GROWTH = 8  # the most a slice grows over the one before it (waiting)
 STEP_GROWTH = 2  # the same while stepping: an overshoot is a frozen redraw
 MIN_STEP_S = 0.002  # the least a slice is sized for when a redraw's deadline is near
+MAX_RATES = 4096  # rates kept (by pass, object, tile and run) before the table starts again
 
 T = TypeVar("T")
 Steps = Generator[None, None, T]  # a pass that yields between its slices and returns its value
@@ -68,6 +69,10 @@ class Pacer:
     # Stepping: when the redraw going on with the frame wants it back (a `clock` time). A slice
     # is sized to end by then: the last slice of a redraw was what held it past its budget.
     deadline: float | None = None
+    # Stepping: the draws queued whole since the last wait, (key, fallback, items, foretold
+    # seconds), and when the first was queued: their wait measures them together.
+    queued: list[tuple[str, str | None, int, float]] = field(default_factory=list)
+    queued_since: float = 0.0
 
     def _budget(self) -> float:
         """Seconds a slice may take now: SLICE_S, or while stepping STEP_S cut to the deadline."""
@@ -81,6 +86,16 @@ class Pacer:
         """Between two stages of a frame: a yield while stepping (the stage after may be long)."""
         if self.stepping:
             self.owed = 0.0
+            self.queued.clear()  # what they queued is waited for in the next stage's time
+            yield
+
+    def settle(self, wait: Callable[[], None]) -> Steps[None]:
+        """At the end of a stepped pass: wait for what it queued whole (measuring those draws'
+        rates) and yield, so that the stage after starts on an idle GPU."""
+        if self.stepping:
+            if self.queued:
+                wait()
+                self._learn_queued()
             yield
 
     def run(self, key: str, total: int, draw: Callable[[int, int], None], wait: Callable[[], None]) -> None:
@@ -89,25 +104,39 @@ class Pacer:
         the GPU is done."""
         drive(self.steps(key, total, draw, wait))
 
-    def steps(self, key: str, total: int, draw: Callable[[int, int], None], wait: Callable[[], None]) -> Steps[None]:
+    def steps(self, key: str, total: int, draw: Callable[[int, int], None], wait: Callable[[], None],
+              fallback: str | None = None) -> Steps[None]:
         """`run` as a generator: while `stepping`, the pass yields after each slice of about
-        STEP_S (and once the draws queued whole add up to one)."""
+        STEP_S (and once the draws queued whole add up to one). A `key` with no rate yet
+        takes `fallback`'s (a run of an object: the object's), and its slices set both."""
         if total <= 0:
             return
         budget = self._budget()
         rate = self.rates.get(key)
-        if (not self.stepping and not interrupt.watching()) or (rate is None and total <= FIRST_SLICE) or (
-                rate is not None and total <= rate * budget):
+        own = rate is not None
+        if rate is None and fallback is not None:
+            rate = self.rates.get(fallback)
+        # While stepping, a draw with only its fallback's rate is sliced: its first slice
+        # measures its own (drawn whole on a borrowed rate, a run took 3 times its foretold time).
+        whole = rate is not None and total <= rate * budget and (own or not self.stepping)
+        if (not self.stepping and not interrupt.watching()) or (rate is None and total <= FIRST_SLICE) or whole:
+            queued_at = self.clock()
             draw(0, total)
             if self.stepping and rate is not None:
                 # Many short draws (an object's runs, many objects) add up: yield once they
                 # would take a slice.
+                if not self.queued:
+                    self.queued_since = queued_at
+                self.queued.append((key, fallback, total, total / rate))
                 self.owed += total / rate
                 if self.owed >= budget:
-                    self.owed = 0.0
                     wait()
+                    self._learn_queued()
                     yield
             return
+        if self.stepping and self.queued:
+            wait()  # the draws queued whole, measured apart from this one's first slice
+            self._learn_queued()
         size = FIRST_SLICE if rate is None else max(int(rate * budget), 1)
         done = 0
         while done < total:
@@ -119,7 +148,7 @@ class Pacer:
             self.slices += 1
             done += count
             rate = count / spent
-            self.rates[key] = rate
+            self._set_rate(key, fallback, rate)
             if self.stepping:
                 self.owed = 0.0
                 yield
@@ -127,3 +156,21 @@ class Pacer:
             else:
                 interrupt.check()
             size = max(1, min(int(rate * budget), count * (STEP_GROWTH if self.stepping else GROWTH)))
+
+    def _set_rate(self, key: str, fallback: str | None, rate: float) -> None:
+        if len(self.rates) >= MAX_RATES and key not in self.rates:
+            self.rates.clear()  # runs come and go with the view: keep the table small
+        self.rates[key] = rate
+        if fallback is not None:
+            self.rates[fallback] = rate
+
+    def _learn_queued(self) -> None:
+        """After the wait for the draws queued whole: each one's rate, their foretold times
+        scaled to the time they took together."""
+        spent = max(self.clock() - self.queued_since, 1e-4)
+        foretold = sum(seconds for *_, seconds in self.queued)
+        scale = spent / foretold if foretold > 0.0 else 1.0
+        for key, fallback, items, seconds in self.queued:
+            self._set_rate(key, fallback, items / max(seconds * scale, 1e-6))
+        self.queued.clear()
+        self.owed = 0.0

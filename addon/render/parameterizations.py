@@ -121,7 +121,7 @@ class Parameterization:
                 # The irregular z-buffer: the tile's lists are strip tile `tile` (link_lists).
                 uniforms.update({**exact_rounds.map_uniforms(tile, inputs.count_work), **soft})
             elif mapping.warp is not None:
-                backend.build_ray_table(tile, uniforms)
+                yield from backend.build_ray_table_steps(tile, uniforms)
             # Only objects in chunks may draw point sprites, and only then is the stretch
             # needed: a GPU-built warp reads its numbers for it (footprint_runs.sprites_pay).
             sprites = reach == 0.0 and sprites_pay(mapping, inputs.draws, spheres)

@@ -280,9 +280,8 @@ def test_a_long_recompute_is_spread_over_redraws(tmp_path):
     """stress_million at 640x480 (issue 52): once the scene is resident, a moved view's
     recompute (about 3 s on llvmpipe) is spread over many redraws that draw the last
     result reprojected meanwhile, and ends with the very visibility one computed at once
-    gives. Each redraw after the first (which draws the moved view's G-buffer for the
-    reprojection) stays a small share of the whole recompute; the figures on a quiet
-    machine are in docs/preview.md."""
+    gives. Every redraw, the first included, stays a small share of the whole recompute;
+    the figures on a quiet machine are in docs/preview.md."""
     out = tmp_path / "spread.json"
     _worker("spread", out)
     r = json.loads(out.read_text())
@@ -293,8 +292,9 @@ def test_a_long_recompute_is_spread_over_redraws(tmp_path):
         moved = r[name]
         assert moved["last"] == "computed" and "reprojected" in moved["drawn"] and not moved["error"], moved
         assert moved["callbacks"] >= 8, moved  # spread, not one frozen redraw
-        later = sorted(moved["times_ms"][1:-1])
-        # The median redraw a small share of the one-shot recompute, none holding most of it
-        # (generous: a loaded 2-core machine overshoots slices; docs/preview.md has quiet figures).
-        assert later[len(later) // 2] < 0.2 * r["fresh_s"] * 1000, (moved["times_ms"], r["fresh_s"])
-        assert later[-1] < 0.6 * r["fresh_s"] * 1000, (moved["times_ms"], r["fresh_s"])
+        times = sorted(moved["times_ms"])
+        # Every redraw a small share of the one-shot recompute, measured in the same run
+        # (quiet, the longest is 3-4 % of it; the slack is for a loaded 2-core machine;
+        # docs/preview.md has the quiet figures).
+        assert times[len(times) // 2] < 0.1 * r["fresh_s"] * 1000, (moved["times_ms"], r["fresh_s"])
+        assert times[-1] < 0.15 * r["fresh_s"] * 1000, (moved["times_ms"], r["fresh_s"])

@@ -182,3 +182,92 @@ def test_a_stepped_slice_ends_by_the_redraws_deadline():
     sizes = [n for _, n in drawn[-6:]]
     assert all(b <= pacing.STEP_GROWTH * a for a, b in zip(sizes, sizes[1:])), sizes
     assert drawn[-1][1] * clock.per_item == pytest.approx(pacing.STEP_S, rel=0.01)
+
+
+def test_a_run_borrows_its_objects_rate_until_its_first_slice_measures_its_own():
+    """Stepping, a run (key) with no rate of its own takes its object's (fallback) to size
+    its first slice, and is sliced even where that rate says it would fit one: its own rate,
+    measured on that slice, then sizes it and its object's next runs."""
+    clock = _Clock(per_item=1e-5)  # this run: 100k items a second
+    pacer = Pacer(clock=clock, stepping=True, rates={"step:maps:obj": 1e6})  # its object's: 1M/s
+    drawn, draw = _recorder(clock)
+    total = int(1e6 * pacing.STEP_S * 0.8)  # "fits" a slice on the borrowed rate
+    steps = pacer.steps("step:maps:obj:0:500", total, draw, lambda: None, fallback="step:maps:obj")
+    next(steps)
+    # Sliced on the borrowed rate (what it foretells for STEP_S), not drawn whole.
+    assert drawn == [(0, total)]
+    assert pacer.rates["step:maps:obj:0:500"] == pytest.approx(1e5) == pacer.rates["step:maps:obj"]
+    # The next run of the object is sized by the rate just measured.
+    drawn, draw = _recorder(clock)
+    steps = pacer.steps("step:maps:obj:0:900", 100_000, draw, lambda: None, fallback="step:maps:obj")
+    next(steps)
+    assert drawn[0][1] * clock.per_item == pytest.approx(pacing.STEP_S, rel=0.01)
+    list(steps)
+    assert sum(n for _, n in drawn) == 100_000
+    assert max(n for _, n in drawn[1:]) * clock.per_item <= pacing.STEP_S * 1.001
+    # Not stepping, the borrowed rate decides as before: no signal watched, drawn whole.
+    idle = Pacer(clock=clock, rates={"step:maps:obj": 1e6})
+    drawn, draw = _recorder(clock)
+    list(idle.steps("step:maps:obj:0:900", 10_000, draw, lambda: None, fallback="step:maps:obj"))
+    assert drawn == [(0, 10_000)]
+
+
+def test_draws_queued_whole_learn_their_rates_from_the_wait_they_share():
+    """Short draws drawn whole on known rates (each foretold at a tenth of a slice) that took
+    three times as long together: the wait after them scales each one's rate by a third;
+    `settle` waits for what is queued and yields while stepping, and does nothing otherwise."""
+    clock = _Clock(per_item=3e-5)  # they are three times dearer than their rates say
+    keys = [f"step:maps:obj:0:{i}" for i in range(12)]
+    pacer = Pacer(clock=clock, stepping=True, rates={key: 1e5 for key in keys})
+    small = int(pacing.STEP_S * 1e5 / 10)
+    waits = []
+    for key in keys[:5]:
+        drawn, draw = _recorder(clock)
+        list(pacer.steps(key, small, draw, lambda: waits.append(clock.now)))
+    assert waits == []  # five tenths of a slice foretold: no wait yet
+    assert all(pacer.rates[key] == 1e5 for key in keys[:5])
+    assert list(pacer.settle(lambda: waits.append(clock.now))) == [None] and len(waits) == 1
+    assert all(pacer.rates[key] == pytest.approx(1e5 / 3, rel=1e-6) for key in keys[:5])
+    assert pacer.queued == [] and pacer.owed == 0.0
+    pacer.stepping = False
+    assert list(pacer.settle(lambda: waits.append(clock.now))) == [] and len(waits) == 1
+
+
+def test_a_stepped_ray_table_is_the_table_of_one_draw(gl_backend, monkeypatch):
+    """The ray table built in bands of rows (stepping, each band a slice of its own) holds
+    the very bits of the one draw that builds it otherwise."""
+    from addon.render.backend import ShadowBackend
+    from addon.render.passes import footprints
+
+    calls = []
+
+    def recording(backend, tile, uniforms):
+        calls.append((tile, dict(uniforms)))
+        return footprints.build_ray_table_steps(backend, tile, uniforms)
+
+    monkeypatch.setattr(ShadowBackend, "build_ray_table_steps", recording)
+    scene = _scene("sphere")
+    samples, _, _ = view_samples(scene)
+    ShadowPipeline(gl_backend).render(scene.light, scene.world_triangles(), samples, settings_for("dpsm+notw", 256))
+    assert calls, "a warped frame builds its ray table"
+    tile, uniforms = calls[0]
+    rows = gl_backend.atlas.layout.resolution
+
+    def table() -> np.ndarray:
+        return gl_backend.device.read(gl_backend.textures["ow_ray_table"], "RG32F").copy()
+
+    with gl_backend.device.bound():
+        pacing.drive(footprints.build_ray_table_steps(gl_backend, tile, uniforms))
+        once = table()
+        gl_backend.device.clear(gl_backend.ray_target, (0.0, 0.0, 0.0, 0.0))
+        gl_backend.pacer.stepping = True
+        try:
+            yields = sum(1 for _ in footprints.build_ray_table_steps(gl_backend, tile, uniforms))
+        finally:
+            gl_backend.pacer.stepping = False
+        banded = table()
+    assert yields >= rows // footprints.RAY_BAND  # a band a slice at least
+    x, y, width, height = gl_backend.atlas.layout.span_viewport(tile, 1)
+    once, banded = once[y:y + height, x:x + width], banded[y:y + height, x:x + width]
+    assert np.array_equal(once.view(np.uint32), banded.view(np.uint32))
+    assert np.isfinite(once).all() and np.ptp(once) > 0.0  # a table with something in it

@@ -2,6 +2,7 @@
 marking the linked view samples (the exact pass), and the ray table of warped layers."""
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
@@ -12,6 +13,8 @@ from ..shaders import FOOTPRINT_PROGRAM, FOOTPRINT_VERTICES, RAY_TABLE_PROGRAM, 
 from ..shaders import alpha_of, exact_variant, medium_of, pieces_of
 from ..pacing import Steps, drive
 from .atlas import layer_viewport
+
+RAY_BAND = 64  # rows of the ray table a stepped build measures apart
 
 
 @dataclass(frozen=True)
@@ -50,6 +53,13 @@ def build_ray_table(backend, tile: int, uniforms: UniformValues) -> None:
     """Fill one tile of the ray table (RAY_TABLE_PROGRAM, RG32F, the atlas's size), bound as
     `ow_ray_table` for the footprint pass: the projection point of every texel of a warped
     layer. Call after begin_atlas and set_warp_tables."""
+    drive(build_ray_table_steps(backend, tile, uniforms))
+
+
+def build_ray_table_steps(backend, tile: int, uniforms: UniformValues) -> Steps[None]:
+    """`build_ray_table` as a stepped pass: while the pacer steps (the viewport) the tile is
+    drawn in bands of rows, each its own slice (a 1024-texel tile takes 50-80 ms on llvmpipe
+    in one draw). Each texel is computed alone, so the bands write what one draw writes."""
     if backend.atlas is None:
         raise BackendError("build_ray_table called before begin_atlas")
     device = backend.device
@@ -59,8 +69,23 @@ def build_ray_table(backend, tile: int, uniforms: UniformValues) -> None:
         device.free(backend.ray_target, table)
         table = backend.textures["ow_ray_table"] = device.texture(layout.size, "RG32F")
         backend.ray_target = device.target((table,))
-    with device.drawing(backend.ray_target, layout.span_viewport(tile, 1)):
-        device.draw(RAY_TABLE_PROGRAM, uniforms, backend.textures)
+    x, y, width, rows = viewport = layout.span_viewport(tile, 1)
+
+    def draw_rows(top: int) -> Callable[[int, int], None]:
+        def draw(first: int, count: int) -> None:
+            with device.drawing(backend.ray_target, viewport, (x, y + top + first, width, count)):
+                device.draw(RAY_TABLE_PROGRAM, uniforms, backend.textures)
+        return draw
+
+    if not backend.pacer.stepping:  # one draw (in slices only while a signal is watched)
+        yield from backend.pacer.steps("wait:ray_table", rows, draw_rows(0), backend.finish)
+        return
+    # A row's cost depends on where it crosses the layer (its middle rows cost most), so
+    # each band of RAY_BAND rows keeps its own rate.
+    for top in range(0, rows, RAY_BAND):
+        yield from backend.pacer.steps(f"step:ray_table:{tile}:{top}", min(RAY_BAND, rows - top), draw_rows(top),
+                                       backend.finish, fallback="step:ray_table")
+    yield from backend.pacer.settle(backend.finish)
 
 
 def footprint_program(backend, draw: FootprintDraw, uniforms: UniformValues, exact: bool,
@@ -140,9 +165,13 @@ def draw_footprints_steps(backend, tile: int, draws: list[FootprintDraw], unifor
     # A long draw (the exact pass over hair under a soft sun, a million triangles in the
     # viewport) in slices; each object's rate is its own (a hair piece's walk may cost a
     # thousand triangles of the ground's), and waiting and stepping rates are kept apart.
+    # A run of an object costs what its triangles cover in the map, which differs from run to
+    # run (one run of an object took 5 times the time a slice of its run before foretold):
+    # each run keeps its own rate (its tile and first item), from the object's until known.
     kind = ("step:" if pacer.stepping else "wait:") + ("exact" if exact else "maps")
     for index, draw in enumerate(live):
-        yield from pacer.steps(f"{kind}:{draw.key}", draw.count,
+        yield from pacer.steps(f"{kind}:{draw.key}:{tile}:{draw.first}", draw.count,
                                lambda first, count, index=index, base=draw.first: queued.append(
-                                   (index, base + first, count)), wait)
+                                   (index, base + first, count)), wait, fallback=f"{kind}:{draw.key}")
     flush()
+    yield from pacer.settle(wait)
