@@ -338,7 +338,7 @@ def _eevee_rows(source: list[str], ref: ReferenceData, preset: str, image_dir: P
                 options: CompareOptions, tag: str = "") -> list[Row]:
     import tempfile
 
-    from .reference.eevee import eevee_rows
+    from .reference.eevee_rows import eevee_rows
 
     with tempfile.TemporaryDirectory(prefix="omniwarp_eevee_") as tmp:
         return eevee_rows(source, ref, preset, Path(tmp), image_dir, frames=max(1, options.frames),

@@ -51,7 +51,7 @@ def render(scene, light, shadows: bool, folder: Path) -> tuple[np.ndarray, np.nd
     """(Diffuse Direct as the mean of RGB, position), each (H, W[, 3])."""
     import bpy
 
-    from addon.reference.capture import read_exr_channels
+    from addon.reference.pass_files import read_exr_channels
 
     light.data.use_shadow = shadows
     scene.render.filepath = str(folder / f"pass_{int(shadows)}_{scene.cycles.seed}.exr")

@@ -34,16 +34,16 @@ from __future__ import annotations
 import logging
 import math
 import time
+from dataclasses import dataclass
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, Callable
 
 import numpy as np
 
-from ..core import exr, interrupt, validate
+from ..core import interrupt, validate
 from ..core.camera import Window, blender_camera_window, window_fov_deg
 from ..core.errors import InputError, ReferenceCaptureError
 from ..core.light_shape import POINT
-from ..core.metrics import reference_ratio
 from ..core.scene import orthonormalize, spot_emission
 from ..compat import blender as blender_compat
 from ..readers import light_size
@@ -52,7 +52,7 @@ from ..readers.shadow_rule import ShadowRule
 from . import reference_materials
 from .data import ReferenceData
 from .reference_materials import AOV_NORMAL
-from .still import save_render_result
+from .pass_files import PassReading, read_exr_channels, read_passes, save_render_result
 
 if TYPE_CHECKING:  # pragma: no cover - typing only
     import bpy
@@ -261,8 +261,6 @@ def evaluated_depsgraph(scene: "bpy.types.Scene", view_layer: "bpy.types.ViewLay
     return depsgraph
 
 
-_evaluated_depsgraph = evaluated_depsgraph
-
 
 # ----------------------------------------------------------------------------
 # temporary datablocks
@@ -418,7 +416,7 @@ def _render(scene, view_layer, path: Path, what: str = "Cycles render") -> float
     seconds = time.perf_counter() - start
     if "FINISHED" not in result:
         raise ReferenceCaptureError(f"Cycles render of scene {scene.name!r} failed: {result}")
-    save_render_result(scene, path, "Cycles render")  # under Python's lock (still.py)
+    save_render_result(scene, path, "Cycles render")  # under Python's lock (pass_files.py)
     return seconds
 
 
@@ -458,31 +456,6 @@ def _finite(matrix: np.ndarray, obj, what: str) -> np.ndarray:
     return matrix
 
 
-def read_exr_channels(path: Path) -> dict[str, np.ndarray]:
-    """Every channel of a (multi-part) EXR by its full name, as (H, W) float32 arrays.
-
-    Row 0 is the top of the image: Blender writes the data window top-down. Read with the
-    project's own numpy reader (core/exr.py): a stock Blender's Python has no OpenEXR.
-    """
-    try:
-        return exr.read_channels(path)
-    except exr.ExrError as exc:
-        raise ReferenceCaptureError(f"cannot read Cycles output {path}: {exc}") from exc
-
-
-def pass_channel(channels: dict[str, np.ndarray], layer: str, name: str) -> np.ndarray:
-    key = f"{layer}.{name}"
-    if key not in channels:
-        raise ReferenceCaptureError(
-            f"Cycles output lacks channel {key!r}; found: {', '.join(sorted(channels))}"
-        )
-    return channels[key]
-
-
-def stack_pass(channels: dict[str, np.ndarray], layer: str, name: str, comps: str) -> np.ndarray:
-    return np.stack([pass_channel(channels, layer, f"{name}.{c}") for c in comps], axis=-1)
-
-
 def capture(scene: "bpy.types.Scene", samples: int = DEFAULT_SAMPLES, *, light: "bpy.types.Object | str | None" = None,
             view_layer: str | None = None, progress: Progress | None = None,
             check: Callable[[str], None] | None = None, hard: bool = False,
@@ -496,12 +469,105 @@ def capture(scene: "bpy.types.Scene", samples: int = DEFAULT_SAMPLES, *, light: 
     A sized light renders with `soft_samples` in two halves (module docstring) unless
     `hard` takes its size away; `samples` is the hard light's count.
     """
-    import bpy
-
     if samples < 1:
         raise ReferenceCaptureError(f"samples must be at least 1, got {samples}")
     if soft_samples < 2 or soft_samples % 2:
         raise ReferenceCaptureError(f"soft samples must be an even number of at least 2, got {soft_samples}")
+    cam_obj, layer, visible, light_obj = _checked_inputs(scene, view_layer, light)
+    emission = emission_of(light_obj.data)
+    media = reference_materials.media(scene, layer)
+    if media:
+        log.info("media (volume shaders) the reference renders with: %s", ", ".join(media))
+    if check is not None:
+        check(emission)
+    _warn_soft_light(light_obj)
+    say = progress or (lambda message: None)
+    width, height = output_size(scene)
+    # Read before the reference set-up turns shadow catchers and holdouts off: the
+    # notes must name what the file has.
+    rule = ShadowRule.for_light(scene, light_obj, view_layer=layer)
+
+    # A temporary the interrupt handling knows, so Ctrl-C during a render removes it;
+    # the scene's settings are restored before it goes.
+    overrides = Overrides()
+    with interrupt.temporary_dir("omniwarp_ref_") as tmpdir:
+        try:
+            say("collecting triangles (render depsgraph)")
+            # The render depsgraph: render-level modifiers, hide_render, instancer flags;
+            # read before the reference materials replace the file's (their alpha).
+            found = render_triangles(scene, layer)
+            # As Cycles evaluates them: the viewport does not evaluate an object disabled there
+            # (an old file's hidden sun read as the identity, straight down).
+            light_world = _render_matrix(found, light_obj, "light")
+            camera_world = _render_matrix(found, cam_obj, "camera")
+            authored = light_size.light_shape(light_obj, light_world)
+            sized = authored.sized and not hard
+            noisy = sized or bool(media)  # two halves and their noise (module docstring)
+            spp = soft_samples // 2 if noisy else samples
+            material_notes = _apply_render_settings(scene, layer, light_obj, visible, spp, str(tmpdir / "pass"),
+                                                    overrides, hard)
+            _log_geometry(scene, light_obj, light_world, found, visible)
+            seeds = SOFT_SEEDS if noisy else SOFT_SEEDS[:1]
+            renders = _render_halves(scene, layer, light_obj, seeds, tmpdir / "pass.exr", overrides,
+                                     lambda i, kind: say(f"Cycles render {i}/{2 * len(seeds)} ({kind}, "
+                                                         f"{width}x{height}, {spp} spp)"))
+        finally:
+            overrides.restore()
+
+    read = read_passes(renders.lits, renders.frees, layer.name, bool(media), noisy)
+    if read.position.shape[:2] != (height, width):
+        raise ReferenceCaptureError(f"Cycles output is {read.position.shape[1]}x{read.position.shape[0]}, "
+                                    f"expected {width}x{height}")
+    blocks = rule.blocks
+    triangles, spheres, strands = found.select(blocks), found.select_spheres(blocks), found.select_strands(blocks)
+    surface, grids = found.select_surface(blocks), found.select_grids(blocks)
+    meta = _meta(scene, light_obj, cam_obj, rule, found, renders, read, material_notes,
+                 samples=int(soft_samples if noisy else samples), shape=authored if sized else POINT, authored=authored,
+                 counts=(len(triangles), len(spheres), len(strands), len(grids)))
+    log.info("captured %r %dx%d: %d triangles, %.1f%% hit, renders %.2f s + %.2f s",
+             scene.name, width, height, len(triangles), 100.0 * read.hit.mean(), renders.shadowed_s, renders.free_s)
+    return _reference_data(scene, cam_obj, light_obj, emission, light_world, camera_world, read, meta,
+                           triangles, surface, spheres, strands, grids)
+
+
+def _reference_data(scene, cam_obj, light_obj, emission: str, light_world: np.ndarray, camera_world: np.ndarray,
+                    read: PassReading, meta: dict, triangles, surface, spheres, strands, grids) -> ReferenceData:
+    """The capture as the arrays the comparison reads: the camera as Cycles framed it (lens
+    shift, sensor fit, pixel aspect, orthographic scale: its window), the light's and
+    camera's rigid matrices, and the blockers."""
+    width, height = output_size(scene)
+    camera_window = _camera_window(cam_obj.data, scene.render, width, height)
+    camera_ortho = cam_obj.data.type == "ORTHO"
+    return ReferenceData(
+        position=read.position,
+        normal=read.normal,
+        hit=read.hit,
+        shadowed=read.shadowed,
+        unshadowed=read.unshadowed,
+        triangles=triangles,
+        light_matrix=_rigid(light_world),
+        emission=emission,
+        camera_matrix=_rigid(camera_world),
+        camera_fov_deg=(_camera_fov_deg(cam_obj.data, width, height) if camera_window is None
+                        else window_fov_deg(camera_window, (width, height), camera_ortho)),
+        resolution=(width, height),
+        meta=meta,
+        # Only a narrower cone restricts the domain; hemi, omni and sun keep pi.
+        spot_size=float(light_obj.data.spot_size) if emission == "spot" else math.pi,
+        camera_window=camera_window,
+        camera_ortho=camera_ortho,
+        camera_clip=(float(cam_obj.data.clip_start), float(cam_obj.data.clip_end)),
+        surface=surface if surface.see_through or surface.has_media else None,
+        visibility_noise=read.noise,
+        spheres=spheres if len(spheres) else None,
+        strands=strands if len(strands) else None,
+        grids=grids,  # Volume geometry's density grids
+    )
+
+
+def _checked_inputs(scene, view_layer: str | None, light):
+    """The camera, view layer, rendered object names and light of a capture, each refused
+    by name when the reference cannot use it."""
     cam_obj = scene.camera
     if cam_obj is None or cam_obj.type != "CAMERA":
         raise ReferenceCaptureError(f"scene {scene.name!r} has no active camera; the reference needs one")
@@ -513,7 +579,7 @@ def capture(scene: "bpy.types.Scene", samples: int = DEFAULT_SAMPLES, *, light: 
     layer = pick_view_layer(scene, view_layer)
     # A new scene's view layer is synced lazily (layer_collection stays None until
     # the scene is evaluated once), so evaluate before reading its collections.
-    depsgraph = _evaluated_depsgraph(scene, layer)
+    depsgraph = evaluated_depsgraph(scene, layer)
     visible = render_visible_objects(layer)
     light_obj = pick_light(scene, visible, light)
     if light_obj.name_full not in visible:
@@ -526,143 +592,85 @@ def capture(scene: "bpy.types.Scene", samples: int = DEFAULT_SAMPLES, *, light: 
         # For a sun the energy is its strength (W/m^2); zero is equally useless.
         raise ReferenceCaptureError(f"light {light_obj.name!r} emits nothing (energy or colour is zero)")
     _check_transforms(light_obj, cam_obj, depsgraph)
-    emission = emission_of(light_obj.data)
-    media = reference_materials.media(scene, layer)
-    if media:
-        log.info("media (volume shaders) the reference renders with: %s", ", ".join(media))
-    if check is not None:
-        check(emission)
-    _warn_soft_light(light_obj)
-    say = progress or (lambda message: None)
+    return cam_obj, layer, visible, light_obj
 
-    render = scene.render
-    width, height = output_size(scene)
-    # Lens shift, sensor fit, pixel aspect and orthographic scale: the camera's window.
-    camera_window = _camera_window(cam_obj.data, render, width, height)
-    camera_ortho = cam_obj.data.type == "ORTHO"
-    camera_clip = (float(cam_obj.data.clip_start), float(cam_obj.data.clip_end))
 
-    # Read before the reference set-up turns shadow catchers and holdouts off: the
-    # notes must name what the file has.
-    rule = ShadowRule.for_light(scene, light_obj, view_layer=layer)
+def _log_geometry(scene, light_obj, light_world: np.ndarray, found, visible: set[str]) -> None:
+    """What a reader of the log should know of the geometry: a spot's squashed cone, and
+    rendered objects that gave no triangles."""
+    scale = np.linalg.norm(light_world[:3, :3], axis=0)
+    if light_obj.data.type == "SPOT" and np.ptp(np.abs(scale)) > 1e-4:
+        log.warning("spot light %r has non-uniform scale %s: its cone is not circular", light_obj.name, scale)
+    empty = {o.name for o in scene.objects if o.type in GEOMETRY_TYPES and o.name_full in visible} - found.names
+    if empty:
+        log.info("rendered objects without triangles: %s", ", ".join(sorted(empty)))
 
-    # A temporary the interrupt handling knows, so Ctrl-C during a render removes it;
-    # the scene's settings are restored before it goes.
-    overrides = Overrides()
-    with interrupt.temporary_dir("omniwarp_ref_") as tmpdir:
-        try:
-            exr_path = tmpdir / "pass.exr"
-            say("collecting triangles (render depsgraph)")
-            # The render depsgraph: render-level modifiers, hide_render, instancer flags;
-            # read before the reference materials replace the file's (their alpha).
-            scene_triangles = render_triangles(scene, layer)
-            # As Cycles evaluates them: the viewport does not evaluate an object disabled there
-            # (an old file's hidden sun read as the identity, straight down).
-            light_world = _render_matrix(scene_triangles, light_obj, "light")
-            camera_world = _render_matrix(scene_triangles, cam_obj, "camera")
-            authored = light_size.light_shape(light_obj, light_world)
-            sized = authored.sized and not hard
-            noisy = sized or bool(media)  # two halves and their noise (module docstring)
-            material_notes = _apply_render_settings(scene, layer, light_obj, visible,
-                                                    soft_samples // 2 if noisy else samples,
-                                                    str(tmpdir / "pass"), overrides, hard)
 
-            camera_matrix = _rigid(camera_world)
-            light_matrix = _rigid(light_world)
-            scale = np.linalg.norm(light_world[:3, :3], axis=0)
-            if light_obj.data.type == "SPOT" and np.ptp(np.abs(scale)) > 1e-4:
-                log.warning("spot light %r has non-uniform scale %s: its cone is not circular", light_obj.name, scale)
-            triangles = scene_triangles.select(rule.blocks)
-            surface = scene_triangles.select_surface(rule.blocks)
-            spheres = scene_triangles.select_spheres(rule.blocks)
-            strands = scene_triangles.select_strands(rule.blocks)
-            empty = {o.name for o in scene.objects
-                     if o.type in GEOMETRY_TYPES and o.name_full in visible} - scene_triangles.names
-            if empty:
-                log.info("rendered objects without triangles: %s", ", ".join(sorted(empty)))
+@dataclass
+class _Renders:
+    """The Cycles passes of a capture: one EXR's channels a seed, shadowed and not."""
 
-            seeds = SOFT_SEEDS if noisy else SOFT_SEEDS[:1]
-            spp = soft_samples // 2 if noisy else samples
-            lits, frees, t_shadowed, t_unshadowed = [], [], 0.0, 0.0
-            count = 2 * len(seeds)
-            for i, seed in enumerate(seeds):
-                overrides.set(scene.cycles, "seed", seed)
-                say(f"Cycles render {i + 1}/{count} (shadowed, {width}x{height}, {spp} spp)")
-                t_shadowed += _render(scene, layer, exr_path, f"Cycles render {i + 1}/{count}")
-                lits.append(read_exr_channels(exr_path))
-                exr_path.unlink()
+    lits: list[dict[str, np.ndarray]]
+    frees: list[dict[str, np.ndarray]]
+    shadowed_s: float
+    free_s: float
+
+
+def _render_halves(scene, layer, light_obj, seeds: tuple[int, ...], exr_path: Path, overrides: Overrides,
+                   say: Callable[[int, str], None]) -> _Renders:
+    """Each seed's render with the light's shadows, then each again without them: the same
+    seed draws the same light points in both (module docstring)."""
+    out = _Renders([], [], 0.0, 0.0)
+    count = 2 * len(seeds)
+    for shadows in (True, False):
+        if not shadows:
             _disable_shadows(scene, light_obj, overrides)
-            for i, seed in enumerate(seeds):
-                overrides.set(scene.cycles, "seed", seed)  # the same light points as its shadowed half
-                step = len(seeds) + i + 1
-                say(f"Cycles render {step}/{count} (unshadowed, {width}x{height}, {spp} spp)")
-                t_unshadowed += _render(scene, layer, exr_path, f"Cycles render {step}/{count}")
-                frees.append(read_exr_channels(exr_path))
-                exr_path.unlink()
-            lit = lits[0]
-        finally:
-            overrides.restore()
+        for i, seed in enumerate(seeds):
+            overrides.set(scene.cycles, "seed", seed)
+            step = i + 1 if shadows else len(seeds) + i + 1
+            say(step, "shadowed" if shadows else "unshadowed")
+            seconds = _render(scene, layer, exr_path, f"Cycles render {step}/{count}")
+            (out.lits if shadows else out.frees).append(read_exr_channels(exr_path))
+            exr_path.unlink()
+            if shadows:
+                out.shadowed_s += seconds
+            else:
+                out.free_s += seconds
+    return out
 
-    name = layer.name
-    alpha = pass_channel(lit, name, "Combined.A")
-    hit = alpha > 0.5
-    # Pixels whose samples disagree on hitting geometry (only when samples > 1).
-    mixed = int(np.count_nonzero((alpha > 1e-6) & (alpha < 1.0 - 1e-6)))
-    # Cycles writes Position at sample 0 only; in a heterogeneous volume (seen by camera rays,
-    # its closure empty for them) that sample's camera path may end before the surface: with
-    # media, take another render's (seed), and leave a pixel none gives out of `hit` (meta
-    # positions_lost). Without media a surface may well pass through the origin.
-    found = [stack_pass(c, name, "Position", "XYZ") for c in ((lit, *lits[1:], *frees) if media else (lit,))]
-    position = found[0]
-    for other in found[1:]:
-        position = np.where(np.all(position == 0.0, axis=-1, keepdims=True), other, position)
-    lost = hit & np.all(position == 0.0, axis=-1) if media else np.zeros_like(hit)
-    hit &= ~lost
-    position = np.where(hit[..., None], position, 0.0)
-    normal = stack_pass(lit, name, AOV_NORMAL, "RGB")
-    length = np.linalg.norm(normal, axis=-1, keepdims=True)
-    # Several samples average the AOV; re-normalize (only silhouettes can shrink it).
-    normal = np.where(hit[..., None] & (length > 1e-12), normal / np.maximum(length, 1e-12), 0.0)
-    diffuse = blender_compat.exr_pass_name("Diffuse Direct")
-    shadowed_halves = [np.where(hit, stack_pass(c, name, diffuse, "RGB").mean(axis=-1), 0.0) for c in lits]
-    unshadowed_halves = [np.where(hit, stack_pass(c, name, diffuse, "RGB").mean(axis=-1), 0.0) for c in frees]
-    shadowed = np.mean(shadowed_halves, axis=0).astype(np.float32)
-    unshadowed = np.mean(unshadowed_halves, axis=0).astype(np.float32)
-    noise = None
-    if noisy:
-        # Half the halves' difference: for independent halves, its mean is the mean
-        # distance of their average (the reference) from the converged visibility.
-        a, b = (reference_ratio(sh, un) for sh, un in zip(shadowed_halves, unshadowed_halves))
-        noise = (0.5 * np.abs(a - b)).astype(np.float32)
-    if position.shape[:2] != (height, width):
-        raise ReferenceCaptureError(f"Cycles output is {position.shape[1]}x{position.shape[0]}, expected {width}x{height}")
 
+def _meta(scene, light_obj, cam_obj, rule: ShadowRule, found, renders: _Renders, read: PassReading,
+          material_notes: list[str], *, samples: int, shape, authored, counts: tuple[int, int, int, int]) -> dict:
+    """The reference's record of how it was made and of what blocks the light."""
+    import bpy
+
+    triangles, spheres, strands, grids = counts
     meta = {
         "preset": "custom",
         "scene": scene.name,
         "light": light_obj.name,
         "camera": cam_obj.name,
         "blender_version": bpy.app.version_string,
-        "samples": int(soft_samples if noisy else samples),
-        "mixed_pixels": mixed,
-        "positions_lost": int(lost.sum()),
+        "samples": samples,
+        "mixed_pixels": read.mixed,
+        "positions_lost": read.lost,
         # The light as the reference rendered it, and as the file has it.
-        "light_shape": (authored if sized else POINT).as_dict(),
+        "light_shape": shape.as_dict(),
         "light_shape_file": authored.as_dict(),
         "capture_version": CAPTURE_VERSION,
-        "render_seconds": {"shadowed": round(t_shadowed, 3), "unshadowed": round(t_unshadowed, 3)},
+        "render_seconds": {"shadowed": round(renders.shadowed_s, 3), "unshadowed": round(renders.free_s, 3)},
         "light_energy": float(light_obj.data.energy),
         # What blocks the light (ShadowRule), and what the rule could not follow.
-        "occluder_triangles": int(len(triangles)),
-        "occluder_spheres": int(len(spheres)),
-        "occluder_strands": int(len(strands)),
-        "occluder_grids": len(scene_triangles.select_grids(rule.blocks)),
-        "scene_triangles": int(sum(len(t) for t in scene_triangles.triangles)),
+        "occluder_triangles": int(triangles),
+        "occluder_spheres": int(spheres),
+        "occluder_strands": int(strands),
+        "occluder_grids": grids,
+        "scene_triangles": int(sum(len(t) for t in found.triangles)),
         "light_casts_shadows": rule.casts_shadows,
-        "notes": list(rule.notes) + material_notes + scene_triangles.alpha_notes(),
+        "notes": list(rule.notes) + material_notes + found.alpha_notes(),
         # What blocks the light in Cycles but no method draws (left_out.py): every
         # pipeline row's note.
-        "left_out": scene_triangles.left_out.notes(rule.blocks),
+        "left_out": found.left_out.notes(rule.blocks),
     }
     for note in meta["left_out"]:
         log.warning("scene %r, light %r: %s", scene.name, light_obj.name, note)
@@ -671,30 +679,4 @@ def capture(scene: "bpy.types.Scene", samples: int = DEFAULT_SAMPLES, *, light: 
         meta["spot_blend"] = float(light_obj.data.spot_blend)
     if light_obj.data.type == "SUN":
         meta["sun_angle_deg"] = math.degrees(light_obj.data.angle)  # as authored
-    log.info("captured %r %dx%d: %d triangles, %.1f%% hit, renders %.2f s + %.2f s",
-             scene.name, width, height, len(triangles), 100.0 * hit.mean(), t_shadowed, t_unshadowed)
-    return ReferenceData(
-        position=position,
-        normal=normal,
-        hit=hit,
-        shadowed=shadowed,
-        unshadowed=unshadowed,
-        triangles=triangles,
-        light_matrix=light_matrix,
-        emission=emission,
-        camera_matrix=camera_matrix,
-        camera_fov_deg=(_camera_fov_deg(cam_obj.data, width, height) if camera_window is None
-                        else window_fov_deg(camera_window, (width, height), camera_ortho)),
-        resolution=(width, height),
-        meta=meta,
-        # Only a narrower cone restricts the domain; hemi, omni and sun keep pi.
-        spot_size=float(light_obj.data.spot_size) if emission == "spot" else math.pi,
-        camera_window=camera_window,
-        camera_ortho=camera_ortho,
-        camera_clip=camera_clip,
-        surface=surface if surface.see_through or surface.has_media else None,
-        visibility_noise=noise,
-        spheres=spheres if len(spheres) else None,
-        strands=strands if len(strands) else None,
-        grids=scene_triangles.select_grids(rule.blocks),  # Volume geometry's density grids
-    )
+    return meta

@@ -15,8 +15,9 @@ a child process, and arrays travel through files:
     python -m addon.reference.eevee --scene-spec SPEC.npz --out DIR
 
 The child writes `DIR/eevee_<setting>.npz` per setting and a `DIR/eevee.json`
-summary. The parent side, `eevee_rows`, needs only numpy (its mismatch images are
-written by core/png.py); it runs the child and turns its output into compare rows.
+summary. The parent side, `eevee_rows.py`, needs only numpy (its mismatch images are
+written by core/png.py); it runs the child and turns its output into compare rows. A
+scene given as a `SceneSpec` travels as a file (`scene_spec_file.py`).
 
 EEVEE Next facts used here (verified on 5.2.3):
 - the engine id is `BLENDER_EEVEE` in 5.x, `BLENDER_EEVEE_NEXT` in 4.2-4.5;
@@ -38,9 +39,7 @@ import argparse
 import json
 import logging
 import math
-import os
 import shutil
-import subprocess
 import sys
 import tempfile
 import time
@@ -51,22 +50,18 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from ..core import child, interrupt, metrics
-from ..core.alpha import AlphaMap
+from ..core import metrics
 from ..core.errors import (
     InputError,
     OmniWarpError,
     ReferenceCaptureError,
     report_error,
 )
-from ..core.light_shape import shape_from_dict
-from ..core.png import write_png
-from ..core.scene import CameraSpec, LightSpec, MeshSpec, SceneSpec, parse_size
+from ..core.scene import parse_size
 from ..compat import blender as blender_compat
-from ..core.rows import make_row
 from .blend_file import open_scene
-from .data import ReferenceData
-from .still import save_render_result
+from .pass_files import save_render_result
+from .scene_spec_file import load_scene_spec
 
 if TYPE_CHECKING:  # pragma: no cover - typing only
     import bpy
@@ -84,7 +79,6 @@ PIXEL_FILTER_WIDTH = 0.01  # px, as the Cycles reference
 # near the radius scales shadowed and unshadowed alike, so the ratio is unaffected.
 REACH_FACTOR = 2.0
 PROGRESS_PREFIX = "omniwarp-eevee: "
-SPEC_FORMAT = 1
 DEFAULT_TIMEOUT_S = 1800.0
 # What EEVEE Next shadows each light with: a point light with up to 6 cube-face tilemaps, a
 # spot (180 degrees or narrower) with up to 5, a sun with a clipmap of tilemaps about the view.
@@ -98,87 +92,6 @@ AREA_AS_SPOT_NOTE = ("; the hard area light drawn as a 180-degree spot at its ce
                      "light under about 1 cm across as if all were in shadow)")
 
 Progress = Callable[[str], None]
-
-
-# ----------------------------------------------------------------------------
-# SceneSpec <-> .npz (lets a test or a caller hand any SceneSpec to the child)
-# ----------------------------------------------------------------------------
-def save_scene_spec(spec: SceneSpec, path: str | os.PathLike) -> Path:
-    """Write a SceneSpec as a plain .npz (no pickles)."""
-    path = Path(path)
-    arrays: dict[str, np.ndarray] = {}
-    for i, mesh in enumerate(spec.meshes):
-        arrays[f"mesh{i}_vertices"] = np.asarray(mesh.vertices, dtype=np.float64).reshape(-1, 3)
-        arrays[f"mesh{i}_triangles"] = np.asarray(mesh.triangles, dtype=np.int64).reshape(-1, 3)
-        arrays[f"mesh{i}_matrix"] = np.asarray(mesh.matrix_world, dtype=np.float64).reshape(4, 4)
-        if mesh.alpha is not None and mesh.uvs is not None:
-            arrays[f"mesh{i}_uvs"] = np.asarray(mesh.uvs, dtype=np.float64)
-            arrays[f"mesh{i}_alpha_image"] = mesh.alpha.image
-            if mesh.alpha.transfer is not None:
-                arrays[f"mesh{i}_alpha_transfer"] = mesh.alpha.transfer
-    arrays["light_matrix"] = np.asarray(spec.light.matrix_world, dtype=np.float64).reshape(4, 4)
-    arrays["camera_matrix"] = np.asarray(spec.camera.matrix_world, dtype=np.float64).reshape(4, 4)
-    header = {
-        "format": SPEC_FORMAT,
-        "name": spec.name,
-        "description": spec.description,
-        "stresses": spec.stresses,
-        "mesh_names": [mesh.name for mesh in spec.meshes],
-        "alpha_maps": {str(i): {"name": m.alpha.name, "interpolation": m.alpha.interpolation,
-                                "extension": m.alpha.extension}
-                       for i, m in enumerate(spec.meshes) if m.alpha is not None},
-        "light": {"emission": spec.light.emission, "energy": float(spec.light.energy),
-                  "spot_size": float(spec.light.spot_size), "spot_blend": float(spec.light.spot_blend),
-                  "shape": spec.light.shape.as_dict()},
-        "camera": {"fov_deg": float(spec.camera.fov_deg), "resolution": [int(v) for v in spec.camera.resolution],
-                   "clip_start": float(spec.camera.clip_start), "clip_end": float(spec.camera.clip_end),
-                   # None for the centred camera; else its window (shift, pixel aspect, ortho).
-                   "window": None if spec.camera.window is None else list(spec.camera.window),
-                   "ortho": bool(spec.camera.ortho)},
-    }
-    path.parent.mkdir(parents=True, exist_ok=True)
-    # Not cut by a signal: numpy's zip writer, cut, leaves a ZipFile that complains at exit.
-    with interrupt.deferred(), open(path, "wb") as fh:  # a file object keeps numpy from appending ".npz"
-        np.savez_compressed(fh, header=np.array(json.dumps(header)), **arrays)
-    return path
-
-
-def load_scene_spec(path: str | os.PathLike) -> SceneSpec:
-    """Read a file written by `save_scene_spec`."""
-    path = Path(path)
-    try:
-        with np.load(path, allow_pickle=False) as npz:
-            header = json.loads(str(npz["header"]))
-            if header.get("format") != SPEC_FORMAT:
-                raise InputError(f"scene spec {path} has format {header.get('format')}, expected {SPEC_FORMAT}")
-            meshes = [MeshSpec(name, npz[f"mesh{i}_vertices"], npz[f"mesh{i}_triangles"], npz[f"mesh{i}_matrix"],
-                               *_stored_alpha(npz, header, i))
-                      for i, name in enumerate(header["mesh_names"])]
-            stored = header["light"]  # its cone and shape are absent from files written before them
-            light = LightSpec(stored["emission"], npz["light_matrix"], stored["energy"],
-                              spot_size=float(stored.get("spot_size", math.pi)),
-                              shape=shape_from_dict(stored.get("shape")),
-                              spot_blend=float(stored.get("spot_blend", 0.0)))
-            cam = header["camera"]
-            window = cam.get("window")  # absent in files written before windows existed
-            camera = CameraSpec(npz["camera_matrix"], cam["fov_deg"], tuple(cam["resolution"]),
-                                cam["clip_start"], cam["clip_end"], None if window is None else tuple(window),
-                                bool(cam.get("ortho", False)))
-    except (OSError, KeyError, ValueError) as exc:
-        raise InputError(f"cannot read scene spec {path}: {exc}") from exc
-    return SceneSpec(header["name"], meshes, light, camera, header.get("description", ""),
-                     header.get("stresses", ""))
-
-
-def _stored_alpha(npz, header: dict, index: int) -> tuple[AlphaMap | None, np.ndarray | None]:
-    """A stored mesh's see-through material and UVs, (None, None) when it is opaque."""
-    described = header.get("alpha_maps", {}).get(str(index))
-    if described is None:
-        return None, None
-    transfer = npz[f"mesh{index}_alpha_transfer"] if f"mesh{index}_alpha_transfer" in npz.files else None
-    amap = AlphaMap(described["name"], npz[f"mesh{index}_alpha_image"], described["interpolation"],
-                    described["extension"], transfer)
-    return amap, npz[f"mesh{index}_uvs"]
 
 
 # ----------------------------------------------------------------------------
@@ -376,7 +289,7 @@ def _apply_eevee_settings(scene, view_layer, light_obj, visible: set[str], engin
 
 
 def _diffuse(channels: dict[str, np.ndarray], layer: str, hit: np.ndarray) -> np.ndarray:
-    from .capture import stack_pass
+    from .pass_files import stack_pass
 
     diffuse = stack_pass(channels, layer, blender_compat.exr_pass_name("Diffuse Direct"), "RGB")
     return np.where(hit, diffuse.mean(axis=-1), 0.0).astype(np.float32)
@@ -395,8 +308,9 @@ def render_eevee(scene: "bpy.types.Scene", out_dir: Path, settings: Sequence[str
     """
     import bpy
 
-    from .capture import (pass_channel, emission_of, Overrides, pick_light, render_visible_objects,
-                          evaluated_depsgraph, output_size, pick_view_layer, read_exr_channels)
+    from .capture import (Overrides, emission_of, evaluated_depsgraph, output_size, pick_light, pick_view_layer,
+                          render_visible_objects)
+    from .pass_files import pass_channel, read_exr_channels
 
     if frames < 1:
         raise InputError(f"frames must be at least 1, got {frames}")
@@ -539,139 +453,6 @@ def main(argv: Sequence[str] | None = None) -> int:
         return 0
     except OmniWarpError as exc:
         return report_error("omniwarp eevee", exc)
-
-
-# ----------------------------------------------------------------------------
-# parent side (numpy)
-# ----------------------------------------------------------------------------
-def _progress_line(progress: Progress | None) -> Callable[[str], None]:
-    """Pass the child's progress lines on to `progress` (Blender prints on stdout too)."""
-
-    def forward(line: str) -> None:
-        if line.startswith(PROGRESS_PREFIX) and progress is not None:
-            progress(line[len(PROGRESS_PREFIX):].rstrip())
-
-    return forward
-
-
-def run_child(args: Sequence[str], out_dir: Path, progress: Progress | None = None,
-              timeout_s: float | None = DEFAULT_TIMEOUT_S) -> dict[str, Any]:
-    """Run `python -m addon.reference.eevee ARGS --out OUT_DIR`; return its eevee.json.
-
-    Progress lines of the child go to `progress`; a failure raises
-    ReferenceCaptureError with the tail of the child's stderr.
-    """
-    out_dir.mkdir(parents=True, exist_ok=True)
-    summary_path = out_dir / "eevee.json"
-    summary_path.unlink(missing_ok=True)  # never read a stale summary
-    # Blender's session folder goes under out_dir: removed with it even if the child is
-    # killed (on Ctrl-C), which skips Blender's own clean-up.
-    try:
-        child.run_module("addon.reference.eevee", [*args, "--out", out_dir.resolve()], what="EEVEE",
-                         tmpdir=out_dir.resolve(), on_stdout=_progress_line(progress), timeout_s=timeout_s,
-                         refused=lambda line: ReferenceCaptureError(f"the EEVEE render failed: {line}"))
-    except subprocess.TimeoutExpired:
-        raise ReferenceCaptureError(f"the EEVEE process took longer than {timeout_s:.0f} s; killed") from None
-    try:
-        return json.loads(summary_path.read_text(encoding="utf-8"))
-    except (OSError, ValueError) as exc:
-        raise ReferenceCaptureError(f"the EEVEE process left no readable {summary_path}: {exc}") from exc
-
-
-def _load_setting(out_dir: Path, entry: dict[str, Any], shape: tuple[int, int]) -> dict[str, np.ndarray]:
-    path = out_dir / entry["file"]
-    try:
-        with np.load(path, allow_pickle=False) as npz:
-            data = {k: npz[k] for k in ("visibility", "shadowed", "unshadowed", "hit")}
-    except (OSError, KeyError, ValueError) as exc:
-        raise ReferenceCaptureError(f"cannot read EEVEE output {path}: {exc}") from exc
-    for name, array in data.items():
-        if array.shape != shape:
-            raise ReferenceCaptureError(
-                f"EEVEE {name} is {array.shape[1]}x{array.shape[0]} but the reference is {shape[1]}x{shape[0]}; "
-                "the child rendered another camera size")
-    return data
-
-
-def _finite(value: float, what: str) -> float:
-    value = float(value)
-    if not math.isfinite(value):
-        raise ReferenceCaptureError(f"EEVEE {what} is not finite ({value})")
-    return value
-
-
-def eevee_rows(source_args: list[str], reference: ReferenceData, preset_label: str, out_dir: Path,
-               image_dir: Path | None, settings: Sequence[str] = SETTINGS, *, frames: int = 1,
-               progress: Progress | None = None, timeout_s: float | None = DEFAULT_TIMEOUT_S,
-               image_stem: str | None = None) -> list[dict]:
-    """Rows of the `eevee` method, one per setting, measured against `reference`.
-
-    `source_args` names the scene for the child: `["--preset", NAME]` (the camera
-    size is taken from the reference), `["--blend", FILE, "--light", NAME]` or
-    `["--scene-spec", FILE]`. The child's files go to `out_dir/eevee/<preset_label>/`.
-    With `image_dir`, a mismatch image `<preset>_eevee_<setting>_mismatch.png` is written
-    (`<image_stem>_eevee_...` when given: a shot's job adds its frame, light and camera).
-    """
-    names = parse_settings(settings)
-    if reference.emission not in TILEMAPS:
-        raise InputError(f"the reference light is {reference.emission!r}; the eevee row needs a point, spot, sun "
-                         "or area light")
-    args = list(source_args)
-    if "--preset" in args and "--size" not in args:
-        args += ["--size", f"{reference.resolution[0]}x{reference.resolution[1]}"]
-    args += ["--settings", ",".join(names), "--frames", str(int(frames))]
-    shape = reference.light_shape()
-    if not shape.sized and shape_from_dict(reference.meta.get("light_shape_file")).sized:
-        args.append("--hard")  # the reference took the file's light size away: so does EEVEE
-    child_dir = Path(out_dir) / "eevee" / (image_stem or preset_label)
-    summary = run_child(args, child_dir, progress=progress, timeout_s=timeout_s)
-    if summary.get("emission") != reference.emission:
-        raise ReferenceCaptureError(f"EEVEE measured a {summary.get('emission')} light but the reference has "
-                                    f"a {reference.emission} light; the scenes differ")
-
-    light = reference.light_spec()
-    ref_lit = metrics.reference_visibility(reference.shadowed, reference.unshadowed)
-    evaluable = metrics.evaluable_mask(reference.position, reference.normal, reference.hit, reference.unshadowed, light)
-    width, height = reference.resolution
-    warmup_ms = _finite(summary["warmup_ms"], "warm-up time")
-    rows = []
-    for name in names:
-        entry = summary["settings"][name]
-        data = _load_setting(child_dir, entry, (height, width))
-        hit_agreement = 100.0 * float(np.mean(data["hit"] == reference.hit))
-        if hit_agreement < 99.0:
-            log.warning("EEVEE and Cycles disagree on the hit mask at %.2f %% of pixels: other camera or scene?",
-                        100.0 - hit_agreement)
-        est_lit = data["visibility"].astype(bool)
-        # A sized light's EEVEE shadows are soft: scored as fractions, like the reference.
-        estimate = metrics.reference_ratio(data["shadowed"], data["unshadowed"]) if light.sized else est_lit
-        judged = metrics.judge(estimate, reference.shadowed, reference.unshadowed, evaluable, sized=light.sized,
-                               noise=reference.visibility_noise)
-        cap = _finite(entry["shadow_maximum_resolution"], "shadow_maximum_resolution")
-        # No map resolution, passes, texels or pipeline stages: EEVEE's virtual shadow maps
-        # have none of them (rows.Row); the setting and its finest texel say what was run.
-        row = make_row(
-            preset_label, "eevee", reference.emission, judged.figure,
-            {"total": _finite(entry["render_ms"], "render time"), "warmup": warmup_ms},
-            str(summary["renderer"]), "eevee", int(summary["frames"]), (width, height),
-            scene_triangles=int(len(reference.triangles)),
-            eevee_setting=name,
-            shadow_maximum_resolution=cap,
-            unshadowed_ms=_finite(summary["unshadowed_ms"], "unshadowed render time"),
-            hit_agreement_pct=hit_agreement,
-            render_settings=summary["render_settings"],
-            note=ROW_NOTE + (AREA_AS_SPOT_NOTE if summary["render_settings"].get("light.area_as_spot") else ""),
-            light_shape=shape.describe() if shape.sized else None,
-            **judged.columns(),
-        )
-        if image_dir is not None:
-            image_dir.mkdir(parents=True, exist_ok=True)
-            stem = f"{image_stem or preset_label}_eevee_{name}"
-            img = metrics.mismatch_image(reference.shadowed, est_lit, ref_lit, evaluable)
-            write_png(image_dir / f"{stem}_mismatch.png", img)
-            row["mismatch_image"] = f"images/{stem}_mismatch.png"
-        rows.append(row)
-    return rows
 
 
 if __name__ == "__main__":

@@ -19,8 +19,10 @@ on, a draw is cut into slices of about STEP_S, each waited for (llvmpipe does a 
 vertex work in the call itself and its fragments in its threads; the window's swap would
 wait for them anyway), and the pass yields after each, so the preview's draw callback can
 stop and go on at the next redraw; the redraw's `deadline` cuts a slice shorter when less
-than STEP_S is left of it. The passes are generators for that
-(`*_steps`); `drive` runs one to its end where nothing steps.
+than STEP_S is left of it. While stepping a run of an object keeps its own rate, borrowed
+from its object (the `fallback` key) until its first slice measures it, and draws queued
+whole learn theirs from the wait they share (docs/preview.md has the figures). The passes
+are generators for that (`*_steps`); `drive` runs one to its end where nothing steps.
 """
 from __future__ import annotations
 
@@ -117,7 +119,7 @@ class Pacer:
         if rate is None and fallback is not None:
             rate = self.rates.get(fallback)
         # While stepping, a draw with only its fallback's rate is sliced: its first slice
-        # measures its own (drawn whole on a borrowed rate, a run took 3 times its foretold time).
+        # measures its own (a borrowed rate misjudges it: runs differ in what they cover).
         whole = rate is not None and total <= rate * budget and (own or not self.stepping)
         if (not self.stepping and not interrupt.watching()) or (rate is None and total <= FIRST_SLICE) or whole:
             queued_at = self.clock()

@@ -112,7 +112,7 @@ def test_light_linking_is_present():
 
 def test_exr_pass_name_matches_a_real_render(tmp_path):
     """The Diffuse Direct channel of a tiny Cycles multilayer EXR has the name the gate gives."""
-    from addon.reference.capture import read_exr_channels
+    from addon.reference.pass_files import read_exr_channels
 
     scene = bpy.data.scenes.new("compat_pass")
     camera = bpy.data.objects.new("compat_cam", bpy.data.cameras.new("compat_cam"))

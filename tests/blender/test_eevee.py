@@ -21,13 +21,9 @@ from addon.core.scene import SceneBuilder, SceneSpec  # noqa: E402
 from addon.reference.blender_scene import build_blender_scene, remove_blender_scene  # noqa: E402
 from addon.reference.capture import capture  # noqa: E402
 from addon.reference.data import ReferenceData  # noqa: E402
-from addon.reference.eevee import (  # noqa: E402
-    SETTINGS,
-    eevee_rows,
-    load_scene_spec,
-    parse_settings,
-    save_scene_spec,
-)
+from addon.reference.eevee import SETTINGS, parse_settings  # noqa: E402
+from addon.reference.eevee_rows import eevee_rows  # noqa: E402
+from addon.reference.scene_spec_file import load_scene_spec, save_scene_spec  # noqa: E402
 
 pytestmark = pytest.mark.blender
 

@@ -519,7 +519,7 @@ def test_eevee_row_takes_every_light_type(spot, sun, tmp_path):
     import dataclasses
 
     from addon.core import methods
-    from addon.reference import eevee
+    from addon.reference import eevee, eevee_rows
 
     for emission in ("omni", "hemi", "spot", "sun"):
         assert methods.fits("eevee", emission) and emission in eevee.TILEMAPS
@@ -527,7 +527,7 @@ def test_eevee_row_takes_every_light_type(spot, sun, tmp_path):
     _, ref = spot
     odd = dataclasses.replace(ref, emission="laser")
     with pytest.raises(InputError, match="'laser'"):
-        eevee.eevee_rows(["--preset", "none"], odd, "label", tmp_path, None)
+        eevee_rows.eevee_rows(["--preset", "none"], odd, "label", tmp_path, None)
     assert not (tmp_path / "eevee").exists()
 
 

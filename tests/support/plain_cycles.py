@@ -37,7 +37,8 @@ def mean_visibilities(ref, blend: Path, out: Path) -> tuple[float, float, float]
 def main(blend: str, out: str) -> None:
     import bpy
 
-    from addon.reference.capture import Overrides, stack_pass, read_exr_channels, set_pass_output
+    from addon.reference.capture import Overrides, set_pass_output
+    from addon.reference.pass_files import read_exr_channels, stack_pass
     from addon.compat import blender as blender_compat
 
     bpy.ops.wm.open_mainfile(filepath=blend)

@@ -58,8 +58,9 @@ def build_ray_table(backend, tile: int, uniforms: UniformValues) -> None:
 
 def build_ray_table_steps(backend, tile: int, uniforms: UniformValues) -> Steps[None]:
     """`build_ray_table` as a stepped pass: while the pacer steps (the viewport) the tile is
-    drawn in bands of rows, each its own slice (a 1024-texel tile takes 50-80 ms on llvmpipe
-    in one draw). Each texel is computed alone, so the bands write what one draw writes."""
+    drawn in bands of rows, each its own slice (at 1024 texels one draw is longer than a
+    redraw may take on a software rasteriser). Each texel is computed alone, so the bands
+    write what one draw writes."""
     if backend.atlas is None:
         raise BackendError("build_ray_table called before begin_atlas")
     device = backend.device
@@ -166,8 +167,7 @@ def draw_footprints_steps(backend, tile: int, draws: list[FootprintDraw], unifor
     # viewport) in slices; each object's rate is its own (a hair piece's walk may cost a
     # thousand triangles of the ground's), and waiting and stepping rates are kept apart.
     # A run of an object costs what its triangles cover in the map, which differs from run to
-    # run (one run of an object took 5 times the time a slice of its run before foretold):
-    # each run keeps its own rate (its tile and first item), from the object's until known.
+    # run: each run keeps its own rate (its tile and first item), from the object's until known.
     kind = ("step:" if pacer.stepping else "wait:") + ("exact" if exact else "maps")
     for index, draw in enumerate(live):
         yield from pacer.steps(f"{kind}:{draw.key}:{tile}:{draw.first}", draw.count,

@@ -218,7 +218,12 @@ class BlockState:
         return bytes(self._data)
 
 
-def _known_names() -> frozenset[str]:
-    from .programs import KNOWN_KEYS  # every program: built after this module
+_KNOWN: list[frozenset[str]] = []  # filled at the first use: `programs` is built after this module
 
-    return KNOWN_KEYS
+
+def _known_names() -> frozenset[str]:
+    if not _KNOWN:
+        from .programs import KNOWN_KEYS
+
+        _KNOWN.append(KNOWN_KEYS)
+    return _KNOWN[0]
