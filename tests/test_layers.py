@@ -86,9 +86,10 @@ def _existing_packages(*names: str) -> list[str]:
     return [f"addon.{n}" for n in names if (ADDON / n).is_dir()]
 
 
-def test_core_and_render_import_without_blender() -> None:
-    """Every module under addon/core and addon/render imports with bpy & co. blocked."""
-    packages = _existing_packages("core", "render")
+def test_the_lower_layers_import_without_blender() -> None:
+    """Every module under addon/core, compat, render and readers imports with bpy & co. blocked
+    (compat and the readers import bpy inside the calls that need it)."""
+    packages = _existing_packages("core", "compat", "render", "readers")
     if not packages:
         pytest.skip("neither addon/core nor addon/render exists yet")
     proc = subprocess.run(
