@@ -82,7 +82,6 @@ def volume_source(inst: Any, materials: dict[str, GridSigma] | None = None) -> V
     name = obj.original.name_full
     parent_name = None if parent is None else parent.original.name_full
     matrix = np.array(inst.matrix_world, dtype=np.float64)
-    found = VolumeSource(name, parent_name, matrix)
 
     def unread(why: str) -> VolumeSource:
         return VolumeSource(name, parent_name, matrix, why=why)
