@@ -225,11 +225,8 @@ def run_row(pipeline: ShadowPipeline, ref: ReferenceData, preset: str, method: s
         note=_row_note(light, settings, scene, ref),
     )
     if image_dir is not None:
-        image_dir.mkdir(parents=True, exist_ok=True)
         stem = f"{preset}{'_' + tag if tag else ''}_{method}_{resolution}{'' if options.cull else '_nocull'}"
-        img = metrics.mismatch_image(ref.shadowed, est_lit, ref_lit, evaluable)
-        write_png(image_dir / f"{stem}_mismatch.png", img)
-        row["mismatch_image"] = f"images/{stem}_mismatch.png"
+        row["mismatch_image"] = metrics.write_mismatch_image(image_dir, stem, ref.shadowed, est_lit, ref_lit, evaluable)
         row["map_images"] = _write_map_images(image_dir, stem, last, counts)
     return row
 

@@ -361,7 +361,7 @@ def _private_uses(path: Path) -> list[str]:
             for alias in node.names:
                 if alias.name.startswith("_") and not alias.name.startswith("__"):
                     found.append(f"{path.relative_to(REPO_ROOT)}:{node.lineno} imports {alias.name}")
-                if node.level and not node.module or alias.name.islower():
+                if (node.level and not node.module) or alias.name.islower():  # a module, or a function
                     modules.add(alias.asname or alias.name)
         elif isinstance(node, ast.Import):
             modules.update((alias.asname or alias.name).partition(".")[0] for alias in node.names)

@@ -2,6 +2,7 @@
 from __future__ import annotations
 
 from dataclasses import dataclass
+from pathlib import Path
 
 import numpy as np
 
@@ -164,3 +165,14 @@ def mismatch_image(grey_source: np.ndarray, estimate_lit: np.ndarray, reference_
     img[ev & ref & ~est] = (230, 20, 20)
     img[ev & ~ref & est] = (255, 120, 120)
     return img
+
+
+def write_mismatch_image(image_dir: Path, stem: str, grey_source: np.ndarray, estimate_lit: np.ndarray,
+                         reference_lit: np.ndarray, evaluable: np.ndarray) -> str:
+    """Write `mismatch_image` as `<stem>_mismatch.png` in `image_dir` (made if missing);
+    the row's path to it, relative to the results folder."""
+    from .png import write_png
+
+    image_dir.mkdir(parents=True, exist_ok=True)
+    write_png(image_dir / f"{stem}_mismatch.png", mismatch_image(grey_source, estimate_lit, reference_lit, evaluable))
+    return f"images/{stem}_mismatch.png"

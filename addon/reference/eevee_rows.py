@@ -16,7 +16,6 @@ import numpy as np
 from ..core import child, metrics
 from ..core.errors import InputError, ReferenceCaptureError
 from ..core.light_shape import shape_from_dict
-from ..core.png import write_png
 from ..core.rows import make_row
 from .data import ReferenceData
 from .eevee import (AREA_AS_SPOT_NOTE, DEFAULT_TIMEOUT_S, PROGRESS_PREFIX, ROW_NOTE, SETTINGS, TILEMAPS, Progress,
@@ -146,10 +145,8 @@ def eevee_rows(source_args: list[str], reference: ReferenceData, preset_label: s
             **judged.columns(),
         )
         if image_dir is not None:
-            image_dir.mkdir(parents=True, exist_ok=True)
-            stem = f"{image_stem or preset_label}_eevee_{name}"
-            img = metrics.mismatch_image(reference.shadowed, est_lit, ref_lit, evaluable)
-            write_png(image_dir / f"{stem}_mismatch.png", img)
-            row["mismatch_image"] = f"images/{stem}_mismatch.png"
+            row["mismatch_image"] = metrics.write_mismatch_image(
+                image_dir, f"{image_stem or preset_label}_eevee_{name}", reference.shadowed, est_lit, ref_lit,
+                evaluable)
         rows.append(row)
     return rows

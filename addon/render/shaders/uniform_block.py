@@ -218,12 +218,8 @@ class BlockState:
         return bytes(self._data)
 
 
-_KNOWN: list[frozenset[str]] = []  # filled at the first use: `programs` is built after this module
-
-
+@functools.cache
 def _known_names() -> frozenset[str]:
-    if not _KNOWN:
-        from .programs import KNOWN_KEYS
+    from .programs import KNOWN_KEYS  # every program: built after this module
 
-        _KNOWN.append(KNOWN_KEYS)
-    return _KNOWN[0]
+    return KNOWN_KEYS

@@ -130,11 +130,7 @@ def create_info(iface: ProgramInterface) -> Any:
     if iface.writes_depth and blender_compat.has_depth_write():
         # Declared where the API has it (4.5+); OpenGL honours gl_FragDepth either way.
         info.depth_write("ANY")
-    for unit, (fmt, name) in enumerate(iface.images):
-        info.image(unit, fmt.upper(), "UINT_2D" if image_type(fmt) == "uimage2D" else "FLOAT_2D", name,
-                   qualifiers={"READ", "WRITE"})
-    for key, value in program_defines(iface).items():
-        info.define(key, value)
+    _declare_images_and_defines(info, iface)
     info.vertex_source(load_source(iface.vertex_file))
     info.fragment_source(load_source(iface.fragment_file))
     return info
@@ -149,13 +145,18 @@ def compute_create_info(iface: ComputeInterface) -> Any:
     _declare_uniforms(info, iface)
     for slot, sampler in enumerate(iface.samplers):
         info.sampler(slot, "FLOAT_2D", sampler)
+    _declare_images_and_defines(info, iface)
+    info.compute_source(load_source(iface.compute_file))
+    return info
+
+
+def _declare_images_and_defines(info: Any, iface: ProgramInterface | ComputeInterface) -> None:
+    """A program's images (read and written, at their units) and every #define."""
     for unit, (fmt, name) in enumerate(iface.images):
         info.image(unit, fmt.upper(), "UINT_2D" if image_type(fmt) == "uimage2D" else "FLOAT_2D", name,
                    qualifiers={"READ", "WRITE"})
     for key, value in program_defines(iface).items():
         info.define(key, value)
-    info.compute_source(load_source(iface.compute_file))
-    return info
 
 
 def float_texture(size: tuple[int, int], fmt: str, data: np.ndarray | None = None):
