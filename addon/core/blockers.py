@@ -40,7 +40,8 @@ import numpy as np
 # (span length)^2 * curvature / (8 * 16^2), far below a strand's radius for hair.
 PIECES_PER_SPAN = 16
 # The GPU's pieces (`Strands.pieces(None)`, `pieces(adaptive=True)`): as few a span as keep
-# the chords' sag below this share of the curve's thinnest radius, at most PIECES_PER_SPAN.
+# the chords' sag below this share of the curve's thickest radius, at most PIECES_PER_SPAN.
+# (The thinnest would be 0 at a closed tip: every tapering strand at the most pieces.)
 SAG_SHARE = 0.05
 
 
@@ -279,7 +280,7 @@ class Strands:
 
     def curve_pieces(self, k: int, pieces: int | None = PIECES_PER_SPAN) -> Pieces:
         """Curve k's spans sampled into `pieces` pieces each (None: as few as keep the sag
-        below SAG_SHARE of its thinnest radius), all of curve 0. A curve of one point is a
+        below SAG_SHARE of its thickest radius), all of curve 0. A curve of one point is a
         sphere."""
         lo, hi = int(self.offsets[k]), int(self.offsets[k + 1])
         points, radii = self.points[lo:hi], self.radii[lo:hi]
@@ -372,22 +373,43 @@ def pieces(spheres: "Spheres | None", strands: "Strands | None", adaptive: bool 
 
 
 def _spline_pieces(points: np.ndarray, radii: np.ndarray) -> int:
-    """Pieces a span of this Catmull-Rom curve needs: a chord over a parameter step h sags
-    by at most h^2 max|C''| / 8, and on a span C'' is a mix of its four control points' two
-    second differences, with weights of absolute sum at most 3 (2, -1 at t = 0 and -1, 2
-    at t = 1, linear between)."""
-    padded = np.concatenate([points[:1], points, points[-1:]])
-    second = np.linalg.norm(padded[:-2] - 2.0 * padded[1:-1] + padded[2:], axis=1).max()
-    tolerance = SAG_SHARE * max(float(radii.min()), 1e-12)
-    return int(np.clip(np.ceil(np.sqrt(3.0 * second / (8.0 * tolerance))), 1, PIECES_PER_SPAN))
+    """Pieces a span of this Catmull-Rom curve needs (`_spline_pieces_many` of one curve)."""
+    return int(_spline_pieces_many(points[None], radii[None])[0])
+
+
+# The counts a span's pieces are chosen from, fewest first (PIECES_PER_SPAN the last).
+_PIECE_COUNTS = (1, 2, 3, 4, 6, 8, 12, PIECES_PER_SPAN)
 
 
 def _spline_pieces_many(points: np.ndarray, radii: np.ndarray) -> np.ndarray:
-    """`_spline_pieces` of curves (C, n, 3) with radii (C, n) at once."""
-    padded = np.concatenate([points[:, :1], points, points[:, -1:]], axis=1)
-    second = np.linalg.norm(padded[:, :-2] - 2.0 * padded[:, 1:-1] + padded[:, 2:], axis=2).max(axis=1)
-    tolerance = SAG_SHARE * np.maximum(radii.min(axis=1), 1e-12)
-    return np.clip(np.ceil(np.sqrt(3.0 * second / (8.0 * tolerance))), 1, PIECES_PER_SPAN).astype(np.int64)
+    """Pieces a span each of curves (C, n, 3) with radii (C, n) need: the fewest of
+    _PIECE_COUNTS whose chords sag below SAG_SHARE of the curve's thickest radius, the sag
+    measured at each piece's middle (where a span's near-parabolic arc is farthest from
+    its chord). Measured, not bounded by |C''|: a curve's repeated end points bend its
+    parameter without bending the curve, which a bound counts as sag."""
+    count, n = radii.shape
+    out = np.full(count, PIECES_PER_SPAN, dtype=np.int64)
+    if n < 2:
+        return np.ones(count, dtype=np.int64)
+    index = np.arange(n - 1)
+    controls = points[:, np.stack([np.maximum(index - 1, 0), index, index + 1, np.minimum(index + 2, n - 1)],
+                                  axis=1)]  # (C, S, 4, 3)
+    tolerance = SAG_SHARE * np.maximum(radii.max(axis=1), 1e-12)
+    open_ = np.ones(count, dtype=bool)
+    for pieces in _PIECE_COUNTS[:-1]:
+        ends = np.einsum("tj,csjk->cstk", catmull_rom_basis(np.linspace(0.0, 1.0, pieces + 1)), controls)
+        mids = np.einsum("tj,csjk->cstk", catmull_rom_basis((np.arange(pieces) + 0.5) / pieces), controls)
+        a, b = ends[:, :, :-1], ends[:, :, 1:]
+        chord = b - a
+        length2 = np.einsum("cstk,cstk->cst", chord, chord)
+        along = np.clip(np.einsum("cstk,cstk->cst", mids - a, chord) / np.maximum(length2, 1e-300), 0.0, 1.0)
+        sag = np.linalg.norm(mids - (a + along[..., None] * chord), axis=-1).max(axis=(1, 2))
+        fits = open_ & (sag <= tolerance)
+        out[fits] = pieces
+        open_ &= ~fits
+        if not open_.any():
+            break
+    return out
 
 
 def _sampled(points: np.ndarray, radii: np.ndarray, pieces: int, linear: bool, curves: np.ndarray,

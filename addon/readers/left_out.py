@@ -44,6 +44,8 @@ KINDS = {
                         "a medium in Cycles (and in the reference), drawn as opaque surfaces by OmniWarp's methods"),
     "displacement": ("true displacement, which OmniWarp's methods and the reference (its white materials "
                      "displace nothing) leave out"),
+    "elliptic_hair": ("hair under a non-uniform scale, elliptic tubes in Cycles, drawn by OmniWarp's methods "
+                      "as round tubes of the same cross-section"),
 }
 # Instance types (`Object.type` of a depsgraph instance) that give no triangles and that
 # no method draws; hair curves and point clouds (CURVES, POINTCLOUD) are drawn as pieces.

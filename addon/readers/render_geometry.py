@@ -232,9 +232,12 @@ def collect(depsgraph: Any, densities: bool = False) -> SceneTriangles:
         if obj.type in ("POINTCLOUD", "CURVES"):
             parent = inst.parent if inst.is_instance else None
             owner = Owner(obj.original.name_full, None if parent is None else parent.original.name_full)
-            found = points_or_strands(obj, np.array(inst.matrix_world, dtype=np.float64), shape)
+            matrix = np.array(inst.matrix_world, dtype=np.float64)
+            found = points_or_strands(obj, matrix, shape)
             if found is not None and len(found):
                 (spheres if obj.type == "POINTCLOUD" else strands).append((owner, found))
+                if obj.type == "CURVES" and not uniform_scale(matrix):
+                    left.add("elliptic_hair", *owner)
             continue
         # Cycles renders evaluated meshes only. A curve, text, surface or metaball
         # object comes twice: as itself (skipped) and as the mesh instance of its
@@ -246,8 +249,11 @@ def collect(depsgraph: Any, densities: bool = False) -> SceneTriangles:
             _smoke(inst, depsgraph, grid_materials, grids, left, densities)
             continue
         if parent is None and hair:
-            for found in particle_strands(obj, shape):
+            matrix = np.array(inst.matrix_world, dtype=np.float64)
+            for found in particle_strands(obj, shape, matrix):
                 strands.append((Owner(obj.original.name_full), found))
+                if not uniform_scale(matrix):
+                    left.add("elliptic_hair", obj.original.name_full)
         if parent is None and obj.is_instancer and not obj.original.show_instancer_for_render:
             continue  # an emitter that Cycles does not draw itself
         # Geometry-nodes instance geometry has no object of its own: key on its data.
@@ -325,10 +331,10 @@ class CurveShape:
 
 def points_or_strands(obj: Any, matrix: np.ndarray, shape: CurveShape = CurveShape()) -> "Spheres | Strands | None":
     """An evaluated point cloud's spheres, or hair curves' strands, in world space. Radii
-    scale with the matrix's mean scale (a non-uniform scale would make ellipsoids and
-    elliptic tubes in Cycles, which these are not). As Cycles does, an object's strands
-    are straight between their points when its first curve is a poly curve (5.x), or when
-    the scene's curve shape is "Linear 3D Curves"; else Catmull-Rom."""
+    scale as `strand_radius_scale` says (a point's by the matrix's mean scale: a
+    non-uniform scale makes ellipsoids in Cycles, which these are not). As Cycles does, an
+    object's strands are straight between their points when its first curve is a poly
+    curve (5.x), or when the scene's curve shape is "Linear 3D Curves"; else Catmull-Rom."""
     data = obj.data
     count = len(data.points)
     positions = _attribute(data, "position", 3, count)
@@ -345,7 +351,44 @@ def points_or_strands(obj: Any, matrix: np.ndarray, shape: CurveShape = CurveSha
     data.curve_offset_data.foreach_get("value", offsets)
     curves = len(offsets) - 1
     linear = shape.linear or (blender_compat.has_linear_curves() and _first_curve_type(data, curves) == CURVE_POLY)
-    return Strands(world, radii * scale, offsets, np.full(curves, linear), np.full(curves, shape.flat))
+    scales = strand_radius_scale(matrix, positions.astype(np.float64), offsets)
+    return Strands(world, radii * scales, offsets, np.full(curves, linear), np.full(curves, shape.flat))
+
+
+def uniform_scale(matrix: np.ndarray) -> bool:
+    """Whether a world matrix scales every axis alike (and keeps them at right angles), as
+    Cycles asks before it bakes a transform into curves and points."""
+    linear = np.asarray(matrix, dtype=np.float64)[:3, :3]
+    gram = linear.T @ linear
+    scale = float(np.trace(gram)) / 3.0
+    return bool(np.abs(gram - scale * np.eye(3)).max() <= 1e-5 * max(scale, 1e-30))
+
+
+def strand_radius_scale(matrix: np.ndarray, local: np.ndarray, offsets: np.ndarray) -> np.ndarray:
+    """What a curve's radius at each of its points (`local`, object space, curves split at
+    `offsets`) is multiplied by in world space, as Cycles draws it. A uniform scale s is
+    baked into the keys and scales radii by s. A non-uniform one is not baked (Cycles
+    cannot draw it with round tubes): the ray meets the round tube in object space, which
+    is an elliptic tube in world space; it is drawn here as the round tube of the same
+    cross-section area, whose radius is r sqrt(|det M| / |M t|) for a unit object-space
+    tangent t (the cofactor identity: the circle's image has area pi r^2 |det M| |M^-T t|,
+    its normal at 1 / (|M^-T t| |M t|) to the world tangent)."""
+    linear = np.asarray(matrix, dtype=np.float64)[:3, :3]
+    det = abs(float(np.linalg.det(linear)))
+    uniform = det ** (1.0 / 3.0)
+    if not len(local) or uniform_scale(matrix):
+        return np.full(len(local), uniform)
+    index = np.arange(len(local))
+    sizes = np.diff(offsets)
+    start = np.repeat(np.asarray(offsets[:-1]), sizes)
+    end = np.repeat(np.asarray(offsets[1:]), sizes)
+    tangent = local[np.minimum(index + 1, end - 1)] - local[np.maximum(index - 1, start)]
+    length = np.linalg.norm(tangent, axis=1)
+    world = np.linalg.norm(tangent @ linear.T, axis=1)
+    ok = (length > 0.0) & (world > 0.0)
+    out = np.full(len(local), uniform)
+    out[ok] = np.sqrt(det * length[ok] / world[ok])
+    return out
 
 
 def _shape_radius(shape: float, root: float, tip: float, time: np.ndarray) -> np.ndarray:
@@ -359,12 +402,17 @@ def _shape_radius(shape: float, root: float, tip: float, time: np.ndarray) -> np
     return radius * (root - tip) + tip
 
 
-def particle_strands(obj: Any, shape: CurveShape) -> list[Strands]:
+def particle_strands(obj: Any, shape: CurveShape, matrix: np.ndarray | None = None) -> list[Strands]:
     """The strands of an evaluated mesh's hair particle systems drawn as paths, in world
     space, as Cycles reads them: 2^render_step + 1 keys a strand (more for a spiral kink),
     the children alone when there are any, the radius from the settings' root, tip and
-    shape along the strand's length (0 at a closed tip); Catmull-Rom through the keys."""
+    shape along the strand's length (0 at a closed tip); Catmull-Rom through the keys.
+    Cycles keeps the keys in the emitter's space (`matrix`): each strand's length, and so
+    its taper, is measured there, and its radius goes to world space as
+    `strand_radius_scale` says (a scaled emitter scales its hair's thickness)."""
     out = []
+    matrix = np.eye(4) if matrix is None else np.asarray(matrix, dtype=np.float64)
+    inverse = np.linalg.inv(matrix)
     for system in path_hair_systems(obj):
         settings = system.settings
         steps = 2 ** int(settings.render_step) + 1
@@ -377,12 +425,15 @@ def particle_strands(obj: Any, shape: CurveShape) -> list[Strands]:
             continue
         points = np.array([[system.co_hair(object=obj, particle_no=index, step=step) for step in range(steps)]
                            for index in indices], dtype=np.float64)  # (curves, steps, 3)
+        local = points @ inverse[:3, :3].T + inverse[:3, 3]
         lengths = np.concatenate([np.zeros((len(points), 1)),
-                                  np.cumsum(np.linalg.norm(np.diff(points, axis=1), axis=2), axis=1)], axis=1)
+                                  np.cumsum(np.linalg.norm(np.diff(local, axis=1), axis=2), axis=1)], axis=1)
         time = np.divide(lengths, lengths[:, -1:], out=np.zeros_like(lengths), where=lengths[:, -1:] > 0.0)
-        scale = 0.5 * float(settings.radius_scale)
-        radii = _shape_radius(float(settings.shape), scale * float(settings.root_radius),
-                              scale * float(settings.tip_radius), time)
+        width = 0.5 * float(settings.radius_scale)
+        radii = _shape_radius(float(settings.shape), width * float(settings.root_radius),
+                              width * float(settings.tip_radius), time)
+        radii = radii * strand_radius_scale(matrix, local.reshape(-1, 3),
+                                            np.arange(len(points) + 1) * steps).reshape(radii.shape)
         if settings.use_close_tip:
             radii[:, -1] = 0.0
         offsets = np.arange(len(points) + 1) * steps
