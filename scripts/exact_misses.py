@@ -2,9 +2,14 @@
 
     .venv/bin/python scripts/exact_misses.py PRESET [PRESET ...] [--size 640x480] [--resolution 1024]
 
-For every evaluated, non-fractional pixel where `exact` (dpsm+notw lists) and the cached
-Cycles reference disagree, the segment from the light to Cycles' own position of the pixel
-is cast in float64 against the reference's triangles. A pixel is then:
+A PRESET may also be a cached reference file (`.npz`, as `omniwarp compare --blend` keeps
+one per file and light in its cache folder) of a hard light; its triangles alone are
+drawn (hair and points are not).
+
+For every evaluated, non-fractional pixel where `exact` (dpsm+notw lists; sm's for a spot
+or a sun) and the cached Cycles reference disagree, the segment from the light to Cycles'
+own position of the pixel is cast in float64 against the reference's triangles. A pixel
+is then:
 - `reference`: float64 agrees with `exact` (Cycles' float32 decided otherwise);
 - `ours`: float64 agrees with Cycles.
 Each line gives the nearest crossing's fraction f of the segment (1 at the sample) and how
@@ -25,6 +30,7 @@ from addon.compare import light_from_reference, samples_from_reference  # noqa: 
 from addon.core import metrics  # noqa: E402
 from addon.core.scene import parse_size  # noqa: E402
 from addon.reference.cache import load_or_capture  # noqa: E402
+from addon.reference.data import ReferenceData  # noqa: E402
 from addon.render.backends.moderngl.backend import ModernGLBackend  # noqa: E402
 from addon.render.pipeline import ShadowPipeline, ShadowSettings  # noqa: E402
 from addon.render.passes.exact import EXACT_EPS  # noqa: E402
@@ -55,6 +61,13 @@ def nearest_crossing(light: np.ndarray, point: np.ndarray, tris: np.ndarray) -> 
     return float(f[cut][k]), float(margin[k])
 
 
+def _exact_settings(light, resolution: int) -> ShadowSettings:
+    """`exact` over the lists of dpsm+notw for a point light, of sm for a spot or a sun."""
+    if light.emission in ("spot", "sun"):
+        return ShadowSettings("sm", resolution, exact=True)
+    return ShadowSettings("dpsm", resolution, warp="notw", exact=True)
+
+
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("presets", nargs="+")
@@ -64,14 +77,13 @@ def main(argv: list[str] | None = None) -> int:
     backend = ModernGLBackend()
     try:
         for preset in args.presets:
-            ref = load_or_capture(preset, args.size)
+            ref = ReferenceData.load(preset) if preset.endswith(".npz") else load_or_capture(preset, args.size)
             light = light_from_reference(ref)
             evaluable = metrics.evaluable_mask(ref.position, ref.normal, ref.hit, ref.unshadowed, light)
             ratio = metrics.reference_ratio(ref.shadowed, ref.unshadowed)
             decisive = evaluable & ~((ratio > metrics.FRACTIONAL_BAND[0]) & (ratio < metrics.FRACTIONAL_BAND[1]))
             vis = ShadowPipeline(backend).render(light, ref.triangles.astype(np.float64), samples_from_reference(ref),
-                                                 ShadowSettings("dpsm", args.resolution, warp="notw",
-                                                                exact=True)).visibility
+                                                 _exact_settings(light, args.resolution)).visibility
             bad = decisive & ((vis > 0.5) != (ratio >= 0.5))
             tris = ref.triangles.astype(np.float64)
             origin = np.asarray(light.position, dtype=np.float64)
