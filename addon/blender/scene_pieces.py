@@ -14,7 +14,7 @@ import numpy as np
 
 from ..core.blockers import Pieces, Spheres, Strands, pieces as blocker_pieces
 from ..readers.left_out import path_hair_systems
-from ..readers.render_geometry import CurveShape, particle_strands, points_or_strands
+from ..readers.hair import CurveShape, particle_strands, points_or_strands
 from .depsgraph_ids import GEOMETRY, Dirty, Key, id_key, matrix_of
 
 log = logging.getLogger(__name__)

@@ -32,7 +32,7 @@ if TYPE_CHECKING:  # pragma: no cover - typing only
 # Version 7: Volume geometry's density grids are read (ReferenceData.grids), Volume
 # objects are seen by camera rays with their volume for shadow rays alone. Version 8: a
 # smoke domain is Volume geometry (smoke_domains.py), not a mesh medium. Version 9: hair
-# radii follow the object's or emitter's scale as Cycles' do (render_geometry.strand_radius_scale).
+# radii follow the object's or emitter's scale as Cycles' do (hair.strand_radius_scale).
 NOTES_VERSION = 9
 
 log = logging.getLogger(__name__)

@@ -1,7 +1,7 @@
 """Particle hair under its emitter's scale, read as Cycles reads it (issue 53's grass
 field): the emitter hidden in the viewport and rendered gives its strands; a uniform scale
 thickens them by itself, a plane scaled across its hair by the ellipse's mean, and a
-non-uniform scale is named in the row's note (render_geometry.strand_radius_scale)."""
+non-uniform scale is named in the row's note (readers/hair.strand_radius_scale)."""
 from __future__ import annotations
 
 import numpy as np

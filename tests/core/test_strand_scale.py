@@ -1,5 +1,5 @@
 """Hair radii under an object's or emitter's scale, as Cycles draws them
-(readers/render_geometry.strand_radius_scale): baked by a uniform scale, the round tube of
+(readers/hair.strand_radius_scale): baked by a uniform scale, the round tube of
 the same cross-section as Cycles' elliptic one under a non-uniform scale."""
 from __future__ import annotations
 
@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 
 from addon.core.blockers import PIECES_PER_SPAN, Strands
-from addon.readers.render_geometry import strand_radius_scale, uniform_scale
+from addon.readers.hair import strand_radius_scale, uniform_scale
 
 
 def _matrix(linear) -> np.ndarray:
