@@ -188,6 +188,11 @@ void main()
   ow_relative_edge(v0, v1, n0, v_edge_at0);
   ow_relative_edge(v1, v2, n1, v_edge_at1);
   ow_relative_edge(v2, v0, n2, v_edge_at2);
+#ifdef OW_ALPHA
+  v_overlapped = 0.0;  // a see-through part's w holds its UVs
+#else
+  v_overlapped = ow_pull_w(base, false);  // 1: a coplanar face of the object overlaps this one
+#endif
 #endif
 #ifdef OW_EXACT_SOFT
   // A sized light's walk tests each edge from the sample: the edge's other vertex, and in

@@ -10,7 +10,7 @@ void main()
   vec2 result = texelFetch(ow_test, pix, 0).xy;
   if (ow_marks != 0) {
     uint word = imageLoad(ow_hits, pix).x;
-    float depth = float(word & (OW_HIT_OPAQUE - 1u)) / OW_OPTICAL_SCALE;
+    float depth = float(word & (OW_HIT_TWIN - 1u)) / OW_OPTICAL_SCALE;
     result.x *= ((word & OW_HIT_OPAQUE) != 0u) ? 0.0 : exp(-depth);
   }
   if (ow_media_on != 0) {

@@ -40,9 +40,20 @@ CLEAR_ALPHA = 1.0 / 65536.0
 # The exact pass's per-sample word (lib/exact_walk.glsl): an opaque crossing sets HIT_OPAQUE; a
 # see-through one adds its optical depth -ln(1 - alpha) in units of 1 / OPTICAL_SCALE, so
 # the sum over any order of crossings is the product of their (1 - alpha). A crossing adds
-# at most OPTICAL_SCALE * ln(1 / (1 - OPAQUE_ALPHA)) (about 2^19.5), so 4096 of them (the
-# longest list walked) stay below bit 31.
+# at most OPTICAL_SCALE * ln(1 / (1 - OPAQUE_ALPHA)) (about 2^19.5), so 1,400 of them stay
+# below HIT_TWIN; a sum past it is a depth past 16,384, whose light is 0 either way. HIT_TWIN
+# is set by the first opaque triangle found to hold the sample in its plane (its own): a
+# second one is a face laid over it, which shadows it as Cycles' shadow ray does (it
+# skips only the primitive it leaves from), and sets HIT_OPAQUE.
 HIT_OPAQUE = 1 << 31
+HIT_TWIN = 1 << 30
+# A face holds the sample in its plane within this share of the sample's distance from the
+# light: float32's rounding of a point on two copies of one face (about 1e-7), well under
+# the gap to a neighbouring face's plane (a rug's 1 cm rim 0.2 mm from its edge's samples).
+TWIN_SHARE = 1e-6
+# ... and the sample's own normal is parallel to the face's within this cosine: a neighbour
+# that meets the sample's face at an edge (a fold) is not a copy laid over it.
+TWIN_COS = 1.0 - 1e-4
 OPTICAL_SCALE = 65536.0
 
 
@@ -271,5 +282,5 @@ def hits_visibility(hits: np.ndarray) -> np.ndarray:
     """The light a sample gets from the exact pass's word: 0 past an opaque crossing,
     else exp(-optical depth)."""
     words = np.asarray(hits, dtype=np.uint32)
-    depth = (words & np.uint32(HIT_OPAQUE - 1)).astype(np.float64) / OPTICAL_SCALE
+    depth = (words & np.uint32(HIT_TWIN - 1)).astype(np.float64) / OPTICAL_SCALE
     return np.where(words & np.uint32(HIT_OPAQUE), 0.0, np.exp(-depth))

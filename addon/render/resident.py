@@ -37,6 +37,7 @@ import numpy as np
 
 from ..core.alpha import AlphaMap, Surface
 from ..core.blockers import Pieces
+from ..core.coplanar import overlapping_faces
 from ..core.errors import InputError
 from ..core.media import GridMedium, Medium
 from ..core.projection import MAX_COORDINATE
@@ -160,6 +161,9 @@ class ResidentObject:
     # A part of a homogeneous medium's closed triangles (core/media.py): no surface, the
     # footprint pass sums its crossings instead of storing a depth; None: a surface.
     medium: Medium | None = None
+    # (T,) bool: an opaque part's triangles that another coplanar triangle of the object
+    # overlaps (`overlapping_faces`); None: none.
+    overlaps: np.ndarray | None = None
     _local_lo: np.ndarray = field(default_factory=lambda: np.zeros(3))
     _local_hi: np.ndarray = field(default_factory=lambda: np.zeros(3))
 
@@ -209,13 +213,16 @@ class ResidentObject:
 
     def vertex_texels(self) -> np.ndarray:
         """The vertex texture: (rows, VERTEX_TEXTURE_WIDTH, 4) float32 (`vertex_texels`)."""
-        return vertex_texels(self.local, _piece_uvs(self.piece_data) if self.pieces else self.uvs)
+        return vertex_texels(self.local, _piece_uvs(self.piece_data) if self.pieces else self.uvs,
+                             self.overlaps)
 
 
-def vertex_texels(local: np.ndarray, uvs: np.ndarray | None = None) -> np.ndarray:
+def vertex_texels(local: np.ndarray, uvs: np.ndarray | None = None,
+                  overlaps: np.ndarray | None = None) -> np.ndarray:
     """(T, 3, 3) vertices -> (rows, VERTEX_TEXTURE_WIDTH, 4) float32: vertex i is texels 2i
     (hi = float32(p)) and 2i + 1 (lo = float32(p - hi)); their w hold the vertex's u and v
-    when `uvs` (T, 3, 2) are given, else 0."""
+    when `uvs` (T, 3, 2) are given, else 0, but 1 in the hi texel of the first vertex of
+    each triangle that `overlaps` (T,) flags (the exact pass reads it: footprint.vert)."""
     points = np.asarray(local, dtype=np.float64).reshape(-1, 3)
     hi = points.astype(np.float32)
     lo = (points - hi.astype(np.float64)).astype(np.float32)
@@ -227,6 +234,8 @@ def vertex_texels(local: np.ndarray, uvs: np.ndarray | None = None) -> np.ndarra
         corners = np.asarray(uvs, dtype=np.float32).reshape(-1, 2)
         texels[0:2 * len(points):2, 3] = corners[:, 0]
         texels[1:2 * len(points):2, 3] = corners[:, 1]
+    elif overlaps is not None:
+        texels[0:2 * len(points):6, 3] = np.asarray(overlaps, dtype=np.float32)
     return texels.reshape(rows, VERTEX_TEXTURE_WIDTH, 4)
 
 
@@ -311,12 +320,15 @@ class ResidentScene:
         keys: list[str] = []
         for amap, medium, chosen in groups:
             order = chosen[morton_order(tris[chosen])]
+            # Plain opaque triangles only carry the flag (a see-through part's w holds UVs).
+            flags = overlapping_faces(tris[order]) if amap is None and medium is None else None
             for start in range(0, max(len(order), 1), MAX_PART_TRIANGLES):
                 picked = order[start:start + MAX_PART_TRIANGLES]
                 part_key = key if not keys else f"{key}#{len(keys)}"
                 uvs = surface.uvs[picked] if amap is not None else None
+                part_flags = None if flags is None or not flags.any() else flags[start:start + MAX_PART_TRIANGLES]
                 self._add_part(part_key, tris[picked], matrix, counts if not keys else SanitizeCounts(), amap, uvs,
-                               medium=medium)
+                               medium=medium, overlaps=part_flags)
                 keys.append(part_key)
         self._parts[key] = keys
         return self.objects[key]
@@ -363,7 +375,7 @@ class ResidentScene:
 
     def _add_part(self, part_key: str, part: np.ndarray, matrix: np.ndarray, counts: SanitizeCounts,
                   amap: AlphaMap | None, uvs: np.ndarray | None, piece_data: np.ndarray | None = None,
-                  medium: Medium | None = None) -> None:
+                  medium: Medium | None = None, overlaps: np.ndarray | None = None) -> None:
         if len(part):
             lo, hi = part.reshape(-1, 3).min(axis=0), part.reshape(-1, 3).max(axis=0)
         else:
@@ -374,8 +386,8 @@ class ResidentScene:
         chunks = piece_chunks(local, piece_data[:, :2]) if pieces else chunk_bounds(local)
         grow = float(piece_data[:, :2].max()) if pieces and len(piece_data) else 0.0  # boxes reach past the axis
         self.objects[part_key] = ResidentObject(part_key, local, origin, matrix.copy(), next(_revisions), counts,
-                                                chunks, amap, uvs, piece_data, medium, lo - origin - grow,
-                                                hi - origin + grow)
+                                                chunks, amap, uvs, piece_data, medium, overlaps,
+                                                lo - origin - grow, hi - origin + grow)
         self.removed.discard(part_key)
 
     def set_grid(self, key: str, grid: GridMedium) -> None:

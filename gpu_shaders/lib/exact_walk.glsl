@@ -44,6 +44,37 @@ vec3 ow_exact_lift(vec3 p, vec3 n)
 
 #endif
 
+// A face laid over the sample's own (a Mirror modifier that lays a copy onto the
+// original, overlapping coplanar faces): Cycles' shadow ray skips only the primitive it
+// leaves from, so another face through the point shadows it from every point of the
+// light. A triangle that another coplanar face of its object overlaps (v_overlapped:
+// core/coplanar.py), parallel to the sample's face (OW_TWIN_COS), that holds sample p
+// (light-centred, not lifted) strictly inside its edges, within OW_TWIN_SHARE of p's
+// distance of its plane, sets OW_HIT_TWIN: the first one to do so is the sample's own face,
+// a second one marks it shadowed (core/alpha.py). Strictly inside: two faces that share an
+// edge hold a point on it neither of them. Cycles shadows a point on a twin face when float32
+// rounding leaves it on or behind the twin's plane: always on a face along the axes (the
+// point's coordinate is the plane's), by chance on a sloped one; this always does.
+void ow_exact_twin(ivec2 at, vec3 p)
+{
+  if (v_overlapped == 0.0 || abs(dot(texelFetch(ow_normals, at, 0).xyz, v_plane.xyz)) < OW_TWIN_COS) {
+    return;
+  }
+  precise float side0 = dot(p - v_edge_at0, v_edge0);
+  precise float side1 = dot(p - v_edge_at1, v_edge1);
+  precise float side2 = dot(p - v_edge_at2, v_edge2);
+  if (!(side0 > 0.0 && side1 > 0.0 && side2 > 0.0)) {
+    return;
+  }
+  precise float h = dot(v_plane.xyz, p - v_edge_at0);
+  if (abs(h) <= OW_TWIN_SHARE * length(p)) {
+    uint before = imageAtomicOr(ow_hits, at, OW_HIT_TWIN);
+    if ((before & OW_HIT_TWIN) != 0u) {
+      imageAtomicOr(ow_hits, at, OW_HIT_OPAQUE);
+    }
+  }
+}
+
 // Mark sample `at` as crossed by this triangle: opaque, or the optical depth of a
 // see-through crossing (core/alpha.py), its UV from the barycentrics, which the edge sides
 // are proportional to (side i to the weight of the vertex opposite edge i).
@@ -127,6 +158,9 @@ void ow_exact_entry(ivec2 at, vec3 p)
 #ifdef OW_EXACT_SOFT
   ow_exact_soft_mark(p, at, textureSize(ow_positions, 0).y);
   return;
+#endif
+#ifndef OW_ALPHA
+  ow_exact_twin(at, p);
 #endif
 #ifndef OW_FIXED_KIND
   if (ow_projective != 0) {

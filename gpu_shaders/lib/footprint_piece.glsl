@@ -154,6 +154,7 @@ void ow_piece_vertex(int corner)
   v_edge_at0 = vec3(0.0);
   v_edge_at1 = vec3(0.0);
   v_edge_at2 = vec3(0.0);
+  v_overlapped = 0.0;
 #endif
   float soft_grow = 0.0;
 #ifdef OW_EXACT_SOFT

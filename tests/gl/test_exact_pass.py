@@ -153,3 +153,58 @@ def test_exact_pass_equals_the_ray_caster_on_random_scenes(gl_backend, seed):
         wrong = ((result.visibility > 0.5) != (exact > 0.5))[evaluable]
         assert wrong.sum() <= max(1, int(1e-3 * evaluable.sum())), (seed, param, int(wrong.sum()))
     assert (exact[evaluable] < 0.5).any() and (exact[evaluable] > 0.5).any()  # shadow and light to get right
+
+
+def _slab_scene(twice: bool, emission: str = "omni", patch: bool = False) -> SceneSpec:
+    """A floor and a square slab over it, the slab's top face laid down once or twice (as a
+    Mirror modifier lays a copy onto the original; the twin's triangles list their corners
+    in another order), with `patch` a face of other corners over part of it, under a light
+    above (a spot's or sun's axis, its local -Z, down), seen from above."""
+    quad = np.array([[-6.0, -6.0, 0.0], [6.0, -6.0, 0.0], [6.0, 6.0, 0.0], [-6.0, 6.0, 0.0]])
+    top = np.array([[-1.0, -1.0, 1.0], [1.0, -1.0, 1.0], [1.0, 1.0, 1.0], [-1.0, 1.0, 1.0]])
+    faces = np.array([[0, 1, 2], [0, 2, 3]])
+    meshes = [MeshSpec("floor", quad, faces), MeshSpec("slab", top, faces)]
+    if twice:
+        meshes.append(MeshSpec("slab_twin", top, np.array([[1, 2, 0], [2, 3, 0]])))  # the same, other corners first
+    if patch:
+        # Over x > 0.2 and past the slab, a coplanar face of other corners (booleans leave such).
+        half = np.array([[0.2, -1.5, 1.0], [1.5, -1.5, 1.0], [1.5, 1.5, 1.0], [0.2, 1.5, 1.0]])
+        meshes.append(MeshSpec("patch", half, faces))
+    light = np.eye(4)
+    light[:3, 3] = (0.3, 0.2, 5.0)
+    if emission == "spot":
+        spec = LightSpec(emission, light, spot_size=np.radians(90.0))
+    else:
+        spec = LightSpec(emission, light)
+    return SceneSpec("slab", meshes, spec, CameraSpec(look_at(np.array([0.5, -6.0, 7.0]), np.zeros(3)), 50.0, (48, 36)))
+
+
+@pytest.mark.parametrize("emission", ["omni", "spot", "sun"])
+def test_a_face_laid_twice_shadows_itself_as_in_cycles(gl_backend, emission):
+    # Cycles' shadow ray skips only the primitive it leaves from: the twin face blocks it.
+    pipe = ShadowPipeline(gl_backend)
+    seen = {}
+    for twice in (False, True):
+        scene = _slab_scene(twice, emission)
+        samples, exact, evaluable = view_samples(scene)
+        at = samples.positions
+        on_top = evaluable & (np.abs(at[..., 2] - 1.0) < 1e-4) & (np.abs(at[..., :2]).max(axis=-1) < 0.98)
+        param = "dpsm" if emission == "omni" else "sm"
+        result = pipe.render(scene.light, scene.world_triangles(), samples, ShadowSettings(param, 128, exact=True))
+        seen[twice] = result.visibility[on_top]
+        assert on_top.sum() > 20 and (exact[on_top] > 0.5).all()  # the oracle skips both: lit
+    assert (seen[False] > 0.5).all() and (seen[True] < 0.5).all()
+
+
+def test_a_face_partly_over_another_shadows_where_they_overlap(gl_backend):
+    pipe = ShadowPipeline(gl_backend)
+    scene = _slab_scene(False, patch=True)
+    samples, exact, evaluable = view_samples(scene)
+    at = samples.positions
+    top = evaluable & (np.abs(at[..., 2] - 1.0) < 1e-4)
+    inside = np.abs(at[..., :2]).max(axis=-1) < 0.98
+    both = top & inside & (at[..., 0] > 0.25)  # the slab and the patch
+    one = top & ((inside & (at[..., 0] < 0.15)) | (np.abs(at[..., :2]).max(axis=-1) > 1.02))  # one face
+    vis = pipe.render(scene.light, scene.world_triangles(), samples, ShadowSettings("dpsm", 128, exact=True)).visibility
+    assert both.sum() > 10 and one.sum() > 10
+    assert (vis[both] < 0.5).all() and (vis[one] > 0.5).all()

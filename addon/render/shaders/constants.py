@@ -174,7 +174,8 @@ def _shared_defines() -> dict[str, str]:
         # See-through surfaces (core/alpha.py): the exact pass's word and the alpha bounds.
         "OW_OPAQUE_ALPHA": repr(float(alpha.OPAQUE_ALPHA)),
         "OW_CLEAR_ALPHA": repr(float(alpha.CLEAR_ALPHA)),
-        "OW_HIT_OPAQUE": f"{alpha.HIT_OPAQUE:#x}u",
+        "OW_HIT_OPAQUE": f"{alpha.HIT_OPAQUE:#x}u", "OW_HIT_TWIN": f"{alpha.HIT_TWIN:#x}u",
+        "OW_TWIN_SHARE": repr(float(alpha.TWIN_SHARE)), "OW_TWIN_COS": repr(float(alpha.TWIN_COS)),
         "OW_OPTICAL_SCALE": repr(float(alpha.OPTICAL_SCALE)),
         # How near a piece's surface a point lies on it, and its normal's least cosine with
         # the direction from the axis (lib/blockers.glsl ow_on_piece).

@@ -177,7 +177,8 @@ def exact_of(base: ProgramInterface, count: bool = False) -> ProgramInterface:
                   samplers=("ow_positions", "ow_normals"),
                   uniforms=uniform_list("int ow_exact_tile", "float ow_exact_eps", "int ow_exact_bound"),
                   images=EXACT_IMAGES, fragment_file=FOOTPRINT_EXACT_FILE,
-                  varyings=tuple(Varying("vec3", f"v_edge_at{i}", flat=True) for i in range(3)))
+                  varyings=(*(Varying("vec3", f"v_edge_at{i}", flat=True) for i in range(3)),
+                            Varying("float", "v_overlapped", flat=True)))
 
 
 def exact_variant(uniforms: dict, points: bool = False, see_through: bool = False,
