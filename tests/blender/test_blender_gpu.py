@@ -38,7 +38,7 @@ from tests.support.blender_gpu_worker import (  # noqa: E402
     soft_frames,
     weighted_samples,
 )
-from tests.gl.test_exact_pass import random_scene  # noqa: E402
+from tests.gl.test_exact_pass import slab_scene, random_scene  # noqa: E402
 from tests.gl.test_izb_lists import _walk  # noqa: E402
 from tests.support.checks import expect  # noqa: E402
 from tests.support.cli_run import python_ok  # noqa: E402
@@ -113,6 +113,10 @@ def test_blender_backend_matches_moderngl(gl_backend, tmp_path, monkeypatch, ref
                             ShadowSettings("dpsm", 256, exact=True))
     assert exact.exact_work["rounds"] >= 1 and int(theirs["exact_one_texel_rounds"]) == exact.exact_work["rounds"]
     assert np.array_equal(exact.visibility, theirs["exact_one_texel_visibility"])
+    twin = slab_scene(True, patch=True)
+    twin_samples, _, _ = view_samples(twin)
+    exact = pipeline.render(twin.light, twin.world_triangles(), twin_samples, ShadowSettings("dpsm", 128, exact=True))
+    assert np.array_equal(exact.visibility, theirs["exact_twin_visibility"]) and (exact.visibility < 0.5).any()
     # See-through surfaces: the veil and the exact pass's optical depths, alike.
     alpha = alpha_frames(pipeline)
     for key, visibility in alpha.items():

@@ -155,7 +155,7 @@ def test_exact_pass_equals_the_ray_caster_on_random_scenes(gl_backend, seed):
     assert (exact[evaluable] < 0.5).any() and (exact[evaluable] > 0.5).any()  # shadow and light to get right
 
 
-def _slab_scene(twice: bool, emission: str = "omni", patch: bool = False) -> SceneSpec:
+def slab_scene(twice: bool, emission: str = "omni", patch: bool = False) -> SceneSpec:
     """A floor and a square slab over it, the slab's top face laid down once or twice (as a
     Mirror modifier lays a copy onto the original; the twin's triangles list their corners
     in another order), with `patch` a face of other corners over part of it, under a light
@@ -185,7 +185,7 @@ def test_a_face_laid_twice_shadows_itself_as_in_cycles(gl_backend, emission):
     pipe = ShadowPipeline(gl_backend)
     seen = {}
     for twice in (False, True):
-        scene = _slab_scene(twice, emission)
+        scene = slab_scene(twice, emission)
         samples, exact, evaluable = view_samples(scene)
         at = samples.positions
         on_top = evaluable & (np.abs(at[..., 2] - 1.0) < 1e-4) & (np.abs(at[..., :2]).max(axis=-1) < 0.98)
@@ -198,7 +198,7 @@ def test_a_face_laid_twice_shadows_itself_as_in_cycles(gl_backend, emission):
 
 def test_a_face_partly_over_another_shadows_where_they_overlap(gl_backend):
     pipe = ShadowPipeline(gl_backend)
-    scene = _slab_scene(False, patch=True)
+    scene = slab_scene(False, patch=True)
     samples, exact, evaluable = view_samples(scene)
     at = samples.positions
     top = evaluable & (np.abs(at[..., 2] - 1.0) < 1e-4)

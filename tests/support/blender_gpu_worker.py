@@ -175,7 +175,7 @@ def backends(out: str, reference: str | None = None) -> None:
     from addon.core.scene import LightSpec
     from addon.render.frame import Measure
     from tests.gl.test_footprint_pass import point_cloud
-    from tests.gl.test_exact_pass import random_scene
+    from tests.gl.test_exact_pass import slab_scene, random_scene
     from tests.gl.test_izb_lists import _walk
     from tests.gl.test_pipeline_extremes import _seam_straddler
     from tests.gl.test_projective import _street
@@ -231,6 +231,11 @@ def backends(out: str, reference: str | None = None) -> None:
                              ShadowSettings("dpsm", 256, exact=True))
     arrays["exact_one_texel_visibility"] = result.visibility
     arrays["exact_one_texel_rounds"] = np.array(result.exact_work["rounds"])
+    # ... and on faces laid over faces (core/coplanar.py): a copy and a patch over a slab.
+    twin = slab_scene(True, patch=True)
+    twin_samples, _, _ = view_samples(twin)
+    arrays["exact_twin_visibility"] = pipeline.render(twin.light, twin.world_triangles(), twin_samples,
+                                                      ShadowSettings("dpsm", 128, exact=True)).visibility
     arrays.update(alpha_frames(pipeline))
     arrays.update(soft_frames(pipeline))
     arrays.update(pieces_frames(pipeline))
