@@ -379,6 +379,8 @@ def _spline_pieces(points: np.ndarray, radii: np.ndarray) -> int:
 
 # The counts a span's pieces are chosen from, fewest first (PIECES_PER_SPAN the last).
 _PIECE_COUNTS = (1, 2, 3, 4, 6, 8, 12, PIECES_PER_SPAN)
+# Curves whose sag is measured at once.
+_SAG_BATCH = 4096
 
 
 def _spline_pieces_many(points: np.ndarray, radii: np.ndarray) -> np.ndarray:
@@ -388,9 +390,12 @@ def _spline_pieces_many(points: np.ndarray, radii: np.ndarray) -> np.ndarray:
     its chord). Measured, not bounded by |C''|: a curve's repeated end points bend its
     parameter without bending the curve, which a bound counts as sag."""
     count, n = radii.shape
-    out = np.full(count, PIECES_PER_SPAN, dtype=np.int64)
     if n < 2:
         return np.ones(count, dtype=np.int64)
+    if count > _SAG_BATCH:  # memory: each candidate count evaluates (C, spans, pieces, 3) points
+        return np.concatenate([_spline_pieces_many(points[k:k + _SAG_BATCH], radii[k:k + _SAG_BATCH])
+                               for k in range(0, count, _SAG_BATCH)])
+    out = np.full(count, PIECES_PER_SPAN, dtype=np.int64)
     index = np.arange(n - 1)
     controls = points[:, np.stack([np.maximum(index - 1, 0), index, index + 1, np.minimum(index + 2, n - 1)],
                                   axis=1)]  # (C, S, 4, 3)
