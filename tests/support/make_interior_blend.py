@@ -10,7 +10,7 @@ triangles at the default detail (2) from modifiers:
 - `Table`: a bevelled top and one leg mirrored in x and y (Mirror about the top);
 - `Sofa`: a bevelled body and three subdivided cushions (Subdivision, render levels above
   the viewport's); `Rug`: a fine grid with Solidify;
-- `Plant`: a pot whose geometry nodes put leaves on the points of a sphere (instances);
+- `Pot` and `PlantCrown`: a pot, and a subdivided grid over it whose geometry nodes put a leaf on each of its points (instances);
 - `TableLamp`: a base, a shade (Solidify) and a `Bulb` that emits light (an Emission shader);
 - `Chair` and `Chair.001`: two objects sharing one mesh.
 Lights: `Spot` (40 W, radius 0, 51.6 degree cone, blend 0.15) over the table, `Spot2`
@@ -31,51 +31,46 @@ sys.path.insert(0, str(REPO))
 from tests.support.make_left_out_blend import _geometry_nodes, _node  # noqa: E402
 
 
-def _box(name: str, size, location, collection=None) -> "bpy.types.Object":
-    """A box of `size` (x, y, z) with its centre at `location`."""
+def _object(name: str, fill, location) -> "bpy.types.Object":
+    """A mesh object linked to the scene at `location`, its mesh made by `fill(bmesh)`."""
     import bmesh
     import bpy
 
     mesh = bpy.data.meshes.new(name)
-    bm = bmesh.new()
-    bmesh.ops.create_cube(bm, size=1.0)
-    bm.to_mesh(mesh)
-    bm.free()
+    made = bmesh.new()
+    fill(made)
+    made.to_mesh(mesh)
+    made.free()
     obj = bpy.data.objects.new(name, mesh)
-    obj.location, obj.scale = location, size
-    (collection or bpy.context.scene.collection).objects.link(obj)
+    obj.location = location
+    bpy.context.scene.collection.objects.link(obj)
+    return obj
+
+
+def _box(name: str, size, location) -> "bpy.types.Object":
+    """A box of `size` (x, y, z) with its centre at `location`."""
+    import bmesh
+
+    obj = _object(name, lambda made: bmesh.ops.create_cube(made, size=1.0), location)
+    obj.scale = size
     return obj
 
 
 def _grid(name: str, segments: int, size: float, location, rotation=(0.0, 0.0, 0.0)):
     import bmesh
-    import bpy
 
-    mesh = bpy.data.meshes.new(name)
-    bm = bmesh.new()
-    bmesh.ops.create_grid(bm, x_segments=segments, y_segments=segments, size=size)
-    bm.to_mesh(mesh)
-    bm.free()
-    obj = bpy.data.objects.new(name, mesh)
-    obj.location, obj.rotation_euler = location, rotation
-    bpy.context.scene.collection.objects.link(obj)
+    obj = _object(name, lambda made: bmesh.ops.create_grid(made, x_segments=segments, y_segments=segments,
+                                                           size=size), location)
+    obj.rotation_euler = rotation
     return obj
 
 
 def _cylinder(name: str, radius: float, depth: float, location, radius2: float | None = None):
     import bmesh
-    import bpy
 
-    mesh = bpy.data.meshes.new(name)
-    bm = bmesh.new()
-    bmesh.ops.create_cone(bm, cap_ends=True, segments=24, radius1=radius,
-                          radius2=radius if radius2 is None else radius2, depth=depth)
-    bm.to_mesh(mesh)
-    bm.free()
-    obj = bpy.data.objects.new(name, mesh)
-    obj.location = location
-    bpy.context.scene.collection.objects.link(obj)
-    return obj
+    return _object(name, lambda made: bmesh.ops.create_cone(made, cap_ends=True, segments=24, radius1=radius,
+                                                            radius2=radius if radius2 is None else radius2,
+                                                            depth=depth), location)
 
 
 def _leaves(leaf):
@@ -188,12 +183,11 @@ def build(out: Path, size: tuple[int, int], detail: int) -> None:
     leaf = _box("Leaf", (1.0, 1.0, 1.0), (0.0, 0.0, -20.0))
     leaf.data.transform(Matrix.Diagonal((0.12, 0.04, 0.005, 1.0)))  # instances take the mesh alone
     leaf.hide_render = True
-    pot = _cylinder("Pot", 0.18, 0.35, (1.6, -1.5, 0.175), radius2=0.14)
+    _cylinder("Pot", 0.18, 0.35, (1.6, -1.5, 0.175), radius2=0.14)
     crown = _grid("PlantCrown", 6 * detail, 0.15, (1.6, -1.5, 0.6))
     crown.modifiers.new("Subdivision", "SUBSURF").render_levels = 1
     gn = crown.modifiers.new("Leaves", "NODES")
     gn.node_group = _geometry_nodes("leaves", _leaves(leaf))
-    pot.select_set(False)
 
     _cylinder("LampBase", 0.08, 0.04, (0.5, -0.2, 0.8))
     _cylinder("LampStem", 0.01, 0.35, (0.5, -0.2, 0.99))
@@ -202,12 +196,11 @@ def build(out: Path, size: tuple[int, int], detail: int) -> None:
     bulb = _cylinder("Bulb", 0.03, 0.06, (0.5, -0.2, 1.15))
     bulb.data.materials.append(_emission("BulbLight", 30.0))
 
-    down = (0.0, 0.0, 0.0)
     _light("Spot", "SPOT", (0.3, -0.4, 2.5), (math.radians(8.0), 0.0, 0.0), 40.0,
            spot_size=math.radians(51.6), spot_blend=0.15, shadow_soft_size=0.0)
     _light("Spot2", "SPOT", (0.2, 0.4, 2.4), (math.radians(-35.0), 0.0, math.radians(-20.0)), 60.0,
            spot_size=math.radians(40.0), spot_blend=0.3, shadow_soft_size=0.0)
-    _light("Overhead", "AREA", (0.0, 0.0, 2.45), down, 30.0, shape="SQUARE", size=3.1)
+    _light("Overhead", "AREA", (0.0, 0.0, 2.45), (0.0, 0.0, 0.0), 30.0, shape="SQUARE", size=3.1)
     _light("Window", "AREA", (-1.8, 0.3, 1.4), (0.0, math.radians(-90.0), 0.0), 20.0,
            shape="RECTANGLE", size=0.6, size_y=1.0)
     _light("Strip", "AREA", (1.2, 1.5, 2.3), (math.radians(20.0), 0.0, 0.0), 15.0,
