@@ -11,7 +11,7 @@ triangles at the default detail (2) from modifiers:
 - `Sofa`: a bevelled body and three subdivided cushions (Subdivision, render levels above
   the viewport's); `Rug`: a fine grid with Solidify;
 - `Pot` and `PlantCrown`: a pot, and a subdivided grid over it whose geometry nodes put a leaf on each of its points (instances);
-- `TableLamp`: a base, a shade (Solidify) and a `Bulb` that emits light (an Emission shader);
+- `LampBase`, `LampStem`, `LampShade` (Solidify) and a `Bulb` that emits light (an Emission shader);
 - `Chair` and `Chair.001`: two objects sharing one mesh.
 Lights: `Spot` (40 W, radius 0, 51.6 degree cone, blend 0.15) over the table, `Spot2`
 (radius 0) at the shelf; `Overhead` (a square area light of 3.1 m, 30 W), `Window` (a
