@@ -74,11 +74,13 @@ def compute_source(iface: ComputeInterface, body: str) -> str:
     return compute_header(iface) + _expand(body)
 
 
-def evaluate(ctx, vs: str, fs: str, inputs: np.ndarray, uniforms=(), name: str = "harness") -> np.ndarray:
+def evaluate(ctx, vs: str, fs: str, inputs: np.ndarray, uniforms=(), name: str = "harness",
+             tables: dict[str, np.ndarray] | None = None) -> np.ndarray:
     """Run a harness once per input column: it reads `ow_input` and writes `ow_out`.
     `inputs` is (n, k <= 4), one texel per column, or (rows, n, 4), a column of `rows`
     texels each; `uniforms` are (type, name, value), as `program` declared them (in its
-    order). One RGBA result per column."""
+    order); `tables` are further RGBA32F samplers, (rows, width, 4) each, by name. One RGBA
+    result per column."""
     with ctx:  # other contexts may have been current (the CLI tests make their own)
         prog = ctx.program(vertex_shader=vs, fragment_shader=fs)
         block = uniform_buffer(ctx, name, [Uniform(t, n) for t, n, _ in uniforms],
@@ -94,13 +96,19 @@ def evaluate(ctx, vs: str, fs: str, inputs: np.ndarray, uniforms=(), name: str =
         fbo = ctx.framebuffer(color_attachments=[tex_out])
         vbo = ctx.buffer(np.array([[-1, -1], [3, -1], [-1, 3]], dtype="f4").tobytes())
         vao = ctx.vertex_array(prog, [(vbo, "2f", "ow_corner")])
+        extra = []
         try:
             tex_in.use(0)
             prog["ow_input"].value = 0
+            for unit, (sampler, table) in enumerate((tables or {}).items(), start=1):
+                table = np.ascontiguousarray(table, dtype="f4")
+                extra.append(ctx.texture((table.shape[1], table.shape[0]), 4, table.tobytes(), dtype="f4"))
+                extra[-1].use(unit)
+                prog[sampler].value = unit
             fbo.use()
             fbo.viewport = (0, 0, n, 1)
             vao.render()
             return np.frombuffer(tex_out.read(), dtype="f4").reshape(n, 4).astype(np.float64)
         finally:
-            for obj in (vao, vbo, fbo, tex_out, tex_in, prog, *([block] if block else [])):
+            for obj in (vao, vbo, fbo, tex_out, tex_in, prog, *extra, *([block] if block else [])):
                 obj.release()

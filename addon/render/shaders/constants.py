@@ -12,7 +12,7 @@ from dataclasses import dataclass
 from types import MappingProxyType
 from typing import Mapping
 
-from ...core import alpha, blockers, footprint, projection
+from ...core import alpha, blockers, footprint, projection, ray_tree
 
 
 @dataclass(frozen=True)
@@ -155,6 +155,15 @@ GRID_LIGHT_POINTS = 16
 # indices, four a vec4).
 MEDIA_POINTS = 144
 
+# The shadow segments' tree (core/ray_tree.py, lib/ray_tree.glsl): the triangles a leaf
+# holds, the width of its two tables' textures, and the most units of work (a box or a
+# triangle) one shader invocation spends on its walks before it stops to be resumed in the
+# next turn (a uniform): llvmpipe ends any loop of one invocation after 65,535 iterations,
+# whatever the shader asks.
+RAY_TREE_LEAF = ray_tree.LEAF
+RAY_TREE_WIDTH = 4096
+RAY_TREE_BUDGET = 32768
+
 # Soft shadows of a sized light (lib/soft.glsl): the light's points a shadow test
 # reads (core/light_shape.stratified_points, at most SOFT_MAX_POINTS), and the steps of its
 # blocker search along each segment to the light.
@@ -189,6 +198,7 @@ def _shared_defines() -> dict[str, str]:
         "OW_GRID_MAX": str(GRID_MAX), "OW_GRID_MAX_STEPS": str(GRID_MAX_STEPS),
         "OW_GRID_LIGHT_POINTS": str(GRID_LIGHT_POINTS), "OW_MEDIA_POINTS": str(MEDIA_POINTS),
         "OW_WARP_WINDOWS": str(WARP_WINDOWS),
+        "OW_RAY_TREE_LEAF": str(RAY_TREE_LEAF), "OW_RAY_TREE_WIDTH": str(RAY_TREE_WIDTH),
     })
     defines.update({f"OW_INFO_{name.upper()}": str(column) for name, column in WARP_INFO.items()})
     return defines
