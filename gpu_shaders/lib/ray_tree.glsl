@@ -4,10 +4,6 @@
 // samplers ow_tree_boxes (two texels a node from node 0: lo, hi) and ow_tree_tris (three a
 // slot: its corners), both OW_RAY_TREE_WIDTH texels wide, and the uniform ow_tree_leaves.
 
-#define OW_TREE_CLEAR 0
-#define OW_TREE_BLOCKED 1
-#define OW_TREE_CUT 2
-
 vec4 ow_tree_texel(sampler2D table, int index)
 {
   return texelFetch(table, ivec2(index % OW_RAY_TREE_WIDTH, index / OW_RAY_TREE_WIDTH), 0);

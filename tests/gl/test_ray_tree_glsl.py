@@ -8,7 +8,8 @@ import pytest
 
 from addon.core import ray_tree
 from addon.render.shaders import Uniform
-from addon.render.shaders.constants import RAY_TREE_WIDTH
+from addon.render.shaders.constants import RAY_TREE_BLOCKED as BLOCKED, RAY_TREE_CLEAR as CLEAR, RAY_TREE_CUT as CUT, \
+    RAY_TREE_WIDTH
 from tests.support import glsl
 
 pytestmark = pytest.mark.gl
@@ -30,7 +31,6 @@ void main() {
 """ % (EPS,)
 UNIFORMS = (Uniform("int", "ow_tree_leaves"),)
 SAMPLERS = ("ow_input", "ow_tree_boxes", "ow_tree_tris")
-CLEAR, BLOCKED, CUT = 0, 1, 2  # lib/ray_tree.glsl's OW_TREE_*
 
 
 def _cases(tris, count, seed):

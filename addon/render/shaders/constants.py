@@ -163,6 +163,9 @@ MEDIA_POINTS = 144
 RAY_TREE_LEAF = ray_tree.LEAF
 RAY_TREE_WIDTH = 4096
 RAY_TREE_BUDGET = 32768
+# A walk's verdict (lib/ray_tree.glsl's ow_tree_walk): nothing crosses the segment, a
+# triangle does, or the budget ran out first (go on from the node it left).
+RAY_TREE_CLEAR, RAY_TREE_BLOCKED, RAY_TREE_CUT = 0, 1, 2
 
 # Soft shadows of a sized light (lib/soft.glsl): the light's points a shadow test
 # reads (core/light_shape.stratified_points, at most SOFT_MAX_POINTS), and the steps of its
@@ -199,6 +202,8 @@ def _shared_defines() -> dict[str, str]:
         "OW_GRID_LIGHT_POINTS": str(GRID_LIGHT_POINTS), "OW_MEDIA_POINTS": str(MEDIA_POINTS),
         "OW_WARP_WINDOWS": str(WARP_WINDOWS),
         "OW_RAY_TREE_LEAF": str(RAY_TREE_LEAF), "OW_RAY_TREE_WIDTH": str(RAY_TREE_WIDTH),
+        "OW_TREE_CLEAR": str(RAY_TREE_CLEAR), "OW_TREE_BLOCKED": str(RAY_TREE_BLOCKED),
+        "OW_TREE_CUT": str(RAY_TREE_CUT),
     })
     defines.update({f"OW_INFO_{name.upper()}": str(column) for name, column in WARP_INFO.items()})
     return defines
