@@ -23,6 +23,7 @@ from .passes.exact import ExactLists
 from .passes.media import NO_MEDIA, GridStore, Haze, MediaFrame, SampleMedia
 from .passes.footprints import FootprintDraw, corner_capacity, corner_indices
 from .passes.samples import SampleTargets, pack_warp_table
+from .passes.segments import SegmentTree
 from .pacing import Pacer
 from .passes.warp import WarpBuild
 
@@ -64,6 +65,7 @@ class ShadowBackend:
         self.media: MediaFrame = NO_MEDIA  # this frame's media units and extinction at the light
         self.grids = GridStore()  # density grids, by digest (lib/grids.glsl)
         self.exact: ExactLists | None = None  # the irregular z-buffer's lists (passes/exact.py)
+        self.segments = SegmentTree()  # a sized light's segments' tree (passes/segments.py)
         self.edge_targets: tuple[Target, ...] = ()  # edge-distance passes' targets
         self.ray_target: Target | None = None  # the ray table's, the atlas's size
         self.no_warp = None  # the one zero texel bound as both warp tables without a warp
@@ -170,6 +172,7 @@ class ShadowBackend:
     exact_round = _on_device(passes.exact.exact_round)
     finish_lists = _on_device(passes.exact.finish_lists)
     advance_lists = _on_device(passes.exact.advance_lists)
+    mark_segments_steps = passes.segments.mark_steps  # stepped: it yields between turns
     edge_distance = _on_device(passes.edges.edge_distance)
     run_shadow_test = _on_device(passes.shadow_test.run_shadow_test)
     read_shadow_test = _on_device(passes.shadow_test.read_shadow_test)
@@ -224,6 +227,7 @@ class ShadowBackend:
             device.free(*self.samples.held(), *self.edge_targets, self.ray_target)
             self.samples = SampleTargets()
             passes.exact.free_lists(self)
+            self.segments.release(device)
             device.free(*self.warp_build.held())
             self.warp_build = WarpBuild()
             self.edge_targets, self.ray_target = (), None

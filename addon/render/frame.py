@@ -91,6 +91,10 @@ class ShadowSettings:
     # The exact pass of a sized light: its points per view sample (lib/exact_soft.glsl), a
     # square, one point per cell of a square grid.
     exact_samples: int = EXACT_SAMPLES
+    # The exact pass of a sized light over a scene of opaque triangles walks one segment a
+    # light point through a box tree (passes/segments.py) instead of its lists: the same
+    # marks at a cost that grows with the log of the triangles. False keeps the lists.
+    exact_segments: bool = True
 
     def __post_init__(self) -> None:
         known = POINT_PARAMETERIZATIONS + PROJECTIVE_PARAMETERIZATIONS

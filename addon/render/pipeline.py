@@ -70,12 +70,14 @@ from .frame import (
 )
 from .footprint_runs import RunMemo, footprint_draws, region_uniforms
 from .pacing import Steps, drive
+from .passes import segments
 from .passes.media import NO_MEDIA, MediaFrame, MediaMemo, media_points, read_haze
 from .parameterizations import DrawInputs, parameterization, slot_rotations_and_crops
 from .plan_memo import PlanMemo
 from .resident import ResidentScene
 from .shaders import GRID_SAMPLERS_KEY, PARAM_CODES, SLOTS
-from .soft import SizedMode, hit_words, list_resolution, share_points, sized_mode, soft_uniforms
+from .soft import (SizedMode, exact_soft_uniforms, hit_words, list_resolution, sample_far, share_points, sized_mode,
+                   soft_uniforms)
 from .stage_clock import StageClock
 from .unfold import edge_aa_parameters
 
@@ -274,10 +276,15 @@ class ShadowPipeline:
             # Texels outside a layer's box are neither cleared nor drawn (map-space culling).
             backend.begin_atlas(layout, {tile_of_slot[slot]: box for slot, box in boxes.items()})
             if settings.exact:
-                # The irregular z-buffer's lists.
+                # The irregular z-buffer's lists (by segments: only their marks).
                 self.link_lists(light, plan, mappings, res, hit_words(light, settings),
                                 media=media if media.on else None)
-            edge_radius = yield from scheme.draw_steps(backend, inputs)
+            if by_segments(light, settings, scene, media):
+                yield from backend.mark_segments_steps(scene, light.position, exact_soft_uniforms(light, settings),
+                                                       sample_far(plan, light))
+                edge_radius = 0
+            else:
+                edge_radius = yield from scheme.draw_steps(backend, inputs)
             if settings.exact and (measure.sync_stages or measure.count_work):
                 # A measuring frame draws the exact pass's later rounds in its own time; any
                 # other leaves the check of their need (a read) to its first read.
@@ -389,6 +396,13 @@ class ShadowPipeline:
             uniforms.update(grid_uniforms, **{GRID_SAMPLERS_KEY: samplers})
         self.backend.run_shadow_test(uniforms)
         return uniforms
+
+
+def by_segments(light: LightSpec, settings: ShadowSettings, scene: ResidentScene, media: MediaFrame) -> bool:
+    """Whether a frame's exact pass walks segments through a tree (passes/segments.py)
+    rather than its lists: a sized light's, over opaque triangles without media."""
+    return (settings.exact and settings.exact_segments and sized_mode(light, settings) is SizedMode.EXACT_SOFT
+            and not media.on and segments.fits(scene))
 
 
 def _completer(backend: ShadowBackend, test: dict | None) -> Callable[[], None]:

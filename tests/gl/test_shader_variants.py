@@ -71,9 +71,9 @@ def test_every_variant_has_its_own_name():
     # 3 programs x (generic, 2 kinds) x (warped, plain), and the footprint point sprites x 2 kinds x 2
     assert len(set(names)) == len(names) == 22
     scatter_names = [iface.name for iface in COMPUTE_PROGRAMS]
-    # the generic scatter and 3 modes x 3 kinds, the sample statistics, the barrier, the list advance, the 12 warp steps,
-    # the list linking x 3 kinds
-    assert len(set(scatter_names)) == len(scatter_names) == 28
+    # the generic scatter and 3 modes x 3 kinds, the sample statistics, the barrier, the list advance, the segments'
+    # walk, the 12 warp steps, the list linking x 3 kinds
+    assert len(set(scatter_names)) == len(scatter_names) == 29
 
 
 def test_scatter_variant_fixes_mode_and_kind():

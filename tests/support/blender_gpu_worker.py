@@ -77,8 +77,10 @@ def alpha_frames(pipeline):
 
 def soft_frames(pipeline):
     """Visibility of the sized lights' scenes (tests/gl/test_soft_filter.py), by key: the
-    soft filter, and the exact pass's samples of the light; a spot's and a sun's over
-    their own map."""
+    soft filter, and the exact pass's samples of the light (by segments through the tree,
+    and by its lists); a spot's and a sun's over their own map."""
+    import dataclasses
+
     from addon.render.frame import settings_for
     from tests.gl.test_soft_filter import _scene
     from tests.support.oracle import view_samples
@@ -89,9 +91,13 @@ def soft_frames(pipeline):
         samples, _, _ = view_samples(scene)
         methods = ("sm", "psm", "exact") if name in ("spot", "sun") else ("dpsm+notw", "cube", "exact")
         for method in methods:
-            result = pipeline.render(scene.light, scene.world_triangles(), samples,
-                                     settings_for(method, 256, scene.light.emission))
+            settings = settings_for(method, 256, scene.light.emission)
+            result = pipeline.render(scene.light, scene.world_triangles(), samples, settings)
             frames[f"soft_{name}_{method}_visibility"] = result.visibility
+            if method == "exact":
+                lists = dataclasses.replace(settings, exact_segments=False)
+                frames[f"soft_{name}_exact_lists_visibility"] = pipeline.render(
+                    scene.light, scene.world_triangles(), samples, lists).visibility
     return frames
 
 
