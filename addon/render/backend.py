@@ -165,6 +165,7 @@ class ShadowBackend:
     build_warp_crop = _on_device(passes.warp.build_crop)
     build_warp_family = _on_device(passes.warp.build_family)
     link_samples = _on_device(passes.exact.link_samples)
+    hold_lists = _on_device(passes.exact.hold_lists)
     read_links = _on_device(passes.exact.read_links)
     read_hits = _on_device(passes.exact.read_hits)
     read_media = _on_device(passes.exact.read_media)

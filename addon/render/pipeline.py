@@ -275,11 +275,15 @@ class ShadowPipeline:
         with clock.part("shadow_maps", "shadow_maps"):
             # Texels outside a layer's box are neither cleared nor drawn (map-space culling).
             backend.begin_atlas(layout, {tile_of_slot[slot]: box for slot, box in boxes.items()})
-            if settings.exact:
-                # The irregular z-buffer's lists (by segments: only their marks).
+            segments_walk = by_segments(light, settings, scene, media)
+            if segments_walk:
+                # The segments mark the lists' words; no sample is linked into a list.
+                backend.hold_lists(res, max(len(plan.drawn), 1), hit_words(light, settings))
+            elif settings.exact:
+                # The irregular z-buffer's lists.
                 self.link_lists(light, plan, mappings, res, hit_words(light, settings),
                                 media=media if media.on else None)
-            if by_segments(light, settings, scene, media):
+            if segments_walk:
                 yield from backend.mark_segments_steps(scene, light.position, exact_soft_uniforms(light, settings),
                                                        sample_far(plan, light))
                 edge_radius = 0

@@ -467,10 +467,15 @@ class ResidentScene:
             return None
         return np.min([b[0] for b in boxes], axis=0), np.max([b[1] for b in boxes], axis=0)
 
+    def state(self) -> tuple:
+        """What the scene's geometry is now: each object's key, revision and matrix. Equal
+        states hold the same triangles in the same places (a host copy made of them may be kept)."""
+        return tuple((key, obj.revision, obj.matrix.tobytes()) for key, obj in self.objects.items())
+
     def world_triangles(self) -> np.ndarray:
         """All objects' triangles in world space, (T, 3, 3) float64, pieces left out: a host
         copy, for measurement and the unfold method (kept until an object changes or moves)."""
-        state = tuple((key, obj.revision, obj.matrix.tobytes()) for key, obj in self.objects.items())
+        state = self.state()
         if self._world is None or self._world[0] != state:
             parts = [obj.world_triangles() for obj in self.objects.values()
                      if obj.triangles and not obj.pieces and obj.medium is None]

@@ -20,22 +20,14 @@ from pathlib import Path
 REPO = Path(__file__).resolve().parents[2]
 sys.path.insert(0, str(REPO))
 
-from tests.support.make_left_out_blend import _mesh  # noqa: E402
+from tests.support.make_left_out_blend import _camera, _mesh, _object  # noqa: E402
 
 
 def _plane(name: str, size: float) -> "bpy.types.Object":
     """A flat square of side 2 * size, its normal +Z."""
     import bmesh
-    import bpy
 
-    mesh = bpy.data.meshes.new(name)
-    bm = bmesh.new()
-    bmesh.ops.create_grid(bm, x_segments=8, y_segments=8, size=size)
-    bm.to_mesh(mesh)
-    bm.free()
-    obj = bpy.data.objects.new(name, mesh)
-    bpy.context.scene.collection.objects.link(obj)
-    return obj
+    return _object(name, lambda made: bmesh.ops.create_grid(made, x_segments=8, y_segments=8, size=size))
 
 
 def build(out: Path, strands: int, size: tuple[int, int], sun_angle: float) -> None:
@@ -74,11 +66,7 @@ def build(out: Path, strands: int, size: tuple[int, int], sun_angle: float) -> N
     sun.hide_viewport = True
     scene.collection.objects.link(sun)
 
-    cam = bpy.data.objects.new("Camera", bpy.data.cameras.new("Camera"))
-    cam.location = (2.4, -2.4, 2.2)
-    cam.rotation_euler = (math.radians(58.0), 0.0, math.radians(45.0))
-    scene.collection.objects.link(cam)
-    scene.camera = cam
+    _camera(scene, (2.4, -2.4, 2.2), (math.radians(58.0), 0.0, math.radians(45.0)))
     bpy.ops.wm.save_as_mainfile(filepath=str(out))
 
 

@@ -28,23 +28,7 @@ from pathlib import Path
 REPO = Path(__file__).resolve().parents[2]
 sys.path.insert(0, str(REPO))
 
-from tests.support.make_left_out_blend import _geometry_nodes, _node  # noqa: E402
-
-
-def _object(name: str, fill, location) -> "bpy.types.Object":
-    """A mesh object linked to the scene at `location`, its mesh made by `fill(bmesh)`."""
-    import bmesh
-    import bpy
-
-    mesh = bpy.data.meshes.new(name)
-    made = bmesh.new()
-    fill(made)
-    made.to_mesh(mesh)
-    made.free()
-    obj = bpy.data.objects.new(name, mesh)
-    obj.location = location
-    bpy.context.scene.collection.objects.link(obj)
-    return obj
+from tests.support.make_left_out_blend import _camera, _geometry_nodes, _node, _object  # noqa: E402
 
 
 def _box(name: str, size, location) -> "bpy.types.Object":
@@ -208,12 +192,7 @@ def build(out: Path, size: tuple[int, int], detail: int) -> None:
     _light("Fill", "AREA", (1.5, -1.8, 2.2), (math.radians(-30.0), 0.0, math.radians(30.0)), 10.0,
            shape="DISK", size=0.8, use_shadow=False)
 
-    cam = bpy.data.objects.new("Camera", bpy.data.cameras.new("Camera"))
-    cam.location = (6.0, -6.0, 5.2)
-    cam.rotation_euler = (math.radians(60.0), 0.0, math.radians(45.0))
-    cam.data.lens = 35.0
-    scene.collection.objects.link(cam)
-    scene.camera = cam
+    _camera(scene, (6.0, -6.0, 5.2), (math.radians(60.0), 0.0, math.radians(45.0)), lens=35.0)
     bpy.ops.wm.save_as_mainfile(filepath=str(out))
 
 

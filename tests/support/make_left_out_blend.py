@@ -113,19 +113,41 @@ def _instanced_volume(tree, geometry):
     return node.outputs["Instances"]
 
 
-def _mesh(name: str, size: float, location) -> "bpy.types.Object":
+def _object(name: str, fill, location=(0.0, 0.0, 0.0)) -> "bpy.types.Object":
+    """A mesh object linked to the scene at `location`, its mesh made by `fill(bmesh)`."""
     import bmesh
     import bpy
 
     mesh = bpy.data.meshes.new(name)
     made = bmesh.new()
-    bmesh.ops.create_cube(made, size=size)
+    fill(made)
     made.to_mesh(mesh)
     made.free()
     obj = bpy.data.objects.new(name, mesh)
     obj.location = location
     bpy.context.scene.collection.objects.link(obj)
     return obj
+
+
+def _mesh(name: str, size: float, location) -> "bpy.types.Object":
+    """A cube of side `size` centred at `location`."""
+    import bmesh
+
+    return _object(name, lambda made: bmesh.ops.create_cube(made, size=size), location)
+
+
+def _camera(scene, location, rotation, lens: float | None = None) -> "bpy.types.Object":
+    """The scene's camera, at `location` turned by the Euler angles `rotation` (radians)."""
+    import bpy
+
+    camera = bpy.data.objects.new("Camera", bpy.data.cameras.new("Camera"))
+    camera.location = location
+    camera.rotation_euler = rotation
+    if lens is not None:
+        camera.data.lens = lens
+    scene.collection.objects.link(camera)
+    scene.camera = camera
+    return camera
 
 
 def _with_nodes(obj, tree) -> None:
@@ -163,11 +185,7 @@ def _stage(size: tuple[int, int]) -> "bpy.types.Scene":
     light.data.shadow_soft_size = 0.0
     light.location = (0.5, -0.5, 4.0)
     scene.collection.objects.link(light)
-    camera = bpy.data.objects.new("Camera", bpy.data.cameras.new("Camera"))
-    camera.location = (0.0, -7.0, 5.0)
-    camera.rotation_euler = (0.9, 0.0, 0.0)
-    scene.collection.objects.link(camera)
-    scene.camera = camera
+    _camera(scene, (0.0, -7.0, 5.0), (0.9, 0.0, 0.0))
     return scene
 
 

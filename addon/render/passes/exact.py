@@ -75,15 +75,15 @@ def held_lists(backend, caller: str) -> ExactLists:
     return backend.exact
 
 
-def link_samples(backend, size: int, tiles: int, uniforms: UniformValues, hit_words: int = 1,
-                 media: int = 0, media_across: int = 1) -> None:
-    """Link every uploaded sample into the list of the map texel it falls in, through the
-    full warp (shaders.link_variant, the scatter's uniforms with ow_count_size = the map
-    resolution), with `hit_words` words of marks a sample (a sized light's bits), and the
-    samples' optical depths of `media` light points each cleared, `media_across` of them a
-    row of blocks (passes/media.py's SampleMedia; 0: none)."""
+def hold_lists(backend, size: int, tiles: int, hit_words: int = 1, media: int = 0,
+               media_across: int = 1) -> ExactLists:
+    """The lists' images for this frame, cleared: heads of `size` texels a side for `tiles`
+    tiles, `hit_words` words of marks a sample (a sized light's bits), and the samples'
+    optical depths of `media` light points each, `media_across` of them a row of blocks
+    (passes/media.py's SampleMedia; 0: none). The segments' pass (passes/segments.py) marks
+    these words without linking the samples."""
     if backend.samples.size is None:
-        raise BackendError("link_samples called before upload_samples")
+        raise BackendError("the exact pass's lists held before upload_samples")
     device = backend.device
     width, height = backend.samples.size
     sizes = ((size * tiles, size), (width, height), (width, height * hit_words), (WORK_TEXELS, 1))
@@ -99,8 +99,18 @@ def link_samples(backend, size: int, tiles: int, uniforms: UniformValues, hit_wo
         backend.sample_media.live = False
     held.work_done = dict.fromkeys(WORK_KEYS, 0)  # a new dict: an earlier frame keeps its own
     held.rounds = None
+    return held
+
+
+def link_samples(backend, size: int, tiles: int, uniforms: UniformValues, hit_words: int = 1,
+                 media: int = 0, media_across: int = 1) -> None:
+    """Link every uploaded sample into the list of the map texel it falls in, through the
+    full warp (shaders.link_variant, the scatter's uniforms with ow_count_size = the map
+    resolution), into the lists `hold_lists` makes ready (its arguments)."""
+    held = hold_lists(backend, size, tiles, hit_words, media, media_across)
+    width, height = backend.samples.size
     iface = link_variant(uniforms)
-    device.dispatch(iface, uniforms, backend.textures, held.images(iface), iface.groups(width * height))
+    backend.device.dispatch(iface, uniforms, backend.textures, held.images(iface), iface.groups(width * height))
 
 
 def read_links(backend) -> tuple[np.ndarray, np.ndarray]:

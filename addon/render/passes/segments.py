@@ -61,8 +61,7 @@ class SegmentTree:
 
     def ready(self, device, scene, light_position: np.ndarray) -> None:
         """Build and upload the tree unless this scene state and light already have it."""
-        state = tuple((k, obj.revision, obj.matrix.tobytes()) for k, obj in scene.objects.items())
-        key = (state, np.asarray(light_position, dtype=np.float64).tobytes())
+        key = (scene.state(), np.asarray(light_position, dtype=np.float64).tobytes())
         if key == self.key:
             return
         parts = [obj.light_centred(light_position) for obj in scene.objects.values() if obj.triangles]
@@ -79,14 +78,14 @@ class SegmentTree:
 
 
 def mark_steps(backend, scene, light_position: np.ndarray, soft: UniformValues, sample_far: float) -> Steps[int]:
-    """Mark, in the lists' hits image (passes/exact.link_samples first), every light point
+    """Mark, in the lists' hits image (passes/exact.hold_lists first), every light point
     of some weight whose segment from a sample some triangle crosses; returns the turns
     taken, and yields between turns while the backend's pacer is stepping (the viewport).
     `soft` are the exact soft uniforms (render/soft.exact_soft_uniforms), `sample_far`
     the farthest a sample lies from the light (0: not known)."""
     lists = backend.exact
     if lists is None:
-        raise BackendError("segments.mark called before link_samples")
+        raise BackendError("segments.mark_steps called before hold_lists")
     device = backend.device
     held: SegmentTree = backend.segments
     held.ready(device, scene, light_position)
